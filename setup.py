@@ -1,0 +1,37 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'friction_sim'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    package_data={package_name: ['py.typed']},
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', glob('config/*.yaml')),
+    ],
+    # ROS dependencies (rclpy, message packages) are declared in package.xml
+    # and, outside a ROS installation, come from the PyPI wheels listed in
+    # requirements.txt.
+    install_requires=['setuptools', 'numpy', 'pyyaml'],
+    zip_safe=True,
+    python_requires='>=3.10',
+    maintainer='friction_sim maintainers',
+    maintainer_email='maintainers@friction-sim.dev',
+    description=(
+        "Exact event-driven stick-slip simulator of a vibratory-feeder slider "
+        "after R. Kostek's model, with ROS 2 nodes and MCAP recording."
+    ),
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+            'slider = friction_sim.nodes.slider:main',
+            'controller = friction_sim.nodes.controller:main',
+            'friction-sim = friction_sim.cli:main',
+        ],
+    },
+)

@@ -1,0 +1,20 @@
+"""Session-wide test environment for friction_sim.
+
+This module is imported by pytest before any test module, and therefore before
+rclpy is imported anywhere.  The RMW layer reads its discovery settings from
+the environment when rclpy initialises, so they must be set here:
+
+* ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (always forced in tests): DDS
+  discovery never leaves this machine.
+* ``ROS_DOMAIN_ID``: a random domain per test session, so concurrent test runs
+  (or a demo running beside them) do not see each other's nodes and topics.
+  If the Makefile (or the caller) already chose one, that value is kept.
+* ``MPLBACKEND=Agg``: plotting works without a display (CI has none).
+"""
+
+import os
+import random
+
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+os.environ.setdefault('ROS_DOMAIN_ID', str(random.SystemRandom().randint(1, 100)))
+os.environ['MPLBACKEND'] = 'Agg'

@@ -1,0 +1,118 @@
+"""The repository is a well-formed ROS 2 ament_python package.
+
+These tests check what ROS tooling sees: package.xml as parsed by catkin_pkg,
+the package as discovered by ``colcon list``, and the install tree produced by
+``colcon build`` (console scripts where ``ros2 run`` looks for them, the
+ament index marker, package.xml and the default parameters file).
+"""
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+PKG = 'friction_sim'
+COLCON = Path(sys.executable).parent / 'colcon'
+
+needs_colcon = pytest.mark.skipif(
+    not COLCON.exists(), reason=f'colcon not installed next to {sys.executable}')
+
+
+def _colcon_env(tmp_path: Path) -> dict:
+    env = dict(os.environ)
+    # Hermetic colcon: no user-level defaults/mixins, logs outside the repo.
+    env['COLCON_HOME'] = str(tmp_path / 'colcon_home')
+    env['COLCON_LOG_PATH'] = str(tmp_path / 'log')
+    env.pop('COLCON_DEFAULTS_FILE', None)
+    return env
+
+
+def _run(cmd: list, tmp_path: Path, timeout: float) -> subprocess.CompletedProcess:
+    proc = subprocess.run(
+        [str(c) for c in cmd], cwd=REPO, env=_colcon_env(tmp_path),
+        stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        text=True, timeout=timeout)
+    assert proc.returncode == 0, (
+        f'{" ".join(map(str, cmd))} exited {proc.returncode}:\n{proc.stdout}')
+    return proc
+
+
+def test_package_xml_parses_with_catkin_pkg():
+    from catkin_pkg.package import parse_package
+
+    pkg = parse_package(str(REPO / 'package.xml'))  # validates the manifest
+    assert pkg.name == PKG
+    assert pkg.package_format == 3
+    assert pkg.version == '0.1.0'
+    assert pkg.get_build_type() == 'ament_python'
+    assert pkg.licenses == ['Apache-2.0']
+    assert pkg.maintainers, 'package.xml needs a maintainer'
+    for m in pkg.maintainers:
+        assert m.email and re.fullmatch(r'[^@\s]+@[^@\s]+\.[A-Za-z]{2,}', m.email), m.email
+    exec_deps = {d.name for d in pkg.exec_depends}
+    for dep in ('rclpy', 'std_msgs', 'geometry_msgs', 'diagnostic_msgs', 'rosgraph_msgs'):
+        assert dep in exec_deps, f'missing <exec_depend>{dep}</exec_depend>'
+
+
+def test_resource_marker_and_config_exist():
+    assert (REPO / 'resource' / PKG).is_file()
+    assert (REPO / 'config' / 'slider.yaml').is_file()
+    assert (REPO / PKG / 'py.typed').is_file()
+
+
+def test_default_params_file_is_ros2_params_form():
+    yaml = pytest.importorskip('yaml')
+    data = yaml.safe_load((REPO / 'config' / 'slider.yaml').read_text())
+    params = data['/**']['ros__parameters']
+    assert params['mass'] == 1.0 and isinstance(params['mass'], float)
+    assert params['mu'] == 0.1
+    assert params['gravity'] == 10.0
+    assert params['drive_force'] == 0.7
+    assert params['excitation_amplitude'] == 5.0
+    assert params['excitation_frequency'] == 50.0
+    assert params['publish_rate'] == 1000.0
+    assert params['real_time_factor'] == 1.0
+    assert params['publish_clock'] is False
+    assert params['mean_window_periods'] == 1
+    assert params['frame_id'] == 'slideway'
+
+
+@needs_colcon
+def test_colcon_list_finds_ament_python_package(tmp_path):
+    proc = _run([COLCON, '--log-base', tmp_path / 'log', 'list', '--base-paths', REPO],
+                tmp_path, timeout=120)
+    rows = [line.split('\t') for line in proc.stdout.splitlines() if '\t' in line]
+    assert [PKG, str(REPO), '(ros.ament_python)'] in rows, proc.stdout
+
+
+@needs_colcon
+@pytest.mark.timeout(300)
+def test_colcon_build_install_layout(tmp_path):
+    before = {p.name for p in REPO.iterdir()}
+    build, install, log = tmp_path / 'build', tmp_path / 'install', tmp_path / 'log'
+    _run([COLCON, '--log-base', log, 'build',
+          '--base-paths', REPO, '--build-base', build, '--install-base', install],
+         tmp_path, timeout=280)
+
+    prefix = install / PKG
+    for script in ('slider', 'controller', 'friction-sim'):
+        exe = prefix / 'lib' / PKG / script
+        assert exe.is_file(), f'missing console script {exe}'
+        assert os.access(exe, os.X_OK), f'{exe} is not executable'
+    assert (prefix / 'share' / 'ament_index' / 'resource_index' / 'packages' / PKG).is_file()
+    assert (prefix / 'share' / PKG / 'package.xml').is_file()
+    assert (prefix / 'share' / PKG / 'config' / 'slider.yaml').is_file()
+
+    # The build must not leave anything behind in the source tree.  (Only
+    # colcon/setuptools artefacts are checked: other files may legitimately
+    # appear while tests run.)
+    after = {p.name for p in REPO.iterdir()}
+    leftovers = sorted(n for n in after - before
+                       if n in ('build', 'install', 'log') or n.endswith('.egg-info'))
+    assert not leftovers, f'colcon build left {leftovers} in the repo'
+    shutil.rmtree(tmp_path, ignore_errors=True)
