@@ -1,0 +1,500 @@
+"""The exact, event-driven stick-slip core (no ROS, numpy only).
+
+Model (R. Kostek): a rigid slider of mass m on a slideway with one Coulomb
+friction coefficient mu, pushed by a tangential force Ft = Fd + Fx and unloaded
+by a normal harmonic force, so that the normal reaction is
+
+    R(t) = m*g + Fz - Pa*sin(theta(t)),   d(theta)/dt = 2*pi*f.
+
+Stuck (v = 0) while |Ft| <= mu*R; slipping, m*dv/dt = Ft - mu*R*sign(v).
+
+Between two events every quantity has a closed form, because the acceleration
+is a constant plus a sinusoid.  Writing s = +-1 for the slip direction and
+w = s*v >= 0 for the speed, over a slip that starts at (t0, x0, w0, theta0):
+
+    w(tau)  = w0 + B0*tau + (B1/omega)*(cos(theta0) - cos(theta0 + omega*tau))
+    B0 = (s*Ft - mu*(m*g + Fz)) / m,   B1 = mu*Pa/m >= 0
+
+and x is its integral.  Events are the roots of simple equations:
+
+* stick -> slip: |Ft| rises above mu*R, i.e. Pa*sin(theta) > m*g + Fz - |Ft|/mu,
+  solved in closed form with asin;
+* slip -> stick or reversal: w returns to 0.  w is monotone between the zeros
+  of w' = B0 + B1*sin(theta), so the root is bracketed on the first falling
+  stretch that ends at or below zero (found in closed form, because the minima
+  of w grow by exactly B0*T from one period to the next) and polished with a
+  Newton iteration guarded by bisection.
+
+So there is no step size anywhere, a stuck slider does not creep (x is held,
+not integrated), and because a segment is evaluated from its own start, how the
+time axis is cut into :meth:`Slider.advance_to` calls does not change the
+result.  Every slip from rest at the same phase with the same inputs is the same
+slip, which is why the periodic regime is cheap: its stop time is cached.
+
+The design follows scipy's ``_ivp`` solvers: one object owns the state and
+advances it; detecting the next event (:func:`next_slip_start`,
+:func:`slip_stop_delay`) is kept apart from acting on it
+(:meth:`Slider._apply`); results come back as typed records
+(:class:`SliderState`, :class:`Event`, :class:`Trajectory`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+from enum import Enum, IntEnum
+from types import ModuleType
+from typing import Any, Deque
+
+import numpy as np
+
+from friction_sim.errors import ParameterError
+from friction_sim.params import Inputs, SliderParams, check_contact, require_finite
+
+TWO_PI = 2.0 * math.pi
+NEVER = math.inf
+
+#: Phase tolerance [rad] below which a rounding-level distance from the slip
+#: window's edge counts as being on the edge (a full period is never skipped).
+_PHASE_EDGE = 1e-12
+_CACHE_LIMIT = 256
+
+
+class Mode(IntEnum):
+    """What the slider is doing: its slip direction, or stuck."""
+
+    BACKWARD = -1
+    STUCK = 0
+    FORWARD = 1
+
+
+class EventKind(str, Enum):
+    """The transitions of the stick-slip motion."""
+
+    SLIP_START = "slip_start"  # stuck -> slipping
+    STICK = "stick"  # slipping -> stuck
+    REVERSAL = "reversal"  # slipping one way -> slipping the other, through v = 0
+
+
+@dataclass(frozen=True, slots=True)
+class Event:
+    """One transition.  Position and velocity are continuous through it
+    (v = 0 at every kind of event); what changes is the mode."""
+
+    t: float
+    kind: EventKind
+    x: float
+    phase: float
+    before: Mode
+    after: Mode
+
+
+@dataclass(frozen=True, slots=True)
+class SliderState:
+    """Everything about the slider at one instant (SI units, phase in [0, 2*pi))."""
+
+    t: float
+    x: float
+    v: float
+    acceleration: float
+    friction_force: float
+    normal_force: float
+    phase: float
+    mode: Mode
+
+    @property
+    def stuck(self) -> bool:
+        """True while the slider sticks to the slideway."""
+        return self.mode is Mode.STUCK
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Exact samples of the motion at given times, one array per quantity."""
+
+    t: np.ndarray
+    x: np.ndarray
+    v: np.ndarray
+    acceleration: np.ndarray
+    friction_force: np.ndarray
+    normal_force: np.ndarray
+    phase: np.ndarray
+    mode: np.ndarray
+
+
+# --------------------------------------------------------------------------
+# Event detection: pure functions of one segment's data.
+# --------------------------------------------------------------------------
+
+
+def next_slip_start(
+    phase: float, tangential: float, load: float, amplitude: float, mu: float
+) -> tuple[float, float, int]:
+    """When a stuck slider starts to slip, seen from excitation phase ``phase``.
+
+    Returns ``(delta_phase, start_phase, direction)``: the phase still to run
+    (0 when the slip starts at once, ``inf`` when it never starts), the phase at
+    which it starts, and the slip direction sign(Ft).  ``load`` is m*g + Fz.
+    """
+    if tangential == 0.0:
+        return NEVER, NEVER, 0
+    direction = 1 if tangential > 0.0 else -1
+    excess = abs(tangential)
+    if excess > mu * (load - amplitude * math.sin(phase)):
+        return 0.0, phase, direction
+    if amplitude == 0.0:
+        return NEVER, NEVER, direction
+    edge = (load - excess / mu) / amplitude
+    if edge >= 1.0:
+        return NEVER, NEVER, direction
+    if edge < -1.0:  # the window covers every phase; only rounding kept us here
+        return 0.0, phase, direction
+    start = math.asin(edge) % TWO_PI
+    delta = (start - phase) % TWO_PI
+    if delta > TWO_PI - _PHASE_EDGE:  # a hair past the edge: starts now
+        return 0.0, phase, direction
+    return delta, start, direction
+
+
+def slip_stop_delay(w0: float, b0: float, b1: float, phase0: float, omega: float) -> float:
+    """Time until the speed w = s*v of a slip returns to zero (``inf``: never).
+
+    ``w0`` >= 0 is the speed at the start, ``b0`` and ``b1`` >= 0 the constant
+    and sinusoidal parts of dw/dt = b0 + b1*sin(phase0 + omega*tau).
+    """
+    if b1 <= 0.0:
+        if b0 >= 0.0:
+            return NEVER
+        return w0 / -b0
+    if b0 >= b1:  # dw/dt >= 0 everywhere: it never comes back
+        return NEVER
+    if b0 <= -b1:  # dw/dt <= 0 everywhere: one falling stretch from now on
+        if w0 == 0.0:
+            return 0.0
+        hi = (w0 + (b1 / omega) * (1.0 + math.cos(phase0))) / -b0
+        return _falling_root(w0, b0, b1, phase0, omega, 0.0, hi)
+    return _stop_with_turning_points(w0, b0, b1, phase0, omega)
+
+
+def _stop_with_turning_points(w0: float, b0: float, b1: float, phase0: float, omega: float) -> float:
+    """slip_stop_delay for |b0| < b1, where w rises and falls once per period.
+
+    In delta = phase - beta (beta = asin(-b0/b1), where w has its minimum)
+    w rises on (0, pi - 2*beta) and falls on [pi - 2*beta, 2*pi], and so on
+    every period; the minima (at delta = 2*pi*k) differ by exactly b0*T.
+    """
+    beta = math.asin(-b0 / b1)
+    rise = math.pi - 2.0 * beta
+    delta0 = (phase0 - beta) % TWO_PI
+    if w0 == 0.0:
+        if delta0 > TWO_PI - _PHASE_EDGE:
+            delta0 = 0.0
+        if delta0 >= rise:  # would start from rest while decelerating
+            return 0.0
+    period = TWO_PI / omega
+    lo = max(0.0, (rise - delta0) / omega)
+    hi = (TWO_PI - delta0) / omega
+    w_min = _speed(w0, b0, b1, phase0, omega, hi)
+    if w_min > 0.0:
+        if b0 >= 0.0:  # the minima only grow: never back to rest
+            return NEVER
+        hi += max(1, math.ceil(w_min / (-b0 * period))) * period
+        while _speed(w0, b0, b1, phase0, omega, hi) > 0.0:  # rounding guard
+            hi += period
+        lo = hi - (TWO_PI - rise) / omega
+    return _falling_root(w0, b0, b1, phase0, omega, lo, hi)
+
+
+def _speed(w0: float, b0: float, b1: float, phase0: float, omega: float, tau: float) -> float:
+    """w(tau) of a slip segment."""
+    return w0 + b0 * tau + (b1 / omega) * (math.cos(phase0) - math.cos(phase0 + omega * tau))
+
+
+def _falling_root(
+    w0: float, b0: float, b1: float, phase0: float, omega: float, lo: float, hi: float
+) -> float:
+    """The root of w on [lo, hi], where w is monotone with w(lo) > 0 >= w(hi).
+
+    Newton's method from the secant point, with every iterate kept inside the
+    shrinking bracket (bisection when Newton would leave it), to full double
+    precision.
+    """
+    k = b1 / omega
+    cos0 = math.cos(phase0)
+    w_lo = w0 + b0 * lo + k * (cos0 - math.cos(phase0 + omega * lo))
+    w_hi = w0 + b0 * hi + k * (cos0 - math.cos(phase0 + omega * hi))
+    if w_hi >= 0.0:
+        return hi
+    if w_lo <= 0.0:
+        return lo
+    tau = lo + (hi - lo) * (w_lo / (w_lo - w_hi))
+    for _ in range(200):
+        theta = phase0 + omega * tau
+        w = w0 + b0 * tau + k * (cos0 - math.cos(theta))
+        if w > 0.0:
+            lo = tau
+        elif w < 0.0:
+            hi = tau
+        else:
+            return tau
+        slope = b0 + b1 * math.sin(theta)
+        step = tau - w / slope if slope < 0.0 else math.nan
+        if not lo < step < hi:
+            step = 0.5 * (lo + hi)
+        if step == tau or abs(step - tau) <= 2.2e-16 * abs(tau):
+            return step
+        tau = step
+    return tau
+
+
+# --------------------------------------------------------------------------
+# The segment: closed-form motion between two events.
+# --------------------------------------------------------------------------
+
+
+class _Segment:
+    """Closed-form motion from (t0, x0, w0, phase0) under constant inputs.
+
+    ``direction`` 0 is stuck; +-1 is a slip, whose speed w = direction*v.
+    """
+
+    __slots__ = (
+        "t0", "x0", "w0", "phase0", "direction", "omega", "b0", "b1",
+        "tangential", "load", "amplitude", "mu", "mass", "cos0", "sin0",
+    )
+
+    def __init__(
+        self, t0: float, x0: float, w0: float, phase0: float, direction: int,
+        params: SliderParams, inputs: Inputs,
+    ) -> None:
+        self.t0, self.x0, self.w0, self.phase0, self.direction = t0, x0, w0, phase0, direction
+        self.omega = TWO_PI * inputs.excitation_frequency
+        self.tangential = inputs.tangential_force
+        self.load = params.weight + inputs.external_force_z
+        self.amplitude = inputs.excitation_amplitude
+        self.mu, self.mass = params.mu, params.mass
+        self.b0 = (direction * self.tangential - self.mu * self.load) / self.mass
+        self.b1 = self.mu * self.amplitude / self.mass
+        self.cos0, self.sin0 = math.cos(phase0), math.sin(phase0)
+
+    def evaluate(self, t: Any, xp: ModuleType = math) -> tuple[Any, Any, Any, Any, Any, Any]:
+        """(x, v, acceleration, friction force, normal force, phase) at time(s) t.
+
+        ``xp`` is ``math`` for one float or ``numpy`` for an array of times.
+        """
+        tau = t - self.t0
+        theta = self.phase0 + self.omega * tau
+        sin_theta = xp.sin(theta)
+        normal = self.load - self.amplitude * sin_theta
+        s = self.direction
+        if s == 0:
+            zero = tau * 0.0
+            return self.x0 + zero, zero, zero, -self.tangential + zero, normal, theta % TWO_PI
+        k = self.b1 / self.omega
+        w = self.w0 + self.b0 * tau + k * (self.cos0 - xp.cos(theta))
+        travel = (
+            (self.w0 + k * self.cos0) * tau
+            + 0.5 * self.b0 * tau * tau
+            - (k / self.omega) * (sin_theta - self.sin0)
+        )
+        acceleration = s * (self.b0 + self.b1 * sin_theta)
+        return self.x0 + s * travel, s * w, acceleration, -s * self.mu * normal, normal, theta % TWO_PI
+
+
+# --------------------------------------------------------------------------
+# The slider: owns the state, advances it event by event.
+# --------------------------------------------------------------------------
+
+
+class Slider:
+    """One slider, advanced exactly in time.
+
+    >>> slider = Slider()                 # the paper's Fig. 2 case
+    >>> events = slider.advance_to(0.1)   # five excitation periods
+    >>> round(slider.state().x * 1e6, 3)  # micrometres travelled
+    1.416
+
+    Inputs and parameters may change between calls; the change takes effect at
+    the current time (:attr:`t`).  ``event_log_size`` bounds :attr:`events`
+    (``None``: unbounded) so a slider that runs for hours keeps constant memory;
+    :attr:`event_counts` always counts every event.
+    """
+
+    def __init__(
+        self,
+        params: SliderParams | None = None,
+        inputs: Inputs | None = None,
+        *,
+        t0: float = 0.0,
+        x0: float = 0.0,
+        phase0: float = 0.0,
+        event_log_size: int | None = 100_000,
+    ) -> None:
+        self._params = params if params is not None else SliderParams()
+        self._inputs = inputs if inputs is not None else Inputs()
+        check_contact(self._params, self._inputs)
+        self._t = require_finite("t0", t0)
+        phase = require_finite("phase0", phase0) % TWO_PI
+        self._events: Deque[Event] = deque(maxlen=event_log_size)
+        self._counts = {kind: 0 for kind in EventKind}
+        self._stuck_time = 0.0
+        self._cache: dict[tuple[float, float, float, float], float] = {}
+        self._start_stuck(self._t, require_finite("x0", x0), phase)
+
+    # -- read-only views -------------------------------------------------------
+
+    @property
+    def t(self) -> float:
+        """Current simulation time [s]."""
+        return self._t
+
+    @property
+    def params(self) -> SliderParams:
+        return self._params
+
+    @property
+    def inputs(self) -> Inputs:
+        return self._inputs
+
+    @property
+    def events(self) -> list[Event]:
+        """The most recent events, oldest first (bounded by ``event_log_size``)."""
+        return list(self._events)
+
+    @property
+    def event_counts(self) -> dict[EventKind, int]:
+        """How many events of each kind happened since the start."""
+        return dict(self._counts)
+
+    @property
+    def stuck_time(self) -> float:
+        """Total time [s] spent stuck since the start, up to :attr:`t`."""
+        seg = self._seg
+        return self._stuck_time + (self._t - seg.t0 if seg.direction == 0 else 0.0)
+
+    @property
+    def next_event_time(self) -> float:
+        """When the next event happens under the present inputs (inf: never)."""
+        return self._next_t
+
+    def state(self) -> SliderState:
+        """The state at the current time :attr:`t`."""
+        seg = self._seg
+        x, v, acc, friction, normal, phase = seg.evaluate(self._t)
+        return SliderState(self._t, x, v, acc, friction, normal, phase, Mode(seg.direction))
+
+    # -- advancing -------------------------------------------------------------
+
+    def advance_to(self, t: float) -> list[Event]:
+        """Advance exactly to time ``t``; return the events on (previous t, t]."""
+        if not t >= self._t:
+            raise ParameterError("t", t, f"must be >= the current time {self._t!r} s")
+        happened: list[Event] = []
+        while self._next_t <= t:
+            happened.extend(self._apply())
+        self._t = float(t)
+        return happened
+
+    def sample(self, times: np.ndarray) -> Trajectory:
+        """Advance through ascending ``times`` (>= :attr:`t`) and return the exact
+        state at each, evaluated segment by segment with numpy."""
+        times = np.asarray(times, dtype=float)
+        if times.ndim != 1 or times.size == 0:
+            raise ParameterError("times", times.shape, "must be a non-empty 1-d array")
+        if times[0] < self._t or np.any(np.diff(times) < 0.0):
+            raise ParameterError("times", float(times[0]), f"must ascend from >= {self._t!r} s")
+        columns = [np.empty_like(times) for _ in range(7)]
+        first = 0
+        while first < times.size:
+            last = int(np.searchsorted(times, self._next_t, side="left"))
+            if last > first:
+                seg = self._seg
+                values = seg.evaluate(times[first:last], np)
+                for column, value in zip(columns, values):
+                    column[first:last] = value
+                columns[6][first:last] = seg.direction
+                first = last
+            if first < times.size:
+                self.advance_to(self._next_t)
+        self._t = float(times[-1])
+        x, v, acc, friction, normal, phase, mode = columns
+        return Trajectory(times, x, v, acc, friction, normal, phase, mode.astype(np.int8))
+
+    # -- changing inputs and parameters ----------------------------------------
+
+    def set_inputs(self, inputs: Inputs | None = None, **changes: Any) -> Inputs:
+        """Change the inputs at the current time; the phase stays continuous.
+
+        Pass a whole :class:`Inputs` or field changes.  A change that would let
+        the normal reaction reach zero is refused and nothing changes.
+        """
+        new = (inputs if inputs is not None else self._inputs).replace(**changes)
+        check_contact(self._params, new)
+        self._rebase(self._params, new)
+        return new
+
+    def set_params(self, params: SliderParams) -> None:
+        """Change mass, mu or gravity at the current time (refused if it would
+        let the normal reaction reach zero under the present inputs)."""
+        check_contact(params, self._inputs)
+        self._rebase(params, self._inputs)
+
+    # -- internals: acting on events -------------------------------------------
+
+    def _rebase(self, params: SliderParams, inputs: Inputs) -> None:
+        """Start a new segment at the current time from the current state."""
+        seg = self._seg
+        x, v, _, _, _, phase = seg.evaluate(self._t)
+        if seg.direction == 0:
+            self._stuck_time += self._t - seg.t0
+        self._params, self._inputs = params, inputs
+        w = seg.direction * v
+        if seg.direction != 0 and w > 0.0:
+            self._start_slip(self._t, x, w, phase, seg.direction)
+        else:
+            self._start_stuck(self._t, x, phase)
+
+    def _start_stuck(self, t: float, x: float, phase: float) -> None:
+        self._seg = seg = _Segment(t, x, 0.0, phase, 0, self._params, self._inputs)
+        delta, start_phase, direction = next_slip_start(
+            phase, seg.tangential, seg.load, seg.amplitude, seg.mu
+        )
+        self._next_t = t + delta / seg.omega
+        self._next_start = (start_phase, direction)
+
+    def _start_slip(self, t: float, x: float, w: float, phase: float, direction: int) -> None:
+        self._seg = seg = _Segment(t, x, w, phase, direction, self._params, self._inputs)
+        if w == 0.0:
+            key = (phase, seg.b0, seg.b1, seg.omega)
+            delay = self._cache.get(key)
+            if delay is None:
+                if len(self._cache) >= _CACHE_LIMIT:
+                    self._cache.clear()
+                delay = self._cache[key] = slip_stop_delay(0.0, seg.b0, seg.b1, phase, seg.omega)
+        else:
+            delay = slip_stop_delay(w, seg.b0, seg.b1, phase, seg.omega)
+        self._next_t = t + delay
+
+    def _apply(self) -> list[Event]:
+        """Carry out the event at ``_next_t`` and start the segment after it."""
+        seg, t = self._seg, self._next_t
+        if seg.direction == 0:
+            self._stuck_time += t - seg.t0
+            phase, direction = self._next_start
+            event = Event(t, EventKind.SLIP_START, seg.x0, phase, Mode.STUCK, Mode(direction))
+            self._start_slip(t, seg.x0, 0.0, phase, direction)
+            return [self._log(event)]
+        x, _, _, _, _, phase = seg.evaluate(t)
+        delta, _, direction = next_slip_start(phase, seg.tangential, seg.load, seg.amplitude, seg.mu)
+        before = Mode(seg.direction)
+        if delta == 0.0 and direction == -seg.direction:
+            self._start_slip(t, x, 0.0, phase, direction)
+            return [self._log(Event(t, EventKind.REVERSAL, x, phase, before, Mode(direction)))]
+        self._start_stuck(t, x, phase)
+        return [self._log(Event(t, EventKind.STICK, x, phase, before, Mode.STUCK))]
+
+    def _log(self, event: Event) -> Event:
+        self._events.append(event)
+        self._counts[event.kind] += 1
+        return event

@@ -1,0 +1,43 @@
+"""The one exception hierarchy of friction_sim.
+
+Every error a user can trigger derives from :class:`FrictionSimError`, so the
+CLI and the nodes can catch exactly these, print one line and go on, while
+programming errors still surface as tracebacks during development.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+
+class FrictionSimError(Exception):
+    """Base class of every error friction_sim raises on purpose."""
+
+
+class ParameterError(FrictionSimError, ValueError):
+    """A parameter or input value is out of its valid range.
+
+    ``field`` names the offending field, ``value`` quotes the rejected value and
+    ``limit`` says in words what would have been accepted, so that a message
+    shown to a user is complete on one line.
+    """
+
+    def __init__(self, field: str, value: Any, limit: str) -> None:
+        self.field = field
+        self.value = value
+        self.limit = limit
+        super().__init__(f"{field} = {_quote(value)} rejected: {limit}")
+
+
+class RecordingError(FrictionSimError):
+    """A recording cannot be written or read (missing, not MCAP, not ours)."""
+
+
+def _quote(value: Any) -> str:
+    """Format a rejected value so that NaN, inf and floats read unambiguously."""
+    if isinstance(value, float):
+        if math.isnan(value) or math.isinf(value):
+            return str(value)
+        return repr(value)
+    return repr(value)
