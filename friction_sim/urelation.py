@@ -1,0 +1,224 @@
+"""The nondimensional mean-speed relation U(phi, a) and its inverse (numpy only).
+
+With phi = Fd/(mu*m*g) and a = Pa/(m*g), Kostek's nondimensional mean speed
+U = V*f/(g*mu) depends on (phi, a) alone.  It is exact here, not fitted:
+
+* Nothing moves for phi <= 1 - a (the friction limit mu*R never drops below
+  Fd), so U = 0 there.
+* For 1 - a < phi < 1 every period has one slip.  It starts from rest at the
+  phase theta_A = asin((1 - phi)/a), where mu*R falls below Fd, and in
+  units of mu*g/omega its speed after a phase advance psi is
+
+      w(psi) = (phi - 1)*psi + a*(cos(theta_A) - cos(theta_A + psi)).
+
+  w rises until psi = pi - 2*theta_A (the peak velocity, point B) and falls
+  until it is zero again at psi_C (point C) in (pi - 2*theta_A, 2*pi], because
+  w(2*pi) = 2*pi*(phi - 1) <= 0.  The slip thus ends within the period, the
+  motion is periodic with the excitation, and the displacement per period in
+  units of mu*g/omega^2 is the integral of w up to psi_C:
+
+      D = (phi - 1)*psi_C^2/2 + a*(psi_C*cos(theta_A) - sin(theta_A + psi_C) + sin(theta_A)),
+
+  so U = V*f/(g*mu) = D/(4*pi^2).
+* phi = 1 slides forever with a bounded oscillating speed (U = a/(2*pi), the
+  limit of the above); phi > 1 accelerates without bound (U = inf).
+* Negative phi mirrors: U(-phi, a) = -U(phi, a).
+
+psi_C is found for whole arrays at once by Newton's method kept inside the
+bracket [pi - 2*theta_A, 2*pi], where w is monotone.  The inverse a(U, phi),
+which the controller uses, inverts the monotone rise of U with a by a
+bracketed (Illinois) secant iteration, again on whole arrays.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from friction_sim.errors import ParameterError
+
+_TWO_PI = 2.0 * np.pi
+_FOUR_PI2 = 4.0 * np.pi**2
+
+
+def _result(values: NDArray[np.float64], *inputs: Any) -> Any:
+    """Return a Python float when every input was a scalar, else the array."""
+    if all(np.ndim(value) == 0 for value in inputs):
+        return float(values)
+    return values
+
+
+def slip_start_phase(phi: ArrayLike, a: ArrayLike) -> Any:
+    """theta_A = asin((1 - |phi|)/a): where each period's slip starts (NaN where
+    the slider never slips from rest)."""
+    phi_, a_ = np.broadcast_arrays(np.abs(np.asarray(phi, float)), np.asarray(a, float))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        edge = (1.0 - phi_) / a_
+        theta = np.where((edge < 1.0) & (edge >= -1.0), np.arcsin(np.clip(edge, -1.0, 1.0)), np.nan)
+    return _result(theta, phi, a)
+
+
+def moves(phi: ArrayLike, a: ArrayLike) -> Any:
+    """True where the slider moves at all: |phi| > 1 - a (the motion boundary)."""
+    result = np.abs(np.asarray(phi, float)) > 1.0 - np.asarray(a, float)
+    return bool(result) if np.ndim(result) == 0 else result
+
+
+def motion_boundary(phi: ArrayLike) -> Any:
+    """The smallest amplitude ratio a = 1 - |phi| at which motion can start
+    (exclusive: at a = 1 - |phi| exactly the slider still stands)."""
+    boundary = np.clip(1.0 - np.abs(np.asarray(phi, float)), 0.0, None)
+    return _result(boundary, phi)
+
+
+def stop_phase_advance(phi: ArrayLike, a: ArrayLike) -> Any:
+    """psi_C: the phase the slip lasts, from slip start (A) to stick (C)."""
+    phi_, a_ = np.broadcast_arrays(np.abs(np.asarray(phi, float)), np.asarray(a, float))
+    psi = _stop_phase(phi_.astype(float), a_.astype(float))
+    return _result(psi, phi, a)
+
+
+def _stop_phase(phi: NDArray[np.float64], a: NDArray[np.float64]) -> NDArray[np.float64]:
+    """psi_C for phi >= 0 (NaN where there is no periodic slip)."""
+    psi = np.full(phi.shape, np.nan)
+    slipping = (phi > 1.0 - a) & (phi < 1.0) & (a > 0.0)
+    psi[(phi == 1.0) & (a > 0.0)] = _TWO_PI
+    if not np.any(slipping):
+        return psi
+    p, q = phi[slipping] - 1.0, a[slipping]
+    theta_a = np.arcsin((1.0 - phi[slipping]) / q)
+    cos_a = np.cos(theta_a)
+    lo = np.pi - 2.0 * theta_a
+    hi = np.full_like(lo, _TWO_PI)
+    # Start from the midpoint and iterate Newton inside the bracket.
+    x = 0.5 * (lo + hi)
+    for _ in range(100):
+        w = p * x + q * (cos_a - np.cos(theta_a + x))
+        lo = np.where(w > 0.0, x, lo)
+        hi = np.where(w < 0.0, x, hi)
+        slope = p + q * np.sin(theta_a + x)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = x - w / slope
+        outside = ~((step > lo) & (step < hi)) | ~np.isfinite(step)
+        step = np.where(outside, 0.5 * (lo + hi), step)
+        step = np.where(w == 0.0, x, step)
+        done = np.abs(step - x) <= 4.0 * np.finfo(float).eps * np.abs(x)
+        x = step
+        if np.all(done):
+            break
+    psi[slipping] = x
+    return psi
+
+
+def u_map(phi: ArrayLike, a: ArrayLike) -> Any:
+    """Exact nondimensional mean speed U(phi, a) = V*f/(g*mu).
+
+    Accepts scalars or arrays (broadcast together); returns a float for
+    scalars.  0 where nothing moves, inf beyond phi > 1, sign of phi.
+    """
+    phi_arr, a_arr = np.broadcast_arrays(np.asarray(phi, float), np.asarray(a, float))
+    _check_ratio(a_arr)
+    mag = np.abs(phi_arr)
+    u = np.zeros(phi_arr.shape)
+    psi = _stop_phase(mag, a_arr)
+    periodic = np.isfinite(psi) & (mag < 1.0)
+    if np.any(periodic):
+        p, q, x = mag[periodic] - 1.0, a_arr[periodic], psi[periodic]
+        theta_a = np.arcsin((1.0 - mag[periodic]) / q)
+        travel = 0.5 * p * x * x + q * (x * np.cos(theta_a) - np.sin(theta_a + x) + np.sin(theta_a))
+        u[periodic] = travel / _FOUR_PI2
+    u[mag == 1.0] = a_arr[mag == 1.0] / _TWO_PI
+    u[mag > 1.0] = np.inf
+    u[np.isnan(mag)] = np.nan
+    return _result(np.sign(phi_arr) * u, phi, a)
+
+
+def _check_ratio(a: NDArray[np.float64]) -> None:
+    bad = ~((a >= 0.0) & (a < 1.0))
+    if np.any(bad):
+        value = float(np.asarray(a)[bad].flat[0])
+        raise ParameterError("amplitude_ratio", value, "must be in [0, 1) (Pa < m*g)")
+
+
+def amplitude_ratio_for(u: ArrayLike, phi: ArrayLike, max_ratio: float = 1.0) -> Any:
+    """The inverse relation: the amplitude ratio a with U(phi, a) = u.
+
+    U rises monotonically with a on (1 - phi, 1), so the answer is unique.
+    Returns 0 for u == 0 (no excitation needed to stand still), and NaN where
+    u cannot be reached with a < ``max_ratio`` (too fast, or the sign of u
+    disagrees with phi, or |phi| >= 1 where excitation no longer steers).
+    """
+    if not 0.0 < max_ratio <= 1.0:
+        raise ParameterError("max_ratio", max_ratio, "must be in (0, 1]")
+    u_arr, phi_arr = np.broadcast_arrays(np.asarray(u, float), np.asarray(phi, float))
+    target, mag = np.abs(u_arr), np.abs(phi_arr)
+    a = np.full(u_arr.shape, np.nan)
+    a[u_arr == 0.0] = 0.0
+    lo = np.clip(1.0 - mag, 0.0, 1.0)
+    top = np.nextafter(max_ratio, 0.0) if max_ratio >= 1.0 else max_ratio
+    hi = np.full(lo.shape, top)
+    same_sign = np.sign(u_arr) == np.sign(phi_arr)
+    candidates = (u_arr != 0.0) & same_sign & (mag > 0.0) & (mag < 1.0) & (lo < hi)
+    if np.any(candidates):
+        u_top = np.where(candidates, u_map(np.where(candidates, mag, 0.5), np.where(candidates, hi, 0.5)), 0.0)
+        reachable = candidates & (target <= u_top)
+        if np.any(reachable):
+            a[reachable] = _invert(target[reachable], mag[reachable], lo[reachable], hi[reachable], u_top[reachable])
+    return _result(a, u, phi)
+
+
+def _invert(
+    target: NDArray[np.float64], phi: NDArray[np.float64],
+    lo: NDArray[np.float64], hi: NDArray[np.float64], f_hi: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Illinois false position for U(phi, a) - target = 0 on [lo, hi]."""
+    f_lo = -target.copy()
+    f_hi = f_hi - target
+    side = np.zeros(target.shape, dtype=np.int8)
+    a = lo.copy()
+    for _ in range(200):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+        a = np.where(np.isfinite(a) & (a > lo) & (a < hi), a, 0.5 * (lo + hi))
+        f = u_map(phi, a) - target
+        up = f > 0.0
+        hi, lo = np.where(up, a, hi), np.where(up, lo, a)
+        # Illinois: halve the value kept at the end that stayed put twice.
+        f_lo = np.where(up, np.where(side == 1, 0.5 * f_lo, f_lo), f)
+        f_hi = np.where(up, f, np.where(side == -1, 0.5 * f_hi, f_hi))
+        side = np.where(up, 1, -1).astype(np.int8)
+        if np.all((hi - lo <= 4.0 * np.finfo(float).eps * hi) | (np.abs(f) <= 1e-15 * target)):
+            break
+    return a
+
+
+def nondimensional_speed(v: ArrayLike, frequency: float, gravity: float, mu: float) -> Any:
+    """U = V*f/(g*mu) from a dimensional mean speed V [m/s]."""
+    return _result(np.asarray(v, float) * frequency / (gravity * mu), v)
+
+
+def dimensional_speed(u: ArrayLike, frequency: float, gravity: float, mu: float) -> Any:
+    """V = U*g*mu/f [m/s] from a nondimensional mean speed U."""
+    return _result(np.asarray(u, float) * gravity * mu / frequency, u)
+
+
+@dataclass(frozen=True)
+class UMap:
+    """U over a grid: ``u[i, j]`` belongs to ``amplitude_ratio[i]`` and ``phi[j]``."""
+
+    phi: NDArray[np.float64]
+    amplitude_ratio: NDArray[np.float64]
+    u: NDArray[np.float64]
+
+
+def u_grid(points: int) -> UMap:
+    """The whole map on ``points`` x ``points`` values of phi and a, evenly
+    spaced strictly inside (0, 1) (a = 1 would lift the slider off)."""
+    if isinstance(points, bool) or not isinstance(points, int) or points < 2:
+        raise ParameterError("grid", points, "must be an integer >= 2")
+    axis = np.arange(1, points + 1) / (points + 1.0)
+    phi, a = np.meshgrid(axis, axis)
+    return UMap(phi=axis, amplitude_ratio=axis.copy(), u=np.asarray(u_map(phi, a)))
