@@ -312,8 +312,8 @@ class Slider:
 
     >>> slider = Slider()                 # the paper's Fig. 2 case
     >>> events = slider.advance_to(0.1)   # five excitation periods
-    >>> round(slider.state().x * 1e6, 3)  # micrometres travelled
-    1.416
+    >>> round(slider.state().x * 1e6, 2)  # micrometres travelled
+    19.97
 
     Inputs and parameters may change between calls; the change takes effect at
     the current time (:attr:`t`).  ``event_log_size`` bounds :attr:`events`

@@ -1,0 +1,207 @@
+"""``friction-sim``: the command line.  It parses arguments and dispatches to the
+jobs in the package; it holds no physics.
+
+Subcommands::
+
+    friction-sim umap --phi 0.7 --ratio 0.5 [--json]
+    friction-sim umap --grid 101 --csv u.csv --png u.png
+    friction-sim trace --png fig2.png [--periods 2] [plant options]
+    friction-sim simulate [plant options] --duration 2 [--settle 0.2] [--csv out.csv] [--json]
+
+Errors are one line on stderr and exit code 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any, Callable, NoReturn, Sequence
+
+from friction_sim.errors import FrictionSimError
+
+EXIT_USAGE = 2
+
+
+class _OneLineParser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line on stderr and exit code 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see --help)\n")
+
+
+def _add_plant_options(parser: argparse.ArgumentParser) -> None:
+    """The model's parameters and inputs; defaults are the paper's Fig. 2 case."""
+    group = parser.add_argument_group("plant (defaults: the paper's Fig. 2 case)")
+    group.add_argument("--mass", type=float, default=1.0, help="slider mass m [kg] (1.0)")
+    group.add_argument("--mu", type=float, default=0.1, help="Coulomb friction coefficient (0.1)")
+    group.add_argument("--gravity", type=float, default=10.0, help="gravity g [m/s^2] (10.0)")
+    group.add_argument("--frequency", type=float, default=50.0, help="excitation frequency f [Hz] (50.0)")
+    group.add_argument("--amplitude", type=float, default=5.0, help="excitation amplitude Pa [N] (5.0)")
+    group.add_argument("--drive-force", type=float, default=0.7, help="drive force Fd [N] (0.7)")
+
+
+def _plant(args: argparse.Namespace) -> tuple[Any, Any]:
+    from friction_sim.params import Inputs, SliderParams, check_contact
+
+    params = SliderParams(mass=args.mass, mu=args.mu, gravity=args.gravity)
+    inputs = Inputs(drive_force=args.drive_force, excitation_amplitude=args.amplitude,
+                    excitation_frequency=args.frequency)
+    check_contact(params, inputs)
+    return params, inputs
+
+
+def _json_ready(value: Any) -> Any:
+    """JSON has no inf or NaN: write them as null."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {key: _json_ready(item) for key, item in value.items()}
+    return value
+
+
+def _print_json(payload: dict[str, Any]) -> None:
+    print(json.dumps(_json_ready(payload), allow_nan=False))
+
+
+# -- umap ---------------------------------------------------------------------
+
+
+def _cmd_umap(args: argparse.Namespace) -> int:
+    from friction_sim import urelation
+
+    if args.grid is None:
+        if args.phi is None or args.ratio is None:
+            raise FrictionSimError("umap needs --phi and --ratio for one point, or --grid N for the map")
+        u = urelation.u_map(args.phi, args.ratio)
+        point = {
+            "phi": args.phi, "amplitude_ratio": args.ratio, "U": u,
+            "moves": urelation.moves(args.phi, args.ratio),
+            "motion_boundary_ratio": urelation.motion_boundary(args.phi),
+            "slip_start_phase": urelation.slip_start_phase(args.phi, args.ratio),
+            "slip_phase_length": urelation.stop_phase_advance(args.phi, args.ratio),
+        }
+        if args.json:
+            _print_json(point)
+        else:
+            print(f"U({args.phi:g}, {args.ratio:g}) = {u!r}")
+        return 0
+    if args.csv is None and args.png is None:
+        raise FrictionSimError("umap --grid needs --csv FILE and/or --png FILE")
+    umap = urelation.u_grid(args.grid)
+    if args.csv is not None:
+        from friction_sim.export import write_umap_csv
+
+        print(f"wrote {write_umap_csv(umap, args.csv)}")
+    if args.png is not None:
+        from friction_sim.plots import u_map_figure
+
+        _save(u_map_figure(umap), args.png)
+    return 0
+
+
+# -- trace --------------------------------------------------------------------
+
+
+def _cmd_trace(args: argparse.Namespace) -> int:
+    from friction_sim.plots import trace_figure
+    from friction_sim.simulation import simulate
+
+    params, inputs = _plant(args)
+    duration = args.periods / inputs.excitation_frequency
+    result = simulate(params, inputs, duration, sample_rate=2000.0 * inputs.excitation_frequency)
+    _save(trace_figure(result), args.png)
+    return 0
+
+
+# -- simulate -------------------------------------------------------------------
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from friction_sim.simulation import simulate
+
+    params, inputs = _plant(args)
+    sample_rate = args.sample_rate if args.csv is not None else None
+    result = simulate(params, inputs, args.duration, settle=args.settle, sample_rate=sample_rate)
+    if args.csv is not None:
+        from friction_sim.export import write_trajectory_csv
+
+        assert result.trajectory is not None
+        write_trajectory_csv(result.trajectory, result.events, args.csv)
+    if args.json:
+        _print_json(result.as_dict())
+        return 0
+    counts = ", ".join(f"{kind} {n}" for kind, n in result.event_counts.items())
+    print(f"phi = {result.phi!r}, a = {result.amplitude_ratio!r}")
+    print(f"mean velocity over {result.periods} periods after {result.settle:g} s: "
+          f"{result.mean_velocity!r} m/s")
+    print(f"U measured = {result.u_measured!r}, U exact = {result.u_exact!r}")
+    print(f"events: {counts}; wall time {result.wall_time * 1e3:.2f} ms")
+    if args.csv is not None:
+        print(f"wrote {args.csv}")
+    return 0
+
+
+def _save(figure: Any, path: Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path, dpi=120)
+    print(f"wrote {path}")
+
+
+# -- the parser ---------------------------------------------------------------
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _OneLineParser(
+        prog="friction-sim",
+        description="Exact stick-slip simulator of a vibratory-feeder slider (Kostek's model).",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_OneLineParser)
+
+    umap = sub.add_parser("umap", help="the nondimensional mean speed U(phi, a): one point or the map")
+    umap.add_argument("--phi", type=float, help="drive ratio phi = Fd/(mu m g)")
+    umap.add_argument("--ratio", type=float, help="amplitude ratio a = Pa/(m g)")
+    umap.add_argument("--grid", type=int, help="map on N x N points of (phi, a) in (0, 1)")
+    umap.add_argument("--csv", type=Path, help="write the map as CSV (phi, amplitude_ratio, U)")
+    umap.add_argument("--png", type=Path, help="draw the map like the paper's Fig. 3")
+    umap.add_argument("--json", action="store_true", help="print one JSON object")
+    umap.set_defaults(handler=_cmd_umap)
+
+    trace = sub.add_parser("trace", help="draw the paper's Fig. 2 (forces, a, v, x with A, B, C)")
+    trace.add_argument("--png", type=Path, required=True, help="output picture")
+    trace.add_argument("--periods", type=float, default=2.5, help="excitation periods shown (2.5)")
+    _add_plant_options(trace)
+    trace.set_defaults(handler=_cmd_trace)
+
+    simulate = sub.add_parser("simulate", help="simulate exactly and report the mean velocity and U")
+    _add_plant_options(simulate)
+    simulate.add_argument("--duration", type=float, default=2.0, help="simulated time [s] (2.0)")
+    simulate.add_argument("--settle", type=float, default=0.0,
+                          help="time [s] left out before the mean is taken (0.0)")
+    simulate.add_argument("--csv", type=Path, help="write the sampled trajectory and the events")
+    simulate.add_argument("--sample-rate", type=float, default=10_000.0,
+                          help="samples per second in --csv (10000)")
+    simulate.add_argument("--json", action="store_true", help="print one JSON object")
+    simulate.set_defaults(handler=_cmd_simulate)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``friction-sim``; returns the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    handler: Callable[[argparse.Namespace], int] = args.handler
+    try:
+        return handler(args)
+    except FrictionSimError as error:
+        print(f"friction-sim {args.command}: error: {error}", file=sys.stderr)
+    except OSError as error:
+        print(f"friction-sim {args.command}: error: {error.strerror or error}: "
+              f"{error.filename or ''}".rstrip(": "), file=sys.stderr)
+    return EXIT_USAGE
+
+
+if __name__ == "__main__":
+    sys.exit(main())

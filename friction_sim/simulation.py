@@ -1,0 +1,179 @@
+"""Offline simulation jobs on top of the exact core: schedules and mean speeds.
+
+A :class:`Schedule` is a list of input changes at given simulation times, the
+same thing a user sends over ROS topics.  :func:`run_schedule` plays one into
+a :class:`~friction_sim.core.Slider` and samples the motion;
+:func:`simulate` is the ``friction-sim simulate`` job: it measures the mean
+velocity over whole excitation periods from the simulated motion (never from
+the U formula) and reports it next to the exact U.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+
+from friction_sim.core import Event, EventKind, Slider, Trajectory
+from friction_sim.errors import ParameterError
+from friction_sim.params import Inputs, SliderParams, amplitude_ratio, drive_ratio, require_finite
+from friction_sim.urelation import nondimensional_speed, u_map
+
+
+@dataclass(frozen=True)
+class Command:
+    """Set some inputs (field names of :class:`Inputs`) at simulation time ``t``."""
+
+    t: float
+    changes: dict[str, float]
+
+
+Schedule = Sequence[Command]
+
+
+def random_schedule(
+    rng: np.random.Generator, duration: float, *, frequency: float = 50.0,
+    mean_periods: float = 4.0, weight: float = 10.0, external: bool = False,
+) -> list[Command]:
+    """Random input changes every few excitation periods, for tests and the
+    benchmark: drive force of either sign, amplitude in [0, 0.95*weight),
+    frequency within a factor of two of ``frequency``, optionally an
+    external force.  Times are random, not on the period grid."""
+    commands = []
+    t = 0.0
+    while True:
+        t += rng.exponential(mean_periods / frequency)
+        if t >= duration:
+            return commands
+        changes = {
+            "drive_force": float(rng.uniform(-1.0, 1.0) * 0.12 * weight),
+            "excitation_amplitude": float(rng.uniform(0.0, 0.8) * weight),
+            "excitation_frequency": float(frequency * rng.uniform(0.5, 2.0)),
+        }
+        if external:
+            changes["external_force_x"] = float(rng.uniform(-0.02, 0.02) * weight)
+            changes["external_force_z"] = float(rng.uniform(0.0, 0.1) * weight)
+        commands.append(Command(t, changes))
+
+
+def run_schedule(slider: Slider, schedule: Schedule, sample_times: np.ndarray) -> Trajectory:
+    """Apply ``schedule`` to ``slider`` at its command times and return the
+    exact state at ``sample_times`` (ascending).  A command at the same time as
+    a sample is applied first."""
+    sample_times = np.asarray(sample_times, dtype=float)
+    pieces: list[Trajectory] = []
+    first = 0
+    for command in sorted(schedule, key=lambda c: c.t):
+        last = int(np.searchsorted(sample_times, command.t, side="left"))
+        if last > first:
+            pieces.append(slider.sample(sample_times[first:last]))
+            first = last
+        slider.advance_to(command.t)
+        slider.set_inputs(**command.changes)
+    if first < sample_times.size:
+        pieces.append(slider.sample(sample_times[first:]))
+    return _concatenate(pieces)
+
+
+def _concatenate(pieces: list[Trajectory]) -> Trajectory:
+    if len(pieces) == 1:
+        return pieces[0]
+    names = ("t", "x", "v", "acceleration", "friction_force", "normal_force", "phase", "mode")
+    return Trajectory(*(np.concatenate([getattr(p, n) for p in pieces]) for n in names))
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """What ``friction-sim simulate`` reports.
+
+    ``mean_velocity`` [m/s] is measured from the simulated motion over
+    ``periods`` whole excitation periods after ``settle`` seconds;
+    ``u_measured`` is it made nondimensional, ``u_exact`` the U relation's
+    value for the same (phi, a).
+    """
+
+    params: SliderParams
+    inputs: Inputs
+    duration: float
+    settle: float
+    periods: int
+    mean_velocity: float
+    u_measured: float
+    u_exact: float
+    phi: float
+    amplitude_ratio: float
+    event_counts: dict[str, int]
+    wall_time: float
+    trajectory: Trajectory | None = None
+    events: list[Event] = field(default_factory=list)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The JSON view: full-precision numbers, no arrays."""
+        return {
+            "mass": self.params.mass, "mu": self.params.mu, "gravity": self.params.gravity,
+            "drive_force": self.inputs.drive_force,
+            "excitation_amplitude": self.inputs.excitation_amplitude,
+            "excitation_frequency": self.inputs.excitation_frequency,
+            "duration": self.duration, "settle": self.settle,
+            "phi": self.phi, "amplitude_ratio": self.amplitude_ratio,
+            "periods": self.periods, "mean_velocity": self.mean_velocity,
+            "U": self.u_measured, "U_exact": self.u_exact,
+            "events": dict(self.event_counts), "wall_time": self.wall_time,
+        }
+
+
+def simulate(
+    params: SliderParams, inputs: Inputs, duration: float, *, settle: float = 0.0,
+    sample_rate: float | None = None,
+) -> SimulationResult:
+    """Simulate constant inputs for ``duration`` s and measure the mean speed.
+
+    The mean is taken over the whole excitation periods that fit between
+    ``settle`` and ``duration``.  With ``sample_rate`` [Hz] the result also
+    holds a uniformly sampled trajectory and the event list.
+    """
+    duration = require_finite("duration", duration)
+    settle = require_finite("settle", settle)
+    if duration <= 0.0:
+        raise ParameterError("duration", duration, "must be > 0 s")
+    if not 0.0 <= settle < duration:
+        raise ParameterError("settle", settle, f"must be in [0, duration = {duration!r}) s")
+    period = 1.0 / inputs.excitation_frequency
+    periods = math.floor((duration - settle) / period * (1.0 + 1e-12))
+    if periods < 1:
+        raise ParameterError(
+            "duration", duration, f"must cover at least one excitation period ({period!r} s) after settle"
+        )
+    started = time.perf_counter()
+    slider = Slider(params, inputs, event_log_size=None)
+    trajectory = None
+    if sample_rate is not None:
+        rate = require_finite("sample_rate", sample_rate)
+        if rate <= 0.0:
+            raise ParameterError("sample_rate", rate, "must be > 0 Hz")
+        trajectory = slider.sample(np.arange(math.floor(duration * rate) + 1) / rate)
+        slider = Slider(params, inputs, event_log_size=None)
+    slider.advance_to(settle)
+    x_start = slider.state().x
+    slider.advance_to(settle + periods * period)
+    mean_velocity = (slider.state().x - x_start) / (periods * period)
+    slider.advance_to(duration)
+    wall = time.perf_counter() - started
+    phi, ratio = drive_ratio(params, inputs), amplitude_ratio(params, inputs)
+    return SimulationResult(
+        params=params, inputs=inputs, duration=duration, settle=settle, periods=periods,
+        mean_velocity=mean_velocity,
+        u_measured=nondimensional_speed(mean_velocity, inputs.excitation_frequency, params.gravity, params.mu),
+        u_exact=u_map(phi, ratio), phi=phi, amplitude_ratio=ratio,
+        event_counts={kind.value: n for kind, n in slider.event_counts.items()},
+        wall_time=wall, trajectory=trajectory,
+        events=slider.events if sample_rate is not None else [],
+    )
+
+
+__all__ = [
+    "Command", "Schedule", "SimulationResult", "random_schedule", "run_schedule", "simulate", "EventKind",
+]

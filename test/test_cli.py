@@ -1,0 +1,111 @@
+"""The `friction-sim` command line as a user runs it: the installed console
+script in a subprocess, checked against the library's exact answers."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from friction_sim.urelation import dimensional_speed, u_map
+
+SCRIPT = Path(sys.executable).parent / "friction-sim"
+
+
+def run(*args: str) -> subprocess.CompletedProcess[str]:
+    command = [str(SCRIPT)] if SCRIPT.exists() else [sys.executable, "-m", "friction_sim.cli"]
+    return subprocess.run([*command, *args], capture_output=True, text=True, timeout=120)
+
+
+def test_console_script_is_installed() -> None:
+    assert SCRIPT.exists(), "make's editable install puts friction-sim in the venv"
+
+
+def test_umap_point_json_matches_the_relation() -> None:
+    done = run("umap", "--phi", "0.7", "--ratio", "0.5", "--json")
+    assert done.returncode == 0, done.stderr
+    point = json.loads(done.stdout)
+    assert point["phi"] == 0.7 and point["amplitude_ratio"] == 0.5
+    assert point["U"] == u_map(0.7, 0.5)
+    assert point["slip_start_phase"] == pytest.approx(math.asin(0.6), rel=1e-15)
+    assert point["moves"] is True
+
+
+def test_umap_grid_writes_csv_and_png(tmp_path: Path) -> None:
+    done = run("umap", "--grid", "11", "--csv", str(tmp_path / "u.csv"), "--png", str(tmp_path / "u.png"))
+    assert done.returncode == 0, done.stderr
+    with (tmp_path / "u.csv").open() as stream:
+        rows = list(csv.DictReader(stream))
+    assert len(rows) == 121
+    phi = np.array([float(r["phi"]) for r in rows])
+    a = np.array([float(r["amplitude_ratio"]) for r in rows])
+    u = np.array([float(r["U"]) for r in rows])
+    assert np.all((phi > 0) & (phi < 1) & (a > 0) & (a < 1))
+    np.testing.assert_array_equal(u, u_map(phi, a))
+    assert np.all(u[phi <= 1 - a] == 0.0) and np.all(u[phi > 1 - a + 1e-12] > 0.0)
+    assert (tmp_path / "u.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_trace_draws_fig2(tmp_path: Path) -> None:
+    done = run("trace", "--png", str(tmp_path / "fig2.png"), "--drive-force", "0.8")
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "fig2.png").stat().st_size > 20_000
+
+
+def test_simulate_json_measures_the_mean_speed() -> None:
+    done = run("simulate", "--mass", "2", "--mu", "0.2", "--gravity", "9.81", "--frequency", "80",
+               "--amplitude", "9", "--drive-force", "3.2", "--duration", "1", "--settle", "0.1", "--json")
+    assert done.returncode == 0, done.stderr
+    result = json.loads(done.stdout)
+    phi, a = 3.2 / (0.2 * 2 * 9.81), 9 / (2 * 9.81)
+    expected = dimensional_speed(u_map(phi, a), 80.0, 9.81, 0.2)
+    assert result["mean_velocity"] == pytest.approx(expected, rel=1e-9)
+    assert result["U"] == pytest.approx(u_map(phi, a), rel=1e-9)
+    assert result["periods"] == 72
+    assert result["events"]["slip_start"] == result["events"]["stick"] == 80
+
+
+def test_simulate_csv_has_uniform_samples_and_events(tmp_path: Path) -> None:
+    out = tmp_path / "run.csv"
+    done = run("simulate", "--duration", "0.1", "--csv", str(out), "--sample-rate", "1000")
+    assert done.returncode == 0, done.stderr
+    with out.open() as stream:
+        rows = list(csv.DictReader(stream))
+    samples = [r for r in rows if r["kind"] == "sample"]
+    events = [r for r in rows if r["kind"] != "sample"]
+    assert len(samples) == 101
+    np.testing.assert_allclose(np.diff([float(r["t"]) for r in samples]), 1e-3, rtol=1e-9)
+    assert [r["kind"] for r in events[:2]] == ["slip_start", "stick"]
+    assert len(events) == 10
+    times = [float(r["t"]) for r in rows]
+    assert times == sorted(times)
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (("simulate", "--amplitude", "12"), ("excitation_amplitude", "12.0", "10.0")),
+        (("simulate", "--mass", "nan"), ("mass", "nan")),
+        (("simulate", "--mu", "-1"), ("mu", "-1.0", "> 0")),
+        (("simulate", "--frequency", "0"), ("excitation_frequency", "0.0")),
+        (("simulate", "--duration", "0.001"), ("duration", "0.001")),
+        (("simulate", "--mass", "heavy"), ("--mass", "heavy")),
+        (("umap", "--phi", "0.5", "--ratio", "1.5"), ("amplitude_ratio", "1.5")),
+        (("umap",), ("--phi", "--grid")),
+        (("nosuchcommand",), ("nosuchcommand",)),
+    ],
+)
+def test_errors_are_one_line_and_exit_2(args: tuple[str, ...], words: tuple[str, ...]) -> None:
+    done = run(*args)
+    assert done.returncode == 2
+    assert "Traceback" not in done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr
+    for word in words:
+        assert word in lines[0]
