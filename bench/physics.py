@@ -1,0 +1,171 @@
+"""Benchmark of the exact core and the U relation (issue 2).
+
+Measures, in one run on this machine:
+  (a) single-slider throughput in excitation periods per wall-clock second,
+      with the inputs changed at random every few periods, against the
+      scipy solve_ivp-with-events reference at rtol 1e-10 on the same
+      schedule (ratio, and the largest difference of x and v);
+  (b) the wall time of a 101 x 101 U map;
+  (c) how well simulated mean speeds match the exact U (relative error).
+Timings are medians of repeated runs; the machine is shared and noisy, so the
+ratio measured in the same run is the figure to trust.  Prints figures only:
+a benchmark never passes or fails on timing.
+
+Run: make bench   (or .venv/bin/python bench/physics.py [--quick])
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+
+import numpy as np
+
+from friction_sim.core import Slider
+from friction_sim.params import Inputs, SliderParams
+from friction_sim.reference import ReferenceInputs, reference_solution
+from friction_sim.simulation import Command, random_schedule, run_schedule, simulate
+from friction_sim.urelation import dimensional_speed, u_grid, u_map
+
+PARAMS = SliderParams()
+FREQUENCY = 50.0
+
+
+def median_time(function, repeats: int) -> float:
+    """Median wall time of ``repeats`` calls of ``function``."""
+    samples = []
+    for _ in range(repeats):
+        started = time.perf_counter()
+        function()
+        samples.append(time.perf_counter() - started)
+    return statistics.median(samples)
+
+
+def run_core(schedule: list[Command], duration: float) -> Slider:
+    slider = Slider(PARAMS, Inputs(), event_log_size=1000)
+    for command in schedule:
+        slider.advance_to(command.t)
+        slider.set_inputs(**command.changes)
+    slider.advance_to(duration)
+    return slider
+
+
+def reference_schedule(schedule: list[Command]) -> list[tuple[float, ReferenceInputs]]:
+    pieces = [(0.0, ReferenceInputs())]
+    current = Inputs()
+    for command in schedule:
+        current = current.replace(**command.changes)
+        pieces.append((command.t, ReferenceInputs(
+            current.drive_force, current.excitation_amplitude, current.excitation_frequency,
+            current.external_force_x, current.external_force_z)))
+    return pieces
+
+
+def moving_schedule(rng: np.random.Generator, duration: float) -> list[Command]:
+    """Random commands every ~4 periods that keep the slider slipping every
+    period (phi in [0.6, 0.95], a in [0.35, 0.8]): the costly case."""
+    commands, t = [], 0.0
+    while (t := t + rng.exponential(4.0 / FREQUENCY)) < duration:
+        commands.append(Command(t, {
+            "drive_force": float(rng.uniform(0.6, 0.95)), "excitation_amplitude": float(rng.uniform(3.5, 8.0)),
+            "excitation_frequency": float(rng.uniform(40.0, 60.0))}))
+    return commands
+
+
+def throughput(quick: bool, moving: bool) -> None:
+    rng = np.random.default_rng(2026)
+    periods_core = 2_000 if quick else 20_000
+    periods_ref = 40 if quick else 200
+    duration = periods_core / FREQUENCY
+    if moving:
+        schedule = moving_schedule(rng, duration)
+        title = "slipping every period: phi in [0.6, 0.95], a in [0.35, 0.8], f in [40, 60] Hz"
+    else:
+        schedule = random_schedule(rng, duration, frequency=FREQUENCY, mean_periods=4.0)
+        title = "anything goes: phi in [-1.2, 1.2], a in [0, 0.8], f in [25, 100] Hz"
+    # The random frequencies make "periods" a matter of phase: count them exactly.
+    core_time = median_time(lambda: run_core(schedule, duration), 3 if quick else 5)
+    slider = run_core(schedule, duration)
+    phase_periods = _phase_periods(schedule, duration)
+    counts = slider.event_counts
+
+    ref_duration = periods_ref / FREQUENCY
+    ref_sched = [c for c in schedule if c.t < ref_duration]
+    grid = np.linspace(0.0, ref_duration, 20 * periods_ref + 1)
+    reference_solution(1.0, 0.1, 10.0, reference_schedule(ref_sched[:3]), grid[:50], rtol=1e-10)  # warm-up
+    ref_time = median_time(
+        lambda: reference_solution(1.0, 0.1, 10.0, reference_schedule(ref_sched), grid, rtol=1e-10),
+        1 if quick else 3,
+    )
+    ref = reference_solution(1.0, 0.1, 10.0, reference_schedule(ref_sched), grid, rtol=1e-10)
+    exact = run_schedule(Slider(PARAMS, Inputs()), ref_sched, grid)
+    ref_periods = _phase_periods(ref_sched, ref_duration)
+    core_rate = phase_periods / core_time
+    ref_rate = ref_periods / ref_time
+    print(f"(a) single-slider throughput, inputs changed at random every ~4 periods; {title}")
+    print(f"    schedule: {len(schedule)} commands over {phase_periods:.0f} excitation periods "
+          f"({duration:g} s simulated); events: "
+          + ", ".join(f"{k.value} {n}" for k, n in counts.items()))
+    print(f"    exact core:            {core_rate:12,.0f} periods/s  (median of repeats, {core_time:.3f} s)")
+    print(f"    solve_ivp reference:   {ref_rate:12,.0f} periods/s  ({ref_periods:.0f} periods, rtol 1e-10)")
+    print(f"    ratio core/reference:  {core_rate / ref_rate:12,.0f} x   (targets: >= 100,000 periods/s, >= 100 x)")
+    dx = np.max(np.abs(exact.x - ref.x))
+    dv = np.max(np.abs(exact.v - ref.v))
+    print(f"    largest difference over {grid.size} samples: |dx| = {dx:.3e} m "
+          f"({dx / np.max(np.abs(ref.x)):.2e} of max|x|), |dv| = {dv:.3e} m/s "
+          f"({dv / np.max(np.abs(ref.v)):.2e} of max|v|)")
+
+
+def _phase_periods(schedule: list[Command], duration: float) -> float:
+    """Excitation periods elapsed (phase / 2 pi) under a schedule of frequencies."""
+    total, t, f = 0.0, 0.0, FREQUENCY
+    for command in schedule:
+        total += (command.t - t) * f
+        t, f = command.t, command.changes.get("excitation_frequency", f)
+    return total + (duration - t) * f
+
+
+def map_time() -> None:
+    u_grid(101)  # warm-up (imports, allocations)
+    elapsed = median_time(lambda: u_grid(101), 9)
+    print(f"(b) 101 x 101 U map: {elapsed * 1e3:.1f} ms median of 9   (target <= 200 ms)")
+
+
+def mean_speed_accuracy(quick: bool) -> None:
+    rng = np.random.default_rng(7)
+    worst = 0.0
+    points = 10 if quick else 40
+    checked = 0
+    while checked < points:
+        phi, a = rng.uniform(0.05, 0.999), rng.uniform(0.02, 0.95)
+        if u_map(phi, a) < 1e-4:
+            continue
+        inputs = Inputs(drive_force=phi * PARAMS.mu * PARAMS.weight,
+                        excitation_amplitude=a * PARAMS.weight, excitation_frequency=FREQUENCY)
+        result = simulate(PARAMS, inputs, 1.0, settle=0.1)
+        expected = dimensional_speed(u_map(phi, a), FREQUENCY, PARAMS.gravity, PARAMS.mu)
+        worst = max(worst, abs(result.mean_velocity - expected) / expected)
+        checked += 1
+    print(f"(c) simulated mean speed vs exact U at {points} random (phi, a) with U >= 1e-4: "
+          f"largest relative error {worst:.2e}   (target <= 1e-9)")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="smaller runs (for a smoke test)")
+    args = parser.parse_args()
+    print(f"bench/physics.py  (python {sys.version.split()[0]}, numpy {np.__version__})")
+    throughput(args.quick, moving=True)
+    throughput(args.quick, moving=False)
+    map_time()
+    mean_speed_accuracy(args.quick)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
