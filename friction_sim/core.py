@@ -91,6 +91,17 @@ class Event:
 
 
 @dataclass(frozen=True, slots=True)
+class CycleMark:
+    """The start of excitation period ``n`` (the phase passes 2*pi*n): where the
+    slider was and how long it had been stuck in all, for per-period means."""
+
+    n: int
+    t: float
+    x: float
+    stuck_time: float
+
+
+@dataclass(frozen=True, slots=True)
 class SliderState:
     """Everything about the slider at one instant (SI units, phase in [0, 2*pi))."""
 
@@ -257,18 +268,21 @@ class _Segment:
     """Closed-form motion from (t0, x0, w0, phase0) under constant inputs.
 
     ``direction`` 0 is stuck; +-1 is a slip, whose speed w = direction*v.
+    ``phase0`` is in [0, 2*pi); ``cycles`` counts the whole excitation periods
+    before it, so the total phase at t0 is 2*pi*cycles + phase0.
     """
 
     __slots__ = (
-        "t0", "x0", "w0", "phase0", "direction", "omega", "b0", "b1",
+        "t0", "x0", "w0", "phase0", "cycles", "direction", "omega", "b0", "b1",
         "tangential", "load", "amplitude", "mu", "mass", "cos0", "sin0",
     )
 
     def __init__(
-        self, t0: float, x0: float, w0: float, phase0: float, direction: int,
+        self, t0: float, x0: float, w0: float, phase0: float, cycles: int, direction: int,
         params: SliderParams, inputs: Inputs,
     ) -> None:
         self.t0, self.x0, self.w0, self.phase0, self.direction = t0, x0, w0, phase0, direction
+        self.cycles = cycles
         self.omega = TWO_PI * inputs.excitation_frequency
         self.tangential = inputs.tangential_force
         self.load = params.weight + inputs.external_force_z
@@ -281,7 +295,9 @@ class _Segment:
     def evaluate(self, t: Any, xp: ModuleType = math) -> tuple[Any, Any, Any, Any, Any, Any]:
         """(x, v, acceleration, friction force, normal force, phase) at time(s) t.
 
-        ``xp`` is ``math`` for one float or ``numpy`` for an array of times.
+        The phase is counted from this segment's start of period, unreduced
+        (see :func:`_reduce_phase`).  ``xp`` is ``math`` for one float or
+        ``numpy`` for an array of times.
         """
         tau = t - self.t0
         theta = self.phase0 + self.omega * tau
@@ -290,7 +306,7 @@ class _Segment:
         s = self.direction
         if s == 0:
             zero = tau * 0.0
-            return self.x0 + zero, zero, zero, -self.tangential + zero, normal, theta % TWO_PI
+            return self.x0 + zero, zero, zero, -self.tangential + zero, normal, theta
         k = self.b1 / self.omega
         w = self.w0 + self.b0 * tau + k * (self.cos0 - xp.cos(theta))
         travel = (
@@ -299,7 +315,23 @@ class _Segment:
             - (k / self.omega) * (sin_theta - self.sin0)
         )
         acceleration = s * (self.b0 + self.b1 * sin_theta)
-        return self.x0 + s * travel, s * w, acceleration, -s * self.mu * normal, normal, theta % TWO_PI
+        return self.x0 + s * travel, s * w, acceleration, -s * self.mu * normal, normal, theta
+
+    def time_of_cycle(self, n: int) -> float:
+        """When the total phase reaches 2*pi*n (t0 if it already had)."""
+        whole = n - self.cycles
+        if whole <= 0:
+            return self.t0
+        return self.t0 + (TWO_PI * whole - self.phase0) / self.omega
+
+
+def _reduce_phase(theta: float, cycles: int) -> tuple[float, int]:
+    """Split a phase counted from period ``cycles`` into [0, 2*pi) and whole periods."""
+    whole = math.floor(theta / TWO_PI)
+    phase = theta - whole * TWO_PI
+    if phase >= TWO_PI:  # rounding at the very end of a period
+        phase, whole = 0.0, whole + 1
+    return phase, cycles + whole
 
 
 # --------------------------------------------------------------------------
@@ -318,7 +350,9 @@ class Slider:
     Inputs and parameters may change between calls; the change takes effect at
     the current time (:attr:`t`).  ``event_log_size`` bounds :attr:`events`
     (``None``: unbounded) so a slider that runs for hours keeps constant memory;
-    :attr:`event_counts` always counts every event.
+    :attr:`event_counts` always counts every event.  With ``cycle_log_size``
+    other than 0 the slider also keeps a :class:`CycleMark` at the start of every
+    excitation period (``None``: all of them), for per-period mean speeds.
     """
 
     def __init__(
@@ -330,6 +364,7 @@ class Slider:
         x0: float = 0.0,
         phase0: float = 0.0,
         event_log_size: int | None = 100_000,
+        cycle_log_size: int | None = 0,
     ) -> None:
         self._params = params if params is not None else SliderParams()
         self._inputs = inputs if inputs is not None else Inputs()
@@ -340,7 +375,14 @@ class Slider:
         self._counts = {kind: 0 for kind in EventKind}
         self._stuck_time = 0.0
         self._cache: dict[tuple[float, float, float, float], float] = {}
-        self._start_stuck(self._t, require_finite("x0", x0), phase)
+        self._marks: Deque[CycleMark] | None = None
+        self._next_mark_n, self._next_mark_t = 1, NEVER
+        x0 = require_finite("x0", x0)
+        if cycle_log_size != 0:
+            self._marks = deque(maxlen=cycle_log_size)
+            if phase == 0.0:
+                self._marks.append(CycleMark(0, self._t, x0, 0.0))
+        self._start_stuck(self._t, x0, phase, 0)
 
     # -- read-only views -------------------------------------------------------
 
@@ -374,6 +416,11 @@ class Slider:
         return self._stuck_time + (self._t - seg.t0 if seg.direction == 0 else 0.0)
 
     @property
+    def cycle_marks(self) -> list[CycleMark]:
+        """The most recent period starts, oldest first (empty unless enabled)."""
+        return list(self._marks) if self._marks is not None else []
+
+    @property
     def next_event_time(self) -> float:
         """When the next event happens under the present inputs (inf: never)."""
         return self._next_t
@@ -381,8 +428,8 @@ class Slider:
     def state(self) -> SliderState:
         """The state at the current time :attr:`t`."""
         seg = self._seg
-        x, v, acc, friction, normal, phase = seg.evaluate(self._t)
-        return SliderState(self._t, x, v, acc, friction, normal, phase, Mode(seg.direction))
+        x, v, acc, friction, normal, theta = seg.evaluate(self._t)
+        return SliderState(self._t, x, v, acc, friction, normal, theta % TWO_PI, Mode(seg.direction))
 
     # -- advancing -------------------------------------------------------------
 
@@ -391,8 +438,15 @@ class Slider:
         if not t >= self._t:
             raise ParameterError("t", t, f"must be >= the current time {self._t!r} s")
         happened: list[Event] = []
-        while self._next_t <= t:
-            happened.extend(self._apply())
+        while True:
+            if self._next_mark_t <= self._next_t:
+                if self._next_mark_t > t:
+                    break
+                self._mark_cycle()
+            elif self._next_t <= t:
+                happened.extend(self._apply())
+            else:
+                break
         self._t = float(t)
         return happened
 
@@ -413,6 +467,7 @@ class Slider:
                 values = seg.evaluate(times[first:last], np)
                 for column, value in zip(columns, values):
                     column[first:last] = value
+                columns[5][first:last] %= TWO_PI
                 columns[6][first:last] = seg.direction
                 first = last
             if first < times.size:
@@ -445,26 +500,31 @@ class Slider:
     def _rebase(self, params: SliderParams, inputs: Inputs) -> None:
         """Start a new segment at the current time from the current state."""
         seg = self._seg
-        x, v, _, _, _, phase = seg.evaluate(self._t)
+        x, v, _, _, _, theta = seg.evaluate(self._t)
+        phase, cycles = _reduce_phase(theta, seg.cycles)
         if seg.direction == 0:
             self._stuck_time += self._t - seg.t0
         self._params, self._inputs = params, inputs
         w = seg.direction * v
         if seg.direction != 0 and w > 0.0:
-            self._start_slip(self._t, x, w, phase, seg.direction)
+            self._start_slip(self._t, x, w, phase, cycles, seg.direction)
         else:
-            self._start_stuck(self._t, x, phase)
+            self._start_stuck(self._t, x, phase, cycles)
 
-    def _start_stuck(self, t: float, x: float, phase: float) -> None:
-        self._seg = seg = _Segment(t, x, 0.0, phase, 0, self._params, self._inputs)
+    def _start_stuck(self, t: float, x: float, phase: float, cycles: int) -> None:
+        self._seg = seg = _Segment(t, x, 0.0, phase, cycles, 0, self._params, self._inputs)
         delta, start_phase, direction = next_slip_start(
             phase, seg.tangential, seg.load, seg.amplitude, seg.mu
         )
         self._next_t = t + delta / seg.omega
         self._next_start = (start_phase, direction)
+        self._schedule_mark()
 
-    def _start_slip(self, t: float, x: float, w: float, phase: float, direction: int) -> None:
-        self._seg = seg = _Segment(t, x, w, phase, direction, self._params, self._inputs)
+    def _start_slip(
+        self, t: float, x: float, w: float, phase: float, cycles: int, direction: int
+    ) -> None:
+        self._seg = seg = _Segment(t, x, w, phase, cycles, direction, self._params, self._inputs)
+        self._schedule_mark()
         if w == 0.0:
             key = (phase, seg.b0, seg.b1, seg.omega)
             delay = self._cache.get(key)
@@ -482,17 +542,33 @@ class Slider:
         if seg.direction == 0:
             self._stuck_time += t - seg.t0
             phase, direction = self._next_start
+            cycles = seg.cycles + (1 if phase < seg.phase0 else 0)  # passed 2*pi on the way
             event = Event(t, EventKind.SLIP_START, seg.x0, phase, Mode.STUCK, Mode(direction))
-            self._start_slip(t, seg.x0, 0.0, phase, direction)
+            self._start_slip(t, seg.x0, 0.0, phase, cycles, direction)
             return [self._log(event)]
-        x, _, _, _, _, phase = seg.evaluate(t)
+        x, _, _, _, _, theta = seg.evaluate(t)
+        phase, cycles = _reduce_phase(theta, seg.cycles)
         delta, _, direction = next_slip_start(phase, seg.tangential, seg.load, seg.amplitude, seg.mu)
         before = Mode(seg.direction)
         if delta == 0.0 and direction == -seg.direction:
-            self._start_slip(t, x, 0.0, phase, direction)
+            self._start_slip(t, x, 0.0, phase, cycles, direction)
             return [self._log(Event(t, EventKind.REVERSAL, x, phase, before, Mode(direction)))]
-        self._start_stuck(t, x, phase)
+        self._start_stuck(t, x, phase, cycles)
         return [self._log(Event(t, EventKind.STICK, x, phase, before, Mode.STUCK))]
+
+    def _schedule_mark(self) -> None:
+        if self._marks is not None:
+            self._next_mark_t = self._seg.time_of_cycle(self._next_mark_n)
+
+    def _mark_cycle(self) -> None:
+        """Record the start of period ``_next_mark_n`` and aim at the next."""
+        seg, t = self._seg, self._next_mark_t
+        x = seg.evaluate(t)[0]
+        stuck = self._stuck_time + (t - seg.t0 if seg.direction == 0 else 0.0)
+        assert self._marks is not None
+        self._marks.append(CycleMark(self._next_mark_n, t, x, stuck))
+        self._next_mark_n += 1
+        self._schedule_mark()
 
     def _log(self, event: Event) -> Event:
         self._events.append(event)
