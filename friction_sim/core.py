@@ -420,6 +420,16 @@ class Slider:
         """The most recent period starts, oldest first (empty unless enabled)."""
         return list(self._marks) if self._marks is not None else []
 
+    def cycle_marks_after(self, n: int) -> list[CycleMark]:
+        """The kept period starts with a number above ``n``, oldest first."""
+        newer: list[CycleMark] = []
+        for mark in reversed(self._marks or ()):
+            if mark.n <= n:
+                break
+            newer.append(mark)
+        newer.reverse()
+        return newer
+
     @property
     def next_event_time(self) -> float:
         """When the next event happens under the present inputs (inf: never)."""

@@ -39,6 +39,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from friction_sim.errors import ParameterError
+from friction_sim.params import Inputs, SliderParams
 
 _TWO_PI = 2.0 * np.pi
 _FOUR_PI2 = 4.0 * np.pi**2
@@ -222,3 +223,32 @@ def u_grid(points: int) -> UMap:
     axis = np.arange(1, points + 1) / (points + 1.0)
     phi, a = np.meshgrid(axis, axis)
     return UMap(phi=axis, amplitude_ratio=axis.copy(), u=np.asarray(u_map(phi, a)))
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """What the U relation predicts for a plant and its present inputs.
+
+    ``phi`` and ``amplitude_ratio`` are the paper's groups, Fd/(mu*m*g) and
+    Pa/(m*g).  With an external force the relation still holds with the
+    effective groups (Fd + Fx)/(mu*(m*g + Fz)) and Pa/(m*g + Fz), and an
+    effective gravity (m*g + Fz)/m; ``u`` and ``mean_velocity`` use those.
+    """
+
+    phi: float
+    amplitude_ratio: float
+    u: float
+    mean_velocity: float
+
+
+def predict(params: SliderParams, inputs: Inputs) -> Prediction:
+    """The exact periodic mean speed for ``params`` and ``inputs`` (inf when
+    the slider accelerates without bound)."""
+    load = params.weight + inputs.external_force_z
+    u = u_map(inputs.tangential_force / (params.mu * load), inputs.excitation_amplitude / load)
+    return Prediction(
+        phi=inputs.drive_force / (params.mu * params.weight),
+        amplitude_ratio=inputs.excitation_amplitude / params.weight,
+        u=u,
+        mean_velocity=dimensional_speed(u, inputs.excitation_frequency, load / params.mass, params.mu),
+    )
