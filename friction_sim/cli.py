@@ -7,6 +7,7 @@ Subcommands::
     friction-sim umap --grid 101 --csv u.csv --png u.png
     friction-sim trace --png fig2.png [--periods 2] [plant options]
     friction-sim simulate [plant options] --duration 2 [--settle 0.2] [--csv out.csv] [--json]
+    friction-sim slider [--params FILE] [--ros-args ...]
 
 Errors are one line on stderr and exit code 2, never a traceback.
 """
@@ -144,6 +145,27 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+# -- nodes ----------------------------------------------------------------------
+
+
+def _cmd_slider(args: argparse.Namespace) -> int:
+    from friction_sim.nodes.slider import main as slider_main
+
+    return slider_main(_ros_args("friction-sim-slider", args))
+
+
+def _ros_args(prog: str, args: argparse.Namespace) -> list[str]:
+    """The rclpy argument list: --params FILE becomes --ros-args --params-file FILE,
+    and anything after --ros-args on our command line is passed through."""
+    ros: list[str] = []
+    if args.params is not None:
+        if not args.params.is_file():
+            raise FrictionSimError(f"--params: no such file: {args.params}")
+        ros += ["--params-file", str(args.params)]
+    ros += args.ros_args
+    return [prog, "--ros-args", *ros] if ros else [prog]
+
+
 def _save(figure: Any, path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(path, dpi=120)
@@ -185,13 +207,26 @@ def build_parser() -> argparse.ArgumentParser:
                           help="samples per second in --csv (10000)")
     simulate.add_argument("--json", action="store_true", help="print one JSON object")
     simulate.set_defaults(handler=_cmd_simulate)
+
+    slider = sub.add_parser("slider", help="run the real-time slider node (as `ros2 run friction_sim slider`)")
+    slider.add_argument("--params", type=Path, help="ROS 2 parameters file, e.g. config/slider.yaml")
+    slider.set_defaults(handler=_cmd_slider, ros_args=[])
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``friction-sim``; returns the exit code."""
     parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    ros_args: list[str] = []
+    if "--ros-args" in argv:  # everything after it belongs to ROS
+        split = argv.index("--ros-args")
+        argv, ros_args = argv[:split], argv[split + 1:]
     args = parser.parse_args(argv)
+    if ros_args:
+        if not hasattr(args, "ros_args"):
+            parser.error(f"--ros-args is only for the node commands, not '{args.command}'")
+        args.ros_args = ros_args
     handler: Callable[[argparse.Namespace], int] = args.handler
     try:
         return handler(args)

@@ -1,0 +1,83 @@
+"""What every friction_sim node shares: running it, and describing parameters.
+
+:func:`run_node` is the ``main()`` shape of ros2/demos ``demo_nodes_py``:
+Ctrl-C (SIGINT) and SIGTERM end the node with exit code 0, and a bad start-up
+parameter is one line on stderr and exit code 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import Callable, Sequence
+
+import rclpy
+from builtin_interfaces.msg import Time
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+
+from friction_sim.errors import FrictionSimError
+
+EXIT_OK = 0
+EXIT_BAD_PARAMETER = 2
+
+
+def float_descriptor(description: str, low: float, high: float) -> ParameterDescriptor:
+    """A double parameter limited to [low, high]."""
+    return ParameterDescriptor(
+        description=description,
+        floating_point_range=[FloatingPointRange(from_value=low, to_value=high, step=0.0)],
+    )
+
+
+def int_descriptor(description: str, low: int, high: int) -> ParameterDescriptor:
+    """An integer parameter limited to [low, high]."""
+    return ParameterDescriptor(
+        description=description, integer_range=[IntegerRange(from_value=low, to_value=high, step=1)]
+    )
+
+
+def text_descriptor(description: str) -> ParameterDescriptor:
+    return ParameterDescriptor(description=description)
+
+
+def stamp(seconds: float, msg: Time | None = None) -> Time:
+    """Simulation time [s] as a builtin_interfaces/Time (filled in place if given)."""
+    msg = msg if msg is not None else Time()
+    nanoseconds = round(seconds * 1e9)
+    msg.sec, msg.nanosec = divmod(nanoseconds, 1_000_000_000)
+    return msg
+
+
+def wall_ns() -> int:
+    """The monotonic wall clock every node measures simulation time by."""
+    return time.monotonic_ns()
+
+
+def run_node(
+    factory: Callable[[], Node | Sequence[Node]], args: Sequence[str] | None = None,
+    *, prog: str = "friction_sim",
+) -> int:
+    """Initialise rclpy, build the node(s), spin until shut down; return the exit code."""
+    rclpy.init(args=args)
+    nodes: list[Node] = []
+    executor = SingleThreadedExecutor()
+    try:
+        made = factory()
+        nodes = list(made) if isinstance(made, Sequence) else [made]
+        for node in nodes:
+            executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (FrictionSimError, ParameterException) as error:
+        print(f"{prog}: error: {error}", file=sys.stderr)
+        return EXIT_BAD_PARAMETER
+    finally:
+        for node in nodes:
+            node.destroy_node()
+        executor.shutdown(timeout_sec=0.0)
+        rclpy.try_shutdown()
+    return EXIT_OK

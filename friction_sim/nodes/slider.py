@@ -1,0 +1,244 @@
+"""The slider node: ``ros2 run friction_sim slider``.
+
+A thin ROS 2 adapter around :class:`friction_sim.realtime.RealtimeSlider`:
+it converts command messages into input changes, advances the exact core to
+the present on every tick, and publishes the state.  There is no physics here.
+
+All names are relative, so ``--ros-args -r __ns:=/feeder1`` moves a whole
+feeder into a namespace (``/clock`` excepted, which is global by convention).
+
+Subscriptions: ``drive_force``, ``excitation_amplitude``,
+``excitation_frequency`` (std_msgs/Float64) and ``external_wrench``
+(geometry_msgs/WrenchStamped: force.x tangential, force.z normal, > 0 loads
+the contact; held until the next message).
+Publications: ``pose``, ``velocity``, ``friction_force`` at ``publish_rate``;
+``mean_velocity`` once per completed excitation period; ``diagnostics`` at
+1 Hz; ``/clock`` when ``publish_clock`` is true.  Header stamps are
+simulation time.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Callable, Sequence
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock as ClockMsg
+from std_msgs.msg import Float64
+
+from friction_sim.errors import ParameterError
+from friction_sim.nodes.common import (
+    float_descriptor, int_descriptor, run_node, stamp, text_descriptor, wall_ns,
+)
+from friction_sim.params import Inputs, SliderParams, check_contact
+from friction_sim.realtime import MAX_MEAN_WINDOW, CommandOutcome, RealtimeSlider, Tick
+
+QOS_DEPTH = 10
+PLANT = ("mass", "mu", "gravity")
+INPUTS = ("drive_force", "excitation_amplitude", "excitation_frequency")
+
+#: name -> (default, descriptor); defaults are the paper's Fig. 2 case.
+PARAMETERS: dict[str, tuple[Any, Any]] = {
+    "mass": (1.0, float_descriptor("slider mass m [kg]", 1e-6, 1e6)),
+    "mu": (0.1, float_descriptor("Coulomb friction coefficient [-]", 1e-6, 10.0)),
+    "gravity": (10.0, float_descriptor("gravity g [m/s^2]", 1e-6, 1e3)),
+    "drive_force": (0.7, float_descriptor("drive force Fd [N] along +x", -1e6, 1e6)),
+    "excitation_amplitude": (5.0, float_descriptor("excitation amplitude Pa [N], < m*g", 0.0, 1e6)),
+    "excitation_frequency": (50.0, float_descriptor("excitation frequency f [Hz]", 1e-3, 1e5)),
+    "publish_rate": (1000.0, float_descriptor("state publishing rate [Hz]", 1.0, 10_000.0)),
+    "real_time_factor": (1.0, float_descriptor("simulated seconds per wall second", 1e-3, 1e3)),
+    "publish_clock": (False, text_descriptor("publish simulation time on /clock")),
+    "mean_window_periods": (1, int_descriptor("whole periods averaged in mean_velocity", 1, MAX_MEAN_WINDOW)),
+    "frame_id": ("slideway", text_descriptor("header.frame_id of published messages")),
+}
+
+
+class SliderNode(Node):
+    """Publishes the exact slider state in real time and takes commands."""
+
+    def __init__(self, node_name: str = "slider", **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        for name, (default, descriptor) in PARAMETERS.items():
+            self.declare_parameter(name, default, descriptor)
+        values = {name: self.get_parameter(name).value for name in PARAMETERS}
+        params, inputs = _plant(values, SliderParams(), Inputs())
+        check_contact(params, inputs)
+        self._rt = RealtimeSlider(
+            params, inputs, wall_ns=wall_ns(), real_time_factor=values["real_time_factor"],
+            publish_rate=values["publish_rate"], mean_window_periods=values["mean_window_periods"],
+        )
+        self._frame_id: str = values["frame_id"]
+        self._publish_clock: bool = values["publish_clock"]
+        self.command_listeners: list[Callable[[CommandOutcome], None]] = []
+        self.tick_listeners: list[Callable[[Tick], None]] = []
+        self._make_publishers()
+        self._make_subscriptions()
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._tick_timer = self.create_timer(1.0 / values["publish_rate"], self._on_tick, clock=self._steady)
+        self.create_timer(1.0, self._on_diagnostics, clock=self._steady)
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+
+    @property
+    def realtime(self) -> RealtimeSlider:
+        return self._rt
+
+    # -- wiring ---------------------------------------------------------------
+
+    def _make_publishers(self) -> None:
+        self._pose_pub = self.create_publisher(PoseStamped, "pose", QOS_DEPTH)
+        self._velocity_pub = self.create_publisher(TwistStamped, "velocity", QOS_DEPTH)
+        self._friction_pub = self.create_publisher(WrenchStamped, "friction_force", QOS_DEPTH)
+        self._mean_pub = self.create_publisher(TwistStamped, "mean_velocity", QOS_DEPTH)
+        self._diag_pub = self.create_publisher(DiagnosticArray, "diagnostics", QOS_DEPTH)
+        self._clock_pub = self.create_publisher(ClockMsg, "/clock", QOS_DEPTH)
+        self._pose, self._velocity, self._friction = PoseStamped(), TwistStamped(), WrenchStamped()
+        self._clock_msg = ClockMsg()
+
+    def _make_subscriptions(self) -> None:
+        for name in INPUTS:
+            self.create_subscription(Float64, name, self._float_command(name), QOS_DEPTH)
+        self.create_subscription(WrenchStamped, "external_wrench", self._on_wrench, QOS_DEPTH)
+
+    # -- commands ---------------------------------------------------------------
+
+    def _float_command(self, name: str) -> Callable[[Float64], None]:
+        def on_message(msg: Float64) -> None:
+            self._command(name, {name: msg.data})
+
+        return on_message
+
+    def _on_wrench(self, msg: WrenchStamped) -> None:
+        force = msg.wrench.force
+        self._command("external_wrench", {"external_force_x": force.x, "external_force_z": force.z})
+
+    def _command(self, topic: str, values: dict[str, float]) -> CommandOutcome:
+        outcome = self._rt.command(topic, values, wall_ns())
+        self._report(outcome)
+        return outcome
+
+    def _report(self, outcome: CommandOutcome) -> None:
+        if not outcome.accepted:
+            self.get_logger().warning(
+                f"rejected {outcome.reason}; last valid value kept", throttle_duration_sec=1.0
+            )
+        for listener in self.command_listeners:
+            listener(outcome)
+
+    # -- publishing -------------------------------------------------------------
+
+    def _on_tick(self) -> None:
+        tick = self._rt.tick(wall_ns())
+        state, frame = tick.state, self._frame_id
+        for msg in (self._pose, self._velocity, self._friction):
+            stamp(state.t, msg.header.stamp)
+            msg.header.frame_id = frame
+        self._pose.pose.position.x = state.x
+        self._velocity.twist.linear.x = state.v
+        self._friction.wrench.force.x = state.friction_force
+        self._friction.wrench.force.z = state.normal_force
+        self._pose_pub.publish(self._pose)
+        self._velocity_pub.publish(self._velocity)
+        self._friction_pub.publish(self._friction)
+        for period in tick.periods:
+            self._mean_pub.publish(self._mean_velocity_msg(period.t, period.mean_velocity))
+        if self._publish_clock:
+            stamp(state.t, self._clock_msg.clock)
+            self._clock_pub.publish(self._clock_msg)
+        for listener in self.tick_listeners:
+            listener(tick)
+
+    def _mean_velocity_msg(self, t: float, value: float) -> TwistStamped:
+        msg = TwistStamped()
+        stamp(t, msg.header.stamp)
+        msg.header.frame_id = self._frame_id
+        msg.twist.linear.x = value
+        return msg
+
+    def _on_diagnostics(self) -> None:
+        report = self._rt.diagnostics(wall_ns())
+        status = DiagnosticStatus(name="slider", hardware_id=self.get_fully_qualified_name())
+        status.level, status.message = _health(report)
+        status.values = [KeyValue(key=key, value=_text(value)) for key, value in report.items()]
+        msg = DiagnosticArray(status=[status])
+        stamp(report["sim_time"], msg.header.stamp)
+        self._diag_pub.publish(msg)
+
+    # -- parameters ---------------------------------------------------------------
+
+    def _validate_parameters(self, changes: list[Parameter]) -> SetParametersResult:
+        """The one place for cross-field rules: the whole new set must be a valid plant."""
+        values = {name: self.get_parameter(name).value for name in PARAMETERS}
+        values.update({p.name: p.value for p in changes})
+        try:
+            params, inputs = _plant(values, self._rt.slider.params, self._rt.slider.inputs)
+            check_contact(params, inputs)
+        except ParameterError as error:
+            outcome = self._rt.refuse("parameters", {p.name: p.value for p in changes}, str(error), wall_ns())
+            self._report(outcome)
+            return SetParametersResult(successful=False, reason=str(error))
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, changes: list[Parameter]) -> None:
+        names = {p.name for p in changes}
+        values = {p.name: p.value for p in changes}
+        now = wall_ns()
+        if names & set(PLANT):
+            params, _ = _plant({n: self.get_parameter(n).value for n in PARAMETERS}, SliderParams(), Inputs())
+            self._report(self._rt.set_params(params, now))
+        inputs = {name: values[name] for name in INPUTS if name in values}
+        if inputs:
+            self._command("parameters", inputs)
+        if "real_time_factor" in names:
+            self._rt.set_real_time_factor(values["real_time_factor"], now)
+        if "mean_window_periods" in names:
+            self._rt.set_mean_window(values["mean_window_periods"])
+        if "publish_rate" in names:
+            self._rt.set_publish_rate(values["publish_rate"])
+            self.destroy_timer(self._tick_timer)
+            self._tick_timer = self.create_timer(1.0 / values["publish_rate"], self._on_tick, clock=self._steady)
+        self._publish_clock = self.get_parameter("publish_clock").value
+        self._frame_id = self.get_parameter("frame_id").value
+
+
+def _plant(values: dict[str, Any], params: SliderParams, inputs: Inputs) -> tuple[SliderParams, Inputs]:
+    """SliderParams and Inputs from parameter values (validated by the dataclasses),
+    keeping the external force of ``inputs``, which has no parameter."""
+    new_params = params.replace(**{name: values[name] for name in PLANT})
+    new_inputs = inputs.replace(**{name: values[name] for name in INPUTS})
+    for name in ("publish_rate", "real_time_factor"):
+        if not (isinstance(values[name], float) and math.isfinite(values[name]) and values[name] > 0):
+            raise ParameterError(name, values[name], "must be finite and > 0")
+    return new_params, new_inputs
+
+
+def _health(report: dict[str, Any]) -> tuple[bytes, str]:
+    """OK, or WARN with the reason: the timer falls behind or commands were refused."""
+    problems = []
+    if report["tick_rate"] < 0.8 * report["publish_rate"]:
+        problems.append(f"tick rate {report['tick_rate']:.0f} Hz < 80% of {report['publish_rate']:g} Hz")
+    if report["late_ticks"]:
+        problems.append(f"{report['late_ticks']} late ticks")
+    if report["commands_rejected_in_interval"]:
+        problems.append(f"{report['commands_rejected_in_interval']} commands rejected ({report['last_rejection']})")
+    if not problems:
+        return DiagnosticStatus.OK, "running"
+    return DiagnosticStatus.WARN, "; ".join(problems)
+
+
+def _text(value: Any) -> str:
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """``ros2 run friction_sim slider [--ros-args ...]``."""
+    return run_node(SliderNode, args, prog="slider")
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,268 @@
+"""Running the exact core against a wall clock, without ROS.
+
+The slider node is a thin ROS adapter around :class:`RealtimeSlider`, which
+holds everything that is not message conversion:
+
+* :class:`SimClock` turns a monotonic wall clock into simulation time
+  (elapsed wall time times the real-time factor), so a late or missed timer
+  tick never changes the physics: the next tick simply advances further.
+* Commands take effect at the simulation time at which they are handled,
+  are validated once (:mod:`friction_sim.params`), and are counted; a
+  rejected command leaves the last valid inputs in force.
+* Once per completed excitation period it reports the mean velocity over
+  the last ``mean_window_periods`` whole periods and the stick fraction of
+  the last period, from the core's exact period marks.
+* It keeps the tick statistics the node publishes as diagnostics.
+
+Every outcome is a typed record, so the node only converts and publishes,
+and a recorder can log exactly what happened and when.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import Any, Deque
+
+from friction_sim.core import CycleMark, Event, Slider, SliderState
+from friction_sim.errors import ParameterError
+from friction_sim.params import Inputs, SliderParams, require_positive
+from friction_sim.urelation import Prediction, predict
+
+NS_PER_S = 1_000_000_000
+#: Period marks the core keeps; more than this many periods in one tick are
+#: summarised only from the last ones (only at absurd real-time factors).
+_MARK_BACKLOG = 4096
+MAX_MEAN_WINDOW = 10_000
+
+
+class SimClock:
+    """Simulation time from a monotonic wall clock in integer nanoseconds.
+
+    t_sim = sim_start + rate * (wall - wall_start); changing the rate rebases,
+    so simulation time stays continuous.
+    """
+
+    def __init__(self, rate: float, wall_ns: int, sim_start: float = 0.0) -> None:
+        self._rate = require_positive("real_time_factor", rate)
+        self._wall0 = wall_ns
+        self._sim0 = sim_start
+
+    @property
+    def rate(self) -> float:
+        return self._rate
+
+    def now(self, wall_ns: int) -> float:
+        """Simulation time [s] at wall time ``wall_ns``."""
+        return self._sim0 + self._rate * ((wall_ns - self._wall0) / NS_PER_S)
+
+    def set_rate(self, rate: float, wall_ns: int) -> None:
+        """Change the real-time factor from ``wall_ns`` on."""
+        rate = require_positive("real_time_factor", rate)
+        self._sim0, self._wall0, self._rate = self.now(wall_ns), wall_ns, rate
+
+
+@dataclass(frozen=True)
+class CommandOutcome:
+    """One command as handled: when (simulation time), what, and whether it
+    was accepted; ``reason`` says why not (field, value, limit)."""
+
+    t: float
+    topic: str
+    values: dict[str, float]
+    accepted: bool
+    reason: str = ""
+
+
+@dataclass(frozen=True)
+class PeriodSummary:
+    """Published once per completed excitation period ``n`` (ending at ``t``)."""
+
+    n: int
+    t: float
+    mean_velocity: float
+    window_periods: int
+    stick_fraction: float
+
+
+@dataclass(frozen=True)
+class Tick:
+    """The result of advancing to the present: the state now, the events on
+    the way, and the summaries of periods completed on the way."""
+
+    state: SliderState
+    events: list[Event]
+    periods: list[PeriodSummary]
+
+
+@dataclass
+class TickStats:
+    """Timer health over the current diagnostics interval."""
+
+    ticks: int = 0
+    late_ticks: int = 0
+    total_late_ticks: int = 0
+    last_wall_ns: int | None = None
+    interval_start_ns: int | None = None
+    interval_sim_start: float = 0.0
+
+
+class RealtimeSlider:
+    """The exact slider advanced by a wall clock, with commands and statistics."""
+
+    def __init__(
+        self, params: SliderParams, inputs: Inputs, *, wall_ns: int,
+        real_time_factor: float = 1.0, publish_rate: float = 1000.0, mean_window_periods: int = 1,
+    ) -> None:
+        self.clock = SimClock(real_time_factor, wall_ns)
+        self.slider = Slider(params, inputs, event_log_size=1000, cycle_log_size=_MARK_BACKLOG)
+        self.publish_rate = require_positive("publish_rate", publish_rate)
+        self._window: Deque[CycleMark] = deque(maxlen=2)
+        self.set_mean_window(mean_window_periods)
+        self._last_mark_n = -1
+        self.accepted = 0
+        self.rejected = 0
+        self.last_rejection = ""
+        self._rejected_before_interval = 0
+        self.stats = TickStats(interval_start_ns=wall_ns)
+        self.last_period: PeriodSummary | None = None
+
+    # -- commands -----------------------------------------------------------
+
+    def command(self, topic: str, values: dict[str, float], wall_ns: int) -> CommandOutcome:
+        """Apply input changes (field names of :class:`Inputs`) now, or refuse them."""
+        t = self._advance(wall_ns)
+        try:
+            self.slider.set_inputs(**values)
+        except ParameterError as error:
+            return self._refuse(t, topic, values, str(error) if error.field == topic else f"{topic}: {error}")
+        self.accepted += 1
+        return CommandOutcome(t, topic, values, True)
+
+    def set_params(self, params: SliderParams, wall_ns: int) -> CommandOutcome:
+        """Change mass, mu and gravity now, if the present inputs allow it."""
+        t = self._advance(wall_ns)
+        values = {"mass": params.mass, "mu": params.mu, "gravity": params.gravity}
+        try:
+            self.slider.set_params(params)
+        except ParameterError as error:
+            return self._refuse(t, "parameters", values, f"parameters: {error}")
+        self.accepted += 1
+        return CommandOutcome(t, "parameters", values, True)
+
+    def refuse(self, topic: str, values: dict[str, Any], reason: str, wall_ns: int) -> CommandOutcome:
+        """Count a command that was refused before it reached the core."""
+        return self._refuse(self._advance(wall_ns), topic, values, reason)
+
+    def _refuse(self, t: float, topic: str, values: dict[str, Any], reason: str) -> CommandOutcome:
+        self.rejected += 1
+        self.last_rejection = reason
+        return CommandOutcome(t, topic, values, False, reason)
+
+    # -- settings -----------------------------------------------------------
+
+    def set_mean_window(self, periods: int) -> None:
+        """Average the mean velocity over the last ``periods`` whole periods."""
+        if isinstance(periods, bool) or not isinstance(periods, int) or not 1 <= periods <= MAX_MEAN_WINDOW:
+            raise ParameterError("mean_window_periods", periods, f"must be an integer in [1, {MAX_MEAN_WINDOW}]")
+        self._window = deque(self._window, maxlen=periods + 1)
+
+    @property
+    def mean_window_periods(self) -> int:
+        assert self._window.maxlen is not None
+        return self._window.maxlen - 1
+
+    def set_publish_rate(self, rate: float) -> None:
+        self.publish_rate = require_positive("publish_rate", rate)
+
+    def set_real_time_factor(self, rate: float, wall_ns: int) -> None:
+        self._advance(wall_ns)
+        self.clock.set_rate(rate, wall_ns)
+
+    # -- the tick -------------------------------------------------------------
+
+    def tick(self, wall_ns: int) -> Tick:
+        """Advance to the present and collect what happened on the way."""
+        self._count_tick(wall_ns)
+        t = self.clock.now(wall_ns)
+        events = self.slider.advance_to(max(t, self.slider.t))
+        return Tick(self.slider.state(), events, self._new_periods())
+
+    def _advance(self, wall_ns: int) -> float:
+        t = max(self.clock.now(wall_ns), self.slider.t)
+        self.slider.advance_to(t)
+        return t
+
+    def _new_periods(self) -> list[PeriodSummary]:
+        summaries = []
+        for mark in self.slider.cycle_marks_after(self._last_mark_n):
+            self._last_mark_n = mark.n
+            previous = self._window[-1] if self._window else None
+            self._window.append(mark)
+            if previous is None or previous.n != mark.n - 1:
+                continue
+            first = self._window[0]
+            span = mark.t - first.t
+            duration = mark.t - previous.t
+            summaries.append(PeriodSummary(
+                n=mark.n, t=mark.t, mean_velocity=(mark.x - first.x) / span if span > 0 else 0.0,
+                window_periods=mark.n - first.n,
+                stick_fraction=(mark.stuck_time - previous.stuck_time) / duration if duration > 0 else 1.0,
+            ))
+        if summaries:
+            self.last_period = summaries[-1]
+        return summaries
+
+    def _count_tick(self, wall_ns: int) -> None:
+        stats = self.stats
+        if stats.last_wall_ns is not None and (wall_ns - stats.last_wall_ns) > 1.5 * NS_PER_S / self.publish_rate:
+            stats.late_ticks += 1
+            stats.total_late_ticks += 1
+        stats.ticks += 1
+        stats.last_wall_ns = wall_ns
+
+    # -- diagnostics ------------------------------------------------------------
+
+    def prediction(self) -> Prediction:
+        return predict(self.slider.params, self.slider.inputs)
+
+    def diagnostics(self, wall_ns: int) -> dict[str, Any]:
+        """The figures of the last diagnostics interval; starts a new interval."""
+        stats = self.stats
+        start = stats.interval_start_ns if stats.interval_start_ns is not None else wall_ns
+        wall = (wall_ns - start) / NS_PER_S
+        sim_now = self.clock.now(wall_ns)
+        tick_rate = stats.ticks / wall if wall > 0 else 0.0
+        achieved_rtf = (sim_now - stats.interval_sim_start) / wall if wall > 0 else 0.0
+        inputs, prediction = self.slider.inputs, self.prediction()
+        report = {
+            "sim_time": sim_now,
+            "real_time_factor": self.clock.rate,
+            "achieved_real_time_factor": achieved_rtf,
+            "tick_rate": tick_rate,
+            "publish_rate": self.publish_rate,
+            "late_ticks": stats.late_ticks,
+            "late_ticks_total": stats.total_late_ticks,
+            "commands_accepted": self.accepted,
+            "commands_rejected": self.rejected,
+            "commands_rejected_in_interval": self.rejected - self._rejected_before_interval,
+            "last_rejection": self.last_rejection,
+            "drive_force": inputs.drive_force,
+            "excitation_amplitude": inputs.excitation_amplitude,
+            "excitation_frequency": inputs.excitation_frequency,
+            "external_force_x": inputs.external_force_x,
+            "external_force_z": inputs.external_force_z,
+            "phi": prediction.phi,
+            "amplitude_ratio": prediction.amplitude_ratio,
+            "predicted_U": prediction.u,
+            "predicted_mean_velocity": prediction.mean_velocity,
+            "stick_fraction": self.last_period.stick_fraction if self.last_period else math.nan,
+            "measured_mean_velocity": self.last_period.mean_velocity if self.last_period else math.nan,
+        }
+        self._rejected_before_interval = self.rejected
+        stats.ticks = 0
+        stats.late_ticks = 0
+        stats.interval_start_ns = wall_ns
+        stats.interval_sim_start = sim_now
+        return report
