@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from enum import Enum, IntEnum
 from types import ModuleType
 from typing import Any, Deque
@@ -325,6 +325,11 @@ class _Segment:
         return self.t0 + (TWO_PI * whole - self.phase0) / self.omega
 
 
+def _changed(old: Any, new: Any) -> set[str]:
+    """Names of the dataclass fields that differ between ``old`` and ``new``."""
+    return {f.name for f in fields(new) if getattr(old, f.name) != getattr(new, f.name)}
+
+
 def _reduce_phase(theta: float, cycles: int) -> tuple[float, int]:
     """Split a phase counted from period ``cycles`` into [0, 2*pi) and whole periods."""
     whole = math.floor(theta / TWO_PI)
@@ -495,14 +500,14 @@ class Slider:
         the normal reaction reach zero is refused and nothing changes.
         """
         new = (inputs if inputs is not None else self._inputs).replace(**changes)
-        check_contact(self._params, new)
+        check_contact(self._params, new, changes if inputs is None else _changed(self._inputs, new))
         self._rebase(self._params, new)
         return new
 
     def set_params(self, params: SliderParams) -> None:
         """Change mass, mu or gravity at the current time (refused if it would
         let the normal reaction reach zero under the present inputs)."""
-        check_contact(params, self._inputs)
+        check_contact(params, self._inputs, _changed(self._params, params))
         self._rebase(params, self._inputs)
 
     # -- internals: acting on events -------------------------------------------

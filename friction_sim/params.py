@@ -17,7 +17,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Iterable
 
 from friction_sim.errors import ParameterError
 
@@ -102,27 +102,36 @@ class Inputs:
         return dataclasses.replace(self, **changes)
 
 
-def check_contact(params: SliderParams, inputs: Inputs) -> None:
+def check_contact(params: SliderParams, inputs: Inputs, changed: Iterable[str] = ()) -> None:
     """Refuse a combination whose normal reaction could reach zero.
 
     R(t) = m*g + Fz - Pa*sin(theta) must stay > 0 for every phase, i.e.
     Pa < m*g + Fz; otherwise the slider would lift off, which this model does
-    not cover.
+    not cover.  ``changed`` names the fields just changed, so that the error
+    blames the one the user touched (an external force or the mass, say)
+    rather than the excitation amplitude that was already in force.
     """
-    mean_load = params.weight + inputs.external_force_z
-    if mean_load <= 0.0:
+    weight, fz, pa = params.weight, inputs.external_force_z, inputs.excitation_amplitude
+    if pa < weight + fz:
+        return
+    changed = set(changed)
+    lift_off = "(the normal reaction would reach zero: the slider would lift off)"
+    if "external_force_z" in changed and "excitation_amplitude" not in changed:
         raise ParameterError(
-            "external_force_z",
-            inputs.external_force_z,
-            f"must be > -mass*gravity = {-params.weight!r} N (the slider would lift off)",
+            "external_force_z", fz, f"must be > excitation_amplitude - mass*gravity = {pa - weight!r} N {lift_off}"
         )
-    if inputs.excitation_amplitude >= mean_load:
-        raise ParameterError(
-            "excitation_amplitude",
-            inputs.excitation_amplitude,
-            f"must be < mass*gravity + external_force_z = {mean_load!r} N "
-            "(the slider would lift off)",
-        )
+    for name in ("mass", "gravity"):
+        if name in changed and "excitation_amplitude" not in changed:
+            other = params.gravity if name == "mass" else params.mass
+            unit = "kg" if name == "mass" else "m/s^2"
+            raise ParameterError(
+                name, getattr(params, name),
+                f"must be > (excitation_amplitude - external_force_z)/{'gravity' if name == 'mass' else 'mass'}"
+                f" = {(pa - fz) / other!r} {unit} {lift_off}",
+            )
+    raise ParameterError(
+        "excitation_amplitude", pa, f"must be < mass*gravity + external_force_z = {weight + fz!r} N {lift_off}"
+    )
 
 
 def drive_ratio(params: SliderParams, inputs: Inputs) -> float:

@@ -38,29 +38,36 @@ MAX_MEAN_WINDOW = 10_000
 
 
 class SimClock:
-    """Simulation time from a monotonic wall clock in integer nanoseconds.
+    """Simulation time from a monotonic wall clock, both in integer nanoseconds.
 
     t_sim = sim_start + rate * (wall - wall_start); changing the rate rebases,
-    so simulation time stays continuous.
+    so simulation time stays continuous.  Simulation time is kept in whole
+    nanoseconds, the resolution of a ROS header stamp, so the time a state or a
+    command is stamped with is exactly the time the core computed it for.
     """
 
-    def __init__(self, rate: float, wall_ns: int, sim_start: float = 0.0) -> None:
+    def __init__(self, rate: float, wall_ns: int, sim_start_ns: int = 0) -> None:
         self._rate = require_positive("real_time_factor", rate)
         self._wall0 = wall_ns
-        self._sim0 = sim_start
+        self._sim0 = sim_start_ns
 
     @property
     def rate(self) -> float:
         return self._rate
 
+    def now_ns(self, wall_ns: int) -> int:
+        """Simulation time [ns] at wall time ``wall_ns``."""
+        elapsed = wall_ns - self._wall0
+        return self._sim0 + (elapsed if self._rate == 1.0 else round(self._rate * elapsed))
+
     def now(self, wall_ns: int) -> float:
-        """Simulation time [s] at wall time ``wall_ns``."""
-        return self._sim0 + self._rate * ((wall_ns - self._wall0) / NS_PER_S)
+        """Simulation time [s] at wall time ``wall_ns`` (a whole number of ns)."""
+        return self.now_ns(wall_ns) / NS_PER_S
 
     def set_rate(self, rate: float, wall_ns: int) -> None:
         """Change the real-time factor from ``wall_ns`` on."""
         rate = require_positive("real_time_factor", rate)
-        self._sim0, self._wall0, self._rate = self.now(wall_ns), wall_ns, rate
+        self._sim0, self._wall0, self._rate = self.now_ns(wall_ns), wall_ns, rate
 
 
 @dataclass(frozen=True)

@@ -16,10 +16,12 @@ from builtin_interfaces.msg import Time
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 
 from friction_sim.errors import FrictionSimError
 
+RCLError = _rclpy.RCLError
 EXIT_OK = 0
 EXIT_BAD_PARAMETER = 2
 
@@ -72,6 +74,11 @@ def run_node(
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except RCLError:
+        # A signal shut the context down between the executor's ok() check and
+        # its next wait set: that is a normal shutdown too.
+        if rclpy.ok():
+            raise
     except (FrictionSimError, ParameterException) as error:
         print(f"{prog}: error: {error}", file=sys.stderr)
         return EXIT_BAD_PARAMETER

@@ -125,7 +125,7 @@ class SliderNode(Node):
     def _report(self, outcome: CommandOutcome) -> None:
         if not outcome.accepted:
             self.get_logger().warning(
-                f"rejected {outcome.reason}; last valid value kept", throttle_duration_sec=1.0
+                f"{outcome.reason}; last valid value kept", throttle_duration_sec=1.0
             )
         for listener in self.command_listeners:
             listener(outcome)
@@ -177,7 +177,7 @@ class SliderNode(Node):
         values.update({p.name: p.value for p in changes})
         try:
             params, inputs = _plant(values, self._rt.slider.params, self._rt.slider.inputs)
-            check_contact(params, inputs)
+            check_contact(params, inputs, {p.name for p in changes})
         except ParameterError as error:
             outcome = self._rt.refuse("parameters", {p.name: p.value for p in changes}, str(error), wall_ns())
             self._report(outcome)

@@ -1,0 +1,84 @@
+"""Test helpers for nodes: a probe node that records what a node publishes and
+sends it commands, all spun in the test's own thread (no launch_testing)."""
+
+from __future__ import annotations
+
+import time
+from collections import defaultdict
+from typing import Any, Callable
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from std_msgs.msg import Float64
+
+OUTPUTS = {
+    "pose": PoseStamped,
+    "velocity": TwistStamped,
+    "friction_force": WrenchStamped,
+    "mean_velocity": TwistStamped,
+    "diagnostics": DiagnosticArray,
+}
+INPUTS = {
+    "drive_force": Float64,
+    "excitation_amplitude": Float64,
+    "excitation_frequency": Float64,
+    "external_wrench": WrenchStamped,
+}
+
+
+def stamp_ns(msg: Any) -> int:
+    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+class Probe:
+    """Subscribes to every output of a slider in ``namespace`` and publishes
+    to every input; spins the given nodes together with itself."""
+
+    def __init__(self, namespace: str, *nodes: Node, outputs: dict[str, type] | None = None) -> None:
+        self.node = rclpy.create_node("probe", namespace=namespace)
+        self.received: dict[str, list[Any]] = defaultdict(list)
+        for topic, kind in (outputs or OUTPUTS).items():
+            self.node.create_subscription(kind, topic, self._keeper(topic), 100)
+        self.publishers = {topic: self.node.create_publisher(kind, topic, 10) for topic, kind in INPUTS.items()}
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+        for node in nodes:
+            self.executor.add_node(node)
+
+    def _keeper(self, topic: str) -> Callable[[Any], None]:
+        return lambda msg: self.received[topic].append(msg)
+
+    def send(self, topic: str, value: float | tuple[float, float]) -> None:
+        if topic == "external_wrench":
+            msg = WrenchStamped()
+            msg.wrench.force.x, msg.wrench.force.z = value  # type: ignore[misc]
+        else:
+            msg = Float64(data=float(value))  # type: ignore[arg-type]
+        self.publishers[topic].publish(msg)
+
+    def spin_for(self, seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=0.01)
+
+    def spin_until(self, predicate: Callable[[], bool], timeout: float = 10.0) -> bool:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if predicate():
+                return True
+            self.executor.spin_once(timeout_sec=0.01)
+        return predicate()
+
+    def wait_for_connection(self, count: int = 1, timeout: float = 10.0) -> None:
+        """Wait until discovery has matched our publishers and subscriptions."""
+        def matched() -> bool:
+            subs = all(pub.get_subscription_count() >= count for pub in self.publishers.values())
+            return subs and all(len(self.received[t]) > 0 for t in ("pose",))
+        assert self.spin_until(matched, timeout), "the node under test never connected"
+
+    def close(self) -> None:
+        self.executor.shutdown(timeout_sec=0.0)
+        self.node.destroy_node()

@@ -1,0 +1,296 @@
+"""The slider node over real topics (DDS on localhost, random domain: conftest)."""
+
+from __future__ import annotations
+
+import math
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+import pytest
+import rclpy
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from geometry_msgs.msg import PoseStamped
+from rosgraph_msgs.msg import Clock as ClockMsg
+
+from friction_sim.core import Slider
+from friction_sim.nodes.slider import SliderNode
+from friction_sim.params import Inputs, SliderParams
+from friction_sim.realtime import CommandOutcome
+from friction_sim.simulation import Command, run_schedule
+from friction_sim.urelation import predict
+from ros_harness import Probe, stamp_ns
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def ros() -> Iterator[None]:
+    rclpy.init()
+    yield
+    rclpy.try_shutdown()
+
+
+def namespace() -> str:
+    return f"/t{uuid.uuid4().hex[:8]}"
+
+
+@pytest.fixture
+def rig(ros: None) -> Iterator[tuple[SliderNode, Probe, list[CommandOutcome]]]:
+    ns = namespace()
+    node = SliderNode(namespace=ns)
+    outcomes: list[CommandOutcome] = []
+    node.command_listeners.append(outcomes.append)
+    probe = Probe(ns, node)
+    probe.wait_for_connection()
+    yield node, probe, outcomes
+    probe.close()
+    node.destroy_node()
+
+
+def diagnostics_values(msg) -> dict[str, str]:  # type: ignore[no-untyped-def]
+    (status,) = msg.status
+    return {kv.key: kv.value for kv in status.values}
+
+
+def test_topic_contract_names_types_and_namespace(rig) -> None:  # type: ignore[no-untyped-def]
+    node, probe, _ = rig
+    ns = node.get_namespace()
+    published = dict(node.get_publisher_names_and_types_by_node("slider", ns))
+    assert published[f"{ns}/pose"] == ["geometry_msgs/msg/PoseStamped"]
+    assert published[f"{ns}/velocity"] == ["geometry_msgs/msg/TwistStamped"]
+    assert published[f"{ns}/friction_force"] == ["geometry_msgs/msg/WrenchStamped"]
+    assert published[f"{ns}/mean_velocity"] == ["geometry_msgs/msg/TwistStamped"]
+    assert published[f"{ns}/diagnostics"] == ["diagnostic_msgs/msg/DiagnosticArray"]
+    assert published["/clock"] == ["rosgraph_msgs/msg/Clock"]
+    subscribed = dict(node.get_subscriber_names_and_types_by_node("slider", ns))
+    for name in ("drive_force", "excitation_amplitude", "excitation_frequency"):
+        assert subscribed[f"{ns}/{name}"] == ["std_msgs/msg/Float64"]
+    assert subscribed[f"{ns}/external_wrench"] == ["geometry_msgs/msg/WrenchStamped"]
+
+    probe.spin_until(lambda: len(probe.received["mean_velocity"]) >= 3 and probe.received["diagnostics"], 5.0)
+    poses, frictions = probe.received["pose"], probe.received["friction_force"]
+    assert {m.header.frame_id for m in poses + frictions} == {"slideway"}
+    stamps = [stamp_ns(m) for m in poses]
+    assert stamps == sorted(stamps) and len(set(stamps)) == len(stamps)
+    # Units: R in [m g - Pa, m g + Pa] N, |friction| <= mu R, mean speed in m/s.
+    for msg in frictions:
+        normal, friction = msg.wrench.force.z, msg.wrench.force.x
+        assert 5.0 - 1e-12 <= normal <= 15.0 + 1e-12
+        assert abs(friction) <= 0.1 * normal + 1e-12
+    expected = predict(SliderParams(), Inputs()).mean_velocity
+    later = probe.received["mean_velocity"][1:]
+    assert later and all(m.twist.linear.x == pytest.approx(expected, rel=1e-9) for m in later)
+    values = diagnostics_values(probe.received["diagnostics"][-1])
+    for key in ("achieved_real_time_factor", "tick_rate", "late_ticks", "commands_accepted",
+                "commands_rejected", "last_rejection", "drive_force", "excitation_amplitude",
+                "excitation_frequency", "phi", "amplitude_ratio", "predicted_U",
+                "predicted_mean_velocity", "stick_fraction"):
+        assert key in values
+    assert float(values["phi"]) == pytest.approx(0.7)
+    assert 0.0 < float(values["stick_fraction"]) < 1.0
+
+
+def test_published_trajectory_equals_the_exact_core_whatever_the_jitter(rig) -> None:  # type: ignore[no-untyped-def]
+    node, probe, outcomes = rig
+    rng = random.Random(3)
+    start = len(probe.received["pose"])
+    end = time.monotonic() + 1.5
+    commands = [("drive_force", 0.85), ("excitation_amplitude", 7.0), ("excitation_frequency", 80.0),
+                ("drive_force", -0.8), ("external_wrench", (0.05, 1.0)), ("excitation_amplitude", 2.0),
+                ("drive_force", 0.95)]
+    send_at = time.monotonic() + 0.1
+    while time.monotonic() < end:
+        if commands and time.monotonic() > send_at:
+            probe.send(*commands.pop(0))
+            send_at += 0.18
+        probe.executor.spin_once(timeout_sec=0.001)
+        if rng.random() < 0.01:
+            time.sleep(rng.choice([0.0005, 0.003, 0.012]))  # tick jitter, late ticks
+    probe.spin_for(0.1)
+    assert not commands, "all commands were sent"
+    accepted = [o for o in outcomes if o.accepted]
+    assert len(accepted) == 7
+    assert node.realtime.stats.total_late_ticks > 0, "the jitter made some ticks late"
+
+    velocities = {stamp_ns(m): m for m in probe.received["velocity"]}
+    frictions = {stamp_ns(m): m for m in probe.received["friction_force"]}
+    # A stalled subscriber may lose a message (depth 10): compare where all three arrived.
+    poses = [m for m in probe.received["pose"][start:] if stamp_ns(m) in velocities and stamp_ns(m) in frictions]
+    assert len(poses) > 500
+    times = np.array([stamp_ns(m) for m in poses]) / 1e9
+    first = times[0]
+    reference = Slider(SliderParams(), Inputs())
+    schedule = [Command(o.t, o.values) for o in outcomes if o.accepted]
+    before = [c for c in schedule if c.t <= first]
+    for command in before:
+        reference.advance_to(command.t)
+        reference.set_inputs(**command.changes)
+    exact = run_schedule(reference, [c for c in schedule if c.t > first], times)
+    x = np.array([m.pose.position.x for m in poses])
+    v = np.array([velocities[stamp_ns(m)].twist.linear.x for m in poses])
+    fx = np.array([frictions[stamp_ns(m)].wrench.force.x for m in poses])
+    fz = np.array([frictions[stamp_ns(m)].wrench.force.z for m in poses])
+    assert np.max(np.abs(x - exact.x)) <= 1e-9 * np.max(np.abs(exact.x))
+    assert np.max(np.abs(v - exact.v)) <= 1e-9 * np.max(np.abs(exact.v))
+    np.testing.assert_allclose(fz, exact.normal_force, rtol=1e-9)
+    assert np.max(np.abs(fx - exact.friction_force)) <= 1e-9 * np.max(np.abs(exact.friction_force))
+    assert np.ptp(x) > 1e-6 and np.count_nonzero(v) > 100, "the slider really moved"
+
+
+BAD_INPUTS = [
+    ("drive_force", math.nan, "nan"),
+    ("drive_force", math.inf, "inf"),
+    ("excitation_amplitude", -math.inf, "-inf"),
+    ("excitation_amplitude", 10.0, "10.0"),
+    ("excitation_amplitude", -1.0, "-1.0"),
+    ("excitation_frequency", 0.0, "0.0"),
+    ("excitation_frequency", -50.0, "-50.0"),
+    ("excitation_frequency", math.nan, "nan"),
+    ("external_wrench", (0.0, -6.0), "-6.0"),
+    ("external_wrench", (math.nan, 0.0), "nan"),
+    ("external_wrench", (0.0, -math.inf), "-inf"),
+]
+
+
+def test_every_kind_of_bad_input_is_rejected_and_publishing_goes_on(rig) -> None:  # type: ignore[no-untyped-def]
+    node, probe, outcomes = rig
+    before_inputs = node.realtime.slider.inputs
+    for topic, value, text in BAD_INPUTS:
+        count = len(outcomes)
+        probe.send(topic, value)
+        assert probe.spin_until(lambda: len(outcomes) > count, 5.0), topic
+        outcome = outcomes[-1]
+        assert not outcome.accepted
+        assert outcome.topic == topic
+        assert text in outcome.reason, outcome.reason
+        assert "rejected" in outcome.reason
+        assert node.realtime.slider.inputs == before_inputs, "the last valid value stays in force"
+    assert node.realtime.rejected == len(BAD_INPUTS)
+    poses = len(probe.received["pose"])
+    probe.send("drive_force", 0.8)
+    probe.spin_for(0.3)
+    assert len(probe.received["pose"]) > poses + 100, "still publishing at ~1 kHz"
+    assert node.realtime.slider.inputs.drive_force == 0.8
+    assert probe.spin_until(lambda: any(
+        diagnostics_values(m)["commands_rejected"] == str(len(BAD_INPUTS)) for m in probe.received["diagnostics"]
+    ), 3.0)
+
+
+def test_parameters_via_the_parameter_services(rig) -> None:  # type: ignore[no-untyped-def]
+    node, probe, _ = rig
+    client = AsyncParameterClient(probe.node, f"{node.get_namespace()}/slider")
+    assert client.wait_for_services(5.0)
+
+    def set_(name: str, value: object) -> tuple[bool, str]:
+        future = client.set_parameters([Parameter(name, value=value)])
+        assert probe.spin_until(future.done, 5.0)
+        (result,) = future.result().results
+        return result.successful, result.reason
+
+    assert set_("drive_force", 0.8) == (True, "")
+    assert node.realtime.slider.inputs.drive_force == 0.8
+    ok, reason = set_("excitation_amplitude", 12.0)
+    assert not ok and "excitation_amplitude" in reason and "12.0" in reason
+    assert node.realtime.slider.inputs.excitation_amplitude == 5.0
+    ok, reason = set_("mass", 0.4)  # Pa = 5 N would lift a 4 N slider off
+    assert not ok and "mass" in reason and "0.4" in reason and "0.5 kg" in reason
+    assert node.realtime.slider.params.mass == 1.0
+    ok, reason = set_("excitation_frequency", math.nan)
+    assert not ok and "excitation_frequency" in reason
+    ok, reason = set_("mu", -0.1)
+    assert not ok and "mu" in reason
+    assert set_("mass", 2.0) == (True, "")
+    assert node.realtime.slider.params == SliderParams(mass=2.0)
+    assert set_("excitation_frequency", 100.0) == (True, "")
+    assert node.realtime.slider.inputs.excitation_frequency == 100.0
+    assert set_("mean_window_periods", 4) == (True, "")
+    assert node.realtime.mean_window_periods == 4
+    assert set_("publish_rate", 200.0) == (True, "")
+    count = len(probe.received["pose"])
+    probe.spin_for(1.0)
+    assert 150 <= len(probe.received["pose"]) - count <= 230
+    sim_before = node.realtime.slider.t
+    assert set_("real_time_factor", 3.0) == (True, "")
+    wall = time.monotonic()
+    probe.spin_for(0.5)
+    ratio = (node.realtime.slider.t - sim_before) / (time.monotonic() - wall)
+    assert 2.5 < ratio < 3.5
+
+
+def test_clock_is_published_when_asked(ros: None) -> None:
+    ns = namespace()
+    node = SliderNode(namespace=ns, parameter_overrides=[Parameter("publish_clock", value=True)])
+    probe = Probe(ns, node, outputs={"/clock": ClockMsg, "pose": PoseStamped})
+    try:
+        assert probe.spin_until(lambda: len(probe.received["/clock"]) > 50, 5.0)
+        clocks = [m.clock.sec * 10**9 + m.clock.nanosec for m in probe.received["/clock"]]
+        assert clocks == sorted(clocks)
+    finally:
+        probe.close()
+        node.destroy_node()
+
+
+def test_a_stalled_timer_does_not_change_the_physics(rig) -> None:  # type: ignore[no-untyped-def]
+    node, probe, _ = rig
+    probe.spin_for(0.2)
+    count = len(probe.received["pose"])
+    time.sleep(0.25)  # nothing spins: ticks are missed
+    probe.spin_until(lambda: len(probe.received["pose"]) > count + 5, 2.0)
+    stamps = [stamp_ns(m) for m in probe.received["pose"][count - 1: count + 5]]
+    gaps = np.diff(stamps) / 1e9
+    assert gaps.max() > 0.2, "simulation time followed the wall clock over the stall"
+    # Simulation time stays with the wall clock to well under a millisecond.
+    clock = node.realtime.clock
+    wall = time.monotonic_ns()
+    assert abs(clock.now_ns(wall) - (wall - clock._wall0)) < 1_000_000  # noqa: SLF001
+    exact = Slider(SliderParams(), Inputs())
+    last = probe.received["pose"][-1]
+    exact.advance_to(stamp_ns(last) / 1e9)
+    assert last.pose.position.x == pytest.approx(exact.state().x, rel=1e-12)
+
+
+SCRIPT = Path(sys.executable).parent / "slider"
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_slider_console_script_runs_takes_commands_and_stops_cleanly(ros: None, signum: int) -> None:
+    assert SCRIPT.exists()
+    ns = namespace()
+    process = subprocess.Popen(
+        [str(SCRIPT), "--ros-args", "-r", f"__ns:={ns}", "--params-file", str(ROOT / "config" / "slider.yaml"),
+         "-p", "publish_rate:=200.0"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=dict(os.environ),
+    )
+    probe = Probe(ns)
+    try:
+        probe.wait_for_connection(timeout=20.0)
+        probe.send("drive_force", 0.9)
+        probe.send("excitation_amplitude", float("nan"))
+
+        def reflected() -> bool:
+            diags = probe.received["diagnostics"]
+            return bool(diags) and diagnostics_values(diags[-1])["drive_force"] == "0.9" and \
+                diagnostics_values(diags[-1])["commands_rejected"] == "1"
+
+        assert probe.spin_until(reflected, 10.0), "the command reached the node and was reported"
+        velocities = [m.twist.linear.x for m in probe.received["velocity"][-100:]]
+        assert max(velocities) > 0.0
+        process.send_signal(signum)
+        out, err = process.communicate(timeout=15)
+        assert process.returncode == 0, err
+        assert "Traceback" not in err
+        assert "excitation_amplitude" in err and "nan" in err, "the rejection was logged"
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+        probe.close()
