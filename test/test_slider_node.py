@@ -114,7 +114,8 @@ def test_published_trajectory_equals_the_exact_core_whatever_the_jitter(rig) -> 
             send_at += 0.18
         probe.executor.spin_once(timeout_sec=0.001)
         if rng.random() < 0.01:
-            time.sleep(rng.choice([0.0005, 0.003, 0.012]))  # tick jitter, late ticks
+            with node._lock:  # noqa: SLF001 - hold the tick thread back: jitter, late ticks
+                time.sleep(rng.choice([0.0005, 0.003, 0.012]))
     probe.spin_for(0.1)
     assert not commands, "all commands were sent"
     accepted = [o for o in outcomes if o.accepted]
@@ -243,7 +244,8 @@ def test_a_stalled_timer_does_not_change_the_physics(rig) -> None:  # type: igno
     node, probe, _ = rig
     probe.spin_for(0.2)
     count = len(probe.received["pose"])
-    time.sleep(0.25)  # nothing spins: ticks are missed
+    with node._lock:  # noqa: SLF001 - stall the tick thread: ticks are missed
+        time.sleep(0.25)
     probe.spin_until(lambda: len(probe.received["pose"]) > count + 5, 2.0)
     stamps = [stamp_ns(m) for m in probe.received["pose"][count - 1: count + 5]]
     gaps = np.diff(stamps) / 1e9

@@ -15,17 +15,28 @@ Publications: ``pose``, ``velocity``, ``friction_force`` at ``publish_rate``;
 ``mean_velocity`` once per completed excitation period; ``diagnostics`` at
 1 Hz; ``/clock`` when ``publish_clock`` is true.  Header stamps are
 simulation time.
+
+The state is published from a dedicated tick thread rather than an executor
+timer: rclpy's executor rebuilds its wait set in Python on every wake-up
+(about 0.4 ms for a node with parameter services), which at 1 kHz would cost
+most of a core and make the tick rate depend on how many commands arrive.
+The executor thread handles commands, parameters and diagnostics; a lock
+keeps the two threads from touching the simulation at the same time.
 """
 
 from __future__ import annotations
 
 import math
+import sys
+import threading
+import time
 from typing import Any, Callable, Sequence
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -39,6 +50,9 @@ from friction_sim.params import Inputs, SliderParams, check_contact
 from friction_sim.realtime import MAX_MEAN_WINDOW, CommandOutcome, RealtimeSlider, Tick
 
 QOS_DEPTH = 10
+_QUIET_PUBLISHER = PublisherEventCallbacks(use_default_callbacks=False)
+_QUIET_SUBSCRIPTION = SubscriptionEventCallbacks(use_default_callbacks=False)
+TICK_SWITCH_INTERVAL = 0.0005
 PLANT = ("mass", "mu", "gravity")
 INPUTS = ("drive_force", "excitation_amplitude", "excitation_frequency")
 
@@ -78,11 +92,23 @@ class SliderNode(Node):
         self.tick_listeners: list[Callable[[Tick], None]] = []
         self._make_publishers()
         self._make_subscriptions()
-        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self._tick_timer = self.create_timer(1.0 / values["publish_rate"], self._on_tick, clock=self._steady)
-        self.create_timer(1.0, self._on_diagnostics, clock=self._steady)
+        self.create_timer(1.0, self._on_diagnostics, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        # Let the tick thread take the GIL within 0.5 ms even while the
+        # executor thread is busy with a flood of commands (default: 5 ms).
+        sys.setswitchinterval(min(sys.getswitchinterval(), TICK_SWITCH_INTERVAL))
+        self._ticker = threading.Thread(target=self._tick_loop, name="slider_tick", daemon=True)
+        self._ticker.start()
+
+    def destroy_node(self) -> None:
+        """Stop the tick thread before the publishers go away."""
+        self._stop.set()
+        if self._ticker.is_alive() and threading.current_thread() is not self._ticker:
+            self._ticker.join(timeout=2.0)
+        super().destroy_node()
 
     @property
     def realtime(self) -> RealtimeSlider:
@@ -91,19 +117,24 @@ class SliderNode(Node):
     # -- wiring ---------------------------------------------------------------
 
     def _make_publishers(self) -> None:
-        self._pose_pub = self.create_publisher(PoseStamped, "pose", QOS_DEPTH)
-        self._velocity_pub = self.create_publisher(TwistStamped, "velocity", QOS_DEPTH)
-        self._friction_pub = self.create_publisher(WrenchStamped, "friction_force", QOS_DEPTH)
-        self._mean_pub = self.create_publisher(TwistStamped, "mean_velocity", QOS_DEPTH)
-        self._diag_pub = self.create_publisher(DiagnosticArray, "diagnostics", QOS_DEPTH)
-        self._clock_pub = self.create_publisher(ClockMsg, "/clock", QOS_DEPTH)
+        def publisher(kind: type, topic: str) -> Any:
+            return self.create_publisher(kind, topic, QOS_DEPTH, event_callbacks=_QUIET_PUBLISHER)
+
+        self._pose_pub = publisher(PoseStamped, "pose")
+        self._velocity_pub = publisher(TwistStamped, "velocity")
+        self._friction_pub = publisher(WrenchStamped, "friction_force")
+        self._mean_pub = publisher(TwistStamped, "mean_velocity")
+        self._diag_pub = publisher(DiagnosticArray, "diagnostics")
+        self._clock_pub = publisher(ClockMsg, "/clock")
         self._pose, self._velocity, self._friction = PoseStamped(), TwistStamped(), WrenchStamped()
         self._clock_msg = ClockMsg()
 
     def _make_subscriptions(self) -> None:
         for name in INPUTS:
-            self.create_subscription(Float64, name, self._float_command(name), QOS_DEPTH)
-        self.create_subscription(WrenchStamped, "external_wrench", self._on_wrench, QOS_DEPTH)
+            self.create_subscription(Float64, name, self._float_command(name), QOS_DEPTH,
+                                     event_callbacks=_QUIET_SUBSCRIPTION)
+        self.create_subscription(WrenchStamped, "external_wrench", self._on_wrench, QOS_DEPTH,
+                                 event_callbacks=_QUIET_SUBSCRIPTION)
 
     # -- commands ---------------------------------------------------------------
 
@@ -118,7 +149,8 @@ class SliderNode(Node):
         self._command("external_wrench", {"external_force_x": force.x, "external_force_z": force.z})
 
     def _command(self, topic: str, values: dict[str, float]) -> CommandOutcome:
-        outcome = self._rt.command(topic, values, wall_ns())
+        with self._lock:
+            outcome = self._rt.command(topic, values, wall_ns())
         self._report(outcome)
         return outcome
 
@@ -132,8 +164,30 @@ class SliderNode(Node):
 
     # -- publishing -------------------------------------------------------------
 
+    def _tick_loop(self) -> None:
+        """Tick at publish_rate on absolute deadlines; after a stall, go on from
+        now rather than bursting to catch up (the physics follows the clock)."""
+        deadline = time.monotonic()
+        while not self._stop.is_set():
+            period = 1.0 / self._rt.publish_rate
+            deadline += period
+            delay = deadline - time.monotonic()
+            if delay > 0.0:
+                time.sleep(delay)
+            elif delay < -period:
+                deadline = time.monotonic()
+            if self._stop.is_set() or not self.context.ok():
+                return
+            try:
+                self._on_tick()
+            except Exception:  # noqa: BLE001 - a shutdown racing a publish ends the loop
+                if self.context.ok() and not self._stop.is_set():
+                    raise
+                return
+
     def _on_tick(self) -> None:
-        tick = self._rt.tick(wall_ns())
+        with self._lock:
+            tick = self._rt.tick(wall_ns())
         state, frame = tick.state, self._frame_id
         for msg in (self._pose, self._velocity, self._friction):
             stamp(state.t, msg.header.stamp)
@@ -161,7 +215,8 @@ class SliderNode(Node):
         return msg
 
     def _on_diagnostics(self) -> None:
-        report = self._rt.diagnostics(wall_ns())
+        with self._lock:
+            report = self._rt.diagnostics(wall_ns())
         status = DiagnosticStatus(name="slider", hardware_id=self.get_fully_qualified_name())
         status.level, status.message = _health(report)
         status.values = [KeyValue(key=key, value=_text(value)) for key, value in report.items()]
@@ -179,7 +234,8 @@ class SliderNode(Node):
             params, inputs = _plant(values, self._rt.slider.params, self._rt.slider.inputs)
             check_contact(params, inputs, {p.name for p in changes})
         except ParameterError as error:
-            outcome = self._rt.refuse("parameters", {p.name: p.value for p in changes}, str(error), wall_ns())
+            with self._lock:
+                outcome = self._rt.refuse("parameters", {p.name: p.value for p in changes}, str(error), wall_ns())
             self._report(outcome)
             return SetParametersResult(successful=False, reason=str(error))
         return SetParametersResult(successful=True)
@@ -190,18 +246,19 @@ class SliderNode(Node):
         now = wall_ns()
         if names & set(PLANT):
             params, _ = _plant({n: self.get_parameter(n).value for n in PARAMETERS}, SliderParams(), Inputs())
-            self._report(self._rt.set_params(params, now))
+            with self._lock:
+                outcome = self._rt.set_params(params, now)
+            self._report(outcome)
         inputs = {name: values[name] for name in INPUTS if name in values}
         if inputs:
             self._command("parameters", inputs)
-        if "real_time_factor" in names:
-            self._rt.set_real_time_factor(values["real_time_factor"], now)
-        if "mean_window_periods" in names:
-            self._rt.set_mean_window(values["mean_window_periods"])
-        if "publish_rate" in names:
-            self._rt.set_publish_rate(values["publish_rate"])
-            self.destroy_timer(self._tick_timer)
-            self._tick_timer = self.create_timer(1.0 / values["publish_rate"], self._on_tick, clock=self._steady)
+        with self._lock:
+            if "real_time_factor" in names:
+                self._rt.set_real_time_factor(values["real_time_factor"], now)
+            if "mean_window_periods" in names:
+                self._rt.set_mean_window(values["mean_window_periods"])
+            if "publish_rate" in names:
+                self._rt.set_publish_rate(values["publish_rate"])
         self._publish_clock = self.get_parameter("publish_clock").value
         self._frame_id = self.get_parameter("frame_id").value
 

@@ -1,0 +1,244 @@
+"""Benchmark of the slider node over real topics (issue 3).
+
+Starts the installed ``slider`` console script in its own process at
+publish_rate 1000 Hz and measures from this process, over DDS on localhost:
+
+  * messages per second per topic, tick interval p50/p99 (from the stamps),
+    CPU share of the node process (from /proc), and the drift of simulation
+    time against wall time, over a steady window (60 s by default);
+  * command-to-effect latency p50/p99: a command published here until the
+    first friction_force message that reflects it (excitation off, the
+    external normal force toggled, so the reaction R jumps to a known value);
+  * a flood of 10,000 commands per second for 5 s from a third process:
+    the node's tick rate during the flood and its memory before and after.
+
+Prints figures only; nothing here passes or fails on timing.
+Run: make bench   (or .venv/bin/python bench/node.py [--duration 60])
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import random
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(1, 100)))
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+from rclpy.executors import SingleThreadedExecutor
+from std_msgs.msg import Float64
+
+BIN = Path(sys.executable).parent
+NAMESPACE = "/bench"
+TOPICS = {"pose": PoseStamped, "velocity": TwistStamped, "friction_force": WrenchStamped,
+          "mean_velocity": TwistStamped, "diagnostics": DiagnosticArray}
+CLK_TCK = os.sysconf("SC_CLK_TCK")
+
+
+def cpu_seconds(pid: int) -> float:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / CLK_TCK
+
+
+def rss_mib(pid: int) -> float:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def stamp_ns(msg) -> int:  # type: ignore[no-untyped-def]
+    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+class Listener:
+    """Receives every output of the node with the local receive time."""
+
+    def __init__(self) -> None:
+        self.node = rclpy.create_node("bench_listener", namespace=NAMESPACE)
+        self.log: dict[str, list[tuple[int, object]]] = {topic: [] for topic in TOPICS}
+        for topic, kind in TOPICS.items():
+            self.node.create_subscription(kind, topic, self._keeper(topic), 1000)
+        self.drive = self.node.create_publisher(Float64, "drive_force", 10)
+        self.amplitude = self.node.create_publisher(Float64, "excitation_amplitude", 10)
+        self.wrench = self.node.create_publisher(WrenchStamped, "external_wrench", 10)
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+
+    def _keeper(self, topic: str):  # type: ignore[no-untyped-def]
+        log = self.log[topic]
+        return lambda msg: log.append((time.monotonic_ns(), msg))
+
+    def spin_for(self, seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=0.005)
+
+    def clear(self) -> None:
+        for log in self.log.values():
+            log.clear()
+
+
+def steady_window(listener: Listener, pid: int, seconds: float) -> None:
+    listener.clear()
+    cpu0, wall0 = cpu_seconds(pid), time.monotonic()
+    listener.spin_for(seconds)
+    cpu1, wall1 = cpu_seconds(pid), time.monotonic()
+    elapsed = wall1 - wall0
+    print(f"steady window: {elapsed:.1f} s at publish_rate 1000 Hz")
+    for topic in ("pose", "velocity", "friction_force", "mean_velocity", "diagnostics"):
+        print(f"    {topic:15s} {len(listener.log[topic]) / elapsed:8.1f} msg/s")
+    stamps = np.array([stamp_ns(m) for _, m in listener.log["pose"]], dtype=np.int64)
+    received = np.array([t for t, _ in listener.log["pose"]], dtype=np.int64)
+    intervals = np.diff(stamps) / 1e6
+    print(f"    tick interval (pose stamps) p50 {np.percentile(intervals, 50):.3f} ms, "
+          f"p99 {np.percentile(intervals, 99):.3f} ms, max {intervals.max():.3f} ms")
+    print(f"    CPU share of the node process: {100 * (cpu1 - cpu0) / elapsed:.1f} % of one core "
+          "(target < 50 %)")
+    offset = (stamps - received) / 1e6  # sim minus wall [ms], plus transport delay
+    n = max(1, int(0.05 * offset.size))
+    drift = np.median(offset[-n:]) - np.median(offset[:n])
+    print(f"    drift of simulation time against wall time over the window: {drift:+.3f} ms "
+          "(median of first vs last 5 % of samples; target < 1 ms)")
+
+
+def latency(listener: Listener, samples: int) -> None:
+    """Excitation off, so R = m*g + Fz exactly; toggle Fz and time the change."""
+    listener.amplitude.publish(Float64(data=0.0))
+    listener.spin_for(0.5)
+    delays = []
+    for k in range(samples):
+        value = 0.25 + 0.001 * (k % 200) if k % 2 == 0 else 0.0
+        msg = WrenchStamped()
+        msg.wrench.force.z = value
+        log = listener.log["friction_force"]
+        start_index = len(log)
+        sent = time.monotonic_ns()
+        listener.wrench.publish(msg)
+        deadline = time.monotonic() + 1.0
+        found = None
+        while found is None and time.monotonic() < deadline:
+            listener.executor.spin_once(timeout_sec=0.001)
+            for received, message in log[start_index:]:
+                if abs(message.wrench.force.z - (10.0 + value)) < 1e-9:
+                    found = received
+                    break
+            start_index = len(log) if found is None else start_index
+        if found is not None:
+            delays.append((found - sent) / 1e6)
+        listener.spin_for(0.01)
+    listener.amplitude.publish(Float64(data=5.0))
+    listener.wrench.publish(WrenchStamped())
+    d = np.array(delays)
+    print(f"command-to-effect latency over {d.size}/{samples} commands: p50 {np.percentile(d, 50):.3f} ms, "
+          f"p99 {np.percentile(d, 99):.3f} ms (target p50 < 2 ms)")
+
+
+def flood(listener: Listener, pid: int, rate: int, seconds: float) -> None:
+    listener.spin_for(1.0)
+    rss_before = rss_mib(pid)
+    listener.clear()
+    flooder = subprocess.Popen([sys.executable, __file__, "--flood", str(rate), str(seconds)])
+    time.sleep(0.0)
+    listener.spin_for(seconds + 1.0)
+    flooder.wait(timeout=30)
+    rss_during = rss_mib(pid)
+    stamps = np.array([stamp_ns(m) for _, m in listener.log["pose"]], dtype=np.int64) / 1e9
+    diagnostics = [m for _, m in listener.log["diagnostics"]]
+    rates = []
+    for msg in diagnostics:
+        values = {kv.key: kv.value for kv in msg.status[0].values}
+        rates.append(float(values["tick_rate"]))
+    accepted = [int({kv.key: kv.value for kv in m.status[0].values}["commands_accepted"]) for m in diagnostics]
+    # Tick rate per whole second of the flood, from the pose stamps.
+    per_second = np.histogram(stamps, bins=np.arange(stamps[0], stamps[-1], 1.0))[0]
+    listener.spin_for(3.0)
+    rss_after = rss_mib(pid)
+    print(f"flood of {rate} commands/s for {seconds:g} s from another process:")
+    print(f"    pose messages per second during the flood: min {per_second.min()}, "
+          f"median {int(np.median(per_second))} (target > 800 = 80 % of publish_rate)")
+    print(f"    tick rate reported by the node's diagnostics: {', '.join(f'{r:.0f}' for r in rates)} Hz")
+    if len(accepted) >= 2:
+        print(f"    commands handled by the node during the window: {accepted[-1] - accepted[0]}")
+    print(f"    node memory (RSS): before {rss_before:.1f} MiB, right after {rss_during:.1f} MiB, "
+          f"3 s later {rss_after:.1f} MiB")
+
+
+def run_flooder(rate: int, seconds: float) -> None:
+    """The flooding process: publish drive_force commands at ``rate`` per second."""
+    rclpy.init()
+    node = rclpy.create_node("bench_flooder", namespace=NAMESPACE)
+    publisher = node.create_publisher(Float64, "drive_force", 10)
+    deadline = time.monotonic() + 3.0
+    while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    start = time.monotonic()
+    sent = 0
+    msg = Float64()
+    while (now := time.monotonic()) - start < seconds:
+        due = int((now - start) * rate)
+        while sent < due:
+            msg.data = 0.7 + 1e-4 * (sent % 100)
+            publisher.publish(msg)
+            sent += 1
+        time.sleep(0.001)
+    print(f"    flooder: sent {sent} commands in {time.monotonic() - start:.2f} s")
+    node.destroy_node()
+    rclpy.shutdown()
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description="slider node benchmark")
+    parser.add_argument("--duration", type=float, default=60.0, help="steady window [s] (60)")
+    parser.add_argument("--flood", nargs=2, metavar=("RATE", "SECONDS"), help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.flood:
+        run_flooder(int(args.flood[0]), float(args.flood[1]))
+        return 0
+    print(f"bench/node.py  (ROS_DOMAIN_ID {os.environ['ROS_DOMAIN_ID']}, localhost only)")
+    node = subprocess.Popen(
+        [str(BIN / "slider"), "--ros-args", "-r", f"__ns:={NAMESPACE}", "-p", "publish_rate:=1000.0"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    rclpy.init()
+    listener = Listener()
+    try:
+        if not _wait_for_node(listener):
+            print("the slider node never published", file=sys.stderr)
+            return 1
+        listener.spin_for(2.0)  # let discovery and the first periods settle
+        steady_window(listener, node.pid, args.duration)
+        latency(listener, 200)
+        flood(listener, node.pid, 10_000, 5.0)
+    finally:
+        node.send_signal(2)
+        try:
+            node.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            node.kill()
+        listener.node.destroy_node()
+        rclpy.try_shutdown()
+    print(f"node exit code after SIGINT: {node.returncode}")
+    return 0
+
+
+def _wait_for_node(listener: Listener) -> bool:
+    deadline = time.monotonic() + 20.0
+    while time.monotonic() < deadline:
+        listener.executor.spin_once(timeout_sec=0.05)
+        if listener.log["pose"]:
+            return True
+    return False
+
+
+if __name__ == "__main__":
+    sys.exit(main())
