@@ -41,6 +41,7 @@ advances it; detecting the next event (:func:`next_slip_start`,
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 from collections import deque
 from dataclasses import dataclass, fields
 from enum import Enum, IntEnum
@@ -139,33 +140,54 @@ class Trajectory:
 # --------------------------------------------------------------------------
 
 
-def next_slip_start(
-    phase: float, tangential: float, load: float, amplitude: float, mu: float
-) -> tuple[float, float, int]:
-    """When a stuck slider starts to slip, seen from excitation phase ``phase``.
+def next_slip_start(phase: float, b0: float, b1: float, *, closing: bool = False) -> float:
+    """Phase still to run until a stuck slider starts to slip (0: at once,
+    ``inf``: never), seen from excitation phase ``phase``.
 
-    Returns ``(delta_phase, start_phase, direction)``: the phase still to run
-    (0 when the slip starts at once, ``inf`` when it never starts), the phase at
-    which it starts, and the slip direction sign(Ft).  ``load`` is m*g + Fz.
+    ``b0`` and ``b1`` >= 0 are the coefficients the slip would have in its
+    direction s = sign(Ft): dw/dt = b0 + b1*sin(theta) with
+    b0 = (|Ft| - mu*(m*g + Fz))/m and b1 = mu*Pa/m.  The slider is stuck
+    exactly while that would be <= 0 (|Ft| <= mu*R), so the slip window is
+    (beta, pi - beta) with beta = asin(-b0/b1), the same expression
+    :func:`slip_stop_delay` uses: onset and stop can never disagree.
+
+    ``closing`` is set for a slider that has just come to rest from a slip in
+    the same direction.  It stopped because it was decelerating, so on the
+    closing side of the window (where mu*R rises again, cos(theta) <= 0) an
+    at-once restart could only come from rounding; it waits for the window to
+    open again instead.  That guarantees progress at the window's closing edge.
     """
-    if tangential == 0.0:
-        return NEVER, NEVER, 0
-    direction = 1 if tangential > 0.0 else -1
-    excess = abs(tangential)
-    if excess > mu * (load - amplitude * math.sin(phase)):
-        return 0.0, phase, direction
-    if amplitude == 0.0:
-        return NEVER, NEVER, direction
-    edge = (load - excess / mu) / amplitude
-    if edge >= 1.0:
-        return NEVER, NEVER, direction
-    if edge < -1.0:  # the window covers every phase; only rounding kept us here
-        return 0.0, phase, direction
-    start = math.asin(edge) % TWO_PI
-    delta = (start - phase) % TWO_PI
+    if b1 <= 0.0:
+        return 0.0 if b0 > 0.0 and not closing else NEVER
+    if b0 + b1 <= 0.0:
+        return NEVER
+    closing = closing and math.cos(phase) <= 0.0
+    if b0 + b1 * math.sin(phase) > 0.0 and not closing:
+        return 0.0
+    ratio = -b0 / b1
+    if ratio < -1.0:  # the window covers every phase; only rounding kept us here
+        return TWO_PI if closing else 0.0
+    delta = (math.asin(ratio) - phase) % TWO_PI
+    if closing:
+        return delta if delta > 0.0 else TWO_PI
     if delta > TWO_PI - _PHASE_EDGE:  # a hair past the edge: starts now
-        return 0.0, phase, direction
-    return delta, start, direction
+        return 0.0
+    return delta
+
+
+def can_ever_slip(params: SliderParams, inputs: Inputs) -> bool:
+    """Whether |Ft| > mu*(m*g + Fz - Pa): the slider can slip at some phase.
+
+    Decided in exact rational arithmetic on the given binary values, so that a
+    slider on the motion boundary phi = 1 - a (up to its last bit) never
+    moves, not even by a rounding-sized step.
+    """
+    excess = abs(Fraction(inputs.drive_force) + Fraction(inputs.external_force_x))
+    least_load = (
+        Fraction(params.mass) * Fraction(params.gravity)
+        + Fraction(inputs.external_force_z) - Fraction(inputs.excitation_amplitude)
+    )
+    return excess > Fraction(params.mu) * least_load
 
 
 def slip_stop_delay(w0: float, b0: float, b1: float, phase0: float, omega: float) -> float:
@@ -206,20 +228,53 @@ def _stop_with_turning_points(w0: float, b0: float, b1: float, phase0: float, om
     period = TWO_PI / omega
     lo = max(0.0, (rise - delta0) / omega)
     hi = (TWO_PI - delta0) / omega
-    w_min = _speed(w0, b0, b1, phase0, omega, hi)
+    k, cos0, sin0 = b1 / omega, math.cos(phase0), math.sin(phase0)
+    g0 = initial_slope(w0, b0, b1, phase0)
+    w_min = _speed(w0, g0, k, cos0, sin0, omega, hi)
     if w_min > 0.0:
         if b0 >= 0.0:  # the minima only grow: never back to rest
             return NEVER
         hi += max(1, math.ceil(w_min / (-b0 * period))) * period
-        while _speed(w0, b0, b1, phase0, omega, hi) > 0.0:  # rounding guard
+        while _speed(w0, g0, k, cos0, sin0, omega, hi) > 0.0:  # rounding guard
             hi += period
         lo = hi - (TWO_PI - rise) / omega
     return _falling_root(w0, b0, b1, phase0, omega, lo, hi)
 
 
-def _speed(w0: float, b0: float, b1: float, phase0: float, omega: float, tau: float) -> float:
-    """w(tau) of a slip segment."""
-    return w0 + b0 * tau + (b1 / omega) * (math.cos(phase0) - math.cos(phase0 + omega * tau))
+def initial_slope(w0: float, b0: float, b1: float, phase0: float) -> float:
+    """dw/dt at the start of a slip; a slip from rest cannot start decelerating,
+    so a rounding-sized negative slope at the window's edge counts as zero."""
+    slope = b0 + b1 * math.sin(phase0)
+    return 0.0 if w0 == 0.0 and slope < 0.0 else slope
+
+
+def trig_remainders(psi: Any, xp: ModuleType = math) -> tuple[Any, Any, Any]:
+    """(1 - cos psi, psi - sin psi, psi**2/2 - (1 - cos psi)) without cancellation.
+
+    Writing the motion with these remainders keeps tiny slips (at the motion
+    boundary, or just after an event) accurate to the last bits, so a forward
+    slip never shows a rounding-sized step backwards.  Taylor series below
+    |psi| = 0.25 (truncation < 1e-18 relative); ``xp`` is math or numpy.
+    """
+    half = xp.sin(0.5 * psi)
+    c1 = 2.0 * half * half
+    p2 = psi * psi
+    s2_series = psi * p2 * (1 / 6 - p2 * (1 / 120 - p2 * (1 / 5040 - p2 * (
+        1 / 362880 - p2 * (1 / 39916800 - p2 / 6227020800)))))
+    c2_series = p2 * p2 * (1 / 24 - p2 * (1 / 720 - p2 * (1 / 40320 - p2 * (
+        1 / 3628800 - p2 * (1 / 479001600 - p2 / 87178291200)))))
+    if xp is math:
+        if abs(psi) < 0.25:
+            return c1, s2_series, c2_series
+        return c1, psi - math.sin(psi), 0.5 * p2 - c1
+    small = np.abs(psi) < 0.25
+    return c1, np.where(small, s2_series, psi - np.sin(psi)), np.where(small, c2_series, 0.5 * p2 - c1)
+
+
+def _speed(w0: float, g0: float, k: float, cos0: float, sin0: float, omega: float, tau: float) -> float:
+    """w(tau) of a slip segment: w0 + g0*tau + k*(cos0*(1 - cos psi) - sin0*(psi - sin psi))."""
+    c1, s2, _ = trig_remainders(omega * tau)
+    return w0 + g0 * tau + k * (cos0 * c1 - sin0 * s2)
 
 
 def _falling_root(
@@ -231,25 +286,24 @@ def _falling_root(
     shrinking bracket (bisection when Newton would leave it), to full double
     precision.
     """
-    k = b1 / omega
-    cos0 = math.cos(phase0)
-    w_lo = w0 + b0 * lo + k * (cos0 - math.cos(phase0 + omega * lo))
-    w_hi = w0 + b0 * hi + k * (cos0 - math.cos(phase0 + omega * hi))
+    k, cos0, sin0 = b1 / omega, math.cos(phase0), math.sin(phase0)
+    g0 = initial_slope(w0, b0, b1, phase0)
+    w_lo = _speed(w0, g0, k, cos0, sin0, omega, lo)
+    w_hi = _speed(w0, g0, k, cos0, sin0, omega, hi)
     if w_hi >= 0.0:
         return hi
     if w_lo <= 0.0:
         return lo
     tau = lo + (hi - lo) * (w_lo / (w_lo - w_hi))
     for _ in range(200):
-        theta = phase0 + omega * tau
-        w = w0 + b0 * tau + k * (cos0 - math.cos(theta))
+        w = _speed(w0, g0, k, cos0, sin0, omega, tau)
         if w > 0.0:
             lo = tau
         elif w < 0.0:
             hi = tau
         else:
             return tau
-        slope = b0 + b1 * math.sin(theta)
+        slope = b0 + b1 * math.sin(phase0 + omega * tau)
         step = tau - w / slope if slope < 0.0 else math.nan
         if not lo < step < hi:
             step = 0.5 * (lo + hi)
@@ -273,7 +327,7 @@ class _Segment:
     """
 
     __slots__ = (
-        "t0", "x0", "w0", "phase0", "cycles", "direction", "omega", "b0", "b1",
+        "t0", "x0", "w0", "phase0", "cycles", "direction", "omega", "b0", "b1", "g0",
         "tangential", "load", "amplitude", "mu", "mass", "cos0", "sin0",
     )
 
@@ -288,9 +342,9 @@ class _Segment:
         self.load = params.weight + inputs.external_force_z
         self.amplitude = inputs.excitation_amplitude
         self.mu, self.mass = params.mu, params.mass
-        self.b0 = (direction * self.tangential - self.mu * self.load) / self.mass
-        self.b1 = self.mu * self.amplitude / self.mass
+        self.b0, self.b1 = slip_coefficients(direction, params, inputs)
         self.cos0, self.sin0 = math.cos(phase0), math.sin(phase0)
+        self.g0 = initial_slope(w0, self.b0, self.b1, phase0)
 
     def evaluate(self, t: Any, xp: ModuleType = math) -> tuple[Any, Any, Any, Any, Any, Any]:
         """(x, v, acceleration, friction force, normal force, phase) at time(s) t.
@@ -308,11 +362,11 @@ class _Segment:
             zero = tau * 0.0
             return self.x0 + zero, zero, zero, -self.tangential + zero, normal, theta
         k = self.b1 / self.omega
-        w = self.w0 + self.b0 * tau + k * (self.cos0 - xp.cos(theta))
+        c1, s2, c2 = trig_remainders(self.omega * tau, xp)
+        w = self.w0 + self.g0 * tau + k * (self.cos0 * c1 - self.sin0 * s2)
         travel = (
-            (self.w0 + k * self.cos0) * tau
-            + 0.5 * self.b0 * tau * tau
-            - (k / self.omega) * (sin_theta - self.sin0)
+            self.w0 * tau + 0.5 * self.g0 * tau * tau
+            + (k / self.omega) * (self.cos0 * s2 - self.sin0 * c2)
         )
         acceleration = s * (self.b0 + self.b1 * sin_theta)
         return self.x0 + s * travel, s * w, acceleration, -s * self.mu * normal, normal, theta
@@ -323,6 +377,15 @@ class _Segment:
         if whole <= 0:
             return self.t0
         return self.t0 + (TWO_PI * whole - self.phase0) / self.omega
+
+
+def slip_coefficients(direction: int, params: SliderParams, inputs: Inputs) -> tuple[float, float]:
+    """(b0, b1) of dw/dt = b0 + b1*sin(theta) for a slip in ``direction``."""
+    load = params.weight + inputs.external_force_z
+    return (
+        (direction * inputs.tangential_force - params.mu * load) / params.mass,
+        params.mu * inputs.excitation_amplitude / params.mass,
+    )
 
 
 def _changed(old: Any, new: Any) -> set[str]:
@@ -387,6 +450,7 @@ class Slider:
             self._marks = deque(maxlen=cycle_log_size)
             if phase == 0.0:
                 self._marks.append(CycleMark(0, self._t, x0, 0.0))
+        self._can_slip = can_ever_slip(self._params, self._inputs)
         self._start_stuck(self._t, x0, phase, 0)
 
     # -- read-only views -------------------------------------------------------
@@ -520,19 +584,25 @@ class Slider:
         if seg.direction == 0:
             self._stuck_time += self._t - seg.t0
         self._params, self._inputs = params, inputs
+        self._can_slip = can_ever_slip(params, inputs)
         w = seg.direction * v
         if seg.direction != 0 and w > 0.0:
             self._start_slip(self._t, x, w, phase, cycles, seg.direction)
         else:
             self._start_stuck(self._t, x, phase, cycles)
 
-    def _start_stuck(self, t: float, x: float, phase: float, cycles: int) -> None:
+    def _start_stuck(self, t: float, x: float, phase: float, cycles: int, after_stop: int = 0) -> None:
         self._seg = seg = _Segment(t, x, 0.0, phase, cycles, 0, self._params, self._inputs)
-        delta, start_phase, direction = next_slip_start(
-            phase, seg.tangential, seg.load, seg.amplitude, seg.mu
-        )
+        direction = 1 if seg.tangential > 0.0 else -1
+        delta = NEVER
+        if self._can_slip:
+            b0, b1 = slip_coefficients(direction, self._params, self._inputs)
+            delta = next_slip_start(phase, b0, b1, closing=after_stop == direction)
         self._next_t = t + delta / seg.omega
-        self._next_start = (start_phase, direction)
+        start_phase = phase if delta == 0.0 else math.asin(-b0 / b1) % TWO_PI if delta < NEVER else NEVER
+        # The start passes 2*pi on the way if it lies "behind" the present phase.
+        wraps = start_phase < phase or (start_phase == phase and delta > 0.0)
+        self._next_start = (start_phase, direction, cycles + 1 if wraps else cycles)
         self._schedule_mark()
 
     def _start_slip(
@@ -556,19 +626,20 @@ class Slider:
         seg, t = self._seg, self._next_t
         if seg.direction == 0:
             self._stuck_time += t - seg.t0
-            phase, direction = self._next_start
-            cycles = seg.cycles + (1 if phase < seg.phase0 else 0)  # passed 2*pi on the way
+            phase, direction, cycles = self._next_start
             event = Event(t, EventKind.SLIP_START, seg.x0, phase, Mode.STUCK, Mode(direction))
             self._start_slip(t, seg.x0, 0.0, phase, cycles, direction)
             return [self._log(event)]
         x, _, _, _, _, theta = seg.evaluate(t)
         phase, cycles = _reduce_phase(theta, seg.cycles)
-        delta, _, direction = next_slip_start(phase, seg.tangential, seg.load, seg.amplitude, seg.mu)
+        direction = 1 if seg.tangential > 0.0 else -1
         before = Mode(seg.direction)
-        if delta == 0.0 and direction == -seg.direction:
+        if direction == -seg.direction and self._can_slip and next_slip_start(
+            phase, *slip_coefficients(direction, self._params, self._inputs)
+        ) == 0.0:
             self._start_slip(t, x, 0.0, phase, cycles, direction)
             return [self._log(Event(t, EventKind.REVERSAL, x, phase, before, Mode(direction)))]
-        self._start_stuck(t, x, phase, cycles)
+        self._start_stuck(t, x, phase, cycles, after_stop=seg.direction)
         return [self._log(Event(t, EventKind.STICK, x, phase, before, Mode.STUCK))]
 
     def _schedule_mark(self) -> None:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from dataclasses import dataclass
 from typing import Any, Iterable
 
@@ -24,7 +25,7 @@ from friction_sim.errors import ParameterError
 
 def require_finite(field: str, value: float) -> float:
     """Return ``value`` as a float, or raise if it is not a finite real number."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ParameterError(field, value, "must be a finite real number")
     number = float(value)
     if not math.isfinite(number):
@@ -116,6 +117,8 @@ def check_contact(params: SliderParams, inputs: Inputs, changed: Iterable[str] =
         return
     changed = set(changed)
     lift_off = "(the normal reaction would reach zero: the slider would lift off)"
+    if weight + fz <= 0.0:
+        raise ParameterError("external_force_z", fz, f"must be > -mass*gravity = {-weight!r} N {lift_off}")
     if "external_force_z" in changed and "excitation_amplitude" not in changed:
         raise ParameterError(
             "external_force_z", fz, f"must be > excitation_amplitude - mass*gravity = {pa - weight!r} N {lift_off}"

@@ -158,9 +158,9 @@ def simulate(
         slider = Slider(params, inputs, event_log_size=None)
     slider.advance_to(settle)
     x_start = slider.state().x
-    slider.advance_to(settle + periods * period)
+    slider.advance_to(min(settle + periods * period, duration))
     mean_velocity = (slider.state().x - x_start) / (periods * period)
-    slider.advance_to(duration)
+    slider.advance_to(max(duration, slider.t))
     wall = time.perf_counter() - started
     phi, ratio = drive_ratio(params, inputs), amplitude_ratio(params, inputs)
     return SimulationResult(
