@@ -182,6 +182,11 @@ def can_ever_slip(params: SliderParams, inputs: Inputs) -> bool:
     slider on the motion boundary phi = 1 - a (up to its last bit) never
     moves, not even by a rounding-sized step.
     """
+    excess_f = abs(inputs.tangential_force)
+    least_f = params.weight + inputs.external_force_z - inputs.excitation_amplitude
+    margin = excess_f - params.mu * least_f
+    if abs(margin) > 1e-9 * (excess_f + params.mu * abs(least_f)):  # clear either way
+        return margin > 0.0
     excess = abs(Fraction(inputs.drive_force) + Fraction(inputs.external_force_x))
     least_load = (
         Fraction(params.mass) * Fraction(params.gravity)
@@ -259,14 +264,14 @@ def trig_remainders(psi: Any, xp: ModuleType = math) -> tuple[Any, Any, Any]:
     half = xp.sin(0.5 * psi)
     c1 = 2.0 * half * half
     p2 = psi * psi
+    if xp is math and abs(psi) >= 0.25:
+        return c1, psi - math.sin(psi), 0.5 * p2 - c1
     s2_series = psi * p2 * (1 / 6 - p2 * (1 / 120 - p2 * (1 / 5040 - p2 * (
         1 / 362880 - p2 * (1 / 39916800 - p2 / 6227020800)))))
     c2_series = p2 * p2 * (1 / 24 - p2 * (1 / 720 - p2 * (1 / 40320 - p2 * (
         1 / 3628800 - p2 * (1 / 479001600 - p2 / 87178291200)))))
     if xp is math:
-        if abs(psi) < 0.25:
-            return c1, s2_series, c2_series
-        return c1, psi - math.sin(psi), 0.5 * p2 - c1
+        return c1, s2_series, c2_series
     small = np.abs(psi) < 0.25
     return c1, np.where(small, s2_series, psi - np.sin(psi)), np.where(small, c2_series, 0.5 * p2 - c1)
 
@@ -295,15 +300,21 @@ def _falling_root(
     if w_lo <= 0.0:
         return lo
     tau = lo + (hi - lo) * (w_lo / (w_lo - w_hi))
+    sin = math.sin
     for _ in range(200):
-        w = _speed(w0, g0, k, cos0, sin0, omega, tau)
+        psi = omega * tau
+        if psi >= 0.25:  # _speed inlined: this loop is the hot path of the periodic regime
+            half = sin(0.5 * psi)
+            w = w0 + g0 * tau + k * (cos0 * 2.0 * half * half - sin0 * (psi - sin(psi)))
+        else:
+            w = _speed(w0, g0, k, cos0, sin0, omega, tau)
         if w > 0.0:
             lo = tau
         elif w < 0.0:
             hi = tau
         else:
             return tau
-        slope = b0 + b1 * math.sin(phase0 + omega * tau)
+        slope = b0 + b1 * sin(phase0 + psi)
         step = tau - w / slope if slope < 0.0 else math.nan
         if not lo < step < hi:
             step = 0.5 * (lo + hi)
@@ -342,9 +353,11 @@ class _Segment:
         self.load = params.weight + inputs.external_force_z
         self.amplitude = inputs.excitation_amplitude
         self.mu, self.mass = params.mu, params.mass
-        self.b0, self.b1 = slip_coefficients(direction, params, inputs)
+        self.b0 = (direction * self.tangential - self.mu * self.load) / self.mass  # = slip_coefficients()
+        self.b1 = self.mu * self.amplitude / self.mass
         self.cos0, self.sin0 = math.cos(phase0), math.sin(phase0)
-        self.g0 = initial_slope(w0, self.b0, self.b1, phase0)
+        slope = self.b0 + self.b1 * self.sin0  # = initial_slope()
+        self.g0 = 0.0 if w0 == 0.0 and slope < 0.0 else slope
 
     def evaluate(self, t: Any, xp: ModuleType = math) -> tuple[Any, Any, Any, Any, Any, Any]:
         """(x, v, acceleration, friction force, normal force, phase) at time(s) t.
