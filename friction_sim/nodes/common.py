@@ -14,16 +14,51 @@ from typing import Callable, Sequence
 import rclpy
 from builtin_interfaces.msg import Time
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.callback_groups import CallbackGroup
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
+from rclpy.subscription import Subscription
 
 from friction_sim.errors import FrictionSimError
 
 RCLError = _rclpy.RCLError
 EXIT_OK = 0
 EXIT_BAD_PARAMETER = 2
+
+
+class PolledGroup(CallbackGroup):
+    """A callback group no executor ever runs: its subscriptions are drained by
+    their owner with :func:`take_all`, at a time of the owner's choosing.
+
+    The slider takes its commands this way at the start of each tick, so a
+    flood of commands costs a bounded amount of work per tick instead of an
+    executor wake-up (and a wait-set rebuild in Python) per message.
+    """
+
+    def can_execute(self, entity: object) -> bool:
+        return False
+
+    def beginning_execution(self, entity: object) -> bool:
+        return False
+
+    def ending_execution(self, entity: object) -> None:
+        return None
+
+
+def take_all(subscription: Subscription, limit: int) -> list[object]:
+    """Take up to ``limit`` waiting messages from ``subscription``, oldest first
+    (rclpy's executor takes messages with the same call)."""
+    messages = []
+    handle = subscription.handle
+    for _ in range(limit):
+        with handle:
+            taken = handle.take_message(subscription.msg_type, subscription.raw)
+        if taken is None:
+            break
+        messages.append(taken[0])
+    return messages
 
 
 def float_descriptor(description: str, low: float, high: float) -> ParameterDescriptor:

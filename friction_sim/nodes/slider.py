@@ -16,12 +16,15 @@ Publications: ``pose``, ``velocity``, ``friction_force`` at ``publish_rate``;
 1 Hz; ``/clock`` when ``publish_clock`` is true.  Header stamps are
 simulation time.
 
-The state is published from a dedicated tick thread rather than an executor
-timer: rclpy's executor rebuilds its wait set in Python on every wake-up
-(about 0.4 ms for a node with parameter services), which at 1 kHz would cost
-most of a core and make the tick rate depend on how many commands arrive.
-The executor thread handles commands, parameters and diagnostics; a lock
-keeps the two threads from touching the simulation at the same time.
+Ticks run in a dedicated thread rather than an executor timer: rclpy's
+executor rebuilds its wait set in Python on every wake-up (about 0.4 ms for a
+node with parameter services), which at 1 kHz would cost most of a core and
+make the tick rate depend on how many commands arrive.  Each tick first takes
+the waiting commands (at most ``COMMANDS_PER_TICK`` per topic; the command
+subscriptions keep the last ``QOS_DEPTH``), applies them at the present
+simulation time, then advances and publishes.  So a flood of commands costs a
+bounded amount of work per tick.  The executor thread handles parameters and
+diagnostics; a lock keeps it and the tick thread apart.
 """
 
 from __future__ import annotations
@@ -44,12 +47,13 @@ from std_msgs.msg import Float64
 
 from friction_sim.errors import ParameterError
 from friction_sim.nodes.common import (
-    float_descriptor, int_descriptor, run_node, stamp, text_descriptor, wall_ns,
+    PolledGroup, float_descriptor, int_descriptor, run_node, stamp, take_all, text_descriptor, wall_ns,
 )
 from friction_sim.params import Inputs, SliderParams, check_contact
 from friction_sim.realtime import MAX_MEAN_WINDOW, CommandOutcome, RealtimeSlider, Tick
 
 QOS_DEPTH = 10
+COMMANDS_PER_TICK = QOS_DEPTH
 _QUIET_PUBLISHER = PublisherEventCallbacks(use_default_callbacks=False)
 _QUIET_SUBSCRIPTION = SubscriptionEventCallbacks(use_default_callbacks=False)
 TICK_SWITCH_INTERVAL = 0.0005
@@ -130,11 +134,20 @@ class SliderNode(Node):
         self._clock_msg = ClockMsg()
 
     def _make_subscriptions(self) -> None:
-        for name in INPUTS:
-            self.create_subscription(Float64, name, self._float_command(name), QOS_DEPTH,
-                                     event_callbacks=_QUIET_SUBSCRIPTION)
-        self.create_subscription(WrenchStamped, "external_wrench", self._on_wrench, QOS_DEPTH,
-                                 event_callbacks=_QUIET_SUBSCRIPTION)
+        polled = PolledGroup()
+
+        def subscribe(kind: type, topic: str, handler: Callable[[Any], None]) -> Any:
+            return self.create_subscription(kind, topic, handler, QOS_DEPTH, callback_group=polled,
+                                            event_callbacks=_QUIET_SUBSCRIPTION)
+
+        self._commands = [subscribe(Float64, name, self._float_command(name)) for name in INPUTS]
+        self._commands.append(subscribe(WrenchStamped, "external_wrench", self._on_wrench))
+
+    def _take_commands(self) -> None:
+        """Apply every command waiting on the command topics (tick thread)."""
+        for subscription in self._commands:
+            for msg in take_all(subscription, COMMANDS_PER_TICK):
+                subscription.callback(msg)
 
     # -- commands ---------------------------------------------------------------
 
@@ -179,6 +192,7 @@ class SliderNode(Node):
             if self._stop.is_set() or not self.context.ok():
                 return
             try:
+                self._take_commands()
                 self._on_tick()
             except Exception:  # noqa: BLE001 - a shutdown racing a publish ends the loop
                 if self.context.ok() and not self._stop.is_set():
