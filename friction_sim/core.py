@@ -60,6 +60,8 @@ NEVER = math.inf
 #: window's edge counts as being on the edge (a full period is never skipped).
 _PHASE_EDGE = 1e-12
 _CACHE_LIMIT = 256
+#: Slips predicted to last longer than this many excitation periods never stop.
+_LONGEST_SLIP = 1e12
 
 
 class Mode(IntEnum):
@@ -199,8 +201,11 @@ def slip_stop_delay(w0: float, b0: float, b1: float, phase0: float, omega: float
     """Time until the speed w = s*v of a slip returns to zero (``inf``: never).
 
     ``w0`` >= 0 is the speed at the start, ``b0`` and ``b1`` >= 0 the constant
-    and sinusoidal parts of dw/dt = b0 + b1*sin(phase0 + omega*tau).
+    and sinusoidal parts of dw/dt = b0 + b1*sin(phase0 + omega*tau).  A slip
+    predicted to last more than ``_LONGEST_SLIP`` excitation periods is taken
+    as endless (its drift b0 is then within rounding of zero).
     """
+    b0 = from_rest_b0(w0, b0, b1, math.sin(phase0))
     if b1 <= 0.0:
         if b0 >= 0.0:
             return NEVER
@@ -239,18 +244,34 @@ def _stop_with_turning_points(w0: float, b0: float, b1: float, phase0: float, om
     if w_min > 0.0:
         if b0 >= 0.0:  # the minima only grow: never back to rest
             return NEVER
-        hi += max(1, math.ceil(w_min / (-b0 * period))) * period
-        while _speed(w0, g0, k, cos0, sin0, omega, hi) > 0.0:  # rounding guard
+        periods = math.ceil(w_min / (-b0 * period))
+        if periods > _LONGEST_SLIP:
+            return NEVER
+        hi += max(1, periods) * period
+        for _ in range(8):  # rounding guard: the formula's period may be one short
+            if _speed(w0, g0, k, cos0, sin0, omega, hi) <= 0.0:
+                break
             hi += period
+        else:
+            return NEVER
         lo = hi - (TWO_PI - rise) / omega
     return _falling_root(w0, b0, b1, phase0, omega, lo, hi)
 
 
 def initial_slope(w0: float, b0: float, b1: float, phase0: float) -> float:
-    """dw/dt at the start of a slip; a slip from rest cannot start decelerating,
-    so a rounding-sized negative slope at the window's edge counts as zero."""
-    slope = b0 + b1 * math.sin(phase0)
-    return 0.0 if w0 == 0.0 and slope < 0.0 else slope
+    """dw/dt at the start of a slip (b0 must come from :func:`from_rest_b0`)."""
+    return b0 + b1 * math.sin(phase0)
+
+
+def from_rest_b0(w0: float, b0: float, b1: float, sin0: float) -> float:
+    """b0 as a slip from rest sees it.  A slip that starts from rest cannot
+    start decelerating, so at the slip window's edge a rounding-sized negative
+    slope b0 + b1*sin(phase0) is taken as zero, by moving b0 by that rounding
+    residue; using the adjusted b0 everywhere keeps the slip's long-run drift
+    b0 consistent with its start."""
+    if w0 == 0.0 and b0 + b1 * sin0 < 0.0:
+        return -b1 * sin0
+    return b0
 
 
 def trig_remainders(psi: Any, xp: ModuleType = math) -> tuple[Any, Any, Any]:
@@ -353,11 +374,11 @@ class _Segment:
         self.load = params.weight + inputs.external_force_z
         self.amplitude = inputs.excitation_amplitude
         self.mu, self.mass = params.mu, params.mass
-        self.b0 = (direction * self.tangential - self.mu * self.load) / self.mass  # = slip_coefficients()
+        b0 = (direction * self.tangential - self.mu * self.load) / self.mass  # = slip_coefficients()
         self.b1 = self.mu * self.amplitude / self.mass
         self.cos0, self.sin0 = math.cos(phase0), math.sin(phase0)
-        slope = self.b0 + self.b1 * self.sin0  # = initial_slope()
-        self.g0 = 0.0 if w0 == 0.0 and slope < 0.0 else slope
+        self.b0 = from_rest_b0(w0, b0, self.b1, self.sin0)
+        self.g0 = self.b0 + self.b1 * self.sin0
 
     def evaluate(self, t: Any, xp: ModuleType = math) -> tuple[Any, Any, Any, Any, Any, Any]:
         """(x, v, acceleration, friction force, normal force, phase) at time(s) t.
@@ -451,7 +472,11 @@ class Slider:
         self._inputs = inputs if inputs is not None else Inputs()
         check_contact(self._params, self._inputs)
         self._t = require_finite("t0", t0)
-        phase = require_finite("phase0", phase0) % TWO_PI
+        phase, _ = _reduce_phase(require_finite("phase0", phase0), 0)  # -1e-300 % 2pi == 2pi
+        if event_log_size is not None and not (isinstance(event_log_size, int) and event_log_size >= 0):
+            raise ParameterError("event_log_size", event_log_size, "must be an integer >= 0 or None")
+        if cycle_log_size is not None and not (isinstance(cycle_log_size, int) and cycle_log_size >= 0):
+            raise ParameterError("cycle_log_size", cycle_log_size, "must be an integer >= 0 or None")
         self._events: Deque[Event] = deque(maxlen=event_log_size)
         self._counts = {kind: 0 for kind in EventKind}
         self._stuck_time = 0.0
@@ -526,7 +551,9 @@ class Slider:
     # -- advancing -------------------------------------------------------------
 
     def advance_to(self, t: float) -> list[Event]:
-        """Advance exactly to time ``t``; return the events on (previous t, t]."""
+        """Advance exactly to time ``t``; return the events that happened since the
+        previous call (a slip that an input change starts at once belongs to
+        the next call), up to and including ``t``."""
         if not t >= self._t:
             raise ParameterError("t", t, f"must be >= the current time {self._t!r} s")
         happened: list[Event] = []

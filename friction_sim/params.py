@@ -60,7 +60,7 @@ class SliderParams:
 
     def replace(self, **changes: Any) -> SliderParams:
         """A copy with ``changes`` applied, validated like a new instance."""
-        return dataclasses.replace(self, **changes)
+        return _replace(self, changes)
 
 
 @dataclass(frozen=True)
@@ -100,7 +100,16 @@ class Inputs:
 
     def replace(self, **changes: Any) -> Inputs:
         """A copy with ``changes`` applied, validated like a new instance."""
-        return dataclasses.replace(self, **changes)
+        return _replace(self, changes)
+
+
+def _replace(instance: Any, changes: dict[str, Any]) -> Any:
+    """dataclasses.replace that names an unknown field instead of a TypeError."""
+    known = [f.name for f in dataclasses.fields(instance)]
+    for name, value in changes.items():
+        if name not in known:
+            raise ParameterError(name, value, f"unknown field; known: {', '.join(known)}")
+    return dataclasses.replace(instance, **changes)
 
 
 def check_contact(params: SliderParams, inputs: Inputs, changed: Iterable[str] = ()) -> None:
