@@ -72,13 +72,39 @@ class Probe:
             self.executor.spin_once(timeout_sec=0.01)
         return predicate()
 
-    def wait_for_connection(self, count: int = 1, timeout: float = 10.0) -> None:
+    def wait_for_connection(self, count: int = 1, timeout: float = 10.0, topic: str = "pose") -> None:
         """Wait until discovery has matched our publishers and subscriptions."""
         def matched() -> bool:
             subs = all(pub.get_subscription_count() >= count for pub in self.publishers.values())
-            return subs and all(len(self.received[t]) > 0 for t in ("pose",))
+            return subs and len(self.received[topic]) > 0
         assert self.spin_until(matched, timeout), "the node under test never connected"
 
     def close(self) -> None:
         self.executor.shutdown(timeout_sec=0.0)
         self.node.destroy_node()
+
+
+def flood(namespace: str, rate: int, seconds: float) -> int:
+    """Publish drive_force commands at ``rate`` per second (run in its own process)."""
+    rclpy.init()
+    node = rclpy.create_node("flooder", namespace=namespace)
+    publisher = node.create_publisher(Float64, "drive_force", 10)
+    deadline = time.monotonic() + 10.0
+    while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    start, sent, msg = time.monotonic(), 0, Float64()
+    while (now := time.monotonic()) - start < seconds:
+        while sent < int((now - start) * rate):
+            msg.data = 0.7 + 1e-4 * (sent % 100)
+            publisher.publish(msg)
+            sent += 1
+        time.sleep(0.001)
+    node.destroy_node()
+    rclpy.shutdown()
+    return sent
+
+
+if __name__ == "__main__":
+    import sys
+
+    print(flood(sys.argv[1], int(sys.argv[2]), float(sys.argv[3])))
