@@ -30,7 +30,14 @@ the most pedestrian way that is still highly accurate:
 
 * slip phases are integrated with :func:`scipy.integrate.solve_ivp`
   (``DOP853``, dense output, ``max_step`` = excitation period / 20) with a
-  terminal event on ``v = 0``;
+  terminal event on ``v = 0``.  solve_ivp sees an event only as a sign change
+  between step ends, so a slip is integrated in sections that end at the
+  minima of ``s*v`` (``s`` the slip direction): there the state-independent
+  acceleration ``s*a(t)`` turns positive, found like the slip start (scan
+  including the extrema of ``R``, then brentq), except those that a lower
+  bound of ``s*v`` shows to be harmless.  After its last minimum in a section
+  ``s*v`` only rises, then falls, so a velocity that touches zero and would
+  turn back within one step cannot be stepped over;
 * the stick -> slip instant is found numerically: ``|Ft| - mu*R(t)`` is
   scanned on a grid of step at most ``1/(20 f)`` (plus the instants of
   maximal unloading, so a short positive excursion is never stepped over)
@@ -139,18 +146,30 @@ class _Piece:
         """``|Ft| - mu*R(t)``; slip is possible (from rest) where this is > 0."""
         return abs(self.tangential) - mu * self.reaction(t)
 
+    def phase_times(
+        self, theta_target: float, t_lo: float, t_hi: float, spacing: float = _TWO_PI
+    ) -> NDArray[np.float64]:
+        """Instants in ``(t_lo, t_hi)`` where ``theta(t) = theta_target (mod spacing)``."""
+        th_lo = float(self.theta(t_lo))
+        th_hi = float(self.theta(t_hi))
+        k_lo = math.floor((th_lo - theta_target) / spacing)
+        k_hi = math.ceil((th_hi - theta_target) / spacing)
+        ks = np.arange(k_lo, k_hi + 1, dtype=float)
+        times = self.t_start + (theta_target + spacing * ks - self.theta_start) / self.omega
+        return times[(times > t_lo) & (times < t_hi)]
+
     def peak_times(self, t_lo: float, t_hi: float) -> NDArray[np.float64]:
         """Instants in ``(t_lo, t_hi)`` where ``Pa*sin(theta)`` is maximal (R minimal)."""
         if self.amplitude == 0.0:
             return np.empty(0)
         theta_peak = 0.5 * math.pi if self.amplitude > 0.0 else -0.5 * math.pi
-        th_lo = float(self.theta(t_lo))
-        th_hi = float(self.theta(t_hi))
-        k_lo = math.floor((th_lo - theta_peak) / _TWO_PI)
-        k_hi = math.ceil((th_hi - theta_peak) / _TWO_PI)
-        ks = np.arange(k_lo, k_hi + 1, dtype=float)
-        times = self.t_start + (theta_peak + _TWO_PI * ks - self.theta_start) / self.omega
-        return times[(times > t_lo) & (times < t_hi)]
+        return self.phase_times(theta_peak, t_lo, t_hi)
+
+    def extremum_times(self, t_lo: float, t_hi: float) -> NDArray[np.float64]:
+        """Instants in ``(t_lo, t_hi)`` where ``R`` is extremal (``R`` is monotone in between)."""
+        if self.amplitude == 0.0:
+            return np.empty(0)
+        return self.phase_times(0.5 * math.pi, t_lo, t_hi, math.pi)
 
 
 def _sign(value: float) -> int:
@@ -298,6 +317,63 @@ def _find_slip_start(piece: _Piece, t_from: float, mu: float) -> float | None:
     return None
 
 
+def _next_velocity_minimum(piece: _Piece, s: int, t_from: float, mu: float) -> float | None:
+    """First instant in ``(t_from, piece.t_end)`` where ``s*v`` has a local minimum.
+
+    In a slip in direction ``s`` the acceleration ``a(t) = (Ft - s*mu*R(t))/m``
+    does not depend on the state; ``s*v`` has a minimum where ``s*a`` changes sign
+    from negative to non-negative.  Numerical, like :func:`_find_slip_start`: the
+    scan grid (step <= 1/(20 f)) contains every extremum of ``R``, so ``s*a`` is
+    monotone between grid points and no sign change can be stepped over.  The
+    returned instant is on the ``s*a >= 0`` side, so a search started from it
+    finds the *next* minimum.  ``None`` if there is none on the rest of the piece.
+    """
+
+    def g(t: float) -> float:  # m*s*a(t)
+        theta = piece.theta_start + piece.omega * (t - piece.t_start)
+        return s * piece.tangential - mu * (piece.base_load - piece.amplitude * math.sin(theta))
+
+    if piece.amplitude == 0.0:
+        return None  # a is constant on the piece
+    spread = mu * abs(piece.amplitude)
+    centre = s * piece.tangential - mu * piece.base_load
+    if centre + spread <= 0.0 or centre - spread >= 0.0:
+        return None  # s*a never becomes positive (or never negative): s*v is monotone
+    step = piece.period / _SCAN_STEPS_PER_PERIOD
+    # s*a changes sign in every period, so the first window (one period) almost always decides.
+    window = (_SCAN_STEPS_PER_PERIOD + 1) * step
+    t_lo = t_from
+    while t_lo < piece.t_end:
+        t_hi = min(t_lo + window, piece.t_end)
+        n = max(1, math.ceil((t_hi - t_lo) / step))
+        grid = t_lo + (t_hi - t_lo) * (np.arange(n + 1, dtype=float) / n)
+        grid = np.unique(np.concatenate([grid, piece.extremum_times(t_lo, t_hi)]))
+        grid[0], grid[-1] = t_lo, t_hi
+        # Scalar evaluation, the same as in the root search: the sign at t_from (a previous
+        # minimum, on the s*a >= 0 side) must not flip with a differently rounded sin.
+        points = grid.tolist()
+        values = [g(t) for t in points]
+        for i in range(1, len(points)):
+            if values[i - 1] < 0.0 <= values[i]:
+                t_min = points[i]
+                if values[i] > 0.0:
+                    t_min = _first_positive_root(g, points[i - 1], t_min)
+                return t_min if t_min < piece.t_end else None
+        t_lo = t_hi
+    return None
+
+
+@dataclass(frozen=True)
+class _Slip:
+    """Outcome of one slip phase (see :func:`_integrate_slip`)."""
+
+    stopped: bool  # True: v reached 0 at t_stop; False: reached piece.t_end still slipping
+    t_stop: float
+    x_stop: float
+    v_stop: float  # 0.0 if stopped
+    dense: Callable[[Any], NDArray[np.float64]]  # (x, v) on [t_s, t_stop]
+
+
 def _integrate_slip(
     piece: _Piece,
     t_s: float,
@@ -308,9 +384,21 @@ def _integrate_slip(
     mu: float,
     rtol: float,
     atol: float,
-) -> Any:
-    """Integrate one slip phase in direction ``s`` from ``t_s`` until v = 0 or ``piece.t_end``."""
-    from scipy.integrate import solve_ivp
+) -> _Slip:
+    """Integrate one slip phase in direction ``s`` from ``t_s`` until v = 0 or ``piece.t_end``.
+
+    solve_ivp only sees a zero of the terminal event ``v`` as a sign change between
+    the ends of a step, so a velocity that touches zero and turns back within one
+    step would be integrated straight through (through a stick).  The slip is
+    therefore integrated in sections that end at minima of ``s*v`` (zeros of the
+    state-independent ``s*a``, see :func:`_next_velocity_minimum`).  A section
+    from ``t0`` ends at the first minimum after ``t_safe``, before which
+    ``s*v(t0) + min(s*a)*(t - t0) > 0`` rules out a zero.  Between ``t_safe`` and
+    the section end ``s*v`` has no interior minimum, so once it has reached zero
+    it stays <= 0 up to the end of the section and the sign change between step
+    ends cannot be missed.
+    """
+    from scipy.integrate import OdeSolution, solve_ivp
 
     ft = piece.tangential
     mu_s = mu * s
@@ -333,20 +421,46 @@ def _integrate_slip(
     velocity_zero.terminal = True  # type: ignore[attr-defined]
     velocity_zero.direction = -s  # type: ignore[attr-defined]  # from the slip side towards 0
 
-    sol = solve_ivp(
-        rhs,
-        (t_s, piece.t_end),
-        [x_s, v_s],
-        method='DOP853',
-        dense_output=True,
-        events=velocity_zero,
-        rtol=rtol,
-        atol=atol,
-        max_step=piece.period / _SOLVER_STEPS_PER_PERIOD,
-    )
-    if sol.status == -1:
-        raise RuntimeError(f'solve_ivp failed in slip phase starting at t={t_s!r}: {sol.message}')
-    return sol
+    max_step = piece.period / _SOLVER_STEPS_PER_PERIOD
+    # Lower bound of s*a over the piece: s*v >= s*v(t0) + a_low*(t - t0) in a section.
+    a_low = (s * ft - mu * (piece.base_load + abs(piece.amplitude))) / mass
+    t0, y0 = t_s, [x_s, v_s]
+    sections: list[Any] = []
+    while True:
+        # v cannot vanish before t_safe (half the bound's margin), so minima before it
+        # need not end a section: fast, long slips are integrated in one go.
+        speed = s * float(y0[1])
+        t_safe = t0 + 0.5 * speed / -a_low if (a_low < 0.0 and speed > 0.0) else t0
+        t_min = _next_velocity_minimum(piece, s, t_safe, mu)
+        t_bound = piece.t_end if t_min is None else t_min
+        sol = solve_ivp(
+            rhs,
+            (t0, t_bound),
+            y0,
+            method='DOP853',
+            dense_output=True,
+            events=velocity_zero,
+            rtol=rtol,
+            atol=atol,
+            max_step=max_step,
+        )
+        if sol.status == -1:
+            raise RuntimeError(
+                f'solve_ivp failed in slip phase starting at t={t_s!r}: {sol.message}'
+            )
+        sections.append(sol.sol)
+        if sol.status == 1 or t_min is None:
+            break
+        t0, y0 = float(sol.t[-1]), sol.y[:, -1]
+
+    if len(sections) == 1:
+        dense = sections[0]
+    else:
+        ts = np.concatenate([sections[0].ts] + [sec.ts[1:] for sec in sections[1:]])
+        dense = OdeSolution(ts, [ip for sec in sections for ip in sec.interpolants])
+    if sol.status == 1:  # velocity reached zero
+        return _Slip(True, float(sol.t_events[0][0]), float(sol.y_events[0][0][0]), 0.0, dense)
+    return _Slip(False, float(sol.t[-1]), float(sol.y[0, -1]), float(sol.y[1, -1]), dense)
 
 
 class _Sampler:
@@ -477,12 +591,11 @@ def reference_solution(
         if t >= t_final:
             break
         t_begin = t
-        sol = _integrate_slip(piece, t, x, v, s, mass, mu, rtol, atol)
-        if sol.status == 1:  # velocity reached zero
-            t_e = float(sol.t_events[0][0])
-            x_e = float(sol.y_events[0][0][0])
-            sampler.slip(t_begin, t_e, sol.sol)
-            t, x, v = t_e, x_e, 0.0
+        slip = _integrate_slip(piece, t, x, v, s, mass, mu, rtol, atol)
+        if slip.stopped:  # velocity reached zero
+            t_e = slip.t_stop
+            sampler.slip(t_begin, t_e, slip.dense)
+            t, x, v = t_e, slip.x_stop, 0.0
             if t_e - t_begin < _TINY_PIECE_PERIODS * piece.period:
                 tiny_pieces += 1
                 if tiny_pieces > _MAX_TINY_PIECES:
@@ -506,9 +619,8 @@ def reference_solution(
                 s = 0
             sampler.point(t, x, v)
         else:  # reached the end of the schedule piece while slipping
-            t_end = float(sol.t[-1])
-            sampler.slip(t_begin, t_end, sol.sol)
-            t, x, v = t_end, float(sol.y[0, -1]), float(sol.y[1, -1])
+            sampler.slip(t_begin, slip.t_stop, slip.dense)
+            t, x, v = slip.t_stop, slip.x_stop, slip.v_stop
             tiny_pieces = 0
             if piece.is_last:
                 break

@@ -306,3 +306,72 @@ def test_reference_is_independent_of_the_core_and_imports_scipy_lazily():
             "sys.exit(int(any(m == 'scipy' or m.startswith('scipy.') for m in sys.modules)))")
     proc = subprocess.run([sys.executable, '-c', code], cwd=MODULE.parents[1], check=False)
     assert proc.returncode == 0, 'importing friction_sim.reference must not import scipy'
+
+
+# --------------------------------------------------------------------------- brief returns to rest
+
+
+def _dip_case(drive_force: float, theta_up: float, periods: int, depth: float):
+    """Forward slip from v0 > 0 whose slip-law velocity dips to -depth at a minimum.
+
+    With constant inputs and phase 0 at t = 0 the forward slip law integrates to
+    v = v0 + w(t), x = v0*t + wx(t).  ``s*a`` turns positive at theta = theta_up, the
+    minima of v; v0 is chosen so that v is -depth at the minimum after ``periods``
+    periods (and positive at every earlier one).  Returns v0, w, wx, t* (first zero
+    of v) and t_up (that minimum).
+    """
+    from scipy.optimize import brentq
+
+    c = (drive_force - MU * M * G) / M
+
+    def w(t):
+        return c * t + MU * 5.0 * (1.0 - np.cos(OMEGA * t)) / (M * OMEGA)
+
+    def wx(t):
+        return c * t ** 2 / 2 + MU * 5.0 / (M * OMEGA) * (t - np.sin(OMEGA * t) / OMEGA)
+
+    t_up = (theta_up + 2 * math.pi * periods) / OMEGA
+    v0 = -w(t_up) - depth
+    grid = np.linspace(0.0, t_up, 200_001)
+    i = int(np.argmax(v0 + w(grid) <= 0.0))
+    assert i > 0
+    t_star = brentq(lambda t: v0 + w(t), grid[i - 1], grid[i], xtol=1e-16)
+    return v0, w, wx, t_star, t_up
+
+
+@pytest.mark.parametrize('direction', [1, -1])
+@pytest.mark.parametrize('case', ['after_three_periods', 'narrow_acceleration_window'])
+def test_velocity_dip_to_zero_within_one_solver_step_sticks(case, direction):
+    """A return to rest that the slip law would undo within < 1 solver step is a stick.
+
+    The velocity reaches 0 where |Ft| < mu*R (so the slider sticks) shortly before the
+    slip law's velocity minimum and would come back within well under max_step = T/20;
+    solve_ivp's event on v = 0 alone (sign change between step ends) steps over it.
+
+    * after_three_periods: a dip ~0.24 ms wide at the 4th minimum; the slip before it
+      lasts several periods (several integration sections).
+    * narrow_acceleration_window: phi = 1 - a*cos(0.05): s*a > 0 only in a phase window
+      of 0.1 rad (~T/63), so both zeros of a fall within one solver step.
+    """
+    if case == 'after_three_periods':
+        fd, theta_up, periods, depth = 0.8, math.asin(0.4), 3, 1e-6
+    else:
+        fd, theta_up, periods, depth = 1.0 - 0.5 * math.cos(0.05), 0.5 * math.pi - 0.05, 2, 3e-8
+    v0, w, wx, t_star, t_up = _dip_case(fd, theta_up, periods, depth)
+    inputs = ReferenceInputs(drive_force=direction * fd, excitation_amplitude=5.0,
+                             excitation_frequency=F)
+    ts = np.linspace(0.0, t_up + 0.1 * T, 1001)
+    res = reference_solution(M, MU, G, [(0.0, inputs)], ts, v0=direction * v0)
+    # stick at t*; slip resumes (same direction) where the margin turns positive: theta_up
+    assert res.event_kinds[:2] == ('stick', 'slip_start'), (res.event_kinds, res.event_times)
+    np.testing.assert_allclose(res.event_times[:2], [t_star, t_up], rtol=0.0, atol=1e-9)
+    x_star = v0 * t_star + wx(t_star)
+    before, stuck = ts < t_star, (ts >= t_star) & (ts <= t_up)
+    assert stuck.sum() > 0
+    np.testing.assert_allclose(direction * res.v[before], v0 + w(ts[before]), rtol=0.0,
+                               atol=1e-9 * v0)
+    np.testing.assert_allclose(direction * res.x[before], v0 * ts[before] + wx(ts[before]),
+                               rtol=0.0, atol=1e-9 * x_star)
+    assert np.all(res.v[stuck] == 0.0)
+    np.testing.assert_allclose(direction * res.x[stuck], x_star, rtol=1e-9)
+    assert np.all(direction * res.v >= 0.0)
