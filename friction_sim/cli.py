@@ -8,6 +8,8 @@ Subcommands::
     friction-sim trace --png fig2.png [--periods 2] [plant options]
     friction-sim simulate [plant options] --duration 2 [--settle 0.2] [--csv out.csv] [--json]
     friction-sim slider [--params FILE] [--ros-args ...]
+    friction-sim controller [--params FILE] [--ros-args ...]
+    friction-sim feeder [--slider-params FILE] [--controller-params FILE] [--ros-args ...]
 
 Errors are one line on stderr and exit code 2, never a traceback.
 """
@@ -154,11 +156,23 @@ def _cmd_slider(args: argparse.Namespace) -> int:
     return slider_main(_ros_args("friction-sim-slider", args))
 
 
+def _cmd_controller(args: argparse.Namespace) -> int:
+    from friction_sim.nodes.controller import main as controller_main
+
+    return controller_main(_ros_args("friction-sim-controller", args))
+
+
+def _cmd_feeder(args: argparse.Namespace) -> int:
+    from friction_sim.nodes.feeder import main as feeder_main
+
+    return feeder_main(_ros_args("friction-sim-feeder", args), args.slider_params, args.controller_params)
+
+
 def _ros_args(prog: str, args: argparse.Namespace) -> list[str]:
     """The rclpy argument list: --params FILE becomes --ros-args --params-file FILE,
     and anything after --ros-args on our command line is passed through."""
     ros: list[str] = []
-    if args.params is not None:
+    if getattr(args, "params", None) is not None:
         if not args.params.is_file():
             raise FrictionSimError(f"--params: no such file: {args.params}")
         ros += ["--params-file", str(args.params)]
@@ -211,6 +225,16 @@ def build_parser() -> argparse.ArgumentParser:
     slider = sub.add_parser("slider", help="run the real-time slider node (as `ros2 run friction_sim slider`)")
     slider.add_argument("--params", type=Path, help="ROS 2 parameters file, e.g. config/slider.yaml")
     slider.set_defaults(handler=_cmd_slider, ros_args=[])
+
+    controller = sub.add_parser("controller", help="run the mean-speed controller node "
+                                "(as `ros2 run friction_sim controller`)")
+    controller.add_argument("--params", type=Path, help="ROS 2 parameters file, e.g. config/controller.yaml")
+    controller.set_defaults(handler=_cmd_controller, ros_args=[])
+
+    feeder = sub.add_parser("feeder", help="run slider and controller in one process (one executor)")
+    feeder.add_argument("--slider-params", type=Path, help="parameters file for the slider")
+    feeder.add_argument("--controller-params", type=Path, help="parameters file for the controller")
+    feeder.set_defaults(handler=_cmd_feeder, ros_args=[])
     return parser
 
 

@@ -1,0 +1,237 @@
+"""Mean-speed control through the U relation (numpy only, no ROS).
+
+A feeder operator asks for a mean speed V*; the controller answers with the
+excitation amplitude Pa.  Its model is the exact relation U(phi, a):
+
+* feedforward: U* = V* f/(g mu) and phi = Fd/(mu m g) from the model's mass,
+  mu and gravity; a_ff = a(U*, phi), the exact inverse of U;
+* feedback: integral action on the mean-speed error.  Its state is the
+  model's speed that is asked for, U_cmd = r * U*, applied as
+  a = a(U_cmd, phi) clamped to [0, max_amplitude_ratio].  The first clean
+  sample after a change moves U_cmd by integral_gain times the shortfall e (in
+  units of U); later ones take the secant step e / s, where s is the measured
+  slope of e against U_cmd from the last two clean samples, so the loop gain
+  adapts to how far the model's slope is off (near the motion boundary, where
+  U is flat in a, a mismatched model is off by a large factor).  A step never
+  more than quadruples U_cmd or cuts it below a quarter, so the loop cannot
+  jump over the cliff to a = 0.  Kept as the ratio r,
+  the correction carries over to new targets, drive forces and frequencies:
+  a wrong mu or mass in the model is mostly a wrong scale.  The integral
+  term reported is U_cmd - U*;
+* anti-windup: the state only moves on *clean* samples and never in the
+  direction of a saturated output; an unreachable target (U* above
+  U(phi, max_amplitude_ratio)) saturates, is flagged, and freezes it.
+
+Why "clean": every slip of the periodic regime starts from rest at the same
+phase, so the plant reaches its new periodic motion in the first whole period
+after Pa changes.  A mean-velocity sample whose window began before the last
+change mixes old and new motion; integrating it would only add a transient
+error.  :class:`SampleClock` decides from the sample's stamp (simulation time)
+and arrival time (wall clock) whether its window lies wholly after the change.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, replace
+from typing import Deque
+
+from friction_sim.errors import ParameterError
+from friction_sim.params import SliderParams, require_finite, require_positive
+from friction_sim.urelation import amplitude_ratio_for, u_map
+
+NS_PER_S = 1_000_000_000
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """The controller's model of the plant and its tuning.
+
+    integral_gain: fraction of each clean sample's error (in U) added to I.
+    max_amplitude_ratio: the largest a = Pa/(m*g) applied (< 1: lift-off).
+    settle_margin: extra fraction of a period a sample's window must keep
+        clear of the last change of Pa (message latencies).
+    """
+
+    model: SliderParams = SliderParams()
+    integral_gain: float = 0.4
+    max_amplitude_ratio: float = 0.95
+    mean_window_periods: int = 1
+    settle_margin: float = 0.25
+
+    def __post_init__(self) -> None:
+        gain = require_finite("integral_gain", self.integral_gain)
+        if not 0.0 <= gain <= 2.0:
+            raise ParameterError("integral_gain", gain, "must be in [0, 2]")
+        ratio = require_finite("max_amplitude_ratio", self.max_amplitude_ratio)
+        if not 0.0 < ratio < 1.0:
+            raise ParameterError("max_amplitude_ratio", ratio, "must be in (0, 1): a >= 1 lifts the slider off")
+        window = self.mean_window_periods
+        if isinstance(window, bool) or not isinstance(window, int) or window < 1:
+            raise ParameterError("mean_window_periods", window, "must be an integer >= 1")
+        margin = require_finite("settle_margin", self.settle_margin)
+        if not 0.0 <= margin <= 5.0:
+            raise ParameterError("settle_margin", margin, "must be in [0, 5] periods")
+
+
+@dataclass(frozen=True)
+class ControlOutput:
+    """What the controller decided and why (all of it goes to diagnostics)."""
+
+    amplitude: float  # Pa [N] to apply
+    target_speed: float  # V* [m/s]
+    u_target: float  # U* in the model's units
+    phi: float  # model phi = Fd/(mu m g)
+    feedforward_ratio: float  # a_ff = a(U*, phi) (NaN when unreachable)
+    applied_ratio: float  # a actually applied
+    integral: float  # I [U]
+    saturated: bool  # a clamped at max_amplitude_ratio
+    unreachable: bool  # U* > U(phi, max_amplitude_ratio), or no drive in the target's direction
+    runaway: bool  # |phi| >= 1: the slider slides on whatever Pa is
+
+
+class SampleClock:
+    """Relates mean-velocity stamps (simulation time) to arrival (wall time),
+    to tell whether a sample's window lies wholly after the last change of Pa."""
+
+    def __init__(self) -> None:
+        self._samples: Deque[tuple[float, int]] = deque(maxlen=16)
+        self._change_wall_ns: int | None = None
+
+    def note_change(self, wall_ns: int) -> None:
+        """Pa was changed (published) at ``wall_ns``."""
+        self._change_wall_ns = wall_ns
+
+    def rate(self) -> float:
+        """Simulated seconds per wall second, from the recent samples (1 until known)."""
+        if len(self._samples) < 2:
+            return 1.0
+        (t0, w0), (t1, w1) = self._samples[0], self._samples[-1]
+        return (t1 - t0) / ((w1 - w0) / NS_PER_S) if w1 > w0 and t1 > t0 else 1.0
+
+    def add(self, stamp: float, wall_ns: int, period: float, window_periods: int, margin: float) -> bool:
+        """Record a sample; True when its window began after the last change."""
+        self._samples.append((stamp, wall_ns))
+        if self._change_wall_ns is None:  # nothing of ours applied yet: not our plant's answer
+            return False
+        since_change = (wall_ns - self._change_wall_ns) / NS_PER_S * self.rate()
+        return since_change >= (window_periods + margin) * period
+
+
+class MeanSpeedController:
+    """Turns a target mean speed into an excitation amplitude (see module doc)."""
+
+    def __init__(self, config: ControllerConfig, *, drive_force: float, frequency: float,
+                 target_speed: float = 0.0) -> None:
+        self.config = config
+        self._drive_force = require_finite("drive_force", drive_force)
+        self._frequency = require_positive("excitation_frequency", frequency)
+        self._target = 0.0
+        self._ratio = 1.0  # U_cmd / U*
+        self._last_clean: tuple[float, float] | None = None  # (U_cmd, shortfall) for the secant
+        self.clock = SampleClock()
+        self.measured_speed = math.nan
+        self.output = self._decide()
+        self.set_target(target_speed)
+
+    # -- inputs ---------------------------------------------------------------
+
+    def set_target(self, speed: float) -> ControlOutput:
+        """A new target mean speed [m/s]; it must agree in sign with the drive force."""
+        speed = require_finite("target_speed", speed)
+        if speed != 0.0 and (self._drive_force == 0.0 or math.copysign(1.0, speed) != math.copysign(1.0, self._drive_force)):
+            raise ParameterError(
+                "target_speed", speed,
+                f"must have the sign of drive_force = {self._drive_force!r} N (the slider only creeps that way)",
+            )
+        self._target = speed
+        self._last_clean = None
+        return self._update()
+
+    def set_drive_force(self, force: float) -> ControlOutput:
+        self._drive_force = require_finite("drive_force", force)
+        if self._target != 0.0 and math.copysign(1.0, self._target) != math.copysign(1.0, force):
+            self._target = 0.0  # the old target now points the wrong way
+        self._last_clean = None
+        return self._update()
+
+    def set_frequency(self, frequency: float) -> ControlOutput:
+        self._frequency = require_positive("excitation_frequency", frequency)
+        self._last_clean = None
+        return self._update()
+
+    def set_model(self, model: SliderParams) -> ControlOutput:
+        self.config = replace(self.config, model=model)
+        return self._update()
+
+    def on_mean_velocity(self, speed: float, stamp: float, wall_ns: int) -> ControlOutput:
+        """A measured mean speed [m/s] over the plant's last window, stamped with
+        the simulation time at its end and received at ``wall_ns``."""
+        speed = require_finite("mean_velocity", speed)
+        self.measured_speed = speed
+        config = self.config
+        clean = self.clock.add(stamp, wall_ns, 1.0 / self._frequency, config.mean_window_periods,
+                               config.settle_margin)
+        out = self.output
+        if clean and self._target != 0.0 and not out.unreachable and not out.runaway:
+            # The shortfall in the target's direction, in units of U.
+            error = math.copysign(1.0, self._target) * (self._target - speed) * self._frequency / (
+                config.model.gravity * config.model.mu)
+            if not (out.saturated and error > 0.0):
+                command = abs(out.u_target) * self._ratio
+                step = config.integral_gain * error
+                if self._last_clean is not None:
+                    previous_command, previous_error = self._last_clean
+                    slope = (previous_error - error) / (command - previous_command) if command != previous_command else 0.0
+                    if slope > 0.0:
+                        step = error / slope
+                self._last_clean = (command, error)
+                command = min(max(command + step, 0.25 * command), 4.0 * command)
+                self._ratio = command / abs(out.u_target)
+        return self._update()
+
+    # -- the law ----------------------------------------------------------------
+
+    def _update(self) -> ControlOutput:
+        self.output = self._decide()
+        return self.output
+
+    def _decide(self) -> ControlOutput:
+        model, top = self.config.model, self.config.max_amplitude_ratio
+        phi = self._drive_force / (model.mu * model.weight)
+        u_target = self._target * self._frequency / (model.gravity * model.mu)
+        runaway = abs(phi) >= 1.0
+        if self._target == 0.0 or runaway:
+            return self._output(0.0, u_target, phi, 0.0 if self._target == 0.0 else math.nan, False, False, runaway)
+        u_top = u_map(phi, top)
+        if abs(u_target) > abs(u_top):
+            return self._output(top, u_target, phi, math.nan, True, True, False)
+        feedforward = float(amplitude_ratio_for(u_target, phi, top))
+        u_command = u_target * self._ratio
+        if abs(u_command) >= abs(u_top):
+            self._ratio = abs(u_top / u_target)  # anti-windup: no ratio beyond the top
+            return self._output(top, u_target, phi, feedforward, True, False, False)
+        return self._output(float(amplitude_ratio_for(u_command, phi, top)), u_target, phi, feedforward,
+                            False, False, False)
+
+    def _output(self, ratio: float, u_target: float, phi: float, feedforward: float,
+                saturated: bool, unreachable: bool, runaway: bool) -> ControlOutput:
+        return ControlOutput(
+            amplitude=ratio * self.config.model.weight, target_speed=self._target, u_target=u_target,
+            phi=phi, feedforward_ratio=feedforward, applied_ratio=ratio,
+            integral=u_target * (self._ratio - 1.0),
+            saturated=saturated, unreachable=unreachable, runaway=runaway,
+        )
+
+    @property
+    def drive_force(self) -> float:
+        return self._drive_force
+
+    @property
+    def frequency(self) -> float:
+        return self._frequency
+
+    @property
+    def target_speed(self) -> float:
+        return self._target

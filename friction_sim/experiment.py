@@ -1,0 +1,214 @@
+"""Steering experiments over real ROS topics: a schedule of commands played into
+a slider (and optionally a controller) running in this process.
+
+The nodes run exactly as they would under ``ros2 run``; a driver node
+publishes each scheduled command on its topic when the slider's simulation
+time reaches it, and listens to what the nodes publish.  The result holds
+the time series a report or a test needs, and :func:`step_metrics` turns them
+into settling time, overshoot and steady error per target step.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import uuid
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+from friction_sim.errors import ParameterError
+from friction_sim.params import Inputs, SliderParams
+
+COMMAND_TOPICS = ("drive_force", "excitation_amplitude", "excitation_frequency", "target_speed", "external_wrench")
+
+
+@dataclass(frozen=True)
+class ScheduledCommand:
+    """Publish ``value`` on ``topic`` at simulation time ``t`` [s].  For
+    ``external_wrench`` the value is (force.x, force.z) in N."""
+
+    t: float
+    topic: str
+    value: float | tuple[float, float]
+
+    def __post_init__(self) -> None:
+        if self.topic not in COMMAND_TOPICS:
+            raise ParameterError("topic", self.topic, f"must be one of {', '.join(COMMAND_TOPICS)}")
+        if not (isinstance(self.t, (int, float)) and math.isfinite(self.t) and self.t >= 0.0):
+            raise ParameterError("t", self.t, "must be a finite time >= 0 s")
+
+
+@dataclass(frozen=True)
+class ExperimentSpec:
+    """Everything an experiment needs (see :func:`run_experiment`)."""
+
+    duration: float
+    schedule: Sequence[ScheduledCommand] = ()
+    plant: SliderParams = SliderParams()
+    inputs: Inputs = Inputs()
+    controller: bool = False
+    controller_parameters: dict[str, Any] = field(default_factory=dict)
+    slider_parameters: dict[str, Any] = field(default_factory=dict)
+    real_time_factor: float = 1.0
+
+
+@dataclass
+class ExperimentResult:
+    """Time series of one run (simulation time in s; speeds in m/s, forces in N)."""
+
+    mean_velocity: list[tuple[float, float]] = field(default_factory=list)
+    amplitude: list[tuple[float, float]] = field(default_factory=list)  # controller output, at the sample time
+    commands: list[tuple[float, str, Any]] = field(default_factory=list)  # as published by the driver
+    duration: float = 0.0
+
+    def target_at(self, t: float, initial: float) -> float:
+        """The target speed in force at ``t`` (``initial`` before any command)."""
+        target = initial
+        for when, topic, value in self.commands:
+            if topic == "target_speed" and when <= t:
+                target = value
+        return target
+
+
+@dataclass(frozen=True)
+class StepMetrics:
+    """How a regulated mean speed answered one step of the target.
+
+    settling_periods: whole excitation periods from the step until the first
+        sample after which every sample stays within the tolerance (inf: never).
+    overshoot: largest excursion beyond the target, as a fraction of the step;
+        for a disturbance at a constant target, the peak deviation as a
+        fraction of the target.
+    steady_error: relative error of the last sample before the next step.
+    """
+
+    t: float
+    target: float
+    settling_periods: float
+    overshoot: float
+    steady_error: float
+
+
+def step_metrics(samples: Sequence[tuple[float, float]], t_step: float, t_end: float, before: float,
+                 target: float, frequency: float, tolerance: float) -> StepMetrics:
+    """Metrics of the mean-speed samples in (t_step, t_end] for a step from
+    ``before`` to ``target`` (samples stamped with their period's end)."""
+    window = [(t, v) for t, v in samples if t_step < t <= t_end]
+    if not window:
+        return StepMetrics(t_step, target, math.inf, math.nan, math.nan)
+    settled_from = None
+    for t, v in window:
+        inside = abs(v - target) <= tolerance * abs(target)
+        if inside and settled_from is None:
+            settled_from = t
+        elif not inside:
+            settled_from = None
+    settling = math.inf if settled_from is None else math.ceil((settled_from - t_step) * frequency - 1e-6)
+    step = target - before
+    if abs(step) > 0.05 * abs(target):  # a step of the target: overshoot beyond it, per step size
+        direction = 1.0 if step > 0 else -1.0
+        overshoot = max(0.0, max(direction * (v - target) for _, v in window)) / abs(step)
+    else:  # a disturbance at a constant target: the peak deviation, per target
+        overshoot = max(abs(v - target) for _, v in window) / abs(target) if target else math.nan
+    steady = abs(window[-1][1] - target) / abs(target) if target != 0 else abs(window[-1][1])
+    return StepMetrics(t_step, target, settling, overshoot, steady)
+
+
+def run_experiment(spec: ExperimentSpec, *, namespace: str | None = None,
+                   progress: Callable[[float, ExperimentResult], None] | None = None) -> ExperimentResult:
+    """Bring up the nodes in this process, play the schedule over real topics in
+    simulation time, and collect what they publish.  rclpy must be initialised."""
+    import rclpy
+    from geometry_msgs.msg import TwistStamped, WrenchStamped
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+    from std_msgs.msg import Float64
+
+    from friction_sim.nodes.common import wall_ns
+    from friction_sim.nodes.controller import ControllerNode
+    from friction_sim.nodes.slider import SliderNode
+
+    ns = namespace or f"/experiment_{uuid.uuid4().hex[:8]}"
+    plant_values = {
+        "mass": spec.plant.mass, "mu": spec.plant.mu, "gravity": spec.plant.gravity,
+        "drive_force": spec.inputs.drive_force, "excitation_amplitude": spec.inputs.excitation_amplitude,
+        "excitation_frequency": spec.inputs.excitation_frequency, "real_time_factor": spec.real_time_factor,
+        **spec.slider_parameters,
+    }
+    nodes: list[Any] = []
+    executor = SingleThreadedExecutor()
+    result = ExperimentResult(duration=spec.duration)
+    try:
+        driver = rclpy.create_node("experiment_driver", namespace=ns)
+        nodes.append(driver)
+        publishers = {topic: driver.create_publisher(WrenchStamped if topic == "external_wrench" else Float64,
+                                                     topic, 10) for topic in COMMAND_TOPICS}
+        driver.create_subscription(
+            TwistStamped, "mean_velocity",
+            lambda m: result.mean_velocity.append((m.header.stamp.sec + m.header.stamp.nanosec * 1e-9,
+                                                   m.twist.linear.x)), 100)
+        slider = SliderNode(namespace=ns, parameter_overrides=[Parameter(k, value=v) for k, v in plant_values.items()])
+        nodes.append(slider)
+        if spec.controller:
+            controller = ControllerNode(namespace=ns, parameter_overrides=[
+                Parameter(k, value=v) for k, v in {"excitation_frequency": spec.inputs.excitation_frequency,
+                                                   "drive_force": spec.inputs.drive_force,
+                                                   **spec.controller_parameters}.items()])
+            controller.output_listeners.append(
+                lambda out: result.amplitude.append((slider.realtime.clock.now(wall_ns()), out.amplitude)))
+            nodes.append(controller)
+        for node in nodes:
+            executor.add_node(node)
+        _wait_until_connected(executor, publishers, spec.controller)
+        pending = sorted(spec.schedule, key=lambda c: c.t)
+        start_sim = slider.realtime.clock.now(wall_ns())
+        last_progress = time.monotonic()
+        while (now := slider.realtime.clock.now(wall_ns()) - start_sim) < spec.duration:
+            while pending and pending[0].t <= now:
+                command = pending.pop(0)
+                _publish(publishers[command.topic], command)
+                result.commands.append((now, command.topic, command.value))
+            executor.spin_once(timeout_sec=0.0005)
+            if progress is not None and time.monotonic() - last_progress > 0.2:
+                progress(now, result)
+                last_progress = time.monotonic()
+        _shift(result, start_sim)
+    finally:
+        for node in nodes:
+            node.destroy_node()
+        executor.shutdown(timeout_sec=0.0)
+    return result
+
+
+def _publish(publisher: Any, command: ScheduledCommand) -> None:
+    from geometry_msgs.msg import WrenchStamped
+    from std_msgs.msg import Float64
+
+    if command.topic == "external_wrench":
+        msg = WrenchStamped()
+        msg.wrench.force.x, msg.wrench.force.z = command.value  # type: ignore[misc]
+        publisher.publish(msg)
+    else:
+        publisher.publish(Float64(data=float(command.value)))  # type: ignore[arg-type]
+
+
+def _wait_until_connected(executor: Any, publishers: dict[str, Any], controller: bool, timeout: float = 10.0) -> None:
+    """Spin until discovery has matched the driver's publishers (and, with a
+    controller, until it has its plant's parameters)."""
+    deadline = time.monotonic() + timeout
+    needed = {"drive_force", "excitation_amplitude", "excitation_frequency", "external_wrench"}
+    if controller:
+        needed.add("target_speed")
+    while time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.01)
+        if all(publishers[t].get_subscription_count() >= 1 for t in needed):
+            nodes = executor.get_nodes()
+            if all(getattr(n, "ready", True) for n in nodes):
+                return
+    raise RuntimeError("the experiment's nodes did not connect within 10 s")
+
+
+def _shift(result: ExperimentResult, start: float) -> None:
+    """Express every time relative to the experiment's start."""
+    result.mean_velocity = [(t - start, v) for t, v in result.mean_velocity if t >= start]
+    result.amplitude = [(t - start, a) for t, a in result.amplitude if t >= start]
