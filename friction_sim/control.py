@@ -35,6 +35,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from typing import Deque
 
 from friction_sim.errors import ParameterError
@@ -204,16 +205,15 @@ class MeanSpeedController:
         runaway = abs(phi) >= 1.0
         if self._target == 0.0 or runaway:
             return self._output(0.0, u_target, phi, 0.0 if self._target == 0.0 else math.nan, False, False, runaway)
-        u_top = u_map(phi, top)
+        u_top = _u_top(phi, top)
         if abs(u_target) > abs(u_top):
             return self._output(top, u_target, phi, math.nan, True, True, False)
-        feedforward = float(amplitude_ratio_for(u_target, phi, top))
+        feedforward = _inverse(u_target, phi, top)
         u_command = u_target * self._ratio
         if abs(u_command) >= abs(u_top):
             self._ratio = abs(u_top / u_target)  # anti-windup: no ratio beyond the top
             return self._output(top, u_target, phi, feedforward, True, False, False)
-        return self._output(float(amplitude_ratio_for(u_command, phi, top)), u_target, phi, feedforward,
-                            False, False, False)
+        return self._output(_inverse(u_command, phi, top), u_target, phi, feedforward, False, False, False)
 
     def _output(self, ratio: float, u_target: float, phi: float, feedforward: float,
                 saturated: bool, unreachable: bool, runaway: bool) -> ControlOutput:
@@ -235,3 +235,16 @@ class MeanSpeedController:
     @property
     def target_speed(self) -> float:
         return self._target
+
+
+# The controller decides once per sample, mostly on unchanged inputs: remember
+# the last answers of the (exact, but iterative) relation.
+@lru_cache(maxsize=64)
+def _u_top(phi: float, top: float) -> float:
+    return float(u_map(phi, top))
+
+
+@lru_cache(maxsize=64)
+def _inverse(u: float, phi: float, top: float) -> float:
+    return float(amplitude_ratio_for(u, phi, top))
+

@@ -175,25 +175,45 @@ def _invert(
     target: NDArray[np.float64], phi: NDArray[np.float64],
     lo: NDArray[np.float64], hi: NDArray[np.float64], f_hi: NDArray[np.float64],
 ) -> NDArray[np.float64]:
-    """Illinois false position for U(phi, a) - target = 0 on [lo, hi]."""
-    f_lo = -target.copy()
-    f_hi = f_hi - target
-    side = np.zeros(target.shape, dtype=np.int8)
-    a = lo.copy()
-    for _ in range(200):
+    """Solve U(phi, a) = target for a in [lo, hi] (U(lo) = 0 < target <= U(hi)).
+
+    Newton's method with the exact slope dU/da, every iterate kept inside the
+    shrinking bracket (bisection when Newton would leave it): a handful of
+    iterations, which matters to a controller that inverts once per period.
+    """
+    a = lo + (hi - lo) * np.sqrt(target / f_hi)  # U grows roughly like (a - lo)^2 near the boundary
+    for _ in range(100):
+        u, slope = _u_and_slope(phi, a)
+        f = u - target
+        hi, lo = np.where(f > 0.0, a, hi), np.where(f > 0.0, lo, a)
         with np.errstate(divide="ignore", invalid="ignore"):
-            a = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
-        a = np.where(np.isfinite(a) & (a > lo) & (a < hi), a, 0.5 * (lo + hi))
-        f = u_map(phi, a) - target
-        up = f > 0.0
-        hi, lo = np.where(up, a, hi), np.where(up, lo, a)
-        # Illinois: halve the value kept at the end that stayed put twice.
-        f_lo = np.where(up, np.where(side == 1, 0.5 * f_lo, f_lo), f)
-        f_hi = np.where(up, f, np.where(side == -1, 0.5 * f_hi, f_hi))
-        side = np.where(up, 1, -1).astype(np.int8)
-        if np.all((hi - lo <= 4.0 * np.finfo(float).eps * hi) | (np.abs(f) <= 1e-15 * target)):
+            step = a - f / slope
+        step = np.where(np.isfinite(step) & (step > lo) & (step < hi), step, 0.5 * (lo + hi))
+        step = np.where(f == 0.0, a, step)
+        done = np.abs(step - a) <= 4.0 * np.finfo(float).eps * a
+        a = step
+        if np.all(done):
             break
     return a
+
+
+def _u_and_slope(phi: NDArray[np.float64], a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """U and dU/da where 1 - a < phi < 1 (one periodic slip per period).
+
+    With D(psi) the travel per period, U = D(psi_C)/(4 pi^2); psi_C moves with
+    a, but dD/dpsi = w(psi_C) = 0, so only the explicit dependence on a and on
+    theta_A = asin((1 - phi)/a) remains (d theta_A/da = -tan(theta_A)/a).
+    """
+    psi = _stop_phase(phi, a)
+    theta = np.arcsin((1.0 - phi) / a)
+    sin_a, cos_a = np.sin(theta), np.cos(theta)
+    sin_c, cos_c = np.sin(theta + psi), np.cos(theta + psi)
+    by_a = psi * cos_a - sin_c + sin_a
+    travel = 0.5 * (phi - 1.0) * psi * psi + a * by_a
+    by_theta = a * (-psi * sin_a - cos_c + cos_a)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = (by_a - by_theta * sin_a / (a * cos_a)) / _FOUR_PI2
+    return travel / _FOUR_PI2, slope
 
 
 def nondimensional_speed(v: ArrayLike, frequency: float, gravity: float, mu: float) -> Any:
