@@ -21,11 +21,12 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 
 import rclpy
 
-from friction_sim.acceptance import CASES, AcceptanceCase, judge
+from friction_sim.acceptance import acceptance_scenarios, judge
 from friction_sim.experiment import ExperimentResult, run_experiment
+from friction_sim.scenario import Scenario
 
 
-def draw(runs: list[tuple[AcceptanceCase, ExperimentResult]], path: Path) -> None:
+def draw(runs: list[tuple[Scenario, ExperimentResult]], path: Path) -> None:
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(9.0, 13.0), layout="constrained")
@@ -34,7 +35,7 @@ def draw(runs: list[tuple[AcceptanceCase, ExperimentResult]], path: Path) -> Non
         t = [s for s, _ in result.mean_velocity]
         ax.plot(t, [v * 1e3 for _, v in result.mean_velocity], ".-", markersize=3, linewidth=0.8,
                 label="measured mean speed")
-        steps = [(0.0, case.initial_target)] + [(when, value) for when, topic, value in result.commands
+        steps = [(0.0, case.initial_target or 0.0)] + [(when, value) for when, topic, value in result.commands
                                                  if topic == "target_speed"]
         xs, ys = [], []
         for (t0, v0), (t1, _) in zip(steps, steps[1:] + [(case.spec.duration, None)]):
@@ -42,10 +43,10 @@ def draw(runs: list[tuple[AcceptanceCase, ExperimentResult]], path: Path) -> Non
             ys += [v0 * 1e3, v0 * 1e3]
         ax.plot(xs, ys, "k--", linewidth=1.0, label="target")
         ax.set_ylim(0.0, max(0.5, 1.3 * max((v * 1e3 for _, v in result.mean_velocity), default=0.5)))
-        if case.name == "unreachable":
+        if "unreachable" in case.name:
             ax.set_ylim(0.0, 3.0)
         ax.set_ylabel("mean speed [mm/s]")
-        ax.set_title(case.title, fontsize=10)
+        ax.set_title(case.description, fontsize=10)
         right = ax.twinx()
         if result.amplitude:
             right.step([s for s, _ in result.amplitude], [a for _, a in result.amplitude], where="post",
@@ -71,16 +72,16 @@ def main() -> int:
     rclpy.init()
     runs = []
     try:
-        for case in CASES:
-            result = run_experiment(case.spec)
+        for case in acceptance_scenarios():
+            result = run_experiment(case.spec())
             runs.append((case, result))
-            print(case.title)
-            for step, metrics, ok in judge(case, result):
-                print(f"    step at {step.t:.1f} s to {step.target * 1e3:.2f} mm/s: settled within "
-                      f"{step.tolerance:.0%} in {metrics.settling_periods} periods (limit {step.max_periods}); "
-                      f"overshoot {metrics.overshoot:.1%}"
-                      + (f" (limit {step.max_overshoot:.0%})" if step.max_overshoot < 1 else "")
-                      + f"; steady error {metrics.steady_error:.1e}  [{'met' if ok else 'MISSED'}]")
+            print(f"{case.name}: {case.description}")
+            for verdict in judge(case, result):
+                e, m = verdict.expectation, verdict.metrics
+                print(f"    change at {e.t:.1f} s, target {verdict.target * 1e3:.2f} mm/s: within {e.within:.0%} "
+                      f"after {m.settling_periods} periods (limit {e.periods}); overshoot {m.overshoot:.1%}"
+                      + (f" (limit {e.overshoot:.0%})" if e.overshoot < 1 else "")
+                      + f"; steady error {m.steady_error:.1e}  [{'met' if verdict.met else 'MISSED'}]")
     finally:
         rclpy.try_shutdown()
     draw(runs, args.png)

@@ -1,110 +1,79 @@
-"""The controller's five acceptance cases, as experiments with pass criteria.
+"""The controller's five acceptance cases: the shipped scenarios
+``config/acceptance_*.yaml`` and the check of their ``expect`` criteria.
 
-Each case is an :class:`~friction_sim.experiment.ExperimentSpec` and the
-target steps to judge: after each step the regulated mean speed must be within
-``tolerance`` of the target in at most ``max_periods`` excitation periods (at
-the frequency in force after the step), overshooting by at most
-``max_overshoot`` of the step.  ``bench/controller.py`` prints the figures and
-draws them; the tests assert them.
+After each judged change the regulated mean speed must be within the given
+tolerance of the target in at most the given number of excitation periods (at
+the frequency in force after the change), overshooting by at most the given
+fraction of the step.  ``bench/controller.py`` prints the figures and draws
+them; the tests assert them.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+from pathlib import Path
 
-from friction_sim.experiment import ExperimentResult, ExperimentSpec, ScheduledCommand, StepMetrics, step_metrics
+from friction_sim.experiment import ExperimentResult, StepMetrics, step_metrics
+from friction_sim.scenario import Expectation, Scenario, load_scenario
 
-MM_S = 1e-3
+
+def config_dir() -> Path:
+    """The package's config/ folder: in the source tree, or installed by colcon."""
+    source = Path(__file__).resolve().parents[1] / "config"
+    if source.is_dir():
+        return source
+    from ament_index_python.packages import get_package_share_directory
+
+    return Path(get_package_share_directory("friction_sim")) / "config"
+
+
+def acceptance_scenarios() -> list[Scenario]:
+    """The five controller acceptance cases, in order."""
+    return [load_scenario(path) for path in sorted(config_dir().glob("acceptance_*.yaml"))]
 
 
 @dataclass(frozen=True)
-class Step:
-    """A change to judge: at ``t`` the target becomes (or stays) ``target``."""
-
-    t: float
+class Verdict:
+    expectation: Expectation
     target: float
-    max_periods: int
-    tolerance: float
-    max_overshoot: float = math.inf
+    metrics: StepMetrics
+    met: bool
 
 
-@dataclass(frozen=True)
-class AcceptanceCase:
-    name: str
-    title: str
-    spec: ExperimentSpec
-    initial_target: float
-    steps: tuple[Step, ...]
-
-
-def _target(t: float, speed_mm_s: float) -> ScheduledCommand:
-    return ScheduledCommand(t, "target_speed", speed_mm_s * MM_S)
-
-
-CASES = (
-    AcceptanceCase(
-        "matched", "1. matched model, target steps 0.10 -> 0.30 -> 0.15 mm/s",
-        ExperimentSpec(duration=1.8, controller=True,
-                       controller_parameters={"target_speed": 0.10 * MM_S},
-                       schedule=(_target(0.6, 0.30), _target(1.2, 0.15))),
-        0.10 * MM_S,
-        (Step(0.6, 0.30 * MM_S, 3, 0.01), Step(1.2, 0.15 * MM_S, 3, 0.01)),
-    ),
-    AcceptanceCase(
-        "mu_plus_20", "2. controller model mu 20% above the plant's, same steps",
-        ExperimentSpec(duration=3.0, controller=True,
-                       controller_parameters={"target_speed": 0.10 * MM_S, "mu": 0.12, "plant_node": ""},
-                       schedule=(_target(1.0, 0.30), _target(2.0, 0.15))),
-        0.10 * MM_S,
-        (Step(1.0, 0.30 * MM_S, 20, 0.02, 0.10), Step(2.0, 0.15 * MM_S, 20, 0.02, 0.10)),
-    ),
-    AcceptanceCase(
-        "drive_step", "3. drive force 0.7 -> 0.8 N while regulating 0.3 mm/s",
-        ExperimentSpec(duration=1.4, controller=True, controller_parameters={"target_speed": 0.30 * MM_S},
-                       schedule=(ScheduledCommand(0.7, "drive_force", 0.8),)),
-        0.30 * MM_S,
-        (Step(0.7, 0.30 * MM_S, 5, 0.02),),
-    ),
-    AcceptanceCase(
-        "unreachable", "4. unreachable 5 mm/s for 2 s, then 0.3 mm/s",
-        ExperimentSpec(duration=3.2, controller=True, controller_parameters={"target_speed": 0.30 * MM_S},
-                       schedule=(_target(0.5, 5.0), _target(2.5, 0.30))),
-        0.30 * MM_S,
-        (Step(2.5, 0.30 * MM_S, 5, 0.02),),
-    ),
-    AcceptanceCase(
-        "frequency_step", "5. excitation frequency 50 -> 100 Hz while regulating 0.3 mm/s",
-        ExperimentSpec(duration=1.4, controller=True, controller_parameters={"target_speed": 0.30 * MM_S},
-                       schedule=(ScheduledCommand(0.7, "excitation_frequency", 100.0),)),
-        0.30 * MM_S,
-        (Step(0.7, 0.30 * MM_S, 5, 0.02),),
-    ),
-)
-
-
-def frequency_at(case: AcceptanceCase, t: float) -> float:
-    """The excitation frequency in force at ``t`` in a case."""
-    frequency = case.spec.inputs.excitation_frequency
-    for command in case.spec.schedule:
+def frequency_at(scenario: Scenario, t: float) -> float:
+    """The excitation frequency in force at ``t``."""
+    frequency = scenario.inputs.excitation_frequency
+    for command in scenario.schedule:
         if command.topic == "excitation_frequency" and command.t <= t:
             frequency = float(command.value)  # type: ignore[arg-type]
     return frequency
 
 
-def judge(case: AcceptanceCase, result: ExperimentResult) -> list[tuple[Step, StepMetrics, bool]]:
-    """Each step with its metrics and whether it meets its criteria."""
+def judge(scenario: Scenario, result: ExperimentResult) -> list[Verdict]:
+    """Each expectation of ``scenario`` checked against a run."""
     verdicts = []
-    ends = [s.t for s in case.steps[1:]] + [case.spec.duration]
-    for step, end in zip(case.steps, ends):
-        before = result.target_at(step.t - 1e-9, case.initial_target)
-        if before == step.target or before > 1.0:  # no target step (or from an unreachable one)
-            before = _measured_before(result, step.t)
-        metrics = step_metrics(result.mean_velocity, step.t, end, before, step.target,
-                               frequency_at(case, step.t + 1e-9), step.tolerance)
-        ok = metrics.settling_periods <= step.max_periods and not metrics.overshoot > step.max_overshoot
-        verdicts.append((step, metrics, ok))
+    starts = sorted({e.t for e in scenario.expect} | {c.t for c in scenario.schedule} | {scenario.duration})
+    initial = scenario.initial_target or 0.0
+    for expectation in scenario.expect:
+        end = next(t for t in starts if t > expectation.t)
+        target = target_at(scenario, expectation.t, initial)
+        before = target_at(scenario, expectation.t - 1e-9, initial)
+        if before == target or before > 1.0:  # a disturbance, or leaving an unreachable target
+            before = _measured_before(result, expectation.t)
+        metrics = step_metrics(result.mean_velocity, expectation.t, end, before, target,
+                               frequency_at(scenario, expectation.t + 1e-9), expectation.within)
+        met = metrics.settling_periods <= expectation.periods and not metrics.overshoot > expectation.overshoot
+        verdicts.append(Verdict(expectation, target, metrics, met))
     return verdicts
+
+
+def target_at(scenario: Scenario, t: float, initial: float) -> float:
+    """The target speed scheduled to be in force at ``t``."""
+    target = initial
+    for command in scenario.schedule:
+        if command.topic == "target_speed" and command.t <= t:
+            target = float(command.value)  # type: ignore[arg-type]
+    return target
 
 
 def _measured_before(result: ExperimentResult, t: float) -> float:

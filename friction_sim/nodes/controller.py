@@ -15,7 +15,10 @@ frequency; ``diagnostics`` (DiagnosticArray, status name ``controller``) at
 With ``plant_node`` set (default ``slider``) the controller reads mass, mu,
 gravity and mean_window_periods from that node's parameters at start-up
 through the parameter services; if the node does not answer within 5 s it
-says so and keeps its own.  It publishes nothing until that is settled and
+says so and keeps its own.  With ``active`` false it stands by, publishing
+nothing, until the first target_speed message (or parameter) arrives: an
+experiment can steer the slider open loop first.  It publishes nothing until
+the model is settled and
 something has subscribed to ``excitation_amplitude`` for 0.5 s (or 5 s have
 passed): a command published while discovery is still matching the two ends
 can arrive late, and the controller would misjudge when its output took
@@ -60,6 +63,7 @@ PARAMETERS: dict[str, tuple[Any, Any]] = {
     "settle_margin": (0.25, float_descriptor("periods a sample window keeps clear of a change", 0.0, 5.0)),
     "mean_window_periods": (1, int_descriptor("periods in the slider's mean_velocity window", 1, 10_000)),
     "plant_node": ("slider", text_descriptor("node to read mass, mu, gravity from at start-up ('' = none)")),
+    "active": (True, text_descriptor("regulate now; false: stand by (publish nothing) until a target arrives")),
 }
 
 
@@ -94,6 +98,7 @@ class ControllerNode(Node):
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self.ready = False
+        self.active: bool = values["active"]
         self._plant_settled = not values["plant_node"]
         self._deadline = time.monotonic() + PLANT_TIMEOUT
         if not self._plant_settled:
@@ -162,7 +167,9 @@ class ControllerNode(Node):
     # -- commands -----------------------------------------------------------------
 
     def _on_target(self, msg: Float64) -> None:
-        self._apply("target_speed", msg.data, self._control.set_target)
+        if self._apply("target_speed", msg.data, self._control.set_target) and not self.active:
+            self.active = True
+            self._publish(self._control.output)
 
     def _on_drive_force(self, msg: Float64) -> None:
         self._apply("drive_force", msg.data, self._control.set_drive_force)
@@ -171,7 +178,7 @@ class ControllerNode(Node):
         self._apply("excitation_frequency", msg.data, self._control.set_frequency)
 
     def _on_mean_velocity(self, msg: TwistStamped) -> None:
-        if not self.ready:
+        if not (self.ready and self.active):
             return
         t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         self._apply("mean_velocity", msg.twist.linear.x,
@@ -196,7 +203,7 @@ class ControllerNode(Node):
     # -- publishing ---------------------------------------------------------------
 
     def _publish(self, output: ControlOutput) -> None:
-        if not self.ready:
+        if not (self.ready and self.active):
             return
         if output.amplitude != self._last_published:
             self._control.clock.note_change(wall_ns())
@@ -227,7 +234,8 @@ class ControllerNode(Node):
         problems = [text for flag, text in ((out.unreachable, "target unreachable"),
                                             (out.saturated and not out.unreachable, "saturated"),
                                             (out.runaway, "phi >= 1: no control over the speed"),
-                                            (not self.ready, "waiting for the plant's parameters")) if flag]
+                                            (not self.ready, "waiting for the plant's parameters"),
+                                            (self.ready and not self.active, "standing by for a target")) if flag]
         status.level = DiagnosticStatus.WARN if problems else DiagnosticStatus.OK
         status.message = "; ".join(problems) if problems else "regulating"
         values = {
@@ -275,6 +283,8 @@ class ControllerNode(Node):
             control.set_frequency(values["excitation_frequency"])
         if "target_speed" in names:
             control.set_target(values["target_speed"])
+        if "active" in names or "target_speed" in names:
+            self.active = values["active"] or "target_speed" in names
         self._publish(control._update())  # noqa: SLF001
 
 
