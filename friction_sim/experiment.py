@@ -61,14 +61,6 @@ class ExperimentResult:
     commands: list[tuple[float, str, Any]] = field(default_factory=list)  # as published by the driver
     duration: float = 0.0
 
-    def target_at(self, t: float, initial: float) -> float:
-        """The target speed in force at ``t`` (``initial`` before any command)."""
-        target = initial
-        for when, topic, value in self.commands:
-            if topic == "target_speed" and when <= t:
-                target = value
-        return target
-
 
 @dataclass(frozen=True)
 class StepMetrics:

@@ -1,0 +1,118 @@
+"""Scenario files: the shipped ones load, and every kind of bad file is refused
+before anything starts, naming the line and the reason."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from friction_sim.acceptance import acceptance_scenarios, config_dir
+from friction_sim.params import Inputs, SliderParams
+from friction_sim.scenario import ScenarioError, load_scenario, parse_scenario
+
+GOOD = """\
+name: good
+duration: 4.0
+real_time_factor: 2.0
+plant:
+  mass: 2.0
+  drive_force: 1.4
+  excitation_amplitude: 10.0
+controller:
+  mu: 0.12
+  integral_gain: 0.3
+schedule:
+  - {t: 0.5, excitation_amplitude: 12.0}
+  - {t: 1.0, target_speed: 0.0002}
+  - {t: 2.0, external_wrench: {x: 0.1, z: 1.5}}
+  - {t: 3.0, excitation_frequency: 80.0}
+expect:
+  - {t: 1.0, within: 0.02, periods: 5}
+"""
+
+
+def test_a_good_scenario_parses_completely() -> None:
+    scenario = parse_scenario(GOOD)
+    assert scenario.name == "good" and scenario.duration == 4.0 and scenario.real_time_factor == 2.0
+    assert scenario.params == SliderParams(mass=2.0)
+    assert scenario.inputs == Inputs(drive_force=1.4, excitation_amplitude=10.0)
+    assert scenario.controller == {"mu": 0.12, "integral_gain": 0.3}
+    assert [(c.t, c.topic, c.value) for c in scenario.schedule] == [
+        (0.5, "excitation_amplitude", 12.0), (1.0, "target_speed", 0.0002),
+        (2.0, "external_wrench", (0.1, 1.5)), (3.0, "excitation_frequency", 80.0)]
+    assert scenario.expect[0].periods == 5
+    assert scenario.output == Path("out/good")
+    spec = scenario.spec()
+    assert spec.controller and spec.controller_parameters["active"] is False, "stands by until the target"
+    assert scenario.source == GOOD
+
+
+def test_the_shipped_scenarios_load_and_judge_something() -> None:
+    scenarios = acceptance_scenarios()
+    assert [s.name for s in scenarios] == [
+        "acceptance_1_matched", "acceptance_2_mu_plus_20", "acceptance_3_drive_step",
+        "acceptance_4_unreachable", "acceptance_5_frequency_step"]
+    assert all(s.expect and s.closed_loop for s in scenarios)
+    demo = load_scenario(config_dir() / "demo.yaml")
+    assert 14.0 <= demo.duration <= 16.0 and demo.closed_loop
+    topics = {c.topic for c in demo.schedule}
+    assert {"excitation_amplitude", "target_speed", "drive_force", "excitation_frequency"} <= topics
+    first_target = min(c.t for c in demo.schedule if c.topic == "target_speed")
+    assert any(c.topic == "excitation_amplitude" and c.t < first_target for c in demo.schedule), "open loop first"
+
+
+def test_plant_params_file_is_read(tmp_path: Path) -> None:
+    (tmp_path / "plant.yaml").write_text("/**:\n  ros__parameters:\n    mass: 3.0\n    drive_force: 2.0\n")
+    (tmp_path / "s.yaml").write_text("duration: 1.0\nplant_params: plant.yaml\n")
+    scenario = load_scenario(tmp_path / "s.yaml")
+    assert scenario.params.mass == 3.0 and scenario.inputs.drive_force == 2.0
+
+
+BAD = [
+    ("duration: 1.0\nspeed: 3\n", 2, ("unknown key 'speed'",)),
+    ("plant: {mass: 1.0}\n", 1, ("missing key 'duration'",)),
+    ("duration: -1\n", 1, ("duration", "-1", "> 0")),
+    ("duration: .nan\n", 1, ("duration", "nan", "finite")),
+    ("duration: 1.0\nplant:\n  mass: 1.0\n  excitation_amplitude: 12.0\n", 4,
+     ("excitation_amplitude", "12.0", "lift off")),
+    ("duration: 1.0\nplant:\n  mass: 0\n", 3, ("mass", "0", "> 0")),
+    ("duration: 1.0\nplant:\n  masss: 1.0\n", 3, ("unknown key 'masss'", "mass")),
+    ("duration: 1.0\nschedule:\n  - {t: 0.5, target_speed: 0.001}\n", 3, ("target_speed needs a controller",)),
+    ("duration: 1.0\nschedule:\n  - {t: 2.0, drive_force: 0.5}\n", 3, ("t = 2.0", "duration")),
+    ("duration: 1.0\nschedule:\n  - {t: 0.5, drive_force: 0.5}\n  - {t: 0.2, drive_force: 0.6}\n", 4,
+     ("comes before",)),
+    ("duration: 1.0\nschedule:\n  - {t: 0.5, drive_force: 0.5, excitation_amplitude: 1.0}\n", 3,
+     ("exactly one",)),
+    ("duration: 1.0\nschedule:\n  - {t: 0.5, excitation_amplitude: 11.0}\n", 3,
+     ("excitation_amplitude", "11.0", "lift off")),
+    ("duration: 1.0\nschedule:\n  - {t: 0.5, external_wrench: {x: 0, z: -6}}\n", 3,
+     ("external_force_z", "-6.0")),
+    ("duration: 1.0\nschedule:\n  - {t: 0.5, external_wrench: {y: 1}}\n", 3, ("unknown key 'y'",)),
+    ("duration: 1.0\nschedule:\n  - {t: 0.5, excitation_frequency: 0}\n", 3, ("excitation_frequency", "> 0")),
+    ("duration: 1.0\nschedule:\n  - {t: 0.5, drive_force: fast}\n", 3, ("drive_force", "'fast'")),
+    ("duration: 1.0\nschedule:\n  - {drive_force: 0.5}\n", 3, ("needs 't'",)),
+    ("duration: 1.0\ncontroller:\n  gain: 3\n", 3, ("unknown key 'gain'",)),
+    ("duration: 1.0\nexpect:\n  - {t: 0.3, within: 0.01, periods: 3}\n", 3, ("no scheduled command",)),
+    ("duration: [1\n", 2, ("not valid YAML",)),
+    ("- just a list\n", None, ("mapping",)),
+]
+
+
+@pytest.mark.parametrize(("text", "line", "words"), BAD)
+def test_bad_scenarios_are_refused_with_line_and_reason(text: str, line: int | None,
+                                                        words: tuple[str, ...]) -> None:
+    with pytest.raises(ScenarioError) as caught:
+        parse_scenario(text, "bad.yaml")
+    message = str(caught.value)
+    assert message.startswith("bad.yaml: ")
+    if line is not None:
+        assert f"line {line}:" in message, message
+    for word in words:
+        assert word in message, message
+    assert "\n" not in message
+
+
+def test_unreadable_file_is_one_line(tmp_path: Path) -> None:
+    with pytest.raises(ScenarioError, match="cannot read"):
+        load_scenario(tmp_path / "missing.yaml")
