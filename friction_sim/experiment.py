@@ -52,6 +52,25 @@ class ExperimentSpec:
     real_time_factor: float = 1.0
 
 
+@dataclass(frozen=True)
+class Status:
+    """A live view of a running experiment (for the status line)."""
+
+    t: float
+    duration: float
+    target: float | None
+    mean_speed: float
+    amplitude: float
+    drive_force: float
+    frequency: float
+
+    def line(self) -> str:
+        target = "open loop" if self.target is None else f"{self.target * 1e3:.3f} mm/s"
+        return (f"t {self.t:6.2f}/{self.duration:g} s | target {target:>12} | mean speed "
+                f"{self.mean_speed * 1e3:8.4f} mm/s | Pa {self.amplitude:6.3f} N | Fd {self.drive_force:6.3f} N "
+                f"| f {self.frequency:g} Hz")
+
+
 @dataclass
 class ExperimentResult:
     """Time series of one run (simulation time in s; speeds in m/s, forces in N)."""
@@ -107,7 +126,7 @@ def step_metrics(samples: Sequence[tuple[float, float]], t_step: float, t_end: f
 
 
 def run_experiment(spec: ExperimentSpec, *, namespace: str | None = None,
-                   progress: Callable[[float, ExperimentResult], None] | None = None) -> ExperimentResult:
+                   progress: Callable[[Status], None] | None = None) -> ExperimentResult:
     """Bring up the nodes in this process, play the schedule over real topics in
     simulation time, and collect what they publish.  rclpy must be initialised."""
     import rclpy
@@ -155,14 +174,19 @@ def run_experiment(spec: ExperimentSpec, *, namespace: str | None = None,
         pending = sorted(spec.schedule, key=lambda c: c.t)
         start_sim = slider.realtime.clock.now(wall_ns())
         last_progress = time.monotonic()
+        target = spec.controller_parameters.get("target_speed") if spec.controller else None
         while (now := slider.realtime.clock.now(wall_ns()) - start_sim) < spec.duration:
             while pending and pending[0].t <= now:
                 command = pending.pop(0)
                 _publish(publishers[command.topic], command)
                 result.commands.append((now, command.topic, command.value))
+                target = command.value if command.topic == "target_speed" else target
             executor.spin_once(timeout_sec=0.0005)
-            if progress is not None and time.monotonic() - last_progress > 0.2:
-                progress(now, result)
+            if progress is not None and time.monotonic() - last_progress > 0.25:
+                inputs = slider.realtime.slider.inputs
+                progress(Status(now, spec.duration, target,  # type: ignore[arg-type]
+                                result.mean_velocity[-1][1] if result.mean_velocity else math.nan,
+                                inputs.excitation_amplitude, inputs.drive_force, inputs.excitation_frequency))
                 last_progress = time.monotonic()
         _shift(result, start_sim)
     finally:
