@@ -125,7 +125,8 @@ class SliderState:
 
 @dataclass(frozen=True)
 class Trajectory:
-    """Exact samples of the motion at given times, one array per quantity."""
+    """Exact samples of the motion at given times, one array per quantity,
+    and the events that happened while they were taken."""
 
     t: np.ndarray
     x: np.ndarray
@@ -135,6 +136,7 @@ class Trajectory:
     normal_force: np.ndarray
     phase: np.ndarray
     mode: np.ndarray
+    events: tuple[Event, ...] = ()
 
 
 # --------------------------------------------------------------------------
@@ -578,6 +580,7 @@ class Slider:
         if times[0] < self._t or np.any(np.diff(times) < 0.0):
             raise ParameterError("times", float(times[0]), f"must ascend from >= {self._t!r} s")
         columns = [np.empty_like(times) for _ in range(7)]
+        happened: list[Event] = []
         first = 0
         while first < times.size:
             last = int(np.searchsorted(times, self._next_t, side="left"))
@@ -590,10 +593,10 @@ class Slider:
                 columns[6][first:last] = seg.direction
                 first = last
             if first < times.size:
-                self.advance_to(self._next_t)
-        self._t = float(times[-1])
+                happened.extend(self.advance_to(self._next_t))
+        happened.extend(self.advance_to(float(times[-1])))
         x, v, acc, friction, normal, phase, mode = columns
-        return Trajectory(times, x, v, acc, friction, normal, phase, mode.astype(np.int8))
+        return Trajectory(times, x, v, acc, friction, normal, phase, mode.astype(np.int8), tuple(happened))
 
     # -- changing inputs and parameters ----------------------------------------
 

@@ -25,7 +25,9 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Any, Deque
 
-from friction_sim.core import CycleMark, Event, Slider, SliderState
+import numpy as np
+
+from friction_sim.core import CycleMark, Event, Slider, SliderState, Trajectory
 from friction_sim.errors import ParameterError
 from friction_sim.params import Inputs, SliderParams, require_positive
 from friction_sim.urelation import Prediction, predict
@@ -96,11 +98,13 @@ class PeriodSummary:
 @dataclass(frozen=True)
 class Tick:
     """The result of advancing to the present: the state now, the events on
-    the way, and the summaries of periods completed on the way."""
+    the way, the summaries of periods completed on the way and, when logging,
+    the exact states on the log grid passed on the way."""
 
     state: SliderState
     events: list[Event]
     periods: list[PeriodSummary]
+    samples: Trajectory | None = None
 
 
 @dataclass
@@ -121,6 +125,7 @@ class RealtimeSlider:
     def __init__(
         self, params: SliderParams, inputs: Inputs, *, wall_ns: int,
         real_time_factor: float = 1.0, publish_rate: float = 1000.0, mean_window_periods: int = 1,
+        log_rate: float | None = None,
     ) -> None:
         self.clock = SimClock(real_time_factor, wall_ns)
         self.slider = Slider(params, inputs, event_log_size=1000, cycle_log_size=_MARK_BACKLOG)
@@ -134,6 +139,8 @@ class RealtimeSlider:
         self._rejected_before_interval = 0
         self.stats = TickStats(interval_start_ns=wall_ns)
         self.last_period: PeriodSummary | None = None
+        self.log_rate = require_positive("log_rate", log_rate) if log_rate is not None else None
+        self._next_log_index = 0  # the log grid is k / log_rate in simulation time
 
     # -- commands -----------------------------------------------------------
 
@@ -192,9 +199,23 @@ class RealtimeSlider:
     def tick(self, wall_ns: int) -> Tick:
         """Advance to the present and collect what happened on the way."""
         self._count_tick(wall_ns)
-        t = self.clock.now(wall_ns)
-        events = self.slider.advance_to(max(t, self.slider.t))
-        return Tick(self.slider.state(), events, self._new_periods())
+        t = max(self.clock.now(wall_ns), self.slider.t)
+        samples = self._log_samples(t)
+        events = list(samples.events) if samples is not None else []
+        events += self.slider.advance_to(t)
+        return Tick(self.slider.state(), events, self._new_periods(), samples)
+
+    def _log_samples(self, t: float) -> Trajectory | None:
+        """The exact states on the log grid up to ``t`` not logged yet."""
+        if self.log_rate is None:
+            return None
+        last = math.floor(t * self.log_rate * (1.0 + 1e-15))
+        first = max(self._next_log_index, math.ceil(self.slider.t * self.log_rate * (1.0 - 1e-15)))
+        if last < first:
+            return None
+        self._next_log_index = last + 1
+        times = np.maximum(np.arange(first, last + 1) / self.log_rate, self.slider.t)  # rounding at the edge
+        return self.slider.sample(times)
 
     def _advance(self, wall_ns: int) -> float:
         t = max(self.clock.now(wall_ns), self.slider.t)

@@ -82,7 +82,8 @@ def _concatenate(pieces: list[Trajectory]) -> Trajectory:
     if len(pieces) == 1:
         return pieces[0]
     names = ("t", "x", "v", "acceleration", "friction_force", "normal_force", "phase", "mode")
-    return Trajectory(*(np.concatenate([getattr(p, n) for p in pieces]) for n in names))
+    return Trajectory(*(np.concatenate([getattr(p, n) for p in pieces]) for n in names),
+                      events=tuple(e for p in pieces for e in p.events))
 
 
 @dataclass(frozen=True)
