@@ -1,0 +1,296 @@
+"""The one place that turns friction_sim's records into ROS 2 messages.
+
+The slider node publishes these messages and the recorder
+(:mod:`friction_sim.recording`) logs them, so a recording holds exactly what
+the node publishes.  Every function returns a new message; nothing here
+imports rclpy, only the message packages.
+
+Topics of a recording (the node's own relative names, without namespace):
+
+==========================  ===============================  ==========================================
+topic                       type                             content
+==========================  ===============================  ==========================================
+``pose``                    geometry_msgs/msg/PoseStamped    pose.position.x = x [m]
+``velocity``                geometry_msgs/msg/TwistStamped   twist.linear.x = v [m/s]
+``friction_force``          geometry_msgs/msg/WrenchStamped  force.x = friction force, force.z = R [N]
+``mean_velocity``           geometry_msgs/msg/TwistStamped   twist.linear.x = mean v over the window
+``drive_force``             std_msgs/msg/Float64             accepted command, Fd [N]
+``excitation_amplitude``    std_msgs/msg/Float64             accepted command, Pa [N]
+``excitation_frequency``    std_msgs/msg/Float64             accepted command, f [Hz]
+``target_speed``            std_msgs/msg/Float64             accepted command (controller), V* [m/s]
+``external_wrench``         geometry_msgs/msg/WrenchStamped  accepted command, force.x, force.z [N]
+``events``                  diagnostic_msgs/msg/DiagnosticStatus  stick/slip events (see below)
+``rejected_commands``       diagnostic_msgs/msg/DiagnosticStatus  refused commands, level WARN
+``parameters``              rcl_interfaces/msg/ParameterEvent     parameters at start (new_parameters)
+                                                             and every change (changed_parameters)
+==========================  ===============================  ==========================================
+
+Header stamps and the recording's log times are simulation time, in whole
+nanoseconds (:func:`seconds_to_ns`), the resolution of a ROS time stamp.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Mapping
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+from rcl_interfaces.msg import Parameter, ParameterEvent, ParameterType, ParameterValue
+from std_msgs.msg import Float64
+
+from friction_sim.core import Event, Mode, SliderState
+from friction_sim.realtime import CommandOutcome, PeriodSummary
+
+NS_PER_S = 1_000_000_000
+
+#: Inputs that arrive as a std_msgs/Float64 on the topic of the same name.
+FLOAT_COMMANDS = ("drive_force", "excitation_amplitude", "excitation_frequency", "target_speed")
+#: The state topics, sampled on the recording's uniform grid.
+STATE_TOPICS = ("pose", "velocity", "friction_force")
+
+#: topic -> message type of every topic a recording can hold.
+TOPIC_TYPES: dict[str, type] = {
+    "pose": PoseStamped,
+    "velocity": TwistStamped,
+    "friction_force": WrenchStamped,
+    "mean_velocity": TwistStamped,
+    **{topic: Float64 for topic in FLOAT_COMMANDS},
+    "external_wrench": WrenchStamped,
+    "events": DiagnosticStatus,
+    "rejected_commands": DiagnosticStatus,
+    "parameters": ParameterEvent,
+}
+#: Topics that hold accepted commands (``parameters`` holds changes too).
+COMMAND_TOPICS = (*FLOAT_COMMANDS, "external_wrench", "parameters")
+
+
+# -- time ---------------------------------------------------------------------
+
+
+def seconds_to_ns(seconds: float) -> int:
+    """Simulation time [s] as whole nanoseconds (rounded to the nearest)."""
+    return round(seconds * NS_PER_S)
+
+
+def ns_to_seconds(ns: int) -> float:
+    """Whole nanoseconds as seconds (the float closest to ns/1e9)."""
+    return ns / NS_PER_S
+
+
+def time_msg(ns: int, msg: Time | None = None) -> Time:
+    """Nanoseconds as a builtin_interfaces/Time (filled in place if given);
+    nanosec stays in [0, 1e9) also for negative times."""
+    msg = msg if msg is not None else Time()
+    msg.sec, msg.nanosec = divmod(int(ns), NS_PER_S)
+    return msg
+
+
+def stamp_ns(stamp: Time) -> int:
+    """A builtin_interfaces/Time as nanoseconds."""
+    return stamp.sec * NS_PER_S + stamp.nanosec
+
+
+# -- the state ----------------------------------------------------------------
+
+
+def fill_state_messages(
+    state: SliderState, frame_id: str, pose: PoseStamped, twist: TwistStamped, wrench: WrenchStamped,
+) -> None:
+    """Fill existing messages in place with ``state`` (what :func:`state_messages` returns)."""
+    ns = seconds_to_ns(state.t)
+    for msg in (pose, twist, wrench):
+        time_msg(ns, msg.header.stamp)
+        msg.header.frame_id = frame_id
+    pose.pose.position.x = state.x
+    twist.twist.linear.x = state.v
+    wrench.wrench.force.x = state.friction_force
+    wrench.wrench.force.z = state.normal_force
+
+
+def state_messages(state: SliderState, frame_id: str = "slideway") -> tuple[PoseStamped, TwistStamped, WrenchStamped]:
+    """(pose, velocity, friction_force): position x, velocity v, and the
+    friction force (force.x) with the normal reaction R (force.z), stamped
+    with the state's simulation time."""
+    pose, twist, wrench = PoseStamped(), TwistStamped(), WrenchStamped()
+    fill_state_messages(state, frame_id, pose, twist, wrench)
+    return pose, twist, wrench
+
+
+def mean_velocity_message(period: PeriodSummary, frame_id: str = "slideway") -> TwistStamped:
+    """The mean velocity of the window ending with period ``period.n``,
+    stamped with the period's end."""
+    msg = TwistStamped()
+    time_msg(seconds_to_ns(period.t), msg.header.stamp)
+    msg.header.frame_id = frame_id
+    msg.twist.linear.x = period.mean_velocity
+    return msg
+
+
+# -- commands -----------------------------------------------------------------
+
+
+def command_message(outcome: CommandOutcome, frame_id: str = "") -> Float64 | WrenchStamped | ParameterEvent:
+    """An accepted (or any) command as the message it arrived as.
+
+    Float64 for drive_force, excitation_amplitude, excitation_frequency and
+    target_speed; WrenchStamped (force.x = external_force_x, force.z =
+    external_force_z) for external_wrench; for ``parameters`` (a change made
+    with ``ros2 param set``) a ParameterEvent whose changed_parameters carry
+    the field names and values.
+    """
+    topic, values = outcome.topic, outcome.values
+    if topic in FLOAT_COMMANDS:
+        return Float64(data=float(values[topic]))
+    if topic == "external_wrench":
+        msg = WrenchStamped()
+        time_msg(seconds_to_ns(outcome.t), msg.header.stamp)
+        msg.header.frame_id = frame_id
+        msg.wrench.force.x = float(values.get("external_force_x", 0.0))
+        msg.wrench.force.z = float(values.get("external_force_z", 0.0))
+        return msg
+    if topic == "parameters":
+        return parameters_message(values, outcome.t, changed=True)
+    raise ValueError(f"no message for command topic {topic!r}; known: {', '.join(COMMAND_TOPICS)}")
+
+
+def rejection_message(outcome: CommandOutcome) -> DiagnosticStatus:
+    """A refused command: level WARN, name = its topic, message = the reason,
+    values = the refused values."""
+    return DiagnosticStatus(
+        level=DiagnosticStatus.WARN, name=outcome.topic, message=outcome.reason,
+        values=[KeyValue(key=key, value=_text(value)) for key, value in outcome.values.items()],
+    )
+
+
+# -- events ---------------------------------------------------------------------
+
+
+def event_message(event: Event) -> DiagnosticStatus:
+    """A stick/slip event as a diagnostic_msgs/DiagnosticStatus.
+
+    name = the kind (``slip_start``, ``stick``, ``reversal``), message = the
+    transition in words (``stuck -> forward``), values = t, x, phase, before,
+    after (numbers at full precision); level OK.
+
+    Why DiagnosticStatus rather than a JSON std_msgs/String: in Foxglove's Raw
+    Messages panel each field is shown on its own line and the values as a
+    key/value table, without unpacking a string; the State Transitions panel
+    can plot ``/events.name`` directly as a timeline of event kinds; and
+    every ROS 2 install has the type (diagnostic_msgs is in common_interfaces),
+    so ``ros2 bag play`` and ``ros2 topic echo`` work without our package.
+    The time of the event is the message's log time and the ``t`` value.
+    """
+    before, after = _mode(event.before), _mode(event.after)
+    return DiagnosticStatus(
+        level=DiagnosticStatus.OK, name=event.kind.value, message=f"{before} -> {after}",
+        values=[
+            KeyValue(key="t", value=repr(float(event.t))),
+            KeyValue(key="x", value=repr(float(event.x))),
+            KeyValue(key="phase", value=repr(float(event.phase))),
+            KeyValue(key="before", value=before),
+            KeyValue(key="after", value=after),
+        ],
+    )
+
+
+def _mode(mode: Mode | int) -> str:
+    return Mode(mode).name.lower()
+
+
+# -- parameters -------------------------------------------------------------------
+
+
+def parameter_value(value: Any) -> ParameterValue:
+    """A Python value as an rcl_interfaces/ParameterValue of the matching type
+    (bool, int, float, str, bytes, or a list of one of them)."""
+    if isinstance(value, bool):
+        return ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=value)
+    if isinstance(value, int):
+        return ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=value)
+    if isinstance(value, float):
+        return ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
+    if isinstance(value, str):
+        return ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value)
+    if isinstance(value, (bytes, bytearray)):
+        return ParameterValue(type=ParameterType.PARAMETER_BYTE_ARRAY, byte_array_value=[bytes([b]) for b in value])
+    if isinstance(value, (list, tuple)):
+        items = list(value)
+        if all(isinstance(v, bool) for v in items):
+            return ParameterValue(type=ParameterType.PARAMETER_BOOL_ARRAY, bool_array_value=items)
+        if all(isinstance(v, int) and not isinstance(v, bool) for v in items):
+            return ParameterValue(type=ParameterType.PARAMETER_INTEGER_ARRAY, integer_array_value=items)
+        if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in items):
+            return ParameterValue(type=ParameterType.PARAMETER_DOUBLE_ARRAY,
+                                  double_array_value=[float(v) for v in items])
+        if all(isinstance(v, str) for v in items):
+            return ParameterValue(type=ParameterType.PARAMETER_STRING_ARRAY, string_array_value=items)
+    if value is None:
+        return ParameterValue(type=ParameterType.PARAMETER_NOT_SET)
+    # numpy scalars and other numbers
+    if isinstance(value, float) or hasattr(value, "__float__"):
+        return ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=float(value))
+    raise TypeError(f"cannot express {value!r} as a ROS parameter value")
+
+
+def parameter_python_value(value: ParameterValue) -> Any:
+    """The Python value of an rcl_interfaces/ParameterValue (None if not set)."""
+    kind = value.type
+    if kind == ParameterType.PARAMETER_BOOL:
+        return bool(value.bool_value)
+    if kind == ParameterType.PARAMETER_INTEGER:
+        return int(value.integer_value)
+    if kind == ParameterType.PARAMETER_DOUBLE:
+        return float(value.double_value)
+    if kind == ParameterType.PARAMETER_STRING:
+        return str(value.string_value)
+    if kind == ParameterType.PARAMETER_BYTE_ARRAY:
+        return b"".join(value.byte_array_value)
+    if kind == ParameterType.PARAMETER_BOOL_ARRAY:
+        return [bool(v) for v in value.bool_array_value]
+    if kind == ParameterType.PARAMETER_INTEGER_ARRAY:
+        return [int(v) for v in value.integer_array_value]
+    if kind == ParameterType.PARAMETER_DOUBLE_ARRAY:
+        return [float(v) for v in value.double_array_value]
+    if kind == ParameterType.PARAMETER_STRING_ARRAY:
+        return [str(v) for v in value.string_array_value]
+    return None
+
+
+def parameters_message(
+    values: Mapping[str, Any], t: float, *, changed: bool = False, node: str = "/slider",
+) -> ParameterEvent:
+    """The parameters ``values`` at simulation time ``t`` as an
+    rcl_interfaces/ParameterEvent: as new_parameters (the set at start), or
+    with ``changed`` as changed_parameters (a later change)."""
+    parameters = [Parameter(name=name, value=parameter_value(value)) for name, value in values.items()]
+    msg = ParameterEvent(node=node)
+    time_msg(seconds_to_ns(t), msg.stamp)
+    if changed:
+        msg.changed_parameters = parameters
+    else:
+        msg.new_parameters = parameters
+    return msg
+
+
+def parameter_event_values(msg: ParameterEvent) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(new, changed) parameter values of a ParameterEvent, by name."""
+    new = {p.name: parameter_python_value(p.value) for p in msg.new_parameters}
+    changed = {p.name: parameter_python_value(p.value) for p in msg.changed_parameters}
+    return new, changed
+
+
+def _text(value: Any) -> str:
+    """Full precision for floats (repr), str() otherwise."""
+    if isinstance(value, float) and math.isfinite(value):
+        return repr(value)
+    return str(value)
+
+
+__all__ = [
+    "COMMAND_TOPICS", "FLOAT_COMMANDS", "NS_PER_S", "STATE_TOPICS", "TOPIC_TYPES",
+    "command_message", "event_message", "fill_state_messages", "mean_velocity_message",
+    "ns_to_seconds", "parameter_event_values", "parameter_python_value", "parameter_value",
+    "parameters_message", "rejection_message", "seconds_to_ns", "stamp_ns", "state_messages", "time_msg",
+]
