@@ -7,9 +7,12 @@ Subcommands::
     friction-sim umap --grid 101 --csv u.csv --png u.png
     friction-sim trace --png fig2.png [--periods 2] [plant options]
     friction-sim simulate [plant options] --duration 2 [--settle 0.2] [--csv out.csv] [--json]
-    friction-sim slider [--params FILE] [--ros-args ...]
+    friction-sim slider [--params FILE] [--log run.mcap] [--ros-args ...]
     friction-sim controller [--params FILE] [--ros-args ...]
     friction-sim feeder [--slider-params FILE] [--controller-params FILE] [--ros-args ...]
+    friction-sim experiment SCENARIO.yaml [--output DIR]
+    friction-sim report run.mcap [--output DIR]
+    friction-sim replay run.mcap [--verify] [--publish ...] [--csv DIR] [--plot PNG]
 
 Errors are one line on stderr and exit code 2, never a traceback.
 """
@@ -168,10 +171,32 @@ def _cmd_feeder(args: argparse.Namespace) -> int:
     return feeder_main(_ros_args("friction-sim-feeder", args), args.slider_params, args.controller_params)
 
 
+def _cmd_experiment(args: argparse.Namespace) -> int:
+    from friction_sim.jobs import run_scenario
+
+    run_scenario(args.scenario, output=args.output)
+    return 0
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from friction_sim.jobs import report_recording
+
+    report_recording(args.recording, args.output)
+    return 0
+
+
+def _cmd_replay(args: argparse.Namespace) -> int:
+    from friction_sim.replay import run
+
+    return run(args)
+
+
 def _ros_args(prog: str, args: argparse.Namespace) -> list[str]:
     """The rclpy argument list: --params FILE becomes --ros-args --params-file FILE,
     and anything after --ros-args on our command line is passed through."""
     ros: list[str] = []
+    if getattr(args, "log", None) is not None:
+        ros += ["-p", f"log_path:={args.log}"]
     if getattr(args, "params", None) is not None:
         if not args.params.is_file():
             raise FrictionSimError(f"--params: no such file: {args.params}")
@@ -224,6 +249,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     slider = sub.add_parser("slider", help="run the real-time slider node (as `ros2 run friction_sim slider`)")
     slider.add_argument("--params", type=Path, help="ROS 2 parameters file, e.g. config/slider.yaml")
+    slider.add_argument("--log", type=Path, metavar="FILE.mcap", help="record the run to an MCAP file")
     slider.set_defaults(handler=_cmd_slider, ros_args=[])
 
     controller = sub.add_parser("controller", help="run the mean-speed controller node "
@@ -235,6 +261,22 @@ def build_parser() -> argparse.ArgumentParser:
     feeder.add_argument("--slider-params", type=Path, help="parameters file for the slider")
     feeder.add_argument("--controller-params", type=Path, help="parameters file for the controller")
     feeder.set_defaults(handler=_cmd_feeder, ros_args=[])
+
+    experiment = sub.add_parser("experiment", help="run a scenario over real topics, record it, report it")
+    experiment.add_argument("scenario", type=Path, help="scenario file, e.g. config/demo.yaml")
+    experiment.add_argument("--output", type=Path, help="output folder (default: the scenario's output)")
+    experiment.set_defaults(handler=_cmd_experiment)
+
+    report = sub.add_parser("report", help="rebuild an experiment's report from its recording alone")
+    report.add_argument("recording", type=Path, help="the experiment's .mcap file")
+    report.add_argument("--output", type=Path, help="output folder (default: beside the recording)")
+    report.set_defaults(handler=_cmd_report)
+
+    from friction_sim.replay import add_arguments
+
+    replay = sub.add_parser("replay", help="verify, republish, export or plot a recording")
+    add_arguments(replay)
+    replay.set_defaults(handler=_cmd_replay)
     return parser
 
 

@@ -138,6 +138,11 @@ class Trajectory:
     mode: np.ndarray
     events: tuple[Event, ...] = ()
 
+    def states(self) -> list[SliderState]:
+        """The samples as :class:`SliderState` records, in time order."""
+        columns = (self.t, self.x, self.v, self.acceleration, self.friction_force, self.normal_force, self.phase)
+        return [SliderState(*(float(c[k]) for c in columns), Mode(int(self.mode[k]))) for k in range(self.t.size)]
+
 
 # --------------------------------------------------------------------------
 # Event detection: pure functions of one segment's data.

@@ -25,9 +25,7 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Any, Deque
 
-import numpy as np
-
-from friction_sim.core import CycleMark, Event, Slider, SliderState, Trajectory
+from friction_sim.core import CycleMark, Event, Slider, SliderState
 from friction_sim.errors import ParameterError
 from friction_sim.params import Inputs, SliderParams, require_positive
 from friction_sim.urelation import Prediction, predict
@@ -104,7 +102,7 @@ class Tick:
     state: SliderState
     events: list[Event]
     periods: list[PeriodSummary]
-    samples: Trajectory | None = None
+    samples: tuple[SliderState, ...] = ()
 
 
 @dataclass
@@ -141,6 +139,9 @@ class RealtimeSlider:
         self.last_period: PeriodSummary | None = None
         self.log_rate = require_positive("log_rate", log_rate) if log_rate is not None else None
         self._next_log_index = 0  # the log grid is k / log_rate in simulation time
+        # What advancing produced since the last tick (commands advance too).
+        self._events: list[Event] = []
+        self._samples: list[SliderState] = []
 
     # -- commands -----------------------------------------------------------
 
@@ -199,27 +200,32 @@ class RealtimeSlider:
     def tick(self, wall_ns: int) -> Tick:
         """Advance to the present and collect what happened on the way."""
         self._count_tick(wall_ns)
-        t = max(self.clock.now(wall_ns), self.slider.t)
-        samples = self._log_samples(t)
-        events = list(samples.events) if samples is not None else []
-        events += self.slider.advance_to(t)
+        self._advance(wall_ns)
+        events, samples = self._events, tuple(self._samples)
+        self._events, self._samples = [], []
         return Tick(self.slider.state(), events, self._new_periods(), samples)
 
-    def _log_samples(self, t: float) -> Trajectory | None:
-        """The exact states on the log grid up to ``t`` not logged yet."""
+    def _log_samples(self, t: float) -> None:
+        """Advance through the log grid points up to ``t`` not logged yet,
+        keeping the exact state at each (and the events on the way).  Mostly
+        one point per tick: a scalar advance is cheaper than numpy here, and
+        cutting the time axis there does not change the motion."""
         if self.log_rate is None:
-            return None
+            return
         last = math.floor(t * self.log_rate * (1.0 + 1e-15))
         first = max(self._next_log_index, math.ceil(self.slider.t * self.log_rate * (1.0 - 1e-15)))
         if last < first:
-            return None
+            return
         self._next_log_index = last + 1
-        times = np.maximum(np.arange(first, last + 1) / self.log_rate, self.slider.t)  # rounding at the edge
-        return self.slider.sample(times)
+        for k in range(first, last + 1):
+            self._events.extend(self.slider.advance_to(max(k / self.log_rate, self.slider.t)))
+            self._samples.append(self.slider.state())
 
     def _advance(self, wall_ns: int) -> float:
+        """Advance to the present, keeping the events and log samples on the way."""
         t = max(self.clock.now(wall_ns), self.slider.t)
-        self.slider.advance_to(t)
+        self._log_samples(t)
+        self._events.extend(self.slider.advance_to(t))
         return t
 
     def _new_periods(self) -> list[PeriodSummary]:

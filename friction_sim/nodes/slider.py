@@ -73,7 +73,11 @@ PARAMETERS: dict[str, tuple[Any, Any]] = {
     "publish_clock": (False, text_descriptor("publish simulation time on /clock")),
     "mean_window_periods": (1, int_descriptor("whole periods averaged in mean_velocity", 1, MAX_MEAN_WINDOW)),
     "frame_id": ("slideway", text_descriptor("header.frame_id of published messages")),
+    "log_path": ("", text_descriptor("record the run to this MCAP file ('' = no recording); set at start")),
+    "log_rate": (1000.0, float_descriptor("recorded state samples per simulated second", 1.0, 100_000.0)),
 }
+#: Parameters that only take effect at start-up.
+START_ONLY = ("log_path", "log_rate")
 
 
 class SliderNode(Node):
@@ -81,19 +85,25 @@ class SliderNode(Node):
 
     def __init__(self, node_name: str = "slider", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
+        self.command_listeners: list[Callable[[CommandOutcome], None]] = []
+        self.tick_listeners: list[Callable[[Tick], None]] = []
         for name, (default, descriptor) in PARAMETERS.items():
             self.declare_parameter(name, default, descriptor)
         values = {name: self.get_parameter(name).value for name in PARAMETERS}
         params, inputs = _plant(values, SliderParams(), Inputs())
         check_contact(params, inputs)
+        self.recorder = _open_recorder(values)
         self._rt = RealtimeSlider(
             params, inputs, wall_ns=wall_ns(), real_time_factor=values["real_time_factor"],
             publish_rate=values["publish_rate"], mean_window_periods=values["mean_window_periods"],
+            log_rate=values["log_rate"] if self.recorder is not None else None,
         )
+        if self.recorder is not None:
+            self.recorder.record_parameters(_recorded(values), 0.0)
+            self.command_listeners.append(self.recorder.record_command)
+            self.tick_listeners.append(self._record_tick)
         self._frame_id: str = values["frame_id"]
         self._publish_clock: bool = values["publish_clock"]
-        self.command_listeners: list[Callable[[CommandOutcome], None]] = []
-        self.tick_listeners: list[Callable[[Tick], None]] = []
         self._make_publishers()
         self._make_subscriptions()
         self.create_timer(1.0, self._on_diagnostics, clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -108,11 +118,30 @@ class SliderNode(Node):
         self._ticker.start()
 
     def destroy_node(self) -> None:
-        """Stop the tick thread before the publishers go away."""
+        """Stop the tick thread before the publishers go away; finish the recording."""
         self._stop.set()
         if self._ticker.is_alive() and threading.current_thread() is not self._ticker:
             self._ticker.join(timeout=2.0)
+        if self.recorder is not None:
+            stats = self.recorder.finish()
+            note = (f"recording finished: {stats.path} ({stats.messages} messages, "
+                    f"{stats.last_ns / 1e9 if stats.last_ns else 0.0:.3f} s simulated, {stats.dropped} dropped)")
+            if self.context.ok():
+                self.get_logger().info(note)
+            else:  # after Ctrl-C the context (and /rosout) is gone already
+                print(f"[slider] {note}", file=sys.stderr)
         super().destroy_node()
+
+    def _record_tick(self, tick: Tick) -> None:
+        """Log what the tick passed: exact grid states, events, period means (tick thread)."""
+        recorder = self.recorder
+        assert recorder is not None
+        for state in tick.samples:
+            recorder.record_state(state, self._frame_id)
+        for event in tick.events:
+            recorder.record_event(event)
+        for period in tick.periods:
+            recorder.record_period(period, self._frame_id)
 
     @property
     def realtime(self) -> RealtimeSlider:
@@ -242,6 +271,10 @@ class SliderNode(Node):
 
     def _validate_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         """The one place for cross-field rules: the whole new set must be a valid plant."""
+        late = [p.name for p in changes if p.name in START_ONLY]
+        if late:
+            reason = f"{late[0]} only takes effect at start-up (use --ros-args -p {late[0]}:=...)"
+            return SetParametersResult(successful=False, reason=reason)
         values = {name: self.get_parameter(name).value for name in PARAMETERS}
         values.update({p.name: p.value for p in changes})
         try:
@@ -275,6 +308,24 @@ class SliderNode(Node):
                 self._rt.set_publish_rate(values["publish_rate"])
         self._publish_clock = self.get_parameter("publish_clock").value
         self._frame_id = self.get_parameter("frame_id").value
+        if self.recorder is not None:
+            values = {n: self.get_parameter(n).value for n in PARAMETERS}
+            self.recorder.record_parameters({n: values[n] for n in names if n in values},
+                                            self._rt.clock.now(now), changed=True)
+
+
+def _open_recorder(values: dict[str, Any]) -> Any:
+    """A Recorder for ``log_path`` (None when it is empty), with the run's
+    parameters as the file's metadata."""
+    if not values["log_path"]:
+        return None
+    from friction_sim.recording import Recorder
+
+    return Recorder(values["log_path"], metadata=_recorded(values))
+
+
+def _recorded(values: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in values.items() if k not in ("log_path",)}
 
 
 def _plant(values: dict[str, Any], params: SliderParams, inputs: Inputs) -> tuple[SliderParams, Inputs]:
