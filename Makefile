@@ -40,10 +40,7 @@ demo: $(STAMP)
 	mkdir -p out
 	$(VENV)/bin/friction-sim trace --png out/fig2.png
 	$(VENV)/bin/friction-sim umap --grid 101 --csv out/umap.csv --png out/umap.png
-	@echo "demo outputs:"
-	@echo "  out/fig2.png"
-	@echo "  out/umap.csv"
-	@echo "  out/umap.png"
+	$(VENV)/bin/friction-sim experiment config/demo.yaml
 
 bench: $(STAMP)
 	@set -e; found=0; \

@@ -10,7 +10,9 @@ publish_rate 1000 Hz and measures from this process, over DDS on localhost:
     first friction_force message that reflects it (excitation off, the
     external normal force toggled, so the reaction R jumps to a known value);
   * a flood of 10,000 commands per second for 5 s from a third process:
-    the node's tick rate during the flood and its memory before and after.
+    the node's tick rate during the flood and its memory before and after;
+  * all of the above twice in the same run: without and with recording to
+    MCAP (log_rate 1000 Hz), and the recording's size per simulated minute.
 
 Prints figures only; nothing here passes or fails on timing.
 Run: make bench   (or .venv/bin/python bench/node.py [--duration 60])
@@ -24,6 +26,7 @@ import random
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -89,7 +92,7 @@ class Listener:
             log.clear()
 
 
-def steady_window(listener: Listener, pid: int, seconds: float) -> None:
+def steady_window(listener: Listener, pid: int, seconds: float) -> dict[str, float]:
     listener.clear()
     cpu0, wall0 = cpu_seconds(pid), time.monotonic()
     listener.spin_for(seconds)
@@ -110,6 +113,7 @@ def steady_window(listener: Listener, pid: int, seconds: float) -> None:
     drift = np.median(offset[-n:]) - np.median(offset[:n])
     print(f"    drift of simulation time against wall time over the window: {drift:+.3f} ms "
           "(median of first vs last 5 % of samples; target < 1 ms)")
+    return {"cpu": 100 * (cpu1 - cpu0) / elapsed, "rate": len(listener.log["pose"]) / elapsed}
 
 
 def latency(listener: Listener, samples: int) -> None:
@@ -199,24 +203,48 @@ def run_flooder(rate: int, seconds: float) -> None:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description="slider node benchmark")
-    parser.add_argument("--duration", type=float, default=60.0, help="steady window [s] (60)")
+    parser.add_argument("--duration", type=float, default=60.0, help="steady window [s] per pass (60)")
     parser.add_argument("--flood", nargs=2, metavar=("RATE", "SECONDS"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.flood:
         run_flooder(int(args.flood[0]), float(args.flood[1]))
         return 0
     print(f"bench/node.py  (ROS_DOMAIN_ID {os.environ['ROS_DOMAIN_ID']}, localhost only)")
-    node = subprocess.Popen(
-        [str(BIN / "slider"), "--ros-args", "-r", f"__ns:={NAMESPACE}", "-p", "publish_rate:=1000.0"],
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     rclpy.init()
     listener = Listener()
+    figures = {}
     try:
+        with tempfile.TemporaryDirectory() as folder:
+            for logging in (False, True):
+                log = Path(folder) / "bench.mcap"
+                print(f"\n=== slider at publish_rate 1000 Hz, recording {'ON (log_rate 1000 Hz)' if logging else 'off'}")
+                figures[logging] = run_node_pass(listener, args.duration, log if logging else None)
+                if logging:
+                    size = log.stat().st_size
+                    print(f"    recording: {size / 1e6:.2f} MB for {figures[logging]['simulated']:.1f} s simulated = "
+                          f"{size / 1e6 * 60 / figures[logging]['simulated']:.2f} MB per simulated minute")
+    finally:
+        listener.node.destroy_node()
+        rclpy.try_shutdown()
+    off, on = figures[False], figures[True]
+    print(f"\nrecording on vs off, same run: CPU {on['cpu']:.1f} % vs {off['cpu']:.1f} % of one core "
+          f"(ratio {on['cpu'] / off['cpu']:.2f}); pose rate {on['rate']:.1f} vs {off['rate']:.1f} msg/s")
+    return 0
+
+
+def run_node_pass(listener: Listener, duration: float, log: Path | None) -> dict[str, float]:
+    """Start a slider, measure it, stop it with SIGINT; return the steady figures."""
+    extra = ["-p", f"log_path:={log}"] if log else []
+    node = subprocess.Popen(
+        [str(BIN / "slider"), "--ros-args", "-r", f"__ns:={NAMESPACE}", "-p", "publish_rate:=1000.0", *extra],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    started = time.monotonic()
+    try:
+        listener.clear()
         if not _wait_for_node(listener):
-            print("the slider node never published", file=sys.stderr)
-            return 1
+            raise RuntimeError("the slider node never published")
         listener.spin_for(2.0)  # let discovery and the first periods settle
-        steady_window(listener, node.pid, args.duration)
+        figures = steady_window(listener, node.pid, duration)
         latency(listener, 200)
         flood(listener, node.pid, 10_000, 5.0)
     finally:
@@ -225,10 +253,9 @@ def main() -> int:
             node.wait(timeout=10)
         except subprocess.TimeoutExpired:
             node.kill()
-        listener.node.destroy_node()
-        rclpy.try_shutdown()
-    print(f"node exit code after SIGINT: {node.returncode}")
-    return 0
+    figures["simulated"] = time.monotonic() - started
+    print(f"    node exit code after SIGINT: {node.returncode}")
+    return figures
 
 
 def _wait_for_node(listener: Listener) -> bool:

@@ -14,6 +14,7 @@ import math
 import time
 import uuid
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Callable, Sequence
 
 from friction_sim.errors import ParameterError
@@ -50,6 +51,9 @@ class ExperimentSpec:
     controller_parameters: dict[str, Any] = field(default_factory=dict)
     slider_parameters: dict[str, Any] = field(default_factory=dict)
     real_time_factor: float = 1.0
+    log_path: Path | None = None  # record the run (the slider's recording) to this MCAP file
+    log_rate: float = 1000.0
+    notes: dict[str, str] = field(default_factory=dict)  # written as the recording's scenario metadata
 
 
 @dataclass(frozen=True)
@@ -144,6 +148,7 @@ def run_experiment(spec: ExperimentSpec, *, namespace: str | None = None,
         "mass": spec.plant.mass, "mu": spec.plant.mu, "gravity": spec.plant.gravity,
         "drive_force": spec.inputs.drive_force, "excitation_amplitude": spec.inputs.excitation_amplitude,
         "excitation_frequency": spec.inputs.excitation_frequency, "real_time_factor": spec.real_time_factor,
+        **({"log_path": str(spec.log_path), "log_rate": spec.log_rate} if spec.log_path else {}),
         **spec.slider_parameters,
     }
     nodes: list[Any] = []
@@ -173,6 +178,11 @@ def run_experiment(spec: ExperimentSpec, *, namespace: str | None = None,
         _wait_until_connected(executor, publishers, spec.controller)
         pending = sorted(spec.schedule, key=lambda c: c.t)
         start_sim = slider.realtime.clock.now(wall_ns())
+        recorder = slider.recorder
+        if recorder is not None:
+            recorder.add_metadata(SCENARIO_METADATA, {**spec.notes, "start_ns": round(start_sim * 1e9)})
+            if spec.controller and "target_speed" in spec.controller_parameters:
+                _record_target(recorder, start_sim, float(spec.controller_parameters["target_speed"]))
         last_progress = time.monotonic()
         target = spec.controller_parameters.get("target_speed") if spec.controller else None
         while (now := slider.realtime.clock.now(wall_ns()) - start_sim) < spec.duration:
@@ -180,6 +190,8 @@ def run_experiment(spec: ExperimentSpec, *, namespace: str | None = None,
                 command = pending.pop(0)
                 _publish(publishers[command.topic], command)
                 result.commands.append((now, command.topic, command.value))
+                if command.topic == "target_speed" and recorder is not None:
+                    _record_target(recorder, now + start_sim, float(command.value))  # type: ignore[arg-type]
                 target = command.value if command.topic == "target_speed" else target
             executor.spin_once(timeout_sec=0.0005)
             if progress is not None and time.monotonic() - last_progress > 0.25:
@@ -194,6 +206,16 @@ def run_experiment(spec: ExperimentSpec, *, namespace: str | None = None,
             node.destroy_node()
         executor.shutdown(timeout_sec=0.0)
     return result
+
+
+SCENARIO_METADATA = "friction_sim_scenario"
+
+
+def _record_target(recorder: Any, t: float, value: float) -> None:
+    """Log a target the driver gave the controller (the slider never sees it)."""
+    from friction_sim.realtime import CommandOutcome
+
+    recorder.record_command(CommandOutcome(round(t * 1e9) / 1e9, "target_speed", {"target_speed": value}, True))
 
 
 def _publish(publisher: Any, command: ScheduledCommand) -> None:

@@ -106,7 +106,8 @@ class Scenario:
         return ExperimentSpec(
             duration=self.duration, schedule=self.schedule, plant=self.params, inputs=self.inputs,
             controller=self.controller is not None, controller_parameters=controller,
-            real_time_factor=self.real_time_factor,
+            real_time_factor=self.real_time_factor, log_rate=self.log_rate,
+            notes={"scenario": self.source, "name": self.name},
         )
 
 

@@ -1,0 +1,110 @@
+"""`friction-sim experiment` end to end, and `friction-sim report` rebuilding
+the same table from the recording alone."""
+
+from __future__ import annotations
+
+import io
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from friction_sim.jobs import report_recording, run_scenario
+from friction_sim.params import Inputs, SliderParams
+from friction_sim.replay import read_recording, verify
+from friction_sim.urelation import predict
+
+SCENARIO = """\
+name: short
+duration: 2.4
+real_time_factor: 2.0
+plant:
+  drive_force: 0.7
+  excitation_amplitude: 4.5
+controller:
+  integral_gain: 0.4
+schedule:
+  - {t: 0.5, excitation_amplitude: 6.5}
+  - {t: 1.0, drive_force: 0.8}
+  - {t: 1.4, excitation_amplitude: 1.0}
+  - {t: 1.8, target_speed: 0.0002}
+expect:
+  - {t: 1.8, within: 0.01, periods: 3}
+"""
+
+
+@pytest.fixture(scope="module")
+def experiment(tmp_path_factory: pytest.TempPathFactory):  # type: ignore[no-untyped-def]
+    folder = tmp_path_factory.mktemp("experiment")
+    scenario = folder / "short.yaml"
+    scenario.write_text(SCENARIO)
+    out = io.StringIO()
+    job = run_scenario(scenario, output=folder / "out", stream=out, status=io.StringIO())
+    return job, out.getvalue()
+
+
+def test_experiment_writes_recording_picture_and_table(experiment) -> None:  # type: ignore[no-untyped-def]
+    job, printed = experiment
+    assert job.recording.stat().st_size > 10_000
+    assert job.picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    markdown = job.report.read_text()
+    assert markdown.count("\n| ") >= 1 + len(job.rows) and "short.png" in markdown
+    assert str(job.recording) in printed and str(job.picture) in printed and str(job.report) in printed
+    assert [row.start for row in job.rows] == [0.0, 0.5, 1.0, 1.4, 1.8]
+    assert [row.mode for row in job.rows] == ["open loop"] * 4 + ["closed loop"]
+
+
+def test_open_loop_rows_match_the_exact_u_relation(experiment) -> None:  # type: ignore[no-untyped-def]
+    job, _ = experiment
+    inputs = Inputs(drive_force=0.7, excitation_amplitude=4.5)
+    changes = {0.5: {"excitation_amplitude": 6.5}, 1.0: {"drive_force": 0.8}, 1.4: {"excitation_amplitude": 1.0}}
+    for row in job.rows[:4]:
+        inputs = inputs.replace(**changes.get(row.start, {}))
+        exact = predict(SliderParams(), inputs).mean_velocity
+        assert row.target == pytest.approx(exact, rel=1e-12)
+        if exact == 0.0:
+            assert row.achieved == 0.0 and row.stick_fraction == 1.0
+        else:
+            assert row.achieved == pytest.approx(exact, rel=1e-6)
+            assert abs(row.error) <= 1e-6
+            assert 0.0 < row.stick_fraction < 1.0
+            assert row.settling_periods <= 3
+
+
+def test_closed_loop_row_meets_the_target(experiment) -> None:  # type: ignore[no-untyped-def]
+    job, _ = experiment
+    row = job.rows[-1]
+    assert row.target == 0.0002
+    assert row.achieved == pytest.approx(0.0002, rel=0.01)
+    assert row.settling_periods <= 3
+
+
+def test_the_recording_replays_exactly(experiment) -> None:  # type: ignore[no-untyped-def]
+    job, _ = experiment
+    recording = read_recording(job.recording)
+    assert recording.complete
+    result = verify(recording)
+    assert result.passed, result
+
+
+def test_report_rebuilds_the_same_table_from_the_recording(experiment, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    job, _ = experiment
+    again = report_recording(job.recording, tmp_path, stream=io.StringIO())
+    assert again.rows == job.rows
+    done = subprocess.run([str(Path(sys.executable).parent / "friction-sim"), "report", str(job.recording),
+                           "--output", str(tmp_path / "cli")], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "cli" / "short.md").read_text() == job.report.read_text()
+    for row in job.rows:
+        assert f"{row.achieved * 1e3:10.5f}" in done.stdout
+
+
+def test_a_bad_scenario_fails_before_anything_starts(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("duration: 1.0\nschedule:\n  - {t: 0.2, excitation_amplitude: 20.0}\n")
+    done = subprocess.run([str(Path(sys.executable).parent / "friction-sim"), "experiment", str(bad),
+                           "--output", str(tmp_path / "out")], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and "line 3" in done.stderr and "20.0" in done.stderr
+    assert not (tmp_path / "out").exists(), "nothing started"
