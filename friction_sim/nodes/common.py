@@ -12,7 +12,6 @@ import time
 from typing import Callable, Sequence
 
 import rclpy
-from builtin_interfaces.msg import Time
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.callback_groups import CallbackGroup
 from rclpy.exceptions import ParameterException
@@ -78,14 +77,6 @@ def int_descriptor(description: str, low: int, high: int) -> ParameterDescriptor
 
 def text_descriptor(description: str) -> ParameterDescriptor:
     return ParameterDescriptor(description=description)
-
-
-def stamp(seconds: float, msg: Time | None = None) -> Time:
-    """Simulation time [s] as a builtin_interfaces/Time (filled in place if given)."""
-    msg = msg if msg is not None else Time()
-    nanoseconds = round(seconds * 1e9)
-    msg.sec, msg.nanosec = divmod(nanoseconds, 1_000_000_000)
-    return msg
 
 
 def wall_ns() -> int:

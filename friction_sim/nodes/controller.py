@@ -42,7 +42,7 @@ from std_msgs.msg import Float64
 
 from friction_sim.control import ControllerConfig, ControlOutput, MeanSpeedController
 from friction_sim.errors import ParameterError
-from friction_sim.nodes.common import float_descriptor, int_descriptor, run_node, stamp, text_descriptor, wall_ns
+from friction_sim.nodes.common import float_descriptor, int_descriptor, run_node, text_descriptor, wall_ns
 from friction_sim.params import SliderParams
 
 QOS_DEPTH = 10

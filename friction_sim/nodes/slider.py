@@ -46,8 +46,9 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import Float64
 
 from friction_sim.errors import ParameterError
+from friction_sim.messages import fill_state_messages, mean_velocity_message, seconds_to_ns, time_msg
 from friction_sim.nodes.common import (
-    PolledGroup, float_descriptor, int_descriptor, run_node, stamp, take_all, text_descriptor, wall_ns,
+    PolledGroup, float_descriptor, int_descriptor, run_node, take_all, text_descriptor, wall_ns,
 )
 from friction_sim.params import Inputs, SliderParams, check_contact
 from friction_sim.realtime import MAX_MEAN_WINDOW, CommandOutcome, RealtimeSlider, Tick
@@ -231,31 +232,18 @@ class SliderNode(Node):
     def _on_tick(self) -> None:
         with self._lock:
             tick = self._rt.tick(wall_ns())
-        state, frame = tick.state, self._frame_id
-        for msg in (self._pose, self._velocity, self._friction):
-            stamp(state.t, msg.header.stamp)
-            msg.header.frame_id = frame
-        self._pose.pose.position.x = state.x
-        self._velocity.twist.linear.x = state.v
-        self._friction.wrench.force.x = state.friction_force
-        self._friction.wrench.force.z = state.normal_force
+        state = tick.state
+        fill_state_messages(state, self._frame_id, self._pose, self._velocity, self._friction)
         self._pose_pub.publish(self._pose)
         self._velocity_pub.publish(self._velocity)
         self._friction_pub.publish(self._friction)
         for period in tick.periods:
-            self._mean_pub.publish(self._mean_velocity_msg(period.t, period.mean_velocity))
+            self._mean_pub.publish(mean_velocity_message(period, self._frame_id))
         if self._publish_clock:
-            stamp(state.t, self._clock_msg.clock)
+            time_msg(seconds_to_ns(state.t), self._clock_msg.clock)
             self._clock_pub.publish(self._clock_msg)
         for listener in self.tick_listeners:
             listener(tick)
-
-    def _mean_velocity_msg(self, t: float, value: float) -> TwistStamped:
-        msg = TwistStamped()
-        stamp(t, msg.header.stamp)
-        msg.header.frame_id = self._frame_id
-        msg.twist.linear.x = value
-        return msg
 
     def _on_diagnostics(self) -> None:
         with self._lock:
@@ -264,7 +252,7 @@ class SliderNode(Node):
         status.level, status.message = _health(report)
         status.values = [KeyValue(key=key, value=_text(value)) for key, value in report.items()]
         msg = DiagnosticArray(status=[status])
-        stamp(report["sim_time"], msg.header.stamp)
+        time_msg(seconds_to_ns(report["sim_time"]), msg.header.stamp)
         self._diag_pub.publish(msg)
 
     # -- parameters ---------------------------------------------------------------
