@@ -10,7 +10,7 @@ Subcommands::
     friction-sim slider [--params FILE] [--log run.mcap] [--ros-args ...]
     friction-sim controller [--params FILE] [--ros-args ...]
     friction-sim feeder [--slider-params FILE] [--controller-params FILE] [--ros-args ...]
-    friction-sim experiment SCENARIO.yaml [--output DIR]
+    friction-sim experiment SCENARIO.yaml [--output DIR] [--attach NAMESPACE]
     friction-sim report run.mcap [--output DIR]
     friction-sim replay run.mcap [--verify] [--publish ...] [--csv DIR] [--plot PNG]
 
@@ -174,7 +174,7 @@ def _cmd_feeder(args: argparse.Namespace) -> int:
 def _cmd_experiment(args: argparse.Namespace) -> int:
     from friction_sim.jobs import run_scenario
 
-    run_scenario(args.scenario, output=args.output)
+    run_scenario(args.scenario, output=args.output, attach=args.attach)
     return 0
 
 
@@ -265,6 +265,8 @@ def build_parser() -> argparse.ArgumentParser:
     experiment = sub.add_parser("experiment", help="run a scenario over real topics, record it, report it")
     experiment.add_argument("scenario", type=Path, help="scenario file, e.g. config/demo.yaml")
     experiment.add_argument("--output", type=Path, help="output folder (default: the scenario's output)")
+    experiment.add_argument("--attach", metavar="NAMESPACE",
+                            help="drive a slider (and controller) already running in NAMESPACE")
     experiment.set_defaults(handler=_cmd_experiment)
 
     report = sub.add_parser("report", help="rebuild an experiment's report from its recording alone")

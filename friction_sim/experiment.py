@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
-from friction_sim.errors import ParameterError
+from friction_sim.errors import FrictionSimError, ParameterError
 from friction_sim.params import Inputs, SliderParams
 
 COMMAND_TOPICS = ("drive_force", "excitation_amplitude", "excitation_frequency", "target_speed", "external_wrench")
@@ -129,83 +129,220 @@ def step_metrics(samples: Sequence[tuple[float, float]], t_step: float, t_end: f
     return StepMetrics(t_step, target, settling, overshoot, steady)
 
 
-def run_experiment(spec: ExperimentSpec, *, namespace: str | None = None,
+def run_experiment(spec: ExperimentSpec, *, namespace: str | None = None, attach: bool = False,
                    progress: Callable[[Status], None] | None = None) -> ExperimentResult:
-    """Bring up the nodes in this process, play the schedule over real topics in
-    simulation time, and collect what they publish.  rclpy must be initialised."""
-    import rclpy
-    from geometry_msgs.msg import TwistStamped, WrenchStamped
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.parameter import Parameter
-    from std_msgs.msg import Float64
+    """Play the schedule over real topics in simulation time and collect what
+    the nodes publish.  rclpy must be initialised.
 
-    from friction_sim.nodes.common import wall_ns
-    from friction_sim.nodes.controller import ControllerNode
-    from friction_sim.nodes.slider import SliderNode
+    By default the slider (and controller) are brought up in this process, in
+    ``namespace`` (a fresh one when None), and the slider records the run.
+    With ``attach`` they are already running in ``namespace``: the scenario's
+    plant and controller settings are applied through their parameter
+    services, simulation time is read from the slider's stamps, and this
+    process records what it sees on the topics.
+    """
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
 
     ns = namespace or f"/experiment_{uuid.uuid4().hex[:8]}"
-    plant_values = {
+    executor = SingleThreadedExecutor()
+    result = ExperimentResult(duration=spec.duration)
+    driver = rclpy.create_node("experiment_driver", namespace=ns)
+    executor.add_node(driver)
+    plant: _InProcess | _Attached | None = None
+    try:
+        publishers = _command_publishers(driver)
+        _collect_mean_velocity(driver, result)
+        plant = _Attached(spec, driver, executor) if attach else _InProcess(spec, ns, executor, result)
+        _wait_until_connected(executor, publishers, spec.controller, plant)
+        _play(spec, plant, executor, publishers, result, progress)
+    finally:
+        if plant is not None:
+            plant.close()
+        driver.destroy_node()
+        executor.shutdown(timeout_sec=0.0)
+    return result
+
+
+def _play(spec: ExperimentSpec, plant: _InProcess | _Attached, executor: Any, publishers: dict[str, Any],
+          result: ExperimentResult, progress: Callable[[Status], None] | None) -> None:
+    """Publish each scheduled command when simulation time reaches it."""
+    pending = sorted(spec.schedule, key=lambda c: c.t)
+    start_sim = plant.now()
+    recorder = plant.recorder
+    if recorder is not None:
+        recorder.add_metadata(SCENARIO_METADATA, {**spec.notes, "start_ns": round(start_sim * 1e9)})
+        if spec.controller and "target_speed" in spec.controller_parameters:
+            _record_target(recorder, start_sim, float(spec.controller_parameters["target_speed"]))
+    last_progress = time.monotonic()
+    target = spec.controller_parameters.get("target_speed") if spec.controller else None
+    while (now := plant.now() - start_sim) < spec.duration:
+        while pending and pending[0].t <= now:
+            command = pending.pop(0)
+            _publish(publishers[command.topic], command)
+            result.commands.append((now, command.topic, command.value))
+            if command.topic == "target_speed" and recorder is not None:
+                _record_target(recorder, now + start_sim, float(command.value))  # type: ignore[arg-type]
+            target = command.value if command.topic == "target_speed" else target
+        executor.spin_once(timeout_sec=0.0005)
+        if progress is not None and time.monotonic() - last_progress > 0.25:
+            inputs = plant.inputs()
+            progress(Status(now, spec.duration, target,  # type: ignore[arg-type]
+                            result.mean_velocity[-1][1] if result.mean_velocity else math.nan,
+                            inputs.excitation_amplitude, inputs.drive_force, inputs.excitation_frequency))
+            last_progress = time.monotonic()
+    _shift(result, start_sim)
+
+
+def _plant_values(spec: ExperimentSpec) -> dict[str, Any]:
+    return {
         "mass": spec.plant.mass, "mu": spec.plant.mu, "gravity": spec.plant.gravity,
         "drive_force": spec.inputs.drive_force, "excitation_amplitude": spec.inputs.excitation_amplitude,
         "excitation_frequency": spec.inputs.excitation_frequency, "real_time_factor": spec.real_time_factor,
-        **({"log_path": str(spec.log_path), "log_rate": spec.log_rate} if spec.log_path else {}),
         **spec.slider_parameters,
     }
-    nodes: list[Any] = []
-    executor = SingleThreadedExecutor()
-    result = ExperimentResult(duration=spec.duration)
-    try:
-        driver = rclpy.create_node("experiment_driver", namespace=ns)
-        nodes.append(driver)
-        publishers = {topic: driver.create_publisher(WrenchStamped if topic == "external_wrench" else Float64,
-                                                     topic, 10) for topic in COMMAND_TOPICS}
-        driver.create_subscription(
-            TwistStamped, "mean_velocity",
-            lambda m: result.mean_velocity.append((m.header.stamp.sec + m.header.stamp.nanosec * 1e-9,
-                                                   m.twist.linear.x)), 100)
-        slider = SliderNode(namespace=ns, parameter_overrides=[Parameter(k, value=v) for k, v in plant_values.items()])
-        nodes.append(slider)
+
+
+def _controller_values(spec: ExperimentSpec) -> dict[str, Any]:
+    return {"excitation_frequency": spec.inputs.excitation_frequency, "drive_force": spec.inputs.drive_force,
+            **spec.controller_parameters}
+
+
+class _InProcess:
+    """Slider (and controller) nodes in this process; the slider records."""
+
+    def __init__(self, spec: ExperimentSpec, ns: str, executor: Any, result: ExperimentResult) -> None:
+        from rclpy.parameter import Parameter
+
+        from friction_sim.nodes.common import wall_ns
+        from friction_sim.nodes.controller import ControllerNode
+        from friction_sim.nodes.slider import SliderNode
+
+        values = _plant_values(spec)
+        if spec.log_path:
+            values.update(log_path=str(spec.log_path), log_rate=spec.log_rate)
+        self._wall_ns = wall_ns
+        self.slider = SliderNode(namespace=ns, parameter_overrides=[Parameter(k, value=v) for k, v in values.items()])
+        self.nodes: list[Any] = [self.slider]
         if spec.controller:
             controller = ControllerNode(namespace=ns, parameter_overrides=[
-                Parameter(k, value=v) for k, v in {"excitation_frequency": spec.inputs.excitation_frequency,
-                                                   "drive_force": spec.inputs.drive_force,
-                                                   **spec.controller_parameters}.items()])
-            controller.output_listeners.append(
-                lambda out: result.amplitude.append((slider.realtime.clock.now(wall_ns()), out.amplitude)))
-            nodes.append(controller)
-        for node in nodes:
+                Parameter(k, value=v) for k, v in _controller_values(spec).items()])
+            controller.output_listeners.append(lambda out: result.amplitude.append((self.now(), out.amplitude)))
+            self.nodes.append(controller)
+        for node in self.nodes:
             executor.add_node(node)
-        _wait_until_connected(executor, publishers, spec.controller)
-        pending = sorted(spec.schedule, key=lambda c: c.t)
-        start_sim = slider.realtime.clock.now(wall_ns())
-        recorder = slider.recorder
-        if recorder is not None:
-            recorder.add_metadata(SCENARIO_METADATA, {**spec.notes, "start_ns": round(start_sim * 1e9)})
-            if spec.controller and "target_speed" in spec.controller_parameters:
-                _record_target(recorder, start_sim, float(spec.controller_parameters["target_speed"]))
-        last_progress = time.monotonic()
-        target = spec.controller_parameters.get("target_speed") if spec.controller else None
-        while (now := slider.realtime.clock.now(wall_ns()) - start_sim) < spec.duration:
-            while pending and pending[0].t <= now:
-                command = pending.pop(0)
-                _publish(publishers[command.topic], command)
-                result.commands.append((now, command.topic, command.value))
-                if command.topic == "target_speed" and recorder is not None:
-                    _record_target(recorder, now + start_sim, float(command.value))  # type: ignore[arg-type]
-                target = command.value if command.topic == "target_speed" else target
-            executor.spin_once(timeout_sec=0.0005)
-            if progress is not None and time.monotonic() - last_progress > 0.25:
-                inputs = slider.realtime.slider.inputs
-                progress(Status(now, spec.duration, target,  # type: ignore[arg-type]
-                                result.mean_velocity[-1][1] if result.mean_velocity else math.nan,
-                                inputs.excitation_amplitude, inputs.drive_force, inputs.excitation_frequency))
-                last_progress = time.monotonic()
-        _shift(result, start_sim)
-    finally:
-        for node in nodes:
+        self.recorder = self.slider.recorder
+
+    def now(self) -> float:
+        return self.slider.realtime.clock.now(self._wall_ns())
+
+    def inputs(self) -> Inputs:
+        return self.slider.realtime.slider.inputs
+
+    def ready(self) -> bool:
+        return all(getattr(node, "ready", True) for node in self.nodes)
+
+    def close(self) -> None:
+        for node in self.nodes:
             node.destroy_node()
-        executor.shutdown(timeout_sec=0.0)
-    return result
+
+
+class _Attached:
+    """Nodes already running in the driver's namespace: configure them through
+    their parameter services, follow simulation time on the slider's stamps,
+    and record what the topics carry."""
+
+    RECORDED = ("pose", "velocity", "friction_force", "mean_velocity", "drive_force", "excitation_amplitude",
+                "excitation_frequency", "external_wrench")
+
+    def __init__(self, spec: ExperimentSpec, driver: Any, executor: Any) -> None:
+        self.driver = driver
+        self._stamp_ns = -1
+        self._inputs = spec.inputs
+        self._set_parameters(executor, "slider", {k: v for k, v in _plant_values(spec).items()})
+        if spec.controller:
+            self._set_parameters(executor, "controller", _controller_values(spec))
+        self.recorder = None
+        if spec.log_path:
+            from friction_sim.recording import Recorder
+
+            values = _plant_values(spec)
+            self.recorder = Recorder(spec.log_path, metadata={**values, "recorded_by": "experiment --attach"})
+        self._subscribe()
+
+    def _set_parameters(self, executor: Any, node: str, values: dict[str, Any]) -> None:
+        from rclpy.parameter import Parameter
+        from rclpy.parameter_client import AsyncParameterClient
+
+        client = AsyncParameterClient(self.driver, node)
+        deadline = time.monotonic() + 10.0
+        while not client.services_are_ready():
+            if time.monotonic() > deadline:
+                raise ExperimentError(f"no node '{node}' answers in {self.driver.get_namespace()} "
+                                      "(start it first, e.g. friction-sim feeder --ros-args -r __ns:=...)")
+            executor.spin_once(timeout_sec=0.05)
+        future = client.set_parameters([Parameter(k, value=v) for k, v in values.items()])
+        while not future.done():
+            executor.spin_once(timeout_sec=0.05)
+        for (name, _), result in zip(values.items(), future.result().results):
+            if not result.successful:
+                raise ExperimentError(f"{node} refused {name}: {result.reason}")
+
+    def _subscribe(self) -> None:
+        from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+        from std_msgs.msg import Float64
+
+        kinds = {"pose": PoseStamped, "velocity": TwistStamped, "friction_force": WrenchStamped,
+                 "mean_velocity": TwistStamped, "external_wrench": WrenchStamped}
+        for topic in self.RECORDED:
+            self.driver.create_subscription(kinds.get(topic, Float64), topic, self._keeper(topic), 100)
+
+    def _keeper(self, topic: str) -> Callable[[Any], None]:
+        def keep(msg: Any) -> None:
+            header = getattr(msg, "header", None)
+            if topic == "pose":
+                self._stamp_ns = max(self._stamp_ns, header.stamp.sec * 1_000_000_000 + header.stamp.nanosec)
+            if topic in ("drive_force", "excitation_amplitude", "excitation_frequency"):
+                self._inputs = self._inputs.replace(**{topic: msg.data})
+            if self.recorder is not None and self._stamp_ns >= 0:
+                stamped = header is not None and topic != "external_wrench"
+                log_ns = header.stamp.sec * 1_000_000_000 + header.stamp.nanosec if stamped else self._stamp_ns
+                self.recorder.write(topic, msg, log_ns)
+        return keep
+
+    def now(self) -> float:
+        return self._stamp_ns / 1e9
+
+    def inputs(self) -> Inputs:
+        return self._inputs
+
+    def ready(self) -> bool:
+        return self._stamp_ns >= 0
+
+    def close(self) -> None:
+        if self.recorder is not None:
+            self.recorder.finish()
+
+
+class ExperimentError(FrictionSimError):
+    """An experiment cannot start (its nodes do not answer or refuse settings)."""
+
+
+def _command_publishers(driver: Any) -> dict[str, Any]:
+    from geometry_msgs.msg import WrenchStamped
+    from std_msgs.msg import Float64
+
+    return {topic: driver.create_publisher(WrenchStamped if topic == "external_wrench" else Float64, topic, 10)
+            for topic in COMMAND_TOPICS}
+
+
+def _collect_mean_velocity(driver: Any, result: ExperimentResult) -> None:
+    from geometry_msgs.msg import TwistStamped
+
+    driver.create_subscription(
+        TwistStamped, "mean_velocity",
+        lambda m: result.mean_velocity.append((m.header.stamp.sec + m.header.stamp.nanosec * 1e-9,
+                                               m.twist.linear.x)), 100)
 
 
 SCENARIO_METADATA = "friction_sim_scenario"
@@ -230,20 +367,20 @@ def _publish(publisher: Any, command: ScheduledCommand) -> None:
         publisher.publish(Float64(data=float(command.value)))  # type: ignore[arg-type]
 
 
-def _wait_until_connected(executor: Any, publishers: dict[str, Any], controller: bool, timeout: float = 10.0) -> None:
-    """Spin until discovery has matched the driver's publishers (and, with a
-    controller, until it has its plant's parameters)."""
+def _wait_until_connected(executor: Any, publishers: dict[str, Any], controller: bool, plant: Any,
+                          timeout: float = 10.0) -> None:
+    """Spin until discovery has matched the driver's publishers and the nodes
+    are ready (a controller has its plant's parameters; an attached slider
+    has published its time)."""
     deadline = time.monotonic() + timeout
     needed = {"drive_force", "excitation_amplitude", "excitation_frequency", "external_wrench"}
     if controller:
         needed.add("target_speed")
     while time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.01)
-        if all(publishers[t].get_subscription_count() >= 1 for t in needed):
-            nodes = executor.get_nodes()
-            if all(getattr(n, "ready", True) for n in nodes):
-                return
-    raise RuntimeError("the experiment's nodes did not connect within 10 s")
+        if all(publishers[t].get_subscription_count() >= 1 for t in needed) and plant.ready():
+            return
+    raise ExperimentError(f"the experiment's nodes did not connect within {timeout:g} s")
 
 
 def _shift(result: ExperimentResult, start: float) -> None:

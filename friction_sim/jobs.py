@@ -27,9 +27,10 @@ class JobOutput:
     report: Path
 
 
-def run_scenario(path: Path, *, output: Path | None = None, stream: TextIO = sys.stdout,
-                 status: TextIO | None = sys.stderr) -> JobOutput:
-    """Run a scenario file end to end (see the module docstring)."""
+def run_scenario(path: Path, *, output: Path | None = None, attach: str | None = None,
+                 stream: TextIO = sys.stdout, status: TextIO | None = sys.stderr) -> JobOutput:
+    """Run a scenario file end to end (see the module docstring); with
+    ``attach``, drive nodes already running in that namespace."""
     import rclpy
 
     from friction_sim.experiment import Status, run_experiment
@@ -44,7 +45,8 @@ def run_scenario(path: Path, *, output: Path | None = None, stream: TextIO = sys
           file=stream)
     rclpy.init(args=[])
     try:
-        run_experiment(spec, progress=live.show if live else None)
+        run_experiment(spec, namespace=attach or scenario.namespace, attach=attach is not None,
+                       progress=live.show if live else None)
     finally:
         rclpy.try_shutdown()
         if live:

@@ -48,6 +48,9 @@ class RunData:
     mean_velocity: list[tuple[float, float]] = field(default_factory=list)
     events: list[tuple[float, str]] = field(default_factory=list)
     name: str = "experiment"
+    #: (t, v) samples, used for the stick fraction when the events were not
+    #: recorded (a recording made with ``experiment --attach``).
+    velocity: list[tuple[float, float]] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -110,6 +113,13 @@ def stick_fraction(events: Sequence[tuple[float, str]], start: float, end: float
     return total / (end - start)
 
 
+def _stick_fraction(data: RunData, start: float, end: float) -> float:
+    if data.events or not data.velocity:
+        return stick_fraction(data.events, start, end)
+    window = [v for t, v in data.velocity if start <= t <= end]
+    return sum(1 for v in window if v == 0.0) / len(window) if window else math.nan
+
+
 def build_report(data: RunData, tolerance: float = TOLERANCE) -> list[SegmentRow]:
     """One row per segment between scheduled commands."""
     bounds = sorted({0.0, *(t for t, _, _ in data.schedule)})
@@ -131,7 +141,7 @@ def build_report(data: RunData, tolerance: float = TOLERANCE) -> list[SegmentRow
             start=start, end=end, mode=mode, command=labels.get(start, "start"), target=target,
             achieved=achieved, error=error,
             settling_periods=_settling(samples, start, target, inputs.excitation_frequency, tolerance),
-            stick_fraction=stick_fraction(data.events, end - period, end),
+            stick_fraction=_stick_fraction(data, end - period, end),
         ))
     return rows
 
@@ -273,6 +283,8 @@ def run_data_from_recording(path: Path) -> RunData:
                        for _, m in recording.decoded("mean_velocity") if stamp_ns(m.header.stamp) >= start_ns],
         events=[(t / 1e9 - start, m.name) for t, m in recording.decoded("events")],
         name=name,
+        velocity=[] if recording.messages_on("events") else [
+            (t / 1e9 - start, m.twist.linear.x) for t, m in recording.decoded("velocity")],
     )
 
 

@@ -108,3 +108,24 @@ def test_a_bad_scenario_fails_before_anything_starts(tmp_path: Path) -> None:
     assert done.returncode == 2
     assert done.stderr.count("\n") == 1 and "line 3" in done.stderr and "20.0" in done.stderr
     assert not (tmp_path / "out").exists(), "nothing started"
+
+
+def test_attach_drives_nodes_running_in_another_process(tmp_path: Path) -> None:
+    namespace = "/attached_" + tmp_path.name[-8:].replace("-", "_")
+    feeder = subprocess.Popen([str(Path(sys.executable).parent / "friction-sim"), "feeder", "--ros-args",
+                               "-r", f"__ns:={namespace}"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        scenario = tmp_path / "attach.yaml"
+        scenario.write_text(SCENARIO.replace("name: short", "name: attached"))
+        job = run_scenario(scenario, output=tmp_path / "out", attach=namespace, stream=io.StringIO(),
+                           status=io.StringIO())
+    finally:
+        feeder.send_signal(2)
+        _, err = feeder.communicate(timeout=20)
+    assert feeder.returncode == 0, err
+    assert [row.mode for row in job.rows] == ["open loop"] * 4 + ["closed loop"]
+    for row in job.rows[:4]:
+        assert row.achieved == pytest.approx(row.target, rel=1e-6, abs=1e-12)
+    assert job.rows[-1].achieved == pytest.approx(0.0002, rel=0.01)
+    assert 0.0 < job.rows[0].stick_fraction < 1.0
+    assert read_recording(job.recording).complete
