@@ -12,17 +12,16 @@ and it travels (mu*g/omega**2) * integral(w) until w returns to zero.
 """
 
 import bisect
-import contextlib
 import copy
 import math
-import signal
-import time
 from fractions import Fraction
 
 import numpy as np
 import pytest
 from scipy.integrate import quad
 from scipy.optimize import brentq
+
+from time_limit import EndlessLoop, time_limit
 
 from friction_sim.core import EventKind, Mode, Slider
 from friction_sim.errors import FrictionSimError, ParameterError
@@ -41,29 +40,6 @@ PERIOD = 1.0 / 50.0
 # --------------------------------------------------------------------------
 
 
-class EndlessLoop(AssertionError):
-    """A call that should take microseconds did not return."""
-
-
-@contextlib.contextmanager
-def time_limit(seconds, what):
-    """Turn a hang into a test failure (SIGALRM; restores an outer timer such
-    as pytest-timeout's)."""
-
-    def on_alarm(signum, frame):
-        raise EndlessLoop(f"{what} did not return within {seconds} s")
-
-    started = time.monotonic()
-    old_handler = signal.signal(signal.SIGALRM, on_alarm)
-    old_delay, _ = signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old_handler)
-        if old_delay > 0.0:
-            left = old_delay - (time.monotonic() - started)
-            signal.setitimer(signal.ITIMER_REAL, max(left, 1e-3))
 
 
 def w_units(psi, phi, a, theta_a):

@@ -7,15 +7,14 @@ about it: there, the binary rounding of the inputs decides whether the slider
 moves at all (see test_core.py::test_no_motion_exactly_on_the_boundary).
 """
 
-import contextlib
 import math
 from fractions import Fraction
-import signal
-import time
 
 import numpy as np
 from hypothesis import HealthCheck, Phase, assume, given, settings
 from hypothesis import strategies as st
+
+from time_limit import EndlessLoop, time_limit
 
 from friction_sim.core import EventKind, Mode, Slider
 from friction_sim.params import Inputs, SliderParams
@@ -29,25 +28,6 @@ PROPERTY = settings(max_examples=40, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow])
 
 
-class EndlessLoop(AssertionError):
-    """A call that should take milliseconds did not return."""
-
-
-@contextlib.contextmanager
-def time_limit(seconds, what):
-    def on_alarm(signum, frame):
-        raise EndlessLoop(f"{what} did not return within {seconds} s")
-
-    started = time.monotonic()
-    old_handler = signal.signal(signal.SIGALRM, on_alarm)
-    old_delay, _ = signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old_handler)
-        if old_delay > 0.0:
-            signal.setitimer(signal.ITIMER_REAL, max(old_delay - (time.monotonic() - started), 1e-3))
 
 
 masses = st.floats(0.1, 10.0)
