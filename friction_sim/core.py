@@ -72,6 +72,9 @@ class Mode(IntEnum):
     FORWARD = 1
 
 
+_MODES = {-1: Mode.BACKWARD, 0: Mode.STUCK, 1: Mode.FORWARD}
+
+
 class EventKind(str, Enum):
     """The transitions of the stick-slip motion."""
 
@@ -149,9 +152,10 @@ class Trajectory:
 # --------------------------------------------------------------------------
 
 
-def next_slip_start(phase: float, b0: float, b1: float, *, closing: bool = False) -> float:
-    """Phase still to run until a stuck slider starts to slip (0: at once,
-    ``inf``: never), seen from excitation phase ``phase``.
+def next_slip_start(phase: float, b0: float, b1: float, *, closing: bool = False) -> tuple[float, float]:
+    """``(delta, start)``: the phase still to run until a stuck slider starts to
+    slip (0: at once, ``inf``: never), seen from excitation phase ``phase``,
+    and the phase in [0, 2*pi) at which it starts.
 
     ``b0`` and ``b1`` >= 0 are the coefficients the slip would have in its
     direction s = sign(Ft): dw/dt = b0 + b1*sin(theta) with
@@ -167,21 +171,22 @@ def next_slip_start(phase: float, b0: float, b1: float, *, closing: bool = False
     open again instead.  That guarantees progress at the window's closing edge.
     """
     if b1 <= 0.0:
-        return 0.0 if b0 > 0.0 and not closing else NEVER
+        return (0.0, phase) if b0 > 0.0 and not closing else (NEVER, NEVER)
     if b0 + b1 <= 0.0:
-        return NEVER
+        return NEVER, NEVER
     closing = closing and math.cos(phase) <= 0.0
     if b0 + b1 * math.sin(phase) > 0.0 and not closing:
-        return 0.0
+        return 0.0, phase
     ratio = -b0 / b1
     if ratio < -1.0:  # the window covers every phase; only rounding kept us here
-        return TWO_PI if closing else 0.0
-    delta = (math.asin(ratio) - phase) % TWO_PI
+        return (TWO_PI, phase) if closing else (0.0, phase)
+    start = math.asin(ratio) % TWO_PI
+    delta = (start - phase) % TWO_PI
     if closing:
-        return delta if delta > 0.0 else TWO_PI
+        return (delta, start) if delta > 0.0 else (TWO_PI, start)
     if delta > TWO_PI - _PHASE_EDGE:  # a hair past the edge: starts now
-        return 0.0
-    return delta
+        return 0.0, phase
+    return delta, start
 
 
 def can_ever_slip(params: SliderParams, inputs: Inputs) -> bool:
@@ -357,6 +362,25 @@ def _falling_root(
 # --------------------------------------------------------------------------
 
 
+class _Plant:
+    """The constants of the motion under one set of parameters and inputs,
+    computed once per change rather than once per segment."""
+
+    __slots__ = ("omega", "tangential", "load", "amplitude", "mu", "b1", "b0", "direction")
+
+    def __init__(self, params: SliderParams, inputs: Inputs) -> None:
+        self.omega = TWO_PI * inputs.excitation_frequency
+        self.tangential = inputs.tangential_force
+        self.load = params.weight + inputs.external_force_z
+        self.amplitude = inputs.excitation_amplitude
+        self.mu = params.mu
+        self.b1 = self.mu * self.amplitude / params.mass
+        #: b0 of dw/dt = b0 + b1*sin(theta) for a slip in direction d, at index d (0, +1, -1).
+        self.b0 = tuple((d * self.tangential - self.mu * self.load) / params.mass for d in (0, 1, -1))
+        #: the direction a slip from rest takes: sign(Ft)
+        self.direction = 1 if self.tangential > 0.0 else -1
+
+
 class _Segment:
     """Closed-form motion from (t0, x0, w0, phase0) under constant inputs.
 
@@ -367,25 +391,22 @@ class _Segment:
 
     __slots__ = (
         "t0", "x0", "w0", "phase0", "cycles", "direction", "omega", "b0", "b1", "g0",
-        "tangential", "load", "amplitude", "mu", "mass", "cos0", "sin0",
+        "tangential", "load", "amplitude", "mu", "cos0", "sin0", "stop",
     )
 
     def __init__(
-        self, t0: float, x0: float, w0: float, phase0: float, cycles: int, direction: int,
-        params: SliderParams, inputs: Inputs,
+        self, t0: float, x0: float, w0: float, phase0: float, cycles: int, direction: int, plant: _Plant,
     ) -> None:
         self.t0, self.x0, self.w0, self.phase0, self.direction = t0, x0, w0, phase0, direction
         self.cycles = cycles
-        self.omega = TWO_PI * inputs.excitation_frequency
-        self.tangential = inputs.tangential_force
-        self.load = params.weight + inputs.external_force_z
-        self.amplitude = inputs.excitation_amplitude
-        self.mu, self.mass = params.mu, params.mass
-        b0 = (direction * self.tangential - self.mu * self.load) / self.mass  # = slip_coefficients()
-        self.b1 = self.mu * self.amplitude / self.mass
-        self.cos0, self.sin0 = math.cos(phase0), math.sin(phase0)
-        self.b0 = from_rest_b0(w0, b0, self.b1, self.sin0)
-        self.g0 = self.b0 + self.b1 * self.sin0
+        self.omega, self.tangential, self.load = plant.omega, plant.tangential, plant.load
+        self.amplitude, self.mu = plant.amplitude, plant.mu
+        self.stop: tuple[float, float] | None = None  # (x - x0, raw phase) where a slip from rest stops
+        if direction:  # a stuck segment needs none of a slip's constants
+            self.b1 = plant.b1
+            self.cos0, self.sin0 = math.cos(phase0), math.sin(phase0)
+            self.b0 = from_rest_b0(w0, plant.b0[direction], self.b1, self.sin0)
+            self.g0 = self.b0 + self.b1 * self.sin0
 
     def evaluate(self, t: Any, xp: ModuleType = math) -> tuple[Any, Any, Any, Any, Any, Any]:
         """(x, v, acceleration, friction force, normal force, phase) at time(s) t.
@@ -394,7 +415,10 @@ class _Segment:
         (see :func:`_reduce_phase`).  ``xp`` is ``math`` for one float or
         ``numpy`` for an array of times.
         """
-        tau = t - self.t0
+        return self.after(t - self.t0, xp)
+
+    def after(self, tau: Any, xp: ModuleType = math) -> tuple[Any, Any, Any, Any, Any, Any]:
+        """:meth:`evaluate` at ``tau`` after the segment's start."""
         theta = self.phase0 + self.omega * tau
         sin_theta = xp.sin(theta)
         normal = self.load - self.amplitude * sin_theta
@@ -402,6 +426,12 @@ class _Segment:
         if s == 0:
             zero = tau * 0.0
             return self.x0 + zero, zero, zero, -self.tangential + zero, normal, theta
+        w, travel = self.speed_and_travel(tau, xp)
+        acceleration = s * (self.b0 + self.b1 * sin_theta)
+        return self.x0 + s * travel, s * w, acceleration, -s * self.mu * normal, normal, theta
+
+    def speed_and_travel(self, tau: Any, xp: ModuleType = math) -> tuple[Any, Any]:
+        """Speed w and distance travelled (>= 0, along the slip) ``tau`` into a slip."""
         k = self.b1 / self.omega
         c1, s2, c2 = trig_remainders(self.omega * tau, xp)
         w = self.w0 + self.g0 * tau + k * (self.cos0 * c1 - self.sin0 * s2)
@@ -409,8 +439,7 @@ class _Segment:
             self.w0 * tau + 0.5 * self.g0 * tau * tau
             + (k / self.omega) * (self.cos0 * s2 - self.sin0 * c2)
         )
-        acceleration = s * (self.b0 + self.b1 * sin_theta)
-        return self.x0 + s * travel, s * w, acceleration, -s * self.mu * normal, normal, theta
+        return w, travel
 
     def time_of_cycle(self, n: int) -> float:
         """When the total phase reaches 2*pi*n (t0 if it already had)."""
@@ -418,15 +447,6 @@ class _Segment:
         if whole <= 0:
             return self.t0
         return self.t0 + (TWO_PI * whole - self.phase0) / self.omega
-
-
-def slip_coefficients(direction: int, params: SliderParams, inputs: Inputs) -> tuple[float, float]:
-    """(b0, b1) of dw/dt = b0 + b1*sin(theta) for a slip in ``direction``."""
-    load = params.weight + inputs.external_force_z
-    return (
-        (direction * inputs.tangential_force - params.mu * load) / params.mass,
-        params.mu * inputs.excitation_amplitude / params.mass,
-    )
 
 
 def _changed(old: Any, new: Any) -> set[str]:
@@ -487,7 +507,7 @@ class Slider:
         self._events: Deque[Event] = deque(maxlen=event_log_size)
         self._counts = {kind: 0 for kind in EventKind}
         self._stuck_time = 0.0
-        self._cache: dict[tuple[float, float, float, float], float] = {}
+        self._cache: dict[tuple[float, float, float, float, int], tuple[float, Any]] = {}
         self._marks: Deque[CycleMark] | None = None
         self._next_mark_n, self._next_mark_t = 1, NEVER
         x0 = require_finite("x0", x0)
@@ -496,6 +516,7 @@ class Slider:
             if phase == 0.0:
                 self._marks.append(CycleMark(0, self._t, x0, 0.0))
         self._can_slip = can_ever_slip(self._params, self._inputs)
+        self._plant = _Plant(self._params, self._inputs)
         self._start_stuck(self._t, x0, phase, 0)
 
     # -- read-only views -------------------------------------------------------
@@ -553,7 +574,7 @@ class Slider:
         """The state at the current time :attr:`t`."""
         seg = self._seg
         x, v, acc, friction, normal, theta = seg.evaluate(self._t)
-        return SliderState(self._t, x, v, acc, friction, normal, theta % TWO_PI, Mode(seg.direction))
+        return SliderState(self._t, x, v, acc, friction, normal, theta % TWO_PI, _MODES[seg.direction])
 
     # -- advancing -------------------------------------------------------------
 
@@ -633,6 +654,7 @@ class Slider:
             self._stuck_time += self._t - seg.t0
         self._params, self._inputs = params, inputs
         self._can_slip = can_ever_slip(params, inputs)
+        self._plant = _Plant(params, inputs)
         w = seg.direction * v
         if seg.direction != 0 and w > 0.0:
             self._start_slip(self._t, x, w, phase, cycles, seg.direction)
@@ -640,14 +662,14 @@ class Slider:
             self._start_stuck(self._t, x, phase, cycles)
 
     def _start_stuck(self, t: float, x: float, phase: float, cycles: int, after_stop: int = 0) -> None:
-        self._seg = seg = _Segment(t, x, 0.0, phase, cycles, 0, self._params, self._inputs)
-        direction = 1 if seg.tangential > 0.0 else -1
-        delta = NEVER
+        plant = self._plant
+        self._seg = _Segment(t, x, 0.0, phase, cycles, 0, plant)
+        direction = plant.direction
+        delta, start_phase = NEVER, NEVER
         if self._can_slip:
-            b0, b1 = slip_coefficients(direction, self._params, self._inputs)
-            delta = next_slip_start(phase, b0, b1, closing=after_stop == direction)
-        self._next_t = t + delta / seg.omega
-        start_phase = phase if delta == 0.0 else math.asin(-b0 / b1) % TWO_PI if delta < NEVER else NEVER
+            delta, start_phase = next_slip_start(phase, plant.b0[direction], plant.b1,
+                                                 closing=after_stop == direction)
+        self._next_t = t + delta / plant.omega
         # The start passes 2*pi on the way if it lies "behind" the present phase.
         wraps = start_phase < phase or (start_phase == phase and delta > 0.0)
         self._next_start = (start_phase, direction, cycles + 1 if wraps else cycles)
@@ -656,15 +678,22 @@ class Slider:
     def _start_slip(
         self, t: float, x: float, w: float, phase: float, cycles: int, direction: int
     ) -> None:
-        self._seg = seg = _Segment(t, x, w, phase, cycles, direction, self._params, self._inputs)
+        self._seg = seg = _Segment(t, x, w, phase, cycles, direction, self._plant)
         self._schedule_mark()
         if w == 0.0:
-            key = (phase, seg.b0, seg.b1, seg.omega)
-            delay = self._cache.get(key)
-            if delay is None:
+            # Every slip from rest at this phase under these inputs is this slip:
+            # its stop (time, travel, phase) is computed once.
+            key = (phase, seg.b0, seg.b1, seg.omega, direction)
+            entry = self._cache.get(key)
+            if entry is None:
                 if len(self._cache) >= _CACHE_LIMIT:
                     self._cache.clear()
-                delay = self._cache[key] = slip_stop_delay(0.0, seg.b0, seg.b1, phase, seg.omega)
+                delay = slip_stop_delay(0.0, seg.b0, seg.b1, phase, seg.omega)
+                stop = None
+                if delay < NEVER:
+                    stop = (direction * seg.speed_and_travel(delay)[1], phase + seg.omega * delay)
+                entry = self._cache[key] = (delay, stop)
+            delay, seg.stop = entry
         else:
             delay = slip_stop_delay(w, seg.b0, seg.b1, phase, seg.omega)
         self._next_t = t + delay
@@ -675,18 +704,23 @@ class Slider:
         if seg.direction == 0:
             self._stuck_time += t - seg.t0
             phase, direction, cycles = self._next_start
-            event = Event(t, EventKind.SLIP_START, seg.x0, phase, Mode.STUCK, Mode(direction))
+            event = Event(t, EventKind.SLIP_START, seg.x0, phase, Mode.STUCK, _MODES[direction])
             self._start_slip(t, seg.x0, 0.0, phase, cycles, direction)
             return [self._log(event)]
-        x, _, _, _, _, theta = seg.evaluate(t)
+        if seg.stop is not None:
+            travel, theta = seg.stop
+            x = seg.x0 + travel
+        else:
+            x, _, _, _, _, theta = seg.evaluate(t)
         phase, cycles = _reduce_phase(theta, seg.cycles)
-        direction = 1 if seg.tangential > 0.0 else -1
-        before = Mode(seg.direction)
+        plant = self._plant
+        direction = plant.direction
+        before = _MODES[seg.direction]
         if direction == -seg.direction and self._can_slip and next_slip_start(
-            phase, *slip_coefficients(direction, self._params, self._inputs)
-        ) == 0.0:
+            phase, plant.b0[direction], plant.b1
+        )[0] == 0.0:
             self._start_slip(t, x, 0.0, phase, cycles, direction)
-            return [self._log(Event(t, EventKind.REVERSAL, x, phase, before, Mode(direction)))]
+            return [self._log(Event(t, EventKind.REVERSAL, x, phase, before, _MODES[direction]))]
         self._start_stuck(t, x, phase, cycles, after_stop=seg.direction)
         return [self._log(Event(t, EventKind.STICK, x, phase, before, Mode.STUCK))]
 
