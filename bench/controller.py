@@ -38,7 +38,7 @@ def draw(runs: list[tuple[Scenario, ExperimentResult]], path: Path) -> None:
         steps = [(0.0, case.initial_target or 0.0)] + [(when, value) for when, topic, value in result.commands
                                                  if topic == "target_speed"]
         xs, ys = [], []
-        for (t0, v0), (t1, _) in zip(steps, steps[1:] + [(case.spec.duration, None)]):
+        for (t0, v0), (t1, _) in zip(steps, steps[1:] + [(case.duration, None)]):
             xs += [t0, t1]
             ys += [v0 * 1e3, v0 * 1e3]
         ax.plot(xs, ys, "k--", linewidth=1.0, label="target")

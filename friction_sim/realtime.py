@@ -23,11 +23,11 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
-from typing import Any, Deque
+from typing import Any, Deque, Sequence
 
 from friction_sim.core import CycleMark, Event, Slider, SliderState
 from friction_sim.errors import ParameterError
-from friction_sim.params import Inputs, SliderParams, require_positive
+from friction_sim.params import Inputs, SliderParams, check_contact, require_positive
 from friction_sim.urelation import Prediction, predict
 
 NS_PER_S = 1_000_000_000
@@ -147,13 +147,33 @@ class RealtimeSlider:
 
     def command(self, topic: str, values: dict[str, float], wall_ns: int) -> CommandOutcome:
         """Apply input changes (field names of :class:`Inputs`) now, or refuse them."""
+        return self.commands([(topic, values)], wall_ns)[0]
+
+    def commands(self, batch: Sequence[tuple[str, dict[str, float]]], wall_ns: int) -> list[CommandOutcome]:
+        """Handle several commands at the same instant, in order.
+
+        Each is validated against the inputs the ones before it left, and
+        accepted or refused on its own; the core then takes the resulting
+        inputs once (applying them one by one at the same instant would give
+        the same motion, at the cost of a new segment each).
+        """
         t = self._advance(wall_ns)
-        try:
-            self.slider.set_inputs(**values)
-        except ParameterError as error:
-            return self._refuse(t, topic, values, str(error) if error.field == topic else f"{topic}: {error}")
-        self.accepted += 1
-        return CommandOutcome(t, topic, values, True)
+        params, inputs = self.slider.params, self.slider.inputs
+        outcomes = []
+        for topic, values in batch:
+            try:
+                candidate = inputs.replace(**values)
+                check_contact(params, candidate, values)
+            except ParameterError as error:
+                outcomes.append(self._refuse(t, topic, values,
+                                             str(error) if error.field == topic else f"{topic}: {error}"))
+                continue
+            inputs = candidate
+            self.accepted += 1
+            outcomes.append(CommandOutcome(t, topic, values, True))
+        if inputs != self.slider.inputs:
+            self.slider.set_inputs(inputs)
+        return outcomes
 
     def set_params(self, params: SliderParams, wall_ns: int) -> CommandOutcome:
         """Change mass, mu and gravity now, if the present inputs allow it."""

@@ -166,30 +166,25 @@ class SliderNode(Node):
     def _make_subscriptions(self) -> None:
         polled = PolledGroup()
 
-        def subscribe(kind: type, topic: str, handler: Callable[[Any], None]) -> Any:
-            return self.create_subscription(kind, topic, handler, QOS_DEPTH, callback_group=polled,
+        def subscribe(kind: type, topic: str, convert: Callable[[Any], tuple[str, dict[str, float]]]) -> Any:
+            # The "callback" of a polled subscription converts a message into a command.
+            return self.create_subscription(kind, topic, convert, QOS_DEPTH, callback_group=polled,
                                             event_callbacks=_QUIET_SUBSCRIPTION)
 
-        self._commands = [subscribe(Float64, name, self._float_command(name)) for name in INPUTS]
-        self._commands.append(subscribe(WrenchStamped, "external_wrench", self._on_wrench))
+        self._commands = [subscribe(Float64, name, _float_command(name)) for name in INPUTS]
+        self._commands.append(subscribe(WrenchStamped, "external_wrench", _wrench_command))
 
     def _take_commands(self) -> None:
         """Apply every command waiting on the command topics (tick thread)."""
-        for subscription in self._commands:
-            for msg in take_all(subscription, COMMANDS_PER_TICK):
-                subscription.callback(msg)
+        batch = [subscription.callback(msg) for subscription in self._commands
+                 for msg in take_all(subscription, COMMANDS_PER_TICK)]
+        if batch:
+            with self._lock:
+                outcomes = self._rt.commands(batch, wall_ns())
+            for outcome in outcomes:
+                self._report(outcome)
 
     # -- commands ---------------------------------------------------------------
-
-    def _float_command(self, name: str) -> Callable[[Float64], None]:
-        def on_message(msg: Float64) -> None:
-            self._command(name, {name: msg.data})
-
-        return on_message
-
-    def _on_wrench(self, msg: WrenchStamped) -> None:
-        force = msg.wrench.force
-        self._command("external_wrench", {"external_force_x": force.x, "external_force_z": force.z})
 
     def _command(self, topic: str, values: dict[str, float]) -> CommandOutcome:
         with self._lock:
@@ -300,6 +295,18 @@ class SliderNode(Node):
             values = {n: self.get_parameter(n).value for n in PARAMETERS}
             self.recorder.record_parameters({n: values[n] for n in names if n in values},
                                             self._rt.clock.now(now), changed=True)
+
+
+def _float_command(name: str) -> Callable[[Float64], tuple[str, dict[str, float]]]:
+    """std_msgs/Float64 on topic ``name`` -> the command setting input ``name``."""
+    return lambda msg: (name, {name: msg.data})
+
+
+def _wrench_command(msg: WrenchStamped) -> tuple[str, dict[str, float]]:
+    """external_wrench: force.x tangential, force.z normal (torques and force.y
+    have no meaning for a slider on a line and are ignored)."""
+    force = msg.wrench.force
+    return "external_wrench", {"external_force_x": force.x, "external_force_z": force.z}
 
 
 def _open_recorder(values: dict[str, Any]) -> Any:
