@@ -232,7 +232,11 @@ class RealtimeSlider:
         cutting the time axis there does not change the motion."""
         if self.log_rate is None:
             return
-        last = math.floor(t * self.log_rate * (1.0 + 1e-15))
+        last = math.floor(t * self.log_rate)
+        if (last + 1) / self.log_rate <= t:  # the rounded product may be one short ...
+            last += 1
+        elif last / self.log_rate > t:  # ... or one over
+            last -= 1
         first = max(self._next_log_index, math.ceil(self.slider.t * self.log_rate * (1.0 - 1e-15)))
         if last < first:
             return

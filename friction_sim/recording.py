@@ -31,19 +31,22 @@ compresses and writes, so a 1 kHz tick thread never waits for the disk.
 If that thread falls behind, messages are dropped and counted, never queued
 without bound and never blocking the caller.
 
-Durability: the writer thread ends the current chunk and flushes the file
-at least every ``flush_interval`` (0.5 s) of wall time, so a writer killed
-with SIGKILL loses at most that much; :mod:`friction_sim.replay` reads such a
-file up to its last complete record.  Ending on SIGINT or SIGTERM finishes
-the file (summary and footer) as long as the process gets to call
-:meth:`Recorder.finish` (context manager exit, ``destroy_node``, or the
-``atexit`` hook every open recorder registers).
+Durability: the writer thread ends the current chunk (``Writer.flush()``:
+the chunk and its message indexes are written whole) and flushes the file
+object every ``flush_interval`` (0.25 s) of wall time, so a writer killed
+with SIGKILL loses about that much plus the writer's backlog (normally a
+message or two); the promise is at most a second, which leaves room for a
+process that the machine stalls for a while.  :mod:`friction_sim.replay`
+reads such a file up to its last complete record.  Ending on SIGINT or
+SIGTERM finishes the file (summary and footer) as long as the process gets
+to call :meth:`Recorder.finish` (context manager exit, ``destroy_node``, or
+the ``atexit`` hook every open recorder registers).
 
-:class:`StateLog` samples a :class:`~friction_sim.core.Slider` on the uniform
-simulation-time grid (exact states from the core, independent of timer
-jitter) and picks up every event, whoever advances the slider.
-:func:`record_offline` runs the exact core without a clock and writes what
-the slider node writes; it is what the tests and ``--verify`` rely on.
+:meth:`Recorder.record_tick` logs what a
+:class:`~friction_sim.realtime.RealtimeSlider` tick passed (the exact states
+on its uniform log grid, independent of timer jitter, the events and the
+period means); the slider node and :func:`record_offline`, which runs the
+same realtime loop without a clock, both record through it.
 """
 
 from __future__ import annotations
@@ -74,7 +77,7 @@ from friction_sim.messages import (
     parameters_message, rejection_message, seconds_to_ns,
 )
 from friction_sim.params import Inputs, SliderParams
-from friction_sim.realtime import CommandOutcome, PeriodSummary, RealtimeSlider
+from friction_sim.realtime import CommandOutcome, PeriodSummary, RealtimeSlider, Tick
 
 _log = logging.getLogger("friction_sim.recording")
 
@@ -390,26 +393,28 @@ class _Serializer:
     """
 
     def __init__(self) -> None:
-        self._checked: dict[type, bool] = {}
+        self._checked: set[type] = set()
+        self._warned: set[type] = set()
 
     def __call__(self, msg: Any) -> bytes:
         from rclpy.serialization import serialize_message
 
         data = serialize_message(msg)
         cls = type(msg)
-        if not _has_sequences(cls) or self._checked.get(cls) is False:
+        if not _has_sequences(cls):
             return data
         exact = 4 + _cdr_end(msg, 0)
         if len(data) <= exact:
             return data
-        if cls not in self._checked:
+        if cls not in self._checked:  # until one cut message has read back equal
             from rclpy.serialization import deserialize_message
 
-            ok = deserialize_message(data[:exact], cls) == msg
-            self._checked[cls] = ok
-            if not ok:
-                _log.warning("exact CDR length check failed for %s; writing rmw's length", cls.__name__)
+            if deserialize_message(data[:exact], cls) != msg:  # (or NaN in it: then check the next one)
+                if cls not in self._warned:
+                    self._warned.add(cls)
+                    _log.warning("exact CDR length check failed for %s; writing rmw's length", cls.__name__)
                 return data
+            self._checked.add(cls)
         return data[:exact]
 
 
@@ -430,6 +435,7 @@ class RecordingStats:
     first_ns: int | None = None
     last_ns: int | None = None
     chunks_flushed: int = 0
+    last_flush: float | None = None  # time.monotonic() of the last flush
     bytes: int = 0
     error: str | None = None
 
@@ -476,7 +482,7 @@ class Recorder:
     def __init__(
         self, path: str | os.PathLike[str], metadata: Mapping[str, Any] | None = None, *,
         metadata_name: str = METADATA_NAME, queue_size: int = 65536, block_when_full: bool = False,
-        flush_interval: float = 0.5, chunk_size: int = 4 * 1024 * 1024, fsync: bool = False,
+        flush_interval: float = 0.25, chunk_size: int = 4 * 1024 * 1024, fsync: bool = False,
         qos_profiles: list[dict[str, Any]] | None = None,
     ) -> None:
         from mcap.writer import CompressionType, IndexType, Writer
@@ -501,6 +507,7 @@ class Recorder:
         self._sequence: dict[int, int] = {}
         self._templates: dict[str, Any] = {}
         self._serialize = _Serializer()
+        self._bad_items: set[tuple[Any, ...]] = set()
         try:
             self._stream = open(self.path, "wb")  # noqa: SIM115 - closed in finish()
         except OSError as error:
@@ -542,6 +549,16 @@ class Recorder:
     def record_period(self, period: PeriodSummary, frame_id: str = "slideway") -> bool:
         """Queue a period's mean velocity on ``mean_velocity``."""
         return self._put(("period", period, frame_id, None))
+
+    def record_tick(self, tick: Tick, frame_id: str = "slideway") -> None:
+        """Queue what a :class:`~friction_sim.realtime.RealtimeSlider` tick
+        passed: the exact states on the log grid, the events, the period means."""
+        for state in tick.samples:
+            self.record_state(state, frame_id)
+        for event in tick.events:
+            self.record_event(event)
+        for period in tick.periods:
+            self.record_period(period, frame_id)
 
     def record_command(self, outcome: CommandOutcome, frame_id: str = "") -> bool:
         """Queue a handled command: accepted on its own topic, refused on
@@ -654,7 +671,7 @@ class Recorder:
                 if item is _STOP:
                     return
                 if item is not None:
-                    self._handle(item)
+                    self._handle_safely(item)
                     dirty = True
                     for _ in range(256):  # drain a batch, then let other threads run
                         try:
@@ -663,7 +680,7 @@ class Recorder:
                             break
                         if item is _STOP:
                             return
-                        self._handle(item)
+                        self._handle_safely(item)
                 if time.monotonic() >= next_flush:
                     if dirty:
                         self._flush()
@@ -681,6 +698,22 @@ class Recorder:
                     if self._finished:
                         return
 
+    def _handle_safely(self, item: tuple[Any, ...]) -> None:
+        """Write one item; a bad item (a topic reused with another type, a
+        value no message can hold) is dropped and counted, only I/O errors
+        end the recording."""
+        try:
+            self._handle(item)
+        except OSError:
+            raise
+        except Exception as error:  # noqa: BLE001 - one bad item must not end the recording
+            with self._dropped_lock:
+                self._dropped += 1
+            key = (type(error), str(item[1])[:40] if item[0] == "msg" else item[0])
+            if key not in self._bad_items:
+                self._bad_items.add(key)
+                _log.warning("recording %s: dropped a %s record: %s", self.path, item[0], _one_line(error))
+
     def _flush(self) -> None:
         """End the open chunk, write it and flush the file object (and fsync)."""
         flush = getattr(self._writer, "flush", None)
@@ -693,6 +726,7 @@ class Recorder:
         if self._fsync:
             os.fsync(self._stream.fileno())
         self.stats.chunks_flushed += 1
+        self.stats.last_flush = time.monotonic()
 
     def _handle(self, item: tuple[Any, ...]) -> None:
         kind, a, b, c = item
@@ -825,79 +859,6 @@ def _one_line(error: BaseException) -> str:
 # --------------------------------------------------------------------------
 
 
-class StateLog:
-    """Records a :class:`Slider` on a uniform simulation-time grid, exactly.
-
-    Grid point k is at ``k / log_rate`` s (the grid of
-    :class:`~friction_sim.realtime.RealtimeSlider`), from the first point at
-    or after the slider's time.  Call :meth:`catch_up` with the time you are
-    about to advance the slider to (a tick, a command) *before* advancing
-    it: it advances the slider through every grid point up to that time,
-    records the exact state at each, and records every event the slider
-    logged since the last call (including those passed by other callers'
-    ``advance_to``), in time order.  Whatever the timer does, the samples
-    are on the grid, because the core's result does not depend on how the
-    time axis is cut.
-
-    Not thread-safe on its own: call it under the same lock that guards the
-    slider.  Grid points the slider had already passed are skipped and
-    counted in :attr:`missed`.
-    """
-
-    def __init__(self, recorder: Recorder, slider: Slider, log_rate: float = 1000.0,
-                 frame_id: str = "slideway") -> None:
-        if not (isinstance(log_rate, (int, float)) and math.isfinite(log_rate) and log_rate > 0.0):
-            raise ParameterError("log_rate", log_rate, "must be a finite rate > 0 Hz")
-        self.recorder, self.slider, self.frame_id = recorder, slider, frame_id
-        self.log_rate = float(log_rate)
-        self._k = math.ceil(slider.t * self.log_rate)
-        if self._k / self.log_rate < slider.t:  # rounding
-            self._k += 1
-        self._events_seen = sum(slider.event_counts.values())
-        self.missed = 0
-        self.samples = 0
-
-    @property
-    def next_time(self) -> float:
-        """Simulation time [s] of the next grid point."""
-        return self._k / self.log_rate
-
-    def catch_up(self, t: float) -> int:
-        """Record every grid state at times <= ``t`` and every new event;
-        return the number of states recorded."""
-        slider, recorder, rate = self.slider, self.recorder, self.log_rate
-        self._take_events()
-        count = 0
-        while (t_k := self._k / rate) <= t:
-            if t_k >= slider.t:
-                events = slider.advance_to(t_k)
-                if events:
-                    self._events_seen += len(events)
-                    for event in events:
-                        recorder.record_event(event)
-                recorder.record_state(slider.state(), self.frame_id)
-                count += 1
-            else:
-                self.missed += 1
-            self._k += 1
-        self.samples += count
-        return count
-
-    def _take_events(self) -> None:
-        total = sum(self.slider.event_counts.values())
-        new = total - self._events_seen
-        if new > 0:
-            logged = self.slider.events
-            for event in logged[-new:] if new <= len(logged) else logged:
-                self.recorder.record_event(event)
-            self._events_seen = total
-
-
-# --------------------------------------------------------------------------
-# Offline recording.
-# --------------------------------------------------------------------------
-
-
 def plant_parameters(params: SliderParams, inputs: Inputs) -> dict[str, float]:
     """The physical parameters and inputs a run starts with, by field name
     (what ``--verify`` rebuilds the simulation from)."""
@@ -981,7 +942,7 @@ def record_offline(
         raise ParameterError("duration", duration, "must be a finite time >= 0 s")
     rate = float(tick_rate if tick_rate is not None else log_rate)
     rt = RealtimeSlider(params, inputs, wall_ns=0, real_time_factor=1.0, publish_rate=rate,
-                        mean_window_periods=mean_window_periods)
+                        mean_window_periods=mean_window_periods, log_rate=log_rate)
     actions = _actions(schedule)
     end_ns = seconds_to_ns(duration)
     extra = dict(metadata or {})
@@ -991,22 +952,17 @@ def record_offline(
                   block_when_full=True) as recorder:
         recorder.record_parameters({**plant_parameters(params, inputs), "log_rate": float(log_rate),
                                     "frame_id": frame_id, "mean_window_periods": mean_window_periods}, 0.0)
-        log = StateLog(recorder, rt.slider, log_rate, frame_id)
         pending = list(reversed(actions))
         k = 0
-        while True:
+        while True:  # exactly what the node does, with the clock replaced by a counter
             tick_ns = min(round(k * 1e9 / rate), end_ns)
             while pending and pending[-1].t_ns <= tick_ns:
                 action = pending.pop()
-                log.catch_up(ns_to_seconds(action.t_ns))
                 recorder.record_command(_apply(rt, action), frame_id)
-            log.catch_up(ns_to_seconds(tick_ns))
-            for period in rt.tick(tick_ns).periods:
-                recorder.record_period(period, frame_id)
+            recorder.record_tick(rt.tick(tick_ns), frame_id)
             if tick_ns >= end_ns:
                 break
             k += 1
-        log.catch_up(ns_to_seconds(end_ns))
     stats = recorder.stats
     return stats
 
@@ -1026,7 +982,7 @@ def _apply(rt: RealtimeSlider, action: _Action) -> CommandOutcome:
 
 
 __all__ = [
-    "DEFAULT_QOS", "FORMAT", "METADATA_NAME", "Recorder", "RecordingStats", "StateLog",
+    "DEFAULT_QOS", "FORMAT", "METADATA_NAME", "Recorder", "RecordingStats",
     "message_class", "message_definition", "message_type_name", "offered_qos_profiles",
     "plant_parameters", "qos_yaml", "record_offline", "recording_metadata", "share_directory", "type_hash",
 ]

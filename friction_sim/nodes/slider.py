@@ -102,7 +102,7 @@ class SliderNode(Node):
         if self.recorder is not None:
             self.recorder.record_parameters(_recorded(values), 0.0)
             self.command_listeners.append(self.recorder.record_command)
-            self.tick_listeners.append(self._record_tick)
+            self.tick_listeners.append(lambda tick: self.recorder.record_tick(tick, self._frame_id))
         self._frame_id: str = values["frame_id"]
         self._publish_clock: bool = values["publish_clock"]
         self._make_publishers()
@@ -132,17 +132,6 @@ class SliderNode(Node):
             else:  # after Ctrl-C the context (and /rosout) is gone already
                 print(f"[slider] {note}", file=sys.stderr)
         super().destroy_node()
-
-    def _record_tick(self, tick: Tick) -> None:
-        """Log what the tick passed: exact grid states, events, period means (tick thread)."""
-        recorder = self.recorder
-        assert recorder is not None
-        for state in tick.samples:
-            recorder.record_state(state, self._frame_id)
-        for event in tick.events:
-            recorder.record_event(event)
-        for period in tick.periods:
-            recorder.record_period(period, self._frame_id)
 
     @property
     def realtime(self) -> RealtimeSlider:
@@ -291,9 +280,9 @@ class SliderNode(Node):
                 self._rt.set_publish_rate(values["publish_rate"])
         self._publish_clock = self.get_parameter("publish_clock").value
         self._frame_id = self.get_parameter("frame_id").value
-        if self.recorder is not None:
-            values = {n: self.get_parameter(n).value for n in PARAMETERS}
-            self.recorder.record_parameters({n: values[n] for n in names if n in values},
+        others = names - set(PLANT) - set(INPUTS)  # the physics changes were recorded as commands
+        if self.recorder is not None and others:
+            self.recorder.record_parameters({n: self.get_parameter(n).value for n in others},
                                             self._rt.clock.now(now), changed=True)
 
 
