@@ -89,7 +89,7 @@ def throughput(quick: bool, moving: bool) -> None:
         schedule = random_schedule(rng, duration, frequency=FREQUENCY, mean_periods=4.0)
         title = "anything goes: phi in [-1.2, 1.2], a in [0, 0.8], f in [25, 100] Hz"
     # The random frequencies make "periods" a matter of phase: count them exactly.
-    core_time = median_time(lambda: run_core(schedule, duration), 3 if quick else 5)
+    core_time = median_time(lambda: run_core(schedule, duration), 3 if quick else 9)
     slider = run_core(schedule, duration)
     phase_periods = _phase_periods(schedule, duration)
     counts = slider.event_counts

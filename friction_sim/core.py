@@ -46,7 +46,7 @@ from collections import deque
 from dataclasses import dataclass, fields
 from enum import Enum, IntEnum
 from types import ModuleType
-from typing import Any, Deque
+from typing import Any, Deque, NamedTuple
 
 import numpy as np
 
@@ -83,10 +83,10 @@ class EventKind(str, Enum):
     REVERSAL = "reversal"  # slipping one way -> slipping the other, through v = 0
 
 
-@dataclass(frozen=True, slots=True)
-class Event:
+class Event(NamedTuple):
     """One transition.  Position and velocity are continuous through it
-    (v = 0 at every kind of event); what changes is the mode."""
+    (v = 0 at every kind of event); what changes is the mode.  (A named
+    tuple: the periodic regime makes two per period, so they must be cheap.)"""
 
     t: float
     kind: EventKind
@@ -591,7 +591,7 @@ class Slider:
                     break
                 self._mark_cycle()
             elif self._next_t <= t:
-                happened.extend(self._apply())
+                happened.append(self._apply())
             else:
                 break
         self._t = float(t)
@@ -698,7 +698,7 @@ class Slider:
             delay = slip_stop_delay(w, seg.b0, seg.b1, phase, seg.omega)
         self._next_t = t + delay
 
-    def _apply(self) -> list[Event]:
+    def _apply(self) -> Event:
         """Carry out the event at ``_next_t`` and start the segment after it."""
         seg, t = self._seg, self._next_t
         if seg.direction == 0:
@@ -706,7 +706,7 @@ class Slider:
             phase, direction, cycles = self._next_start
             event = Event(t, EventKind.SLIP_START, seg.x0, phase, Mode.STUCK, _MODES[direction])
             self._start_slip(t, seg.x0, 0.0, phase, cycles, direction)
-            return [self._log(event)]
+            return self._log(event)
         if seg.stop is not None:
             travel, theta = seg.stop
             x = seg.x0 + travel
@@ -720,9 +720,9 @@ class Slider:
             phase, plant.b0[direction], plant.b1
         )[0] == 0.0:
             self._start_slip(t, x, 0.0, phase, cycles, direction)
-            return [self._log(Event(t, EventKind.REVERSAL, x, phase, before, _MODES[direction]))]
+            return self._log(Event(t, EventKind.REVERSAL, x, phase, before, _MODES[direction]))
         self._start_stuck(t, x, phase, cycles, after_stop=seg.direction)
-        return [self._log(Event(t, EventKind.STICK, x, phase, before, Mode.STUCK))]
+        return self._log(Event(t, EventKind.STICK, x, phase, before, Mode.STUCK))
 
     def _schedule_mark(self) -> None:
         if self._marks is not None:

@@ -30,7 +30,7 @@ from friction_sim.params import Inputs, SliderParams
 from friction_sim.simulation import Command, random_schedule, run_schedule
 from friction_sim.urelation import dimensional_speed, u_map
 
-reference = pytest.importorskip("friction_sim.reference")
+from friction_sim import reference
 ReferenceInputs = reference.ReferenceInputs
 
 X_TOL = 1e-8
