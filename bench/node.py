@@ -42,6 +42,7 @@ from rclpy.executors import SingleThreadedExecutor
 from std_msgs.msg import Float64
 
 BIN = Path(sys.executable).parent
+HARNESS = Path(__file__).resolve().parents[1] / "test" / "ros_harness.py"
 NAMESPACE = "/bench"
 TOPICS = {"pose": PoseStamped, "velocity": TwistStamped, "friction_force": WrenchStamped,
           "mean_velocity": TwistStamped, "diagnostics": DiagnosticArray}
@@ -152,10 +153,12 @@ def flood(listener: Listener, pid: int, rate: int, seconds: float) -> None:
     listener.spin_for(1.0)
     rss_before = rss_mib(pid)
     listener.clear()
-    flooder = subprocess.Popen([sys.executable, __file__, "--flood", str(rate), str(seconds)])
-    time.sleep(0.0)
+    # The same flooder the tests use (test/ros_harness.py), in its own process.
+    flooder = subprocess.Popen([sys.executable, str(HARNESS), NAMESPACE, str(rate), str(seconds)],
+                               stdout=subprocess.PIPE, text=True)
     listener.spin_for(seconds + 1.0)
-    flooder.wait(timeout=30)
+    sent = int(flooder.communicate(timeout=30)[0])
+    print(f"    flooder: sent {sent} commands in {seconds:g} s")
     rss_during = rss_mib(pid)
     stamps = np.array([stamp_ns(m) for _, m in listener.log["pose"]], dtype=np.int64) / 1e9
     diagnostics = [m for _, m in listener.log["diagnostics"]]
@@ -178,37 +181,10 @@ def flood(listener: Listener, pid: int, rate: int, seconds: float) -> None:
           f"3 s later {rss_after:.1f} MiB")
 
 
-def run_flooder(rate: int, seconds: float) -> None:
-    """The flooding process: publish drive_force commands at ``rate`` per second."""
-    rclpy.init()
-    node = rclpy.create_node("bench_flooder", namespace=NAMESPACE)
-    publisher = node.create_publisher(Float64, "drive_force", 10)
-    deadline = time.monotonic() + 3.0
-    while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
-        time.sleep(0.01)
-    start = time.monotonic()
-    sent = 0
-    msg = Float64()
-    while (now := time.monotonic()) - start < seconds:
-        due = int((now - start) * rate)
-        while sent < due:
-            msg.data = 0.7 + 1e-4 * (sent % 100)
-            publisher.publish(msg)
-            sent += 1
-        time.sleep(0.001)
-    print(f"    flooder: sent {sent} commands in {time.monotonic() - start:.2f} s")
-    node.destroy_node()
-    rclpy.shutdown()
-
-
 def main() -> int:
     parser = argparse.ArgumentParser(description="slider node benchmark")
     parser.add_argument("--duration", type=float, default=60.0, help="steady window [s] per pass (60)")
-    parser.add_argument("--flood", nargs=2, metavar=("RATE", "SECONDS"), help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.flood:
-        run_flooder(int(args.flood[0]), float(args.flood[1]))
-        return 0
     print(f"bench/node.py  (ROS_DOMAIN_ID {os.environ['ROS_DOMAIN_ID']}, localhost only)")
     rclpy.init()
     listener = Listener()

@@ -21,7 +21,7 @@ import pytest
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
-from time_limit import EndlessLoop, time_limit
+from helpers import EndlessLoop, mirrored, time_limit
 
 from friction_sim.core import EventKind, Mode, Slider
 from friction_sim.errors import FrictionSimError, ParameterError
@@ -503,17 +503,6 @@ def test_energy_balance():
 # --------------------------------------------------------------------------
 
 
-def _mirror(schedule):
-    out = []
-    for c in schedule:
-        changes = dict(c.changes)
-        for name in ("drive_force", "external_force_x"):
-            if name in changes:
-                changes[name] = -changes[name]
-        out.append(Command(c.t, changes))
-    return out
-
-
 @pytest.mark.parametrize("seed", [0, 11])
 def test_mirror_symmetry(seed):
     rng = np.random.default_rng(seed)
@@ -526,7 +515,7 @@ def test_mirror_symmetry(seed):
     a = Slider(SliderParams(), start, event_log_size=None)
     b = Slider(SliderParams(), mirror_start, event_log_size=None)
     ta = run_schedule(a, schedule, times)
-    tb = run_schedule(b, _mirror(schedule), times)
+    tb = run_schedule(b, mirrored(schedule), times)
 
     assert np.max(np.abs(ta.x)) > 0.0
     assert np.array_equal(tb.x, -ta.x)

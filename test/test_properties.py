@@ -14,7 +14,7 @@ import numpy as np
 from hypothesis import HealthCheck, Phase, assume, given, settings
 from hypothesis import strategies as st
 
-from time_limit import EndlessLoop, time_limit
+from helpers import EndlessLoop, mirrored, time_limit
 
 from friction_sim.core import EventKind, Mode, Slider
 from friction_sim.params import Inputs, SliderParams
@@ -57,17 +57,6 @@ def schedule_for(seed, params, f, periods, external):
     commands = random_schedule(rng, duration, frequency=f, weight=params.weight, external=external)
     return [Command(c.t, {**c.changes, "drive_force": c.changes["drive_force"] * params.mu / 0.1})
             for c in commands], duration
-
-
-def mirrored(schedule):
-    out = []
-    for c in schedule:
-        changes = dict(c.changes)
-        for name in ("drive_force", "external_force_x"):
-            if name in changes:
-                changes[name] = -changes[name]
-        out.append(Command(c.t, changes))
-    return out
 
 
 # --------------------------------------------------------------------------

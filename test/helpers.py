@@ -1,5 +1,6 @@
-"""A time limit that turns a hang into a test failure (for core tests that
-once looped forever at the edges of the slip window)."""
+"""Helpers shared by the core tests: a time limit that turns a hang into a
+test failure (some inputs once looped forever at the edges of the slip
+window), and the mirror image of a command schedule."""
 
 from __future__ import annotations
 
@@ -7,6 +8,8 @@ import contextlib
 import signal
 import time
 from typing import Iterator
+
+from friction_sim.simulation import Command
 
 
 class EndlessLoop(AssertionError):
@@ -31,3 +34,15 @@ def time_limit(seconds: float, what: str) -> Iterator[None]:
         signal.signal(signal.SIGALRM, old_handler)
         if old_delay > 0.0:
             signal.setitimer(signal.ITIMER_REAL, max(old_delay - (time.monotonic() - started), 1e-3))
+
+
+def mirrored(schedule: list[Command]) -> list[Command]:
+    """The schedule with every tangential force reversed (Fd -> -Fd, Fx -> -Fx)."""
+    out = []
+    for command in schedule:
+        changes = dict(command.changes)
+        for name in ("drive_force", "external_force_x"):
+            if name in changes:
+                changes[name] = -changes[name]
+        out.append(Command(command.t, changes))
+    return out
