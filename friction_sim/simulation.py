@@ -17,7 +17,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from friction_sim.core import Event, EventKind, Slider, Trajectory
+from friction_sim.core import Event, Slider, Trajectory
 from friction_sim.errors import ParameterError
 from friction_sim.params import Inputs, SliderParams, amplitude_ratio, drive_ratio, require_finite
 from friction_sim.urelation import nondimensional_speed, u_map
@@ -175,6 +175,4 @@ def simulate(
     )
 
 
-__all__ = [
-    "Command", "Schedule", "SimulationResult", "random_schedule", "run_schedule", "simulate", "EventKind",
-]
+__all__ = ["Command", "Schedule", "SimulationResult", "random_schedule", "run_schedule", "simulate"]
