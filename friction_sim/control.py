@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import lru_cache
 from typing import Deque
 
@@ -125,7 +125,7 @@ class MeanSpeedController:
 
     def __init__(self, config: ControllerConfig, *, drive_force: float, frequency: float,
                  target_speed: float = 0.0) -> None:
-        self.config = config
+        self._config = config
         self._drive_force = require_finite("drive_force", drive_force)
         self._frequency = require_positive("excitation_frequency", frequency)
         self._target = 0.0
@@ -162,10 +162,6 @@ class MeanSpeedController:
         self._last_clean = None
         return self._update()
 
-    def set_model(self, model: SliderParams) -> ControlOutput:
-        self.config = replace(self.config, model=model)
-        return self._update()
-
     def on_mean_velocity(self, speed: float, stamp: float, wall_ns: int) -> ControlOutput:
         """A measured mean speed [m/s] over the plant's last window, stamped with
         the simulation time at its end and received at ``wall_ns``."""
@@ -193,6 +189,16 @@ class MeanSpeedController:
         return self._update()
 
     # -- the law ----------------------------------------------------------------
+
+    @property
+    def config(self) -> ControllerConfig:
+        return self._config
+
+    @config.setter
+    def config(self, config: ControllerConfig) -> None:
+        """A new model or tuning takes effect at once."""
+        self._config = config
+        self.output = self._decide()
 
     def _update(self) -> ControlOutput:
         self.output = self._decide()

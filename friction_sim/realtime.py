@@ -35,6 +35,23 @@ NS_PER_S = 1_000_000_000
 #: summarised only from the last ones (only at absurd real-time factors).
 _MARK_BACKLOG = 4096
 MAX_MEAN_WINDOW = 10_000
+#: The real-time loop simulates at most this many excitation periods per wall
+#: second (f times the real-time factor): each costs the core ~10 us, and a
+#: tick must stay well inside its millisecond.
+MAX_PERIODS_PER_SECOND = 20_000.0
+
+
+def check_load(frequency: float, rate: float, field: str = "excitation_frequency") -> None:
+    """Refuse an excitation frequency and real-time factor the loop cannot keep up with."""
+    if frequency * rate <= MAX_PERIODS_PER_SECOND:
+        return
+    if field == "real_time_factor":
+        raise ParameterError(field, rate, f"must be <= {MAX_PERIODS_PER_SECOND / frequency:g} at excitation_frequency "
+                                          f"{frequency:g} Hz (at most {MAX_PERIODS_PER_SECOND:g} excitation periods "
+                                          "per wall-clock second in real time)")
+    raise ParameterError(field, frequency, f"must be <= {MAX_PERIODS_PER_SECOND / rate:g} Hz at real_time_factor "
+                                           f"{rate:g} (at most {MAX_PERIODS_PER_SECOND:g} excitation periods per "
+                                           "wall-clock second in real time)")
 
 
 class SimClock:
@@ -126,6 +143,7 @@ class RealtimeSlider:
         log_rate: float | None = None,
     ) -> None:
         self.clock = SimClock(real_time_factor, wall_ns)
+        check_load(inputs.excitation_frequency, self.clock.rate)
         self.slider = Slider(params, inputs, event_log_size=1000, cycle_log_size=_MARK_BACKLOG)
         self.publish_rate = require_positive("publish_rate", publish_rate)
         self._window: Deque[CycleMark] = deque(maxlen=2)
@@ -164,6 +182,7 @@ class RealtimeSlider:
             try:
                 candidate = inputs.replace(**values)
                 check_contact(params, candidate, values)
+                check_load(candidate.excitation_frequency, self.clock.rate)
             except ParameterError as error:
                 outcomes.append(self._refuse(t, topic, values,
                                              str(error) if error.field == topic else f"{topic}: {error}"))
@@ -212,6 +231,7 @@ class RealtimeSlider:
         self.publish_rate = require_positive("publish_rate", rate)
 
     def set_real_time_factor(self, rate: float, wall_ns: int) -> None:
+        check_load(self.slider.inputs.excitation_frequency, rate, "real_time_factor")
         self._advance(wall_ns)
         self.clock.set_rate(rate, wall_ns)
 

@@ -236,3 +236,27 @@ def test_console_scripts_run_and_stop_on_sigint(ros: None, command: list[str]) -
             process.kill()
             process.communicate()
         probe.close()
+
+
+def test_a_target_is_checked_against_the_drive_force_in_force(ros: None) -> None:
+    """The drive force came by topic (the parameter still says 0.7): a positive
+    target is refused by ros2 param set instead of killing the node."""
+    ns = f"/c{uuid.uuid4().hex[:8]}"
+    controller = ControllerNode(namespace=ns, parameter_overrides=[Parameter("plant_node", value="")])
+    probe = Probe(ns, controller, outputs={"excitation_amplitude": __import__(
+        "std_msgs.msg", fromlist=["Float64"]).Float64})
+    try:
+        probe.send("drive_force", -0.5)
+        assert probe.spin_until(lambda: controller.control.drive_force == -0.5, 10.0)
+        client = AsyncParameterClient(probe.node, f"{ns}/controller")
+        assert client.wait_for_services(5.0)
+        future = client.set_parameters([Parameter("target_speed", value=0.0001)])
+        assert probe.spin_until(future.done, 5.0)
+        (result,) = future.result().results
+        assert not result.successful and "target_speed" in result.reason and "-0.5" in result.reason
+        future = client.set_parameters([Parameter("target_speed", value=-0.0001)])
+        assert probe.spin_until(future.done, 5.0) and future.result().results[0].successful
+        assert controller.control.target_speed == -0.0001
+    finally:
+        probe.close()
+        controller.destroy_node()

@@ -336,3 +336,33 @@ def test_a_flood_of_commands_does_not_stall_publishing(ros: None) -> None:
         node.communicate(timeout=15)
         probe.close()
     assert node.returncode == 0
+
+
+def test_parameters_are_checked_against_the_inputs_in_force(rig) -> None:  # type: ignore[no-untyped-def]
+    """A topic command changed the amplitude since the parameters were set: a
+    mass that would lift the slider off under it is refused, and nothing changes."""
+    node, probe, outcomes = rig
+    probe.send("excitation_amplitude", 9.0)
+    assert probe.spin_until(lambda: node.realtime.slider.inputs.excitation_amplitude == 9.0, 5.0)
+    client = AsyncParameterClient(probe.node, f"{node.get_namespace()}/slider")
+    assert client.wait_for_services(5.0)
+    future = client.set_parameters([Parameter("mass", value=0.6)])
+    assert probe.spin_until(future.done, 5.0)
+    (result,) = future.result().results
+    assert not result.successful and "mass" in result.reason and "0.6" in result.reason
+    assert node.get_parameter("mass").value == 1.0
+    assert node.realtime.slider.params.mass == 1.0
+
+
+def test_a_frequency_the_real_time_loop_cannot_follow_is_refused(rig) -> None:  # type: ignore[no-untyped-def]
+    node, probe, outcomes = rig
+    count = len(outcomes)
+    probe.send("excitation_frequency", 1e7)
+    assert probe.spin_until(lambda: len(outcomes) > count, 5.0)
+    assert not outcomes[-1].accepted
+    reason = outcomes[-1].reason
+    assert "excitation_frequency" in reason and "10000000.0" in reason and "20000" in reason
+    assert node.realtime.slider.inputs.excitation_frequency == 50.0
+    poses = len(probe.received["pose"])
+    probe.spin_for(0.3)
+    assert len(probe.received["pose"]) > poses + 100, "still publishing at ~1 kHz"

@@ -27,7 +27,7 @@ effect.
 
 from __future__ import annotations
 
-import math
+import copy
 import time
 from typing import Any, Callable, Sequence
 
@@ -49,6 +49,8 @@ QOS_DEPTH = 10
 PLANT_TIMEOUT = 5.0
 DISCOVERY_SETTLE = 0.5
 MODEL = ("mass", "mu", "gravity")
+#: Parameters that make up the ControllerConfig.
+CONFIG = {*MODEL, "integral_gain", "max_amplitude_ratio", "settle_margin", "mean_window_periods"}
 
 #: name -> (default, descriptor); defaults are the paper's Fig. 2 case.
 PARAMETERS: dict[str, tuple[Any, Any]] = {
@@ -95,8 +97,8 @@ class ControllerNode(Node):
         self.create_subscription(Float64, "excitation_frequency", self._on_frequency, QOS_DEPTH)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(1.0, self._publish_diagnostics, clock=steady)
-        self.add_on_set_parameters_callback(self._validate_parameters)
-        self.add_post_set_parameters_callback(self._apply_parameters)
+        self.add_on_set_parameters_callback(self._set_parameters)
+        self.add_post_set_parameters_callback(self._parameters_set)
         self.ready = False
         self.active: bool = values["active"]
         self._plant_settled = not values["plant_node"]
@@ -129,7 +131,7 @@ class ControllerNode(Node):
             return  # both ends of a new connection need a moment to match
         self.destroy_timer(self._startup_timer)
         self.ready = True
-        self._publish(self._control._update())  # noqa: SLF001 - recompute with the settled model
+        self._publish(self._control.output)
 
     def _poll_plant(self) -> None:
         if self._plant_future is None and self._plant.services_are_ready():
@@ -141,20 +143,22 @@ class ControllerNode(Node):
                          f"{PLANT_TIMEOUT:g} s: using this node's own mass, mu and gravity", warn=True)
 
     def _adopt_plant(self, response: Any) -> None:
-        values = [Parameter.from_parameter_msg(_named(name, value)).value
-                  for name, value in zip([*MODEL, "mean_window_periods"], response.values)]
+        """Take the plant's mass, mu, gravity and window as this node's own
+        parameters (validated and applied like any parameter change)."""
+        names = [*MODEL, "mean_window_periods"]
         try:
-            model = SliderParams(*values[:3])
-            self._control.config = ControllerConfig(
-                model=model, integral_gain=self._control.config.integral_gain,
-                max_amplitude_ratio=self._control.config.max_amplitude_ratio,
-                mean_window_periods=int(values[3]), settle_margin=self._control.config.settle_margin,
-            )
-        except (ParameterError, TypeError, ValueError) as error:
+            values = [Parameter.from_parameter_msg(_named(name, value)).value
+                      for name, value in zip(names, response.values)]
+            update = [Parameter(n, value=float(v)) for n, v in zip(MODEL, values[:3])]
+            update.append(Parameter("mean_window_periods", value=int(values[3])))
+        except (TypeError, ValueError, IndexError) as error:
             self._settle(f"plant parameters unusable ({error}): using this node's own", warn=True)
             return
-        self.set_parameters([Parameter(n, value=float(v)) for n, v in zip(MODEL, values[:3])]
-                            + [Parameter("mean_window_periods", value=int(values[3]))])
+        result = self.set_parameters_atomically(update)
+        if not result.successful:
+            self._settle(f"plant parameters unusable ({result.reason}): using this node's own", warn=True)
+            return
+        model = self._control.config.model
         self.model_source = f"plant node '{self.get_parameter('plant_node').value}'"
         self._settle(f"model from {self.model_source}: mass {model.mass:g} kg, mu {model.mu:g}, "
                      f"gravity {model.gravity:g} m/s^2")
@@ -255,37 +259,33 @@ class ControllerNode(Node):
 
     # -- parameters ---------------------------------------------------------------
 
-    def _validate_parameters(self, changes: list[Parameter]) -> SetParametersResult:
-        """Cross-field rules: the model and tuning must make a valid configuration,
-        and a target must agree in sign with the drive force."""
-        values = {name: self.get_parameter(name).value for name in PARAMETERS}
-        values.update({p.name: p.value for p in changes})
+    def _set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
+        """Cross-field rules, checked on a copy of the controller as it is now
+        (drive force and frequency follow the topics): the change takes effect
+        whole, or it is refused and nothing changes."""
+        values = {p.name: p.value for p in changes}
+        candidate = copy.copy(self._control)
         try:
-            _config(values)
-            if "target_speed" in values and any(p.name == "target_speed" for p in changes):
-                MeanSpeedController(_config(values), drive_force=values["drive_force"],
-                                    frequency=values["excitation_frequency"], target_speed=values["target_speed"])
+            if values.keys() & CONFIG:
+                current = {name: self.get_parameter(name).value for name in PARAMETERS}
+                candidate.config = _config({**current, **values})
+            if "drive_force" in values:
+                candidate.set_drive_force(values["drive_force"])
+            if "excitation_frequency" in values:
+                candidate.set_frequency(values["excitation_frequency"])
+            if "target_speed" in values:
+                candidate.set_target(values["target_speed"])
         except ParameterError as error:
             self.rejected += 1
             self.last_rejection = str(error)
             return SetParametersResult(successful=False, reason=str(error))
+        self._control = candidate
+        if "active" in values or "target_speed" in values:
+            self.active = values.get("active", True) or "target_speed" in values
         return SetParametersResult(successful=True)
 
-    def _apply_parameters(self, changes: list[Parameter]) -> None:
-        names = {p.name for p in changes}
-        values = {name: self.get_parameter(name).value for name in PARAMETERS}
-        control = self._control
-        if names & {*MODEL, "integral_gain", "max_amplitude_ratio", "settle_margin", "mean_window_periods"}:
-            control.config = _config(values)
-        if "drive_force" in names:
-            control.set_drive_force(values["drive_force"])
-        if "excitation_frequency" in names:
-            control.set_frequency(values["excitation_frequency"])
-        if "target_speed" in names:
-            control.set_target(values["target_speed"])
-        if "active" in names or "target_speed" in names:
-            self.active = values["active"] or "target_speed" in names
-        self._publish(control._update())  # noqa: SLF001
+    def _parameters_set(self, changes: list[Parameter]) -> None:
+        self._publish(self._control.output)
 
 
 def _config(values: dict[str, Any]) -> ControllerConfig:

@@ -29,7 +29,6 @@ diagnostics; a lock keeps it and the tick thread apart.
 
 from __future__ import annotations
 
-import math
 import sys
 import threading
 import time
@@ -51,7 +50,7 @@ from friction_sim.nodes.common import (
     PolledGroup, float_descriptor, int_descriptor, run_node, take_all, text_descriptor, wall_ns,
 )
 from friction_sim.params import Inputs, SliderParams, check_contact
-from friction_sim.realtime import MAX_MEAN_WINDOW, CommandOutcome, RealtimeSlider, Tick
+from friction_sim.realtime import MAX_MEAN_WINDOW, MAX_PERIODS_PER_SECOND, CommandOutcome, RealtimeSlider, Tick, check_load
 
 QOS_DEPTH = 10
 COMMANDS_PER_TICK = QOS_DEPTH
@@ -68,7 +67,7 @@ PARAMETERS: dict[str, tuple[Any, Any]] = {
     "gravity": (10.0, float_descriptor("gravity g [m/s^2]", 1e-6, 1e3)),
     "drive_force": (0.7, float_descriptor("drive force Fd [N] along +x", -1e6, 1e6)),
     "excitation_amplitude": (5.0, float_descriptor("excitation amplitude Pa [N], < m*g", 0.0, 1e6)),
-    "excitation_frequency": (50.0, float_descriptor("excitation frequency f [Hz]", 1e-3, 1e5)),
+    "excitation_frequency": (50.0, float_descriptor("excitation frequency f [Hz]", 1e-3, MAX_PERIODS_PER_SECOND)),
     "publish_rate": (1000.0, float_descriptor("state publishing rate [Hz]", 1.0, 10_000.0)),
     "real_time_factor": (1.0, float_descriptor("simulated seconds per wall second", 1e-3, 1e3)),
     "publish_clock": (False, text_descriptor("publish simulation time on /clock")),
@@ -91,7 +90,8 @@ class SliderNode(Node):
         for name, (default, descriptor) in PARAMETERS.items():
             self.declare_parameter(name, default, descriptor)
         values = {name: self.get_parameter(name).value for name in PARAMETERS}
-        params, inputs = _plant(values, SliderParams(), Inputs())
+        params = SliderParams(**{name: values[name] for name in PLANT})
+        inputs = Inputs(**{name: values[name] for name in INPUTS})
         check_contact(params, inputs)
         self.recorder = _open_recorder(values)
         self._rt = RealtimeSlider(
@@ -108,8 +108,8 @@ class SliderNode(Node):
         self._make_publishers()
         self._make_subscriptions()
         self.create_timer(1.0, self._on_diagnostics, clock=Clock(clock_type=ClockType.STEADY_TIME))
-        self.add_on_set_parameters_callback(self._validate_parameters)
-        self.add_post_set_parameters_callback(self._apply_parameters)
+        self.add_on_set_parameters_callback(self._set_parameters)
+        self.add_post_set_parameters_callback(self._parameters_set)
         self._lock = threading.Lock()
         self._stop = threading.Event()
         # Let the tick thread take the GIL within 0.5 ms even while the
@@ -241,49 +241,56 @@ class SliderNode(Node):
 
     # -- parameters ---------------------------------------------------------------
 
-    def _validate_parameters(self, changes: list[Parameter]) -> SetParametersResult:
-        """The one place for cross-field rules: the whole new set must be a valid plant."""
+    def _set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
+        """The one place for cross-field rules, and atomic: the change reaches
+        the core here, under the lock, or it is refused and nothing changes.
+        It is checked against the inputs in force (which topic commands may
+        have changed since the parameters were last set)."""
         late = [p.name for p in changes if p.name in START_ONLY]
         if late:
             reason = f"{late[0]} only takes effect at start-up (use --ros-args -p {late[0]}:=...)"
             return SetParametersResult(successful=False, reason=reason)
-        values = {name: self.get_parameter(name).value for name in PARAMETERS}
-        values.update({p.name: p.value for p in changes})
-        try:
-            params, inputs = _plant(values, self._rt.slider.params, self._rt.slider.inputs)
-            check_contact(params, inputs, {p.name for p in changes})
-        except ParameterError as error:
-            with self._lock:
-                outcome = self._rt.refuse("parameters", {p.name: p.value for p in changes}, str(error), wall_ns())
+        values = {p.name: p.value for p in changes}
+        plant = {n: values[n] for n in PLANT if n in values}
+        inputs = {n: values[n] for n in INPUTS if n in values}
+        now = wall_ns()
+        with self._lock:
+            rt = self._rt
+            try:
+                params = rt.slider.params.replace(**plant)
+                new_inputs = rt.slider.inputs.replace(**inputs)
+                check_contact(params, new_inputs, values)
+                check_load(new_inputs.excitation_frequency, values.get("real_time_factor", rt.clock.rate),
+                           "real_time_factor" if "real_time_factor" in values else "excitation_frequency")
+                if "mean_window_periods" in values:
+                    rt.set_mean_window(values["mean_window_periods"])
+            except ParameterError as error:
+                outcome = rt.refuse("parameters", values, str(error), now)
+                refused = True
+            else:
+                refused = False
+                outcomes = [rt.set_params(params, now)] if plant else []
+                outcomes += rt.commands([("parameters", inputs)], now) if inputs else []
+                if "real_time_factor" in values:
+                    rt.set_real_time_factor(values["real_time_factor"], now)
+                if "publish_rate" in values:
+                    rt.set_publish_rate(values["publish_rate"])
+        if refused:
             self._report(outcome)
-            return SetParametersResult(successful=False, reason=str(error))
+            return SetParametersResult(successful=False, reason=outcome.reason)
+        for outcome in outcomes:
+            self._report(outcome)
         return SetParametersResult(successful=True)
 
-    def _apply_parameters(self, changes: list[Parameter]) -> None:
-        names = {p.name for p in changes}
-        values = {p.name: p.value for p in changes}
-        now = wall_ns()
-        if names & set(PLANT):
-            params, _ = _plant({n: self.get_parameter(n).value for n in PARAMETERS}, SliderParams(), Inputs())
-            with self._lock:
-                outcome = self._rt.set_params(params, now)
-            self._report(outcome)
-        inputs = {name: values[name] for name in INPUTS if name in values}
-        if inputs:
-            self._command("parameters", inputs)
-        with self._lock:
-            if "real_time_factor" in names:
-                self._rt.set_real_time_factor(values["real_time_factor"], now)
-            if "mean_window_periods" in names:
-                self._rt.set_mean_window(values["mean_window_periods"])
-            if "publish_rate" in names:
-                self._rt.set_publish_rate(values["publish_rate"])
+    def _parameters_set(self, changes: list[Parameter]) -> None:
+        """After a successful set: the settings the tick thread reads, and the
+        record of the non-physics ones (physics changes were recorded as commands)."""
         self._publish_clock = self.get_parameter("publish_clock").value
         self._frame_id = self.get_parameter("frame_id").value
-        others = names - set(PLANT) - set(INPUTS)  # the physics changes were recorded as commands
+        others = {p.name for p in changes} - set(PLANT) - set(INPUTS)
         if self.recorder is not None and others:
             self.recorder.record_parameters({n: self.get_parameter(n).value for n in others},
-                                            self._rt.clock.now(now), changed=True)
+                                            self._rt.clock.now(wall_ns()), changed=True)
 
 
 def _float_command(name: str) -> Callable[[Float64], tuple[str, dict[str, float]]]:
@@ -310,17 +317,6 @@ def _open_recorder(values: dict[str, Any]) -> Any:
 
 def _recorded(values: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in values.items() if k not in ("log_path",)}
-
-
-def _plant(values: dict[str, Any], params: SliderParams, inputs: Inputs) -> tuple[SliderParams, Inputs]:
-    """SliderParams and Inputs from parameter values (validated by the dataclasses),
-    keeping the external force of ``inputs``, which has no parameter."""
-    new_params = params.replace(**{name: values[name] for name in PLANT})
-    new_inputs = inputs.replace(**{name: values[name] for name in INPUTS})
-    for name in ("publish_rate", "real_time_factor"):
-        if not (isinstance(values[name], float) and math.isfinite(values[name]) and values[name] > 0):
-            raise ParameterError(name, values[name], "must be finite and > 0")
-    return new_params, new_inputs
 
 
 def _health(report: dict[str, Any]) -> tuple[bytes, str]:
