@@ -13,7 +13,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from friction_sim.control import ControllerConfig, MeanSpeedController
 from friction_sim.experiment import ExperimentResult, StepMetrics, step_metrics
+from friction_sim.params import Inputs
 from friction_sim.scenario import Expectation, Scenario, load_scenario
 
 
@@ -40,15 +42,6 @@ class Verdict:
     met: bool
 
 
-def frequency_at(scenario: Scenario, t: float) -> float:
-    """The excitation frequency in force at ``t``."""
-    frequency = scenario.inputs.excitation_frequency
-    for command in scenario.schedule:
-        if command.topic == "excitation_frequency" and command.t <= t:
-            frequency = float(command.value)  # type: ignore[arg-type]
-    return frequency
-
-
 def judge(scenario: Scenario, result: ExperimentResult) -> list[Verdict]:
     """Each expectation of ``scenario`` checked against a run."""
     verdicts = []
@@ -58,13 +51,32 @@ def judge(scenario: Scenario, result: ExperimentResult) -> list[Verdict]:
         end = next(t for t in starts if t > expectation.t)
         target = target_at(scenario, expectation.t, initial)
         before = target_at(scenario, expectation.t - 1e-9, initial)
-        if before == target or before > 1.0:  # a disturbance, or leaving an unreachable target
-            before = _measured_before(result, expectation.t)
+        if before == target or _unreachable(scenario, before, expectation.t - 1e-9):
+            before = _measured_before(result, expectation.t)  # a disturbance, or leaving a saturated target
         metrics = step_metrics(result.mean_velocity, expectation.t, end, before, target,
-                               frequency_at(scenario, expectation.t + 1e-9), expectation.within)
+                               inputs_at(scenario, expectation.t + 1e-9).excitation_frequency, expectation.within)
         met = metrics.settling_periods <= expectation.periods and not metrics.overshoot > expectation.overshoot
         verdicts.append(Verdict(expectation, target, metrics, met))
     return verdicts
+
+
+def inputs_at(scenario: Scenario, t: float) -> Inputs:
+    """The plant's inputs scheduled to be in force at ``t``."""
+    inputs = scenario.inputs
+    for command in scenario.schedule:
+        if command.t <= t and command.topic in ("drive_force", "excitation_frequency"):
+            inputs = inputs.replace(**{command.topic: float(command.value)})  # type: ignore[arg-type]
+    return inputs
+
+
+def _unreachable(scenario: Scenario, target: float, t: float) -> bool:
+    """Whether the plant cannot reach ``target`` (the controller saturates)."""
+    inputs = inputs_at(scenario, t)
+    top = float((scenario.controller or {}).get("max_amplitude_ratio", 0.95))
+    controller = MeanSpeedController(ControllerConfig(model=scenario.params, max_amplitude_ratio=top),
+                                     drive_force=inputs.drive_force, frequency=inputs.excitation_frequency,
+                                     target_speed=target)
+    return controller.output.unreachable
 
 
 def target_at(scenario: Scenario, t: float, initial: float) -> float:

@@ -29,6 +29,9 @@ from typing import Any, Callable, NoReturn, Sequence
 from friction_sim.errors import FrictionSimError
 
 EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+MAX_GRID = 2001
+MAX_SAMPLES = 10_000_000
 
 
 class _OneLineParser(argparse.ArgumentParser):
@@ -96,6 +99,8 @@ def _cmd_umap(args: argparse.Namespace) -> int:
         return 0
     if args.csv is None and args.png is None:
         raise FrictionSimError("umap --grid needs --csv FILE and/or --png FILE")
+    if not 2 <= args.grid <= MAX_GRID:
+        raise FrictionSimError(f"--grid {args.grid} rejected: must be in [2, {MAX_GRID}]")
     umap = urelation.u_grid(args.grid)
     if args.csv is not None:
         from friction_sim.export import write_umap_csv
@@ -130,6 +135,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     params, inputs = _plant(args)
     sample_rate = args.sample_rate if args.csv is not None else None
+    if sample_rate is not None and sample_rate * args.duration > MAX_SAMPLES:
+        raise FrictionSimError(f"--sample-rate {sample_rate:g} x --duration {args.duration:g} rejected: "
+                               f"at most {MAX_SAMPLES:.0e} samples")
     result = simulate(params, inputs, args.duration, settle=args.settle, sample_rate=sample_rate)
     if args.csv is not None:
         from friction_sim.export import write_trajectory_csv
@@ -224,7 +232,7 @@ def build_parser() -> argparse.ArgumentParser:
     umap = sub.add_parser("umap", help="the nondimensional mean speed U(phi, a): one point or the map")
     umap.add_argument("--phi", type=float, help="drive ratio phi = Fd/(mu m g)")
     umap.add_argument("--ratio", type=float, help="amplitude ratio a = Pa/(m g)")
-    umap.add_argument("--grid", type=int, help="map on N x N points of (phi, a) in (0, 1)")
+    umap.add_argument("--grid", type=int, help="map on N x N points of (phi, a) in (0, 1), N <= 2001")
     umap.add_argument("--csv", type=Path, help="write the map as CSV (phi, amplitude_ratio, U)")
     umap.add_argument("--png", type=Path, help="draw the map like the paper's Fig. 3")
     umap.add_argument("--json", action="store_true", help="print one JSON object")
@@ -303,7 +311,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OSError as error:
         print(f"friction-sim {args.command}: error: {error.strerror or error}: "
               f"{error.filename or ''}".rstrip(": "), file=sys.stderr)
+    except KeyboardInterrupt:
+        print(f"friction-sim {args.command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Exception as error:  # noqa: BLE001 - rclpy refusing a parameter is a usage error too
+        if not _is_ros_parameter_error(error):
+            raise
+        print(f"friction-sim {args.command}: error: {error}", file=sys.stderr)
     return EXIT_USAGE
+
+
+def _is_ros_parameter_error(error: Exception) -> bool:
+    """rclpy's ParameterException family (an out-of-range parameter override)."""
+    from rclpy.exceptions import ParameterException
+
+    return isinstance(error, ParameterException)
 
 
 if __name__ == "__main__":

@@ -582,8 +582,8 @@ class Slider:
         """Advance exactly to time ``t``; return the events that happened since the
         previous call (a slip that an input change starts at once belongs to
         the next call), up to and including ``t``."""
-        if not t >= self._t:
-            raise ParameterError("t", t, f"must be >= the current time {self._t!r} s")
+        if not (t >= self._t and math.isfinite(t)):
+            raise ParameterError("t", t, f"must be finite and >= the current time {self._t!r} s")
         happened: list[Event] = []
         while True:
             if self._next_mark_t <= self._next_t:

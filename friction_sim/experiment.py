@@ -225,8 +225,12 @@ class _InProcess:
         self.slider = SliderNode(namespace=ns, parameter_overrides=[Parameter(k, value=v) for k, v in values.items()])
         self.nodes: list[Any] = [self.slider]
         if spec.controller:
-            controller = ControllerNode(namespace=ns, parameter_overrides=[
-                Parameter(k, value=v) for k, v in _controller_values(spec).items()])
+            try:
+                controller = ControllerNode(namespace=ns, parameter_overrides=[
+                    Parameter(k, value=v) for k, v in _controller_values(spec).items()])
+            except BaseException:
+                self.close()  # the slider's tick thread and recorder must not outlive the failure
+                raise
             controller.output_listeners.append(lambda out: result.amplitude.append((self.now(), out.amplitude)))
             self.nodes.append(controller)
         for node in self.nodes:

@@ -43,6 +43,7 @@ from typing import Any
 
 import yaml
 
+from friction_sim.control import ControllerConfig, MeanSpeedController
 from friction_sim.errors import FrictionSimError, ParameterError
 from friction_sim.experiment import COMMAND_TOPICS, ExperimentSpec, ScheduledCommand
 from friction_sim.params import Inputs, SliderParams, check_contact
@@ -174,7 +175,7 @@ class _Parser:
         log_rate = self.number(top["log_rate"], "log_rate", positive=True) if "log_rate" in top else 1000.0
         name = str(top["name"][1]) if "name" in top else "experiment"
         params, inputs = self.plant(top)
-        controller = self.controller(top.get("controller"))
+        controller = self.controller(top.get("controller"), params, inputs)
         schedule = self.schedule(top.get("schedule"), duration, params, inputs, controller is not None)
         output = Path(str(top["output"][1])) if "output" in top else Path("out") / name
         return Scenario(
@@ -245,14 +246,25 @@ class _Parser:
                 values.update({k: v for k, v in (section.get("ros__parameters") or {}).items() if k in PLANT_KEYS})
         return values
 
-    def controller(self, entry: tuple[yaml.Node, Any] | None) -> dict[str, Any] | None:
+    def controller(self, entry: tuple[yaml.Node, Any] | None, params: SliderParams,
+                   inputs: Inputs) -> dict[str, Any] | None:
         if entry is None or entry[1] is False or entry[1] is None:
             return None
         if entry[1] is True:
             return {}
         settings: dict[str, Any] = {}
-        for key, item in self.mapping(entry[0], CONTROLLER_KEYS, "controller").items():
+        items = self.mapping(entry[0], CONTROLLER_KEYS, "controller")
+        for key, item in items.items():
             settings[key] = str(item[1]) if key == "plant_node" else self.number(item, key)
+        try:  # the rules the controller node applies to its parameters
+            model = params.replace(**{k: settings[k] for k in ("mass", "mu", "gravity") if k in settings})
+            config = ControllerConfig(model=model, **{k: settings[k] for k in (
+                "integral_gain", "max_amplitude_ratio", "settle_margin") if k in settings})
+            MeanSpeedController(config, drive_force=inputs.drive_force, frequency=inputs.excitation_frequency,
+                                target_speed=settings.get("target_speed", 0.0))
+        except ParameterError as error:
+            node = items[error.field][0] if error.field in items else entry[0]
+            raise self.fail(node, f"controller: {error}") from error
         return settings
 
     def schedule(self, entry: tuple[yaml.Node, Any] | None, duration: float, params: SliderParams,
@@ -300,6 +312,10 @@ class _Parser:
         """Apply an open-loop command to the inputs in force, refusing what the slider would refuse."""
         changes: dict[str, float]
         if command.topic == "target_speed":
+            target = float(command.value)  # type: ignore[arg-type]
+            if target != 0.0 and (current.drive_force == 0.0 or (target > 0.0) != (current.drive_force > 0.0)):
+                raise self.fail(item, f"target_speed = {target!r} at t = {command.t!r} s rejected: must have the "
+                                      f"sign of drive_force = {current.drive_force!r} N in force then")
             return current
         if command.topic == "external_wrench":
             x, z = command.value  # type: ignore[misc]

@@ -20,7 +20,7 @@ import numpy as np
 from friction_sim.core import Event, Slider, Trajectory
 from friction_sim.errors import ParameterError
 from friction_sim.params import Inputs, SliderParams, amplitude_ratio, drive_ratio, require_finite
-from friction_sim.urelation import nondimensional_speed, u_map
+from friction_sim.urelation import nondimensional_speed, predict
 
 
 @dataclass(frozen=True)
@@ -168,7 +168,7 @@ def simulate(
         params=params, inputs=inputs, duration=duration, settle=settle, periods=periods,
         mean_velocity=mean_velocity,
         u_measured=nondimensional_speed(mean_velocity, inputs.excitation_frequency, params.gravity, params.mu),
-        u_exact=u_map(phi, ratio), phi=phi, amplitude_ratio=ratio,
+        u_exact=predict(params, inputs).u, phi=phi, amplitude_ratio=ratio,
         event_counts={kind.value: n for kind, n in slider.event_counts.items()},
         wall_time=wall, trajectory=trajectory,
         events=slider.events if sample_rate is not None else [],

@@ -94,6 +94,10 @@ BAD = [
     ("duration: 1.0\nschedule:\n  - {drive_force: 0.5}\n", 3, ("needs 't'",)),
     ("duration: 1.0\ncontroller:\n  gain: 3\n", 3, ("unknown key 'gain'",)),
     ("duration: 1.0\nexpect:\n  - {t: 0.3, within: 0.01, periods: 3}\n", 3, ("no scheduled command",)),
+    ("duration: 1.0\ncontroller:\n  integral_gain: 5\n", 3, ("integral_gain", "5.0", "[0, 2]")),
+    ("duration: 1.0\ncontroller:\n  target_speed: -0.001\n", 3, ("target_speed", "-0.001", "sign")),
+    ("duration: 1.0\ncontroller: {}\nschedule:\n  - {t: 0.2, drive_force: -0.7}\n"
+     "  - {t: 0.5, target_speed: 0.0002}\n", 5, ("target_speed", "0.0002", "-0.7")),
     ("duration: [1\n", 2, ("not valid YAML",)),
     ("- just a list\n", None, ("mapping",)),
 ]

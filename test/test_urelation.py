@@ -314,3 +314,13 @@ def test_amplitude_ratio_out_of_range_is_refused(bad, text):
         assert isinstance(err, ValueError) and isinstance(err, FrictionSimError)
         assert err.field == "amplitude_ratio"
         assert "amplitude_ratio" in str(err) and text in str(err)
+
+
+def test_simulate_predicts_with_the_external_force() -> None:
+    """With an external force the exact U uses the effective groups, and the
+    simulated mean speed agrees with it."""
+    from friction_sim.params import Inputs, SliderParams
+    from friction_sim.simulation import simulate
+
+    result = simulate(SliderParams(), Inputs(external_force_x=0.1, external_force_z=2.0), 1.0, settle=0.1)
+    assert result.u_exact == pytest.approx(result.u_measured * 10.0 / 12.0, rel=1e-9)

@@ -28,6 +28,8 @@ def _overrides(path: Path | None, node_name: str) -> list:  # type: ignore[type-
         document = yaml.safe_load(path.read_text()) or {}
     except (OSError, yaml.YAMLError) as error:
         raise FrictionSimError(f"cannot read parameters file {path}: {error}") from error
+    if not isinstance(document, dict):
+        raise FrictionSimError(f"{path}: not a ROS 2 parameters file (expected '/**:' or '{node_name}:' sections)")
     values: dict = {}
     for key, section in document.items():
         if key in ("/**", node_name, f"/{node_name}") and isinstance(section, dict):
@@ -40,7 +42,13 @@ def main(args: Sequence[str] | None = None, slider_params: Path | None = None,
     """Run both nodes until Ctrl-C / SIGTERM; exit code as for the single nodes."""
 
     def make() -> list[Node]:
-        slider = SliderNode(parameter_overrides=_overrides(slider_params, "slider"))
-        return [slider, ControllerNode(parameter_overrides=_overrides(controller_params, "controller"))]
+        slider_overrides = _overrides(slider_params, "slider")
+        controller_overrides = _overrides(controller_params, "controller")
+        slider = SliderNode(parameter_overrides=slider_overrides)
+        try:
+            return [slider, ControllerNode(parameter_overrides=controller_overrides)]
+        except BaseException:
+            slider.destroy_node()  # its tick thread and recorder must not outlive the failure
+            raise
 
     return run_node(make, args, prog="feeder")
