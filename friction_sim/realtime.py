@@ -155,6 +155,7 @@ class RealtimeSlider:
         self._rejected_before_interval = 0
         self.stats = TickStats(interval_start_ns=wall_ns)
         self.last_period: PeriodSummary | None = None
+        self._prediction: tuple[SliderParams, Inputs, Prediction] | None = None
         self.log_rate = require_positive("log_rate", log_rate) if log_rate is not None else None
         self._next_log_index = 0  # the log grid is k / log_rate in simulation time
         # What advancing produced since the last tick (commands advance too).
@@ -303,7 +304,13 @@ class RealtimeSlider:
     # -- diagnostics ------------------------------------------------------------
 
     def prediction(self) -> Prediction:
-        return predict(self.slider.params, self.slider.inputs)
+        """The U relation's prediction for the inputs in force (computed once
+        per change: it is asked for under the tick's lock)."""
+        params, inputs = self.slider.params, self.slider.inputs
+        cached = self._prediction
+        if cached is None or cached[0] is not params or cached[1] is not inputs:
+            cached = self._prediction = (params, inputs, predict(params, inputs))
+        return cached[2]
 
     def diagnostics(self, wall_ns: int) -> dict[str, Any]:
         """The figures of the last diagnostics interval; starts a new interval."""
