@@ -104,6 +104,21 @@ class StepMetrics:
     steady_error: float
 
 
+def settling_periods(samples: Sequence[tuple[float, float]], start: float, target: float, frequency: float,
+                     tolerance: float) -> float:
+    """Whole excitation periods from ``start`` until the first sample after
+    which every sample stays within ``tolerance`` (relative) of ``target``
+    (for a target of 0: exactly 0); inf when that never happens."""
+    settled_at = None
+    for t, v in samples:
+        inside = abs(v - target) <= tolerance * abs(target) if target else v == 0.0
+        if inside and settled_at is None:
+            settled_at = t
+        elif not inside:
+            settled_at = None
+    return math.inf if settled_at is None else float(math.ceil((settled_at - start) * frequency - 1e-6))
+
+
 def step_metrics(samples: Sequence[tuple[float, float]], t_step: float, t_end: float, before: float,
                  target: float, frequency: float, tolerance: float) -> StepMetrics:
     """Metrics of the mean-speed samples in (t_step, t_end] for a step from
@@ -111,14 +126,7 @@ def step_metrics(samples: Sequence[tuple[float, float]], t_step: float, t_end: f
     window = [(t, v) for t, v in samples if t_step < t <= t_end]
     if not window:
         return StepMetrics(t_step, target, math.inf, math.nan, math.nan)
-    settled_from = None
-    for t, v in window:
-        inside = abs(v - target) <= tolerance * abs(target)
-        if inside and settled_from is None:
-            settled_from = t
-        elif not inside:
-            settled_from = None
-    settling = math.inf if settled_from is None else math.ceil((settled_from - t_step) * frequency - 1e-6)
+    settling = settling_periods(window, t_step, target, frequency, tolerance)
     step = target - before
     if abs(step) > 0.05 * abs(target):  # a step of the target: overshoot beyond it, per step size
         direction = 1.0 if step > 0 else -1.0

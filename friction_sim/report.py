@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
 
+from friction_sim.experiment import settling_periods
 from friction_sim.params import Inputs, SliderParams
 from friction_sim.urelation import predict
 
@@ -140,22 +141,10 @@ def build_report(data: RunData, tolerance: float = TOLERANCE) -> list[SegmentRow
         rows.append(SegmentRow(
             start=start, end=end, mode=mode, command=labels.get(start, "start"), target=target,
             achieved=achieved, error=error,
-            settling_periods=_settling(samples, start, target, inputs.excitation_frequency, tolerance),
+            settling_periods=settling_periods(samples, start, target, inputs.excitation_frequency, tolerance),
             stick_fraction=_stick_fraction(data, end - period, end),
         ))
     return rows
-
-
-def _settling(samples: list[tuple[float, float]], start: float, target: float, frequency: float,
-              tolerance: float) -> float:
-    settled_at = None
-    for t, v in samples:
-        inside = abs(v - target) <= tolerance * abs(target) if target else abs(v) <= 1e-12
-        if inside and settled_at is None:
-            settled_at = t
-        elif not inside:
-            settled_at = None
-    return math.inf if settled_at is None else float(math.ceil((settled_at - start) * frequency - 1e-6))
 
 
 def _fmt(value: Any) -> str:

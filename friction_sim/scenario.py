@@ -46,6 +46,7 @@ import yaml
 from friction_sim.control import ControllerConfig, MeanSpeedController
 from friction_sim.errors import FrictionSimError, ParameterError
 from friction_sim.experiment import COMMAND_TOPICS, ExperimentSpec, ScheduledCommand
+from friction_sim.paramfile import read_params_file
 from friction_sim.params import Inputs, SliderParams, check_contact
 
 PLANT_KEYS = ("mass", "mu", "gravity", "drive_force", "excitation_amplitude", "excitation_frequency")
@@ -237,14 +238,10 @@ class _Parser:
         if not path.is_file():
             path = Path(str(value))
         try:
-            document = yaml.safe_load(path.read_text()) or {}
-        except (OSError, yaml.YAMLError) as error:
-            raise self.fail(node, f"plant_params: cannot read {value}: {error}") from error
-        values: dict[str, float] = {}
-        for key, section in document.items() if isinstance(document, dict) else ():
-            if key in ("/**", "slider", "/slider") and isinstance(section, dict):
-                values.update({k: v for k, v in (section.get("ros__parameters") or {}).items() if k in PLANT_KEYS})
-        return values
+            values = read_params_file(path, "slider")
+        except FrictionSimError as error:
+            raise self.fail(node, f"plant_params: {error}") from error
+        return {k: v for k, v in values.items() if k in PLANT_KEYS}
 
     def controller(self, entry: tuple[yaml.Node, Any] | None, params: SliderParams,
                    inputs: Inputs) -> dict[str, Any] | None:

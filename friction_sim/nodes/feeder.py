@@ -11,7 +11,7 @@ from typing import Sequence
 
 from rclpy.node import Node
 
-from friction_sim.errors import FrictionSimError
+from friction_sim.paramfile import read_params_file
 from friction_sim.nodes.common import run_node
 from friction_sim.nodes.controller import ControllerNode
 from friction_sim.nodes.slider import SliderNode
@@ -21,20 +21,9 @@ def _overrides(path: Path | None, node_name: str) -> list:  # type: ignore[type-
     """Parameters for ``node_name`` from a ROS 2 params file (``/**`` or the node's own key)."""
     if path is None:
         return []
-    import yaml
     from rclpy.parameter import Parameter
 
-    try:
-        document = yaml.safe_load(path.read_text()) or {}
-    except (OSError, yaml.YAMLError) as error:
-        raise FrictionSimError(f"cannot read parameters file {path}: {error}") from error
-    if not isinstance(document, dict):
-        raise FrictionSimError(f"{path}: not a ROS 2 parameters file (expected '/**:' or '{node_name}:' sections)")
-    values: dict = {}
-    for key, section in document.items():
-        if key in ("/**", node_name, f"/{node_name}") and isinstance(section, dict):
-            values.update(section.get("ros__parameters", {}) or {})
-    return [Parameter(name, value=value) for name, value in values.items()]
+    return [Parameter(name, value=value) for name, value in read_params_file(path, node_name).items()]
 
 
 def main(args: Sequence[str] | None = None, slider_params: Path | None = None,
