@@ -731,8 +731,10 @@ class Slider:
     def _mark_cycle(self) -> None:
         """Record the start of period ``_next_mark_n`` and aim at the next."""
         seg, t = self._seg, self._next_mark_t
-        x = seg.evaluate(t)[0]
-        stuck = self._stuck_time + (t - seg.t0 if seg.direction == 0 else 0.0)
+        if seg.direction == 0:  # only x is needed: no full state evaluation
+            x, stuck = seg.x0, self._stuck_time + (t - seg.t0)
+        else:
+            x, stuck = seg.x0 + seg.direction * seg.speed_and_travel(t - seg.t0)[1], self._stuck_time
         assert self._marks is not None
         self._marks.append(CycleMark(self._next_mark_n, t, x, stuck))
         self._next_mark_n += 1

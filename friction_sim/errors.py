@@ -7,7 +7,6 @@ programming errors still surface as tracebacks during development.
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 
@@ -35,9 +34,5 @@ class RecordingError(FrictionSimError):
 
 
 def _quote(value: Any) -> str:
-    """Format a rejected value so that NaN, inf and floats read unambiguously."""
-    if isinstance(value, float):
-        if math.isnan(value) or math.isinf(value):
-            return str(value)
-        return repr(value)
+    """Format a rejected value unambiguously (repr: 0.1 stays 0.1, nan, inf, 'text')."""
     return repr(value)
