@@ -40,9 +40,9 @@ from typing import Deque
 
 from friction_sim.errors import ParameterError
 from friction_sim.params import SliderParams, require_finite, require_positive
+from friction_sim.realtime import NS_PER_S
 from friction_sim.urelation import amplitude_ratio_for, u_map
 
-NS_PER_S = 1_000_000_000
 
 
 @dataclass(frozen=True)

@@ -310,15 +310,17 @@ class _Attached:
             self.driver.create_subscription(kinds.get(topic, Float64), topic, self._keeper(topic), 100)
 
     def _keeper(self, topic: str) -> Callable[[Any], None]:
+        from friction_sim.messages import stamp_ns
+
         def keep(msg: Any) -> None:
             header = getattr(msg, "header", None)
             if topic == "pose":
-                self._stamp_ns = max(self._stamp_ns, header.stamp.sec * 1_000_000_000 + header.stamp.nanosec)
+                self._stamp_ns = max(self._stamp_ns, stamp_ns(header.stamp))
             if topic in ("drive_force", "excitation_amplitude", "excitation_frequency"):
                 self._inputs = self._inputs.replace(**{topic: msg.data})
             if self.recorder is not None and self._stamp_ns >= 0:
                 stamped = header is not None and topic != "external_wrench"
-                log_ns = header.stamp.sec * 1_000_000_000 + header.stamp.nanosec if stamped else self._stamp_ns
+                log_ns = stamp_ns(header.stamp) if stamped else self._stamp_ns
                 self.recorder.write(topic, msg, log_ns)
         return keep
 
@@ -351,9 +353,11 @@ def _command_publishers(driver: Any) -> dict[str, Any]:
 def _collect_mean_velocity(driver: Any, result: ExperimentResult) -> None:
     from geometry_msgs.msg import TwistStamped
 
+    from friction_sim.messages import ns_to_seconds, stamp_ns
+
     driver.create_subscription(
         TwistStamped, "mean_velocity",
-        lambda m: result.mean_velocity.append((m.header.stamp.sec + m.header.stamp.nanosec * 1e-9,
+        lambda m: result.mean_velocity.append((ns_to_seconds(stamp_ns(m.header.stamp)),
                                                m.twist.linear.x)), 100)
 
 

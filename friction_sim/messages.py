@@ -31,7 +31,6 @@ nanoseconds (:func:`seconds_to_ns`), the resolution of a ROS time stamp.
 
 from __future__ import annotations
 
-import math
 from typing import Any, Mapping
 
 from builtin_interfaces.msg import Time
@@ -41,9 +40,8 @@ from rcl_interfaces.msg import Parameter, ParameterEvent, ParameterType, Paramet
 from std_msgs.msg import Float64
 
 from friction_sim.core import Event, Mode, SliderState
-from friction_sim.realtime import CommandOutcome, PeriodSummary
+from friction_sim.realtime import NS_PER_S, CommandOutcome, PeriodSummary
 
-NS_PER_S = 1_000_000_000
 
 #: Inputs that arrive as a std_msgs/Float64 on the topic of the same name.
 FLOAT_COMMANDS = ("drive_force", "excitation_amplitude", "excitation_frequency", "target_speed")
@@ -160,7 +158,7 @@ def rejection_message(outcome: CommandOutcome) -> DiagnosticStatus:
     values = the refused values."""
     return DiagnosticStatus(
         level=DiagnosticStatus.WARN, name=outcome.topic, message=outcome.reason,
-        values=[KeyValue(key=key, value=_text(value)) for key, value in outcome.values.items()],
+        values=key_values(outcome.values),
     )
 
 
@@ -185,13 +183,8 @@ def event_message(event: Event) -> DiagnosticStatus:
     before, after = _mode(event.before), _mode(event.after)
     return DiagnosticStatus(
         level=DiagnosticStatus.OK, name=event.kind.value, message=f"{before} -> {after}",
-        values=[
-            KeyValue(key="t", value=repr(float(event.t))),
-            KeyValue(key="x", value=repr(float(event.x))),
-            KeyValue(key="phase", value=repr(float(event.phase))),
-            KeyValue(key="before", value=before),
-            KeyValue(key="after", value=after),
-        ],
+        values=key_values({"t": float(event.t), "x": float(event.x), "phase": float(event.phase),
+                           "before": before, "after": after}),
     )
 
 
@@ -281,11 +274,14 @@ def parameter_event_values(msg: ParameterEvent) -> tuple[dict[str, Any], dict[st
     return new, changed
 
 
-def _text(value: Any) -> str:
-    """Full precision for floats (repr), str() otherwise."""
-    if isinstance(value, float) and math.isfinite(value):
-        return repr(value)
-    return str(value)
+def value_text(value: Any) -> str:
+    """A value as text: full precision for floats (repr), str() otherwise."""
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+def key_values(values: Mapping[str, Any]) -> list[KeyValue]:
+    """diagnostic_msgs/KeyValue pairs with the values as :func:`value_text`."""
+    return [KeyValue(key=str(key), value=value_text(value)) for key, value in values.items()]
 
 
 __all__ = [

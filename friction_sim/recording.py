@@ -74,7 +74,7 @@ from friction_sim.core import Event, Slider
 from friction_sim.errors import ParameterError, RecordingError
 from friction_sim.messages import (
     command_message, event_message, fill_state_messages, mean_velocity_message, ns_to_seconds,
-    parameters_message, rejection_message, seconds_to_ns,
+    parameters_message, rejection_message, seconds_to_ns, value_text,
 )
 from friction_sim.params import Inputs, SliderParams
 from friction_sim.realtime import CommandOutcome, PeriodSummary, RealtimeSlider, Tick
@@ -521,7 +521,7 @@ class Recorder:
             )
             self._writer.start(profile="ros2", library=_library())
             if metadata is not None:
-                self._writer.add_metadata(metadata_name, {str(k): _meta_text(v) for k, v in metadata.items()})
+                self._writer.add_metadata(metadata_name, {str(k): value_text(v) for k, v in metadata.items()})
             self._flush()
         except OSError as error:
             self._stream.close()
@@ -571,7 +571,7 @@ class Recorder:
 
     def add_metadata(self, name: str, data: Mapping[str, Any]) -> bool:
         """Queue an MCAP metadata record (values written as text)."""
-        return self._put(("metadata", name, {str(k): _meta_text(v) for k, v in data.items()}, None))
+        return self._put(("metadata", name, {str(k): value_text(v) for k, v in data.items()}, None))
 
     @property
     def dropped(self) -> int:
@@ -843,10 +843,6 @@ def _library() -> str:
     return f"friction_sim/{known('friction_sim')}; mcap-python/{known('mcap')}"
 
 
-def _meta_text(value: Any) -> str:
-    if isinstance(value, float):
-        return repr(value)
-    return str(value)
 
 
 def _one_line(error: BaseException) -> str:
@@ -873,7 +869,7 @@ def recording_metadata(params: SliderParams, inputs: Inputs, *, log_rate: float,
     and the parameters at start (full precision), plus ``extra``."""
     data = {"format": FORMAT, "log_rate": repr(float(log_rate)), "frame_id": frame_id}
     data.update({name: repr(float(value)) for name, value in plant_parameters(params, inputs).items()})
-    data.update({name: _meta_text(value) for name, value in extra.items()})
+    data.update({name: value_text(value) for name, value in extra.items()})
     return data
 
 

@@ -31,7 +31,7 @@ import copy
 import time
 from typing import Any, Callable, Sequence
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TwistStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
@@ -42,6 +42,7 @@ from std_msgs.msg import Float64
 
 from friction_sim.control import ControllerConfig, ControlOutput, MeanSpeedController
 from friction_sim.errors import ParameterError
+from friction_sim.messages import key_values, ns_to_seconds, stamp_ns
 from friction_sim.nodes.common import float_descriptor, int_descriptor, run_node, text_descriptor, wall_ns
 from friction_sim.params import SliderParams
 
@@ -184,7 +185,7 @@ class ControllerNode(Node):
     def _on_mean_velocity(self, msg: TwistStamped) -> None:
         if not (self.ready and self.active):
             return
-        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        t = ns_to_seconds(stamp_ns(msg.header.stamp))
         self._apply("mean_velocity", msg.twist.linear.x,
                     lambda v: self._control.on_mean_velocity(v, t, wall_ns()), always_publish=True)
 
@@ -252,7 +253,7 @@ class ControllerNode(Node):
             "commands_accepted": self.accepted, "commands_rejected": self.rejected,
             "last_rejection": self.last_rejection,
         }
-        status.values = [KeyValue(key=k, value=repr(v) if isinstance(v, float) else str(v)) for k, v in values.items()]
+        status.values = key_values(values)
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = self.get_clock().now().to_msg()
         self._diag_pub.publish(msg)

@@ -34,7 +34,7 @@ import threading
 import time
 from typing import Any, Callable, Sequence
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
@@ -45,7 +45,7 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import Float64
 
 from friction_sim.errors import ParameterError
-from friction_sim.messages import fill_state_messages, mean_velocity_message, seconds_to_ns, time_msg
+from friction_sim.messages import fill_state_messages, key_values, mean_velocity_message, seconds_to_ns, time_msg
 from friction_sim.nodes.common import (
     PolledGroup, float_descriptor, int_descriptor, run_node, take_all, text_descriptor, wall_ns,
 )
@@ -234,7 +234,7 @@ class SliderNode(Node):
             report = self._rt.diagnostics(wall_ns())
         status = DiagnosticStatus(name="slider", hardware_id=self.get_fully_qualified_name())
         status.level, status.message = _health(report)
-        status.values = [KeyValue(key=key, value=_text(value)) for key, value in report.items()]
+        status.values = key_values(report)
         msg = DiagnosticArray(status=[status])
         time_msg(seconds_to_ns(report["sim_time"]), msg.header.stamp)
         self._diag_pub.publish(msg)
@@ -331,10 +331,6 @@ def _health(report: dict[str, Any]) -> tuple[bytes, str]:
     if not problems:
         return DiagnosticStatus.OK, "running"
     return DiagnosticStatus.WARN, "; ".join(problems)
-
-
-def _text(value: Any) -> str:
-    return repr(value) if isinstance(value, float) else str(value)
 
 
 def main(args: Sequence[str] | None = None) -> int:
