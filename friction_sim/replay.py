@@ -356,9 +356,13 @@ class VerifyResult:
 
 
 @dataclass(frozen=True)
-class _Change:
+class RecordedChange:
+    """An accepted change of the physics, as recorded: when [ns], in which
+    order it was written, on which topic, and the plant and input fields."""
+
     t_ns: int
     order: int
+    topic: str
     plant: dict[str, float]
     inputs: dict[str, float]
 
@@ -399,7 +403,7 @@ def verify(recording: Recording, tolerance: float = DEFAULT_TOLERANCE) -> Verify
         slider = Slider(params, inputs, event_log_size=0)
     except ParameterError as error:
         raise RecordingError(f"{recording.path}: recorded initial parameters are invalid: {error}") from None
-    changes = _changes_in_order(recording)
+    changes = recorded_changes(recording)
     pose_ns, pose = state_series(recording, "pose", lambda m: (m.pose.position.x,), 1)
     vel_ns, vel = state_series(recording, "velocity", lambda m: (m.twist.linear.x,), 1)
     times_ns = np.unique(np.concatenate([pose_ns, vel_ns]))
@@ -461,19 +465,20 @@ def sample_times(times_ns: np.ndarray, log_rate: float | None) -> np.ndarray:
     return np.where(on_grid, grid, seconds)
 
 
-def _changes_in_order(recording: Recording) -> list[_Change]:
+def recorded_changes(recording: Recording) -> list[RecordedChange]:
     """Accepted physics changes: inputs topics, external_wrench, and every
     ParameterEvent on ``parameters`` after the initial one; sorted by time,
     ties in the order they were written."""
     index = {id(raw): i for i, raw in enumerate(recording.messages)}
-    changes: list[_Change] = []
+    changes: list[RecordedChange] = []
     for topic in _INPUT_TOPICS:
         for raw in recording.messages_on(topic):
-            changes.append(_Change(raw.log_time, index[id(raw)], {}, {topic: float(recording.decode(raw).data)}))
+            changes.append(RecordedChange(raw.log_time, index[id(raw)], topic, {},
+                                          {topic: float(recording.decode(raw).data)}))
     for raw in recording.messages_on("external_wrench"):
         force = recording.decode(raw).wrench.force
-        changes.append(_Change(raw.log_time, index[id(raw)], {},
-                               {"external_force_x": float(force.x), "external_force_z": float(force.z)}))
+        changes.append(RecordedChange(raw.log_time, index[id(raw)], "external_wrench", {},
+                                      {"external_force_x": float(force.x), "external_force_z": float(force.z)}))
     initial_seen = False
     for raw in recording.messages_on("parameters"):
         new, changed = parameter_event_values(recording.decode(raw))
@@ -484,7 +489,7 @@ def _changes_in_order(recording: Recording) -> list[_Change]:
         plant = {k: float(v) for k, v in values.items() if k in PLANT_FIELDS}
         inputs = {k: float(v) for k, v in values.items() if k in INPUT_FIELDS}
         if plant or inputs:
-            changes.append(_Change(raw.log_time, index[id(raw)], plant, inputs))
+            changes.append(RecordedChange(raw.log_time, index[id(raw)], "parameters", plant, inputs))
     return sorted(changes, key=lambda c: (c.t_ns, c.order))
 
 

@@ -79,6 +79,10 @@ def inputs_at(data: RunData, t: float, include_controller: bool = True) -> Input
 
 
 def _apply(inputs: Inputs, topic: str, value: Any) -> Inputs:
+    """Inputs after a command: a recorded change (its input fields) or a
+    scheduled one (topic and value, as in a scenario)."""
+    if isinstance(value, dict):
+        return inputs.replace(**value)
     if topic == "external_wrench":
         return inputs.replace(external_force_x=value[0], external_force_z=value[1])
     if topic in ("drive_force", "excitation_amplitude", "excitation_frequency"):
@@ -124,7 +128,8 @@ def _stick_fraction(data: RunData, start: float, end: float) -> float:
 def build_report(data: RunData, tolerance: float = TOLERANCE) -> list[SegmentRow]:
     """One row per segment between scheduled commands."""
     bounds = sorted({0.0, *(t for t, _, _ in data.schedule)})
-    labels = {t: f"{topic} = {_fmt(value)}" for t, topic, value in data.schedule}
+    labels = {t: _fmt(value) if isinstance(value, dict) else f"{topic} = {_fmt(value)}"
+              for t, topic, value in data.schedule}
     rows = []
     for start, end in zip(bounds, bounds[1:] + [data.duration]):
         if end - start <= 0.0:
@@ -148,6 +153,8 @@ def build_report(data: RunData, tolerance: float = TOLERANCE) -> list[SegmentRow
 
 
 def _fmt(value: Any) -> str:
+    if isinstance(value, dict):
+        return ", ".join(f"{k} = {v:g}" for k, v in value.items())
     if isinstance(value, tuple):
         return f"({value[0]:g}, {value[1]:g}) N"
     return f"{value:g}"
@@ -229,8 +236,8 @@ def run_data_from_recording(path: Path) -> RunData:
     reported as one segment per accepted command.
     """
     from friction_sim.experiment import SCENARIO_METADATA
-    from friction_sim.messages import parameter_event_values, stamp_ns
-    from friction_sim.replay import initial_parameters, read_recording
+    from friction_sim.messages import stamp_ns
+    from friction_sim.replay import initial_parameters, read_recording, recorded_changes
     from friction_sim.scenario import parse_scenario
 
     recording = read_recording(path)
@@ -241,18 +248,10 @@ def run_data_from_recording(path: Path) -> RunData:
     params = SliderParams(**{k: float(initial[k]) for k in ("mass", "mu", "gravity") if k in initial})
     inputs = Inputs(**{k: float(initial[k]) for k in ("drive_force", "excitation_amplitude",
                                                        "excitation_frequency") if k in initial})
-    commands: list[tuple[float, str, Any]] = []
-    for topic in ("drive_force", "excitation_amplitude", "excitation_frequency", "external_wrench", "parameters"):
-        for log_time, msg in recording.decoded(topic):
-            t = log_time / 1e9 - start
-            if topic == "external_wrench":
-                commands.append((t, topic, (msg.wrench.force.x, msg.wrench.force.z)))
-            elif topic == "parameters":
-                new, changed = parameter_event_values(msg)
-                commands += [(t, name, value) for name, value in changed.items()]
-            else:
-                commands.append((t, topic, msg.data))
-    commands.sort(key=lambda c: c[0])
+    commands: list[tuple[float, str, Any]] = [
+        (change.t_ns / 1e9 - start, change.topic, change.inputs)
+        for change in recorded_changes(recording) if change.inputs
+    ]
     inputs = _inputs_before(inputs, commands)
     commands = [c for c in commands if c[0] >= 0.0]
     if "scenario" in meta:

@@ -3,6 +3,7 @@ sends it commands, all spun in the test's own thread (no launch_testing)."""
 
 from __future__ import annotations
 
+import subprocess
 import time
 from collections import defaultdict
 from typing import Any, Callable
@@ -84,6 +85,13 @@ class Probe:
     def close(self) -> None:
         self.executor.shutdown(timeout_sec=0.0)
         self.node.destroy_node()
+
+
+def kill_if_running(process: "subprocess.Popen[str]") -> None:
+    """Test clean-up: a node process a failed test left running is killed."""
+    if process.poll() is None:
+        process.kill()
+        process.communicate()
 
 
 def flood(namespace: str, rate: int, seconds: float) -> int:

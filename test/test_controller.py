@@ -28,7 +28,7 @@ from friction_sim.nodes.controller import ControllerNode
 from friction_sim.nodes.slider import SliderNode
 from friction_sim.params import Inputs, SliderParams
 from friction_sim.urelation import amplitude_ratio_for, u_map
-from ros_harness import Probe
+from ros_harness import Probe, kill_if_running
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -232,9 +232,7 @@ def test_console_scripts_run_and_stop_on_sigint(ros: None, command: list[str]) -
         assert process.returncode == 0, err
         assert "Traceback" not in err
     finally:
-        if process.poll() is None:
-            process.kill()
-            process.communicate()
+        kill_if_running(process)
         probe.close()
 
 

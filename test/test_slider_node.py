@@ -28,7 +28,7 @@ from friction_sim.params import Inputs, SliderParams
 from friction_sim.realtime import CommandOutcome
 from friction_sim.simulation import Command, run_schedule
 from friction_sim.urelation import predict
-from ros_harness import Probe, stamp_ns
+from ros_harness import Probe, kill_if_running, stamp_ns
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -293,9 +293,7 @@ def test_slider_console_script_runs_takes_commands_and_stops_cleanly(ros: None, 
         assert "Traceback" not in err
         assert "excitation_amplitude" in err and "nan" in err, "the rejection was logged"
     finally:
-        if process.poll() is None:
-            process.kill()
-            process.communicate()
+        kill_if_running(process)
         probe.close()
 
 
