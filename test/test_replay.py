@@ -189,10 +189,18 @@ def test_publish_keeps_the_recorded_timing(ros: None, tmp_path: Path) -> None:
             assert received == sent, topic
             pairs.append((log_time / 1e9, arrived))
     pairs.sort()
-    recorded0, arrived0 = pairs[0]
-    errors = [abs((arrived - arrived0) - (recorded - recorded0)) for recorded, arrived in pairs]
-    assert max(errors) <= 0.005, f"largest timing error {max(errors) * 1e3:.2f} ms"
-    assert pairs[-1][0] - recorded0 == pytest.approx(1.0)
+    # Timing error: each arrival's offset from the typical offset (the median, so one late first message
+    # does not shift them all). Deadlines are absolute, so errors do not add up; on a loaded CI machine a
+    # few messages may still arrive late, which the 90th percentile tolerates and the maximum bounds.
+    offsets = [arrived - recorded for recorded, arrived in pairs]
+    typical = float(np.median(offsets))
+    errors = np.sort([abs(offset - typical) for offset in offsets])
+    assert errors[int(0.9 * len(errors))] <= 0.003, f"90th percentile timing error {errors[int(0.9 * len(errors))] * 1e3:.2f} ms"
+    assert errors[-1] <= 0.05, f"largest timing error {errors[-1] * 1e3:.2f} ms"
+    half = len(offsets) // 2
+    drift = float(np.median(offsets[half:]) - np.median(offsets[:half]))
+    assert abs(drift) <= 0.002, f"the second half runs {drift * 1e3:.2f} ms behind the first"
+    assert pairs[-1][0] - pairs[0][0] == pytest.approx(1.0)
 
 
 def test_publish_loops_at_a_faster_rate_and_reports_progress(ros: None, tmp_path: Path) -> None:
