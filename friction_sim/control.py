@@ -97,7 +97,7 @@ class SampleClock:
     to tell whether a sample's window lies wholly after the last change of Pa."""
 
     def __init__(self) -> None:
-        self._samples: Deque[tuple[float, int]] = deque(maxlen=16)
+        self._samples: Deque[tuple[float, int]] = deque(maxlen=64)  # ~1 s at 50 Hz: a steady rate
         self._change_wall_ns: int | None = None
 
     def note_change(self, wall_ns: int) -> None:
@@ -111,13 +111,28 @@ class SampleClock:
         (t0, w0), (t1, w1) = self._samples[0], self._samples[-1]
         return (t1 - t0) / ((w1 - w0) / NS_PER_S) if w1 > w0 and t1 > t0 else 1.0
 
+    def jitter(self) -> float:
+        """The largest recent lateness of a sample relative to its predecessor,
+        in simulated seconds: how far message delivery currently strays.
+
+        A loaded machine delays the controller's Pa on its way to the plant
+        as much as it delays the samples coming back; a window judged only by
+        the fixed margin would then take old motion for the answer to the change.
+        """
+        rate, samples = self.rate(), list(self._samples)
+        lateness = [((w1 - w0) / NS_PER_S) * rate - (t1 - t0)
+                    for (t0, w0), (t1, w1) in zip(samples, samples[1:])]
+        return max([0.0, *lateness])
+
     def add(self, stamp: float, wall_ns: int, period: float, window_periods: int, margin: float) -> bool:
-        """Record a sample; True when its window began after the last change."""
+        """Record a sample; True when its window began after the last change,
+        with ``margin`` periods plus the current delivery jitter to spare."""
         self._samples.append((stamp, wall_ns))
         if self._change_wall_ns is None:  # nothing of ours applied yet: not our plant's answer
             return False
-        since_change = (wall_ns - self._change_wall_ns) / NS_PER_S * self.rate()
-        return since_change >= (window_periods + margin) * period
+        rate = self.rate()
+        since_change = (wall_ns - self._change_wall_ns) / NS_PER_S * rate
+        return since_change >= (window_periods + margin) * period + self.jitter()
 
 
 class MeanSpeedController:

@@ -1,8 +1,10 @@
 """The mean-speed controller: its law offline against the exact core, and the
-five acceptance cases in closed loop over real topics (both nodes, real time)."""
+five acceptance cases in closed loop over real topics (both nodes, on the
+wall clock at half speed; `make bench` runs them at real_time_factor 1)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import signal
@@ -76,6 +78,42 @@ def test_matched_model_is_exact_from_the_first_clean_period() -> None:
     assert all(v == pytest.approx(1.5e-4, rel=1e-9) for v in speeds[1:])
 
 
+def test_late_delivery_does_not_make_a_mixed_window_look_clean() -> None:
+    """On a loaded machine the Pa reaches the plant late (here 0.4 period,
+    after the slip has begun) and the samples come back late (here every
+    other one by 0.3 period).  The window right after the change then mixes
+    old and new motion yet arrives 1.3 periods after it, past the fixed
+    margin; integrating it would move a matched model's exact feedforward off
+    target.  The delivery jitter the controller observes keeps it out."""
+    frequency, period, step_at = 50.0, 0.02, 60
+    controller = MeanSpeedController(ControllerConfig(), drive_force=0.7, frequency=frequency, target_speed=1e-4)
+    slider = Slider(SliderParams(), Inputs(excitation_amplitude=controller.output.amplitude), cycle_log_size=None)
+    controller.clock.note_change(0)
+    pending: tuple[float, float] | None = None  # (simulation time the plant applies it, Pa)
+    speeds, integrals, x_start = [], [], 0.0
+    for n in range(1, step_at + 11):
+        t = n * period
+        if pending is not None and pending[0] < t:
+            slider.advance_to(pending[0])
+            slider.set_inputs(excitation_amplitude=pending[1])
+            pending = None
+        slider.advance_to(t)
+        speeds.append((slider.state().x - x_start) / period)  # over period n, which ends at t
+        x_start = slider.state().x
+        arrival = t + (0.3 * period if n % 2 else 0.0)
+        before = controller.output.amplitude
+        out = controller.on_mean_velocity(speeds[-1], t, round(arrival * 1e9))
+        if n == step_at:
+            out = controller.set_target(3e-4)
+        if out.amplitude != before:
+            controller.clock.note_change(round(arrival * 1e9))
+            pending = (arrival + 0.4 * period, out.amplitude)
+        integrals.append(out.integral)
+    assert speeds[step_at] != pytest.approx(3e-4, rel=0.01), "the window after the change is mixed"
+    assert max(abs(i) for i in integrals) < 1e-12, "no mixed window was integrated"
+    assert all(v == pytest.approx(3e-4, rel=1e-9) for v in speeds[step_at + 1:])
+
+
 @pytest.mark.parametrize("mu_model", [0.08, 0.12])
 @pytest.mark.parametrize("target", [1e-4, 3e-4])
 def test_a_wrong_model_is_corrected_by_the_integral_action(mu_model: float, target: float) -> None:
@@ -139,8 +177,13 @@ def ros() -> Iterator[None]:
 
 @pytest.mark.parametrize("case", acceptance_scenarios(), ids=lambda c: c.name)
 def test_acceptance_case_in_closed_loop(ros: None, case) -> None:  # type: ignore[no-untyped-def]
+    """Both nodes over real topics on the wall clock, at half speed: the limits
+    are counted in excitation periods (20 ms at 50 Hz), and on a shared CI
+    machine a scheduling delay of one period would otherwise decide the
+    verdict.  `make bench` (bench/controller.py) runs the same cases at
+    real_time_factor 1."""
     assert case.expect, "every acceptance scenario states what it expects"
-    result = run_experiment(case.spec())
+    result = run_experiment(dataclasses.replace(case, real_time_factor=0.5).spec())
     assert len(result.mean_velocity) > case.duration * 40
     for verdict in judge(case, result):
         e, m = verdict.expectation, verdict.metrics
