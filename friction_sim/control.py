@@ -27,7 +27,9 @@ phase, so the plant reaches its new periodic motion in the first whole period
 after Pa changes.  A mean-velocity sample whose window began before the last
 change mixes old and new motion; integrating it would only add a transient
 error.  :class:`SampleClock` decides from the sample's stamp (simulation time)
-and arrival time (wall clock) whether its window lies wholly after the change.
+and arrival time (wall clock) whether its window lies wholly after the change;
+on a loaded machine the margin grows by the delivery jitter it observes, since
+the Pa on its way to the plant is delayed as much as the samples coming back.
 """
 
 from __future__ import annotations
@@ -52,7 +54,8 @@ class ControllerConfig:
     integral_gain: fraction of each clean sample's error (in U) added to I.
     max_amplitude_ratio: the largest a = Pa/(m*g) applied (< 1: lift-off).
     settle_margin: extra fraction of a period a sample's window must keep
-        clear of the last change of Pa (message latencies).
+        clear of the last change of Pa (message latencies), on top of the
+        delivery jitter observed in the recent samples.
     """
 
     model: SliderParams = SliderParams()

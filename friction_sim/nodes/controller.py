@@ -63,7 +63,8 @@ PARAMETERS: dict[str, tuple[Any, Any]] = {
     "target_speed": (0.0002, float_descriptor("target mean speed V* [m/s]", -1e3, 1e3)),
     "integral_gain": (0.4, float_descriptor("first integral step per clean sample [-]", 0.0, 2.0)),
     "max_amplitude_ratio": (0.95, float_descriptor("largest Pa/(m g) applied, < 1", 1e-3, 0.999)),
-    "settle_margin": (0.25, float_descriptor("periods a sample window keeps clear of a change", 0.0, 5.0)),
+    "settle_margin": (0.25, float_descriptor(
+        "periods a sample window keeps clear of a change (plus the observed delivery jitter)", 0.0, 5.0)),
     "mean_window_periods": (1, int_descriptor("periods in the slider's mean_velocity window", 1, 10_000)),
     "plant_node": ("slider", text_descriptor("node to read mass, mu, gravity from at start-up ('' = none)")),
     "active": (True, text_descriptor("regulate now; false: stand by (publish nothing) until a target arrives")),
