@@ -321,18 +321,18 @@ rt = RealtimeSlider(params, inputs, wall_ns=time.monotonic_ns(), log_rate=1000.0
 try:
     with Recorder(path, recording_metadata(params, inputs, log_rate=1000.0)) as recorder:
         recorder.record_parameters({**plant_parameters(params, inputs), "log_rate": 1000.0}, 0.0)
-        started, n = time.monotonic(), 0
+        started, n, announced = time.monotonic(), 0, False
         while True:
             now = time.monotonic_ns()
             if n % 150 == 75:
                 recorder.record_command(rt.command("drive_force", {"drive_force": 0.55 + 0.03 * (n % 7)}, now))
             recorder.record_tick(rt.tick(now))
             n += 1
-            if time.monotonic() - started >= seconds:
-                print(repr(rt.slider.t), flush=True)
+            if not announced and time.monotonic() - started >= seconds:
+                print(repr(rt.slider.t), flush=True)  # once: a signal must not cut a second print
+                announced = True
                 if mode == "kill":
                     os.kill(os.getpid(), signal.SIGKILL)
-                mode = "wait"
             time.sleep(0.001)
 except KeyboardInterrupt:
     print("finished", flush=True)
