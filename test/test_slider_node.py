@@ -220,11 +220,13 @@ def test_parameters_via_the_parameter_services(rig) -> None:  # type: ignore[no-
     assert set_("publish_rate", 200.0) == (True, "")
     count = len(probe.received["pose"])
     probe.spin_for(1.0)
-    assert 150 <= len(probe.received["pose"]) - count <= 230
-    sim_before = node.realtime.slider.t
+    # The stamps, not the arrival count, show the rate: a loaded machine may delay this executor.
+    stamps = [stamp_ns(m) for m in probe.received["pose"][count + 2:]]
+    assert len(stamps) >= 50
+    assert statistics.median(np.diff(stamps)) == pytest.approx(5_000_000, rel=0.1)
     assert set_("real_time_factor", 3.0) == (True, "")
-    wall = time.monotonic()
-    probe.spin_for(0.5)
+    sim_before, wall = node.realtime.slider.t, time.monotonic()  # after the set's round trip
+    probe.spin_for(1.0)
     ratio = (node.realtime.slider.t - sim_before) / (time.monotonic() - wall)
     assert 2.5 < ratio < 3.5
 
