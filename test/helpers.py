@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import contextlib
 import signal
-import time
 from typing import Iterator
 
 from friction_sim.simulation import Command
@@ -18,22 +17,22 @@ class EndlessLoop(AssertionError):
 
 @contextlib.contextmanager
 def time_limit(seconds: float, what: str) -> Iterator[None]:
-    """Raise EndlessLoop if the block runs longer than ``seconds`` (SIGALRM;
-    an outer timer such as pytest-timeout's is put back afterwards)."""
+    """Raise EndlessLoop if the block uses more than ``seconds`` of CPU time.
+
+    CPU time (ITIMER_PROF), not wall time: an endless loop burns CPU, while a
+    process that a loaded machine merely holds back does not; and SIGPROF
+    leaves pytest-timeout's SIGALRM alone."""
 
     def on_alarm(signum: int, frame: object) -> None:
-        raise EndlessLoop(f"{what} did not return within {seconds} s")
+        raise EndlessLoop(f"{what} did not return within {seconds} s of CPU time")
 
-    started = time.monotonic()
-    old_handler = signal.signal(signal.SIGALRM, on_alarm)
-    old_delay, _ = signal.setitimer(signal.ITIMER_REAL, seconds)
+    old_handler = signal.signal(signal.SIGPROF, on_alarm)
+    signal.setitimer(signal.ITIMER_PROF, seconds)
     try:
         yield
     finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old_handler)
-        if old_delay > 0.0:
-            signal.setitimer(signal.ITIMER_REAL, max(old_delay - (time.monotonic() - started), 1e-3))
+        signal.setitimer(signal.ITIMER_PROF, 0)
+        signal.signal(signal.SIGPROF, old_handler)
 
 
 def mirrored(schedule: list[Command]) -> list[Command]:
