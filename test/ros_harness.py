@@ -81,6 +81,9 @@ class Probe:
                        for topic, pub in self.publishers.items() if topic != "target_speed")
             return subs and len(self.received[topic]) > 0
         assert self.spin_until(matched, timeout), "the node under test never connected"
+        # Our publishers know the node's readers; give the readers a moment to know our writers too,
+        # or a command sent at once can be dropped by a reader that has not matched us yet.
+        self.spin_for(0.3)
 
     def close(self) -> None:
         self.executor.shutdown(timeout_sec=0.0)

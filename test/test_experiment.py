@@ -18,7 +18,7 @@ from friction_sim.urelation import predict
 SCENARIO = """\
 name: short
 duration: 2.4
-real_time_factor: 2.0
+real_time_factor: 0.5  # half speed: a late tick on a loaded CI machine costs periods at 2.0
 plant:
   drive_force: 0.7
   excitation_amplitude: 4.5

