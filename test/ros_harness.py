@@ -13,6 +13,8 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
 from std_msgs.msg import Float64
 
 OUTPUTS = {
@@ -47,6 +49,7 @@ class Probe:
         self.publishers = {topic: self.node.create_publisher(kind, topic, 10) for topic, kind in INPUTS.items()}
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(self.node)
+        self._clients: dict[str, AsyncParameterClient] = {}
         for node in nodes:
             self.executor.add_node(node)
 
@@ -84,6 +87,16 @@ class Probe:
         # Our publishers know the node's readers; give the readers a moment to know our writers too,
         # or a command sent at once can be dropped by a reader that has not matched us yet.
         self.spin_for(0.3)
+
+    def set_parameter(self, node: str, name: str, value: object) -> tuple[bool, str]:
+        """``ros2 param set`` through ``node``'s parameter services: (successful, reason)."""
+        if node not in self._clients:
+            self._clients[node] = AsyncParameterClient(self.node, node)
+            assert self._clients[node].wait_for_services(15.0), f"{node} offers no parameter services"
+        future = self._clients[node].set_parameters([Parameter(name, value=value)])
+        assert self.spin_until(future.done, 15.0), f"{node} did not answer setting {name}"
+        (result,) = future.result().results
+        return result.successful, result.reason
 
     def close(self) -> None:
         self.executor.shutdown(timeout_sec=0.0)

@@ -19,7 +19,6 @@ import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.parameter import Parameter
-from rclpy.parameter_client import AsyncParameterClient
 
 from friction_sim.acceptance import acceptance_scenarios, judge
 from friction_sim.control import ControllerConfig, MeanSpeedController
@@ -222,17 +221,11 @@ def test_controller_reads_the_plant_and_reports_diagnostics(ros: None) -> None:
             assert key in values
         assert "nan" in values["last_rejection"]
 
-        client = AsyncParameterClient(probe.node, f"{ns}/controller")
-        assert client.wait_for_services(15.0)
-        future = client.set_parameters([Parameter("target_speed", value=3e-4)])
-        assert probe.spin_until(future.done, 15.0) and future.result().results[0].successful
+        assert probe.set_parameter(f"{ns}/controller", "target_speed", 3e-4)[0]
         assert controller.control.target_speed == 3e-4
-        future = client.set_parameters([Parameter("max_amplitude_ratio", value=0.999)])
-        assert probe.spin_until(future.done, 15.0) and future.result().results[0].successful
-        future = client.set_parameters([Parameter("target_speed", value=-3e-4)])
-        assert probe.spin_until(future.done, 15.0)
-        (result,) = future.result().results
-        assert not result.successful and "target_speed" in result.reason
+        assert probe.set_parameter(f"{ns}/controller", "max_amplitude_ratio", 0.999)[0]
+        successful, reason = probe.set_parameter(f"{ns}/controller", "target_speed", -3e-4)
+        assert not successful and "target_speed" in reason
     finally:
         probe.close()
         controller.destroy_node()
@@ -289,14 +282,9 @@ def test_a_target_is_checked_against_the_drive_force_in_force(ros: None) -> None
     try:
         probe.send("drive_force", -0.5)
         assert probe.spin_until(lambda: controller.control.drive_force == -0.5, 10.0)
-        client = AsyncParameterClient(probe.node, f"{ns}/controller")
-        assert client.wait_for_services(15.0)
-        future = client.set_parameters([Parameter("target_speed", value=0.0001)])
-        assert probe.spin_until(future.done, 15.0)
-        (result,) = future.result().results
-        assert not result.successful and "target_speed" in result.reason and "-0.5" in result.reason
-        future = client.set_parameters([Parameter("target_speed", value=-0.0001)])
-        assert probe.spin_until(future.done, 15.0) and future.result().results[0].successful
+        successful, reason = probe.set_parameter(f"{ns}/controller", "target_speed", 0.0001)
+        assert not successful and "target_speed" in reason and "-0.5" in reason
+        assert probe.set_parameter(f"{ns}/controller", "target_speed", -0.0001)[0]
         assert controller.control.target_speed == -0.0001
     finally:
         probe.close()

@@ -18,7 +18,6 @@ import numpy as np
 import pytest
 import rclpy
 from rclpy.parameter import Parameter
-from rclpy.parameter_client import AsyncParameterClient
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -194,14 +193,8 @@ def test_every_kind_of_bad_input_is_rejected_and_publishing_goes_on(rig) -> None
 
 def test_parameters_via_the_parameter_services(rig) -> None:  # type: ignore[no-untyped-def]
     node, probe, _ = rig
-    client = AsyncParameterClient(probe.node, f"{node.get_namespace()}/slider")
-    assert client.wait_for_services(15.0)
-
     def set_(name: str, value: object) -> tuple[bool, str]:
-        future = client.set_parameters([Parameter(name, value=value)])
-        assert probe.spin_until(future.done, 15.0)
-        (result,) = future.result().results
-        return result.successful, result.reason
+        return probe.set_parameter(f"{node.get_namespace()}/slider", name, value)
 
     assert set_("drive_force", 0.8) == (True, "")
     assert node.realtime.slider.inputs.drive_force == 0.8
@@ -354,12 +347,8 @@ def test_parameters_are_checked_against_the_inputs_in_force(rig) -> None:  # typ
     node, probe, outcomes = rig
     probe.send("excitation_amplitude", 9.0)
     assert probe.spin_until(lambda: node.realtime.slider.inputs.excitation_amplitude == 9.0, 15.0)
-    client = AsyncParameterClient(probe.node, f"{node.get_namespace()}/slider")
-    assert client.wait_for_services(15.0)
-    future = client.set_parameters([Parameter("mass", value=0.6)])
-    assert probe.spin_until(future.done, 15.0)
-    (result,) = future.result().results
-    assert not result.successful and "mass" in result.reason and "0.6" in result.reason
+    successful, reason = probe.set_parameter(f"{node.get_namespace()}/slider", "mass", 0.6)
+    assert not successful and "mass" in reason and "0.6" in reason
     assert node.get_parameter("mass").value == 1.0
     assert node.realtime.slider.params.mass == 1.0
 
