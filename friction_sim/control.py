@@ -133,8 +133,7 @@ class SampleClock:
         self._samples.append((stamp, wall_ns))
         if self._change_wall_ns is None:  # nothing of ours applied yet: not our plant's answer
             return False
-        rate = self.rate()
-        since_change = (wall_ns - self._change_wall_ns) / NS_PER_S * rate
+        since_change = (wall_ns - self._change_wall_ns) / NS_PER_S * self.rate()
         return since_change >= (window_periods + margin) * period + self.jitter()
 
 
