@@ -3,11 +3,13 @@ sends it commands, all spun in the test's own thread (no launch_testing)."""
 
 from __future__ import annotations
 
+import statistics
 import subprocess
 import time
 from collections import defaultdict
 from typing import Any, Callable
 
+import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
@@ -35,6 +37,11 @@ INPUTS = {
 
 def stamp_ns(msg: Any) -> int:
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+def median_interval_ns(messages: list[Any]) -> float:
+    """The typical spacing of the messages' stamps: the publish rate, whatever the arrival times."""
+    return statistics.median(np.diff([stamp_ns(m) for m in messages]))
 
 
 class Probe:
