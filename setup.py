@@ -29,9 +29,9 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'slider = friction_sim.nodes.slider:main',
-            'controller = friction_sim.nodes.controller:main',
-            'friction-sim = friction_sim.cli:main',
+            'slider = friction_sim.ros.slider:main',
+            'controller = friction_sim.ros.controller:main',
+            'friction-sim = friction_sim.cli.main:main',
         ],
     },
 )

@@ -21,9 +21,9 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 
 import rclpy
 
-from friction_sim.acceptance import acceptance_scenarios, judge
-from friction_sim.experiment import ExperimentResult, run_experiment
-from friction_sim.scenario import Scenario
+from friction_sim.experiment.acceptance import acceptance_scenarios, judge
+from friction_sim.experiment.runner import ExperimentResult, run_experiment
+from friction_sim.experiment.scenario import Scenario
 
 
 def draw(runs: list[tuple[Scenario, ExperimentResult]], path: Path) -> None:

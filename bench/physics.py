@@ -26,11 +26,11 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 import numpy as np
 
-from friction_sim.core import Slider
-from friction_sim.params import Inputs, SliderParams
-from friction_sim.reference import ReferenceInputs, reference_solution
-from friction_sim.simulation import Command, random_schedule, run_schedule, simulate
-from friction_sim.urelation import dimensional_speed, u_grid, u_map
+from friction_sim.core.slider import Slider
+from friction_sim.core.params import Inputs, SliderParams
+from reference import ReferenceInputs, reference_solution
+from friction_sim.core.simulation import Command, random_schedule, run_schedule, simulate
+from friction_sim.core.urelation import dimensional_speed, u_grid, u_map
 
 PARAMS = SliderParams()
 FREQUENCY = 50.0

@@ -31,12 +31,12 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 import numpy as np
 
-from friction_sim.core import Slider
-from friction_sim.params import Inputs, SliderParams
-from friction_sim.realtime import RealtimeSlider
-from friction_sim.recording import Recorder, record_offline
-from friction_sim.replay import read_recording, verify
-from friction_sim.simulation import random_schedule
+from friction_sim.core.slider import Slider
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.realtime import RealtimeSlider
+from friction_sim.io.recording import Recorder, record_offline
+from friction_sim.io.replay import read_recording, verify
+from friction_sim.core.simulation import random_schedule
 
 
 def percentile(samples: list[float], q: float) -> float:

@@ -8,7 +8,7 @@ import contextlib
 import signal
 from typing import Iterator
 
-from friction_sim.simulation import Command
+from friction_sim.core.simulation import Command
 
 
 class EndlessLoop(AssertionError):

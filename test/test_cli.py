@@ -13,13 +13,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from friction_sim.urelation import dimensional_speed, u_map
+from friction_sim.core.urelation import dimensional_speed, u_map
 
 SCRIPT = Path(sys.executable).parent / "friction-sim"
 
 
 def run(*args: str) -> subprocess.CompletedProcess[str]:
-    command = [str(SCRIPT)] if SCRIPT.exists() else [sys.executable, "-m", "friction_sim.cli"]
+    command = [str(SCRIPT)] if SCRIPT.exists() else [sys.executable, "-m", "friction_sim.cli.main"]
     return subprocess.run([*command, *args], capture_output=True, text=True, timeout=120)
 
 

@@ -20,15 +20,15 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.parameter import Parameter
 
-from friction_sim.acceptance import acceptance_scenarios, judge
-from friction_sim.control import ControllerConfig, MeanSpeedController
-from friction_sim.core import Slider
+from friction_sim.experiment.acceptance import acceptance_scenarios, judge
+from friction_sim.core.control import ControllerConfig, MeanSpeedController
+from friction_sim.core.slider import Slider
 from friction_sim.errors import ParameterError
-from friction_sim.experiment import run_experiment
-from friction_sim.nodes.controller import ControllerNode
-from friction_sim.nodes.slider import SliderNode
-from friction_sim.params import Inputs, SliderParams
-from friction_sim.urelation import amplitude_ratio_for, u_map
+from friction_sim.experiment.runner import run_experiment
+from friction_sim.ros.controller import ControllerNode
+from friction_sim.ros.slider import SliderNode
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.urelation import amplitude_ratio_for, u_map
 from ros_harness import Probe, kill_if_running
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -23,10 +23,10 @@ from scipy.optimize import brentq
 
 from helpers import EndlessLoop, mirrored, time_limit
 
-from friction_sim.core import EventKind, Mode, Slider
+from friction_sim.core.slider import EventKind, Mode, Slider
 from friction_sim.errors import FrictionSimError, ParameterError
-from friction_sim.params import Inputs, SliderParams
-from friction_sim.simulation import Command, random_schedule, run_schedule
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.simulation import Command, random_schedule, run_schedule
 
 TWO_PI = 2.0 * math.pi
 PAPER = dict(m=1.0, mu=0.1, g=10.0, fd=0.7, pa=5.0, f=50.0)
@@ -574,7 +574,7 @@ def test_stick_without_excitation_closed_form():
 
 @pytest.mark.parametrize("fd", [-0.9, -0.8, -0.6, -1.2])
 def test_reversal_under_excitation_agrees_with_reference(fd):
-    from friction_sim import reference
+    import reference
     t_flip, t_end = 0.006, 0.1  # the flip happens during the first slip
     slider = paper_slider(event_log_size=None)
     times = np.linspace(0.0, t_end, 1001)

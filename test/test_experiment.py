@@ -10,10 +10,10 @@ from pathlib import Path
 
 import pytest
 
-from friction_sim.jobs import report_recording, run_scenario
-from friction_sim.params import Inputs, SliderParams
-from friction_sim.replay import read_recording, verify
-from friction_sim.urelation import predict
+from friction_sim.cli.jobs import report_recording, run_scenario
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.io.replay import read_recording, verify
+from friction_sim.core.urelation import predict
 
 SCENARIO = """\
 name: short

@@ -16,10 +16,10 @@ from hypothesis import strategies as st
 
 from helpers import EndlessLoop, mirrored, time_limit
 
-from friction_sim.core import EventKind, Mode, Slider
-from friction_sim.params import Inputs, SliderParams
-from friction_sim.simulation import Command, random_schedule, run_schedule
-from friction_sim.urelation import u_map
+from friction_sim.core.slider import EventKind, Mode, Slider
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.simulation import Command, random_schedule, run_schedule
+from friction_sim.core.urelation import u_map
 
 TWO_PI = 2.0 * math.pi
 BOUNDARY_MARGIN = 1e-9

@@ -20,8 +20,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from friction_sim.nodes.controller import PARAMETERS as CONTROLLER_PARAMETERS
-from friction_sim.nodes.slider import PARAMETERS as SLIDER_PARAMETERS
+from friction_sim.ros.controller import PARAMETERS as CONTROLLER_PARAMETERS
+from friction_sim.ros.slider import PARAMETERS as SLIDER_PARAMETERS
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()

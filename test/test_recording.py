@@ -22,16 +22,16 @@ import pytest
 import yaml
 from mcap.reader import make_reader
 
-from friction_sim import messages as M
-from friction_sim.core import Event, EventKind, Mode, Slider, SliderState
+from friction_sim.io import messages as M
+from friction_sim.core.slider import Event, EventKind, Mode, Slider, SliderState
 from friction_sim.errors import RecordingError
-from friction_sim.params import Inputs, SliderParams
-from friction_sim.realtime import CommandOutcome, PeriodSummary, RealtimeSlider
-from friction_sim.recording import (
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.realtime import CommandOutcome, PeriodSummary, RealtimeSlider
+from friction_sim.io.recording import (
     METADATA_NAME, Recorder, message_definition, record_offline, share_directory, type_hash,
 )
-from friction_sim.replay import read_recording, run
-from friction_sim.simulation import Command, random_schedule
+from friction_sim.io.replay import read_recording, run
+from friction_sim.core.simulation import Command, random_schedule
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -307,9 +307,9 @@ def test_written_data_is_readable_within_the_flush_interval_while_recording(tmp_
 
 CHILD = r"""
 import os, signal, sys, time
-from friction_sim.params import Inputs, SliderParams
-from friction_sim.realtime import RealtimeSlider
-from friction_sim.recording import Recorder, plant_parameters, recording_metadata
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.realtime import RealtimeSlider
+from friction_sim.io.recording import Recorder, plant_parameters, recording_metadata
 
 path, mode, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3])
 params, inputs = SliderParams(), Inputs()
@@ -459,7 +459,7 @@ def test_state_log_matches_a_vectorised_sample_of_the_same_run(tmp_path: Path) -
     path = tmp_path / "run.mcap"
     record_offline(path, schedule=schedule, duration=0.6, log_rate=1000.0)
     recording = read_recording(path)
-    from friction_sim.simulation import run_schedule
+    from friction_sim.core.simulation import run_schedule
 
     grid = np.arange(601) / 1000.0
     # Commands take effect at whole-nanosecond simulation times, as in the node.

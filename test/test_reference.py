@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from friction_sim.reference import (
+from reference import (
     brute_force_mean_velocity,
     reference_solution,
     ReferenceInputs,
@@ -26,7 +26,7 @@ OMEGA = 2.0 * math.pi * F
 PAPER = ReferenceInputs(drive_force=0.7, excitation_amplitude=5.0, excitation_frequency=F)
 # Paper case: |Fd| - mu*R = -0.3 + 0.5*sin(theta) > 0  <=>  sin(theta) > 0.6.
 PAPER_SLIP_PHASE = math.asin(0.6)
-MODULE = Path(__file__).resolve().parents[1] / 'friction_sim' / 'reference.py'
+MODULE = Path(__file__).resolve().with_name('reference.py')
 
 
 def _paper_slip_velocity(t: float, t_s: float) -> float:
@@ -302,10 +302,10 @@ def test_reference_is_independent_of_the_core_and_imports_scipy_lazily():
             imported.add('.' * node.level + (node.module or ''))
             imported.update(alias.name for alias in node.names)
     assert not any('core' in name or 'urelation' in name for name in imported), imported
-    code = ('import sys, friction_sim.reference; '
+    code = ('import sys, reference; '
             "sys.exit(int(any(m == 'scipy' or m.startswith('scipy.') for m in sys.modules)))")
-    proc = subprocess.run([sys.executable, '-c', code], cwd=MODULE.parents[1], check=False)
-    assert proc.returncode == 0, 'importing friction_sim.reference must not import scipy'
+    proc = subprocess.run([sys.executable, '-c', code], cwd=MODULE.parent, check=False)
+    assert proc.returncode == 0, 'importing the reference must not import scipy'
 
 
 # --------------------------------------------------------------------------- brief returns to rest

@@ -25,12 +25,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from friction_sim.core import Slider
-from friction_sim.params import Inputs, SliderParams
-from friction_sim.simulation import Command, random_schedule, run_schedule
-from friction_sim.urelation import dimensional_speed, u_map
+from friction_sim.core.slider import Slider
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.simulation import Command, random_schedule, run_schedule
+from friction_sim.core.urelation import dimensional_speed, u_map
 
-from friction_sim import reference
+import reference
 ReferenceInputs = reference.ReferenceInputs
 
 X_TOL = 1e-8

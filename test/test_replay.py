@@ -18,12 +18,12 @@ import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
-from friction_sim import messages as M
+from friction_sim.io import messages as M
 from friction_sim.errors import RecordingError
-from friction_sim.params import Inputs, SliderParams
-from friction_sim.recording import METADATA_NAME, Recorder, record_offline
-from friction_sim.replay import command_marks, export_csv, main, plot, publish, read_recording, run, verify
-from friction_sim.simulation import Command, random_schedule
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.io.recording import METADATA_NAME, Recorder, record_offline
+from friction_sim.io.replay import command_marks, export_csv, main, plot, publish, read_recording, run, verify
+from friction_sim.core.simulation import Command, random_schedule
 
 
 def replay_args(path: Path, **options: Any) -> argparse.Namespace:

@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from friction_sim.acceptance import acceptance_scenarios, config_dir
-from friction_sim.params import Inputs, SliderParams
-from friction_sim.scenario import ScenarioError, load_scenario, parse_scenario
+from friction_sim.experiment.acceptance import acceptance_scenarios, config_dir
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.experiment.scenario import ScenarioError, load_scenario, parse_scenario
 
 GOOD = """\
 name: good

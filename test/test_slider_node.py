@@ -22,12 +22,12 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from rosgraph_msgs.msg import Clock as ClockMsg
 
-from friction_sim.core import Slider
-from friction_sim.nodes.slider import SliderNode
-from friction_sim.params import Inputs, SliderParams
-from friction_sim.realtime import CommandOutcome
-from friction_sim.simulation import Command, run_schedule
-from friction_sim.urelation import predict
+from friction_sim.core.slider import Slider
+from friction_sim.ros.slider import SliderNode
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.realtime import CommandOutcome
+from friction_sim.core.simulation import Command, run_schedule
+from friction_sim.core.urelation import predict
 from ros_harness import Probe, kill_if_running, median_interval_ns, stamp_ns
 
 ROOT = Path(__file__).resolve().parents[1]

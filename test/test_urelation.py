@@ -16,9 +16,9 @@ from scipy.integrate import quad
 from scipy.optimize import brentq
 
 from friction_sim.errors import FrictionSimError, ParameterError
-from friction_sim.params import Inputs, SliderParams
-from friction_sim.simulation import simulate
-from friction_sim.urelation import (
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.simulation import simulate
+from friction_sim.core.urelation import (
     amplitude_ratio_for,
     dimensional_speed,
     motion_boundary,
@@ -319,8 +319,8 @@ def test_amplitude_ratio_out_of_range_is_refused(bad, text):
 def test_simulate_predicts_with_the_external_force() -> None:
     """With an external force the exact U uses the effective groups, and the
     simulated mean speed agrees with it."""
-    from friction_sim.params import Inputs, SliderParams
-    from friction_sim.simulation import simulate
+    from friction_sim.core.params import Inputs, SliderParams
+    from friction_sim.core.simulation import simulate
 
     result = simulate(SliderParams(), Inputs(external_force_x=0.1, external_force_z=2.0), 1.0, settle=0.1)
     assert result.u_exact == pytest.approx(result.u_measured * 10.0 / 12.0, rel=1e-9)

@@ -53,7 +53,7 @@ def _add_plant_options(parser: argparse.ArgumentParser) -> None:
 
 
 def _plant(args: argparse.Namespace) -> tuple[Any, Any]:
-    from friction_sim.params import Inputs, SliderParams, check_contact
+    from friction_sim.core.params import Inputs, SliderParams, check_contact
 
     params = SliderParams(mass=args.mass, mu=args.mu, gravity=args.gravity)
     inputs = Inputs(drive_force=args.drive_force, excitation_amplitude=args.amplitude,
@@ -79,7 +79,7 @@ def _print_json(payload: dict[str, Any]) -> None:
 
 
 def _cmd_umap(args: argparse.Namespace) -> int:
-    from friction_sim import urelation
+    from friction_sim.core import urelation
 
     if args.grid is None:
         if args.phi is None or args.ratio is None:
@@ -103,11 +103,11 @@ def _cmd_umap(args: argparse.Namespace) -> int:
         raise FrictionSimError(f"--grid {args.grid} rejected: must be in [2, {MAX_GRID}]")
     umap = urelation.u_grid(args.grid)
     if args.csv is not None:
-        from friction_sim.export import write_umap_csv
+        from friction_sim.io.export import write_umap_csv
 
         print(f"wrote {write_umap_csv(umap, args.csv)}")
     if args.png is not None:
-        from friction_sim.plots import u_map_figure
+        from friction_sim.cli.figures import u_map_figure
 
         _save(u_map_figure(umap), args.png)
     return 0
@@ -117,8 +117,8 @@ def _cmd_umap(args: argparse.Namespace) -> int:
 
 
 def _cmd_trace(args: argparse.Namespace) -> int:
-    from friction_sim.plots import trace_figure
-    from friction_sim.simulation import simulate
+    from friction_sim.cli.figures import trace_figure
+    from friction_sim.core.simulation import simulate
 
     params, inputs = _plant(args)
     duration = args.periods / inputs.excitation_frequency
@@ -131,7 +131,7 @@ def _cmd_trace(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from friction_sim.simulation import simulate
+    from friction_sim.core.simulation import simulate
 
     params, inputs = _plant(args)
     sample_rate = args.sample_rate if args.csv is not None else None
@@ -140,7 +140,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                                f"at most {MAX_SAMPLES:.0e} samples")
     result = simulate(params, inputs, args.duration, settle=args.settle, sample_rate=sample_rate)
     if args.csv is not None:
-        from friction_sim.export import write_trajectory_csv
+        from friction_sim.io.export import write_trajectory_csv
 
         assert result.trajectory is not None
         write_trajectory_csv(result.trajectory, result.events, args.csv)
@@ -162,39 +162,39 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _cmd_slider(args: argparse.Namespace) -> int:
-    from friction_sim.nodes.slider import main as slider_main
+    from friction_sim.ros.slider import main as slider_main
 
     return slider_main(_ros_args("friction-sim-slider", args))
 
 
 def _cmd_controller(args: argparse.Namespace) -> int:
-    from friction_sim.nodes.controller import main as controller_main
+    from friction_sim.ros.controller import main as controller_main
 
     return controller_main(_ros_args("friction-sim-controller", args))
 
 
 def _cmd_feeder(args: argparse.Namespace) -> int:
-    from friction_sim.nodes.feeder import main as feeder_main
+    from friction_sim.ros.feeder import main as feeder_main
 
     return feeder_main(_ros_args("friction-sim-feeder", args), args.slider_params, args.controller_params)
 
 
 def _cmd_experiment(args: argparse.Namespace) -> int:
-    from friction_sim.jobs import run_scenario
+    from friction_sim.cli.jobs import run_scenario
 
     run_scenario(args.scenario, output=args.output, attach=args.attach)
     return 0
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from friction_sim.jobs import report_recording
+    from friction_sim.cli.jobs import report_recording
 
     report_recording(args.recording, args.output)
     return 0
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
-    from friction_sim.replay import run
+    from friction_sim.io.replay import run
 
     return run(args)
 
@@ -282,7 +282,7 @@ def build_parser() -> argparse.ArgumentParser:
     report.add_argument("--output", type=Path, help="output folder (default: beside the recording)")
     report.set_defaults(handler=_cmd_report)
 
-    from friction_sim.replay import add_arguments
+    from friction_sim.io.replay import add_arguments
 
     replay = sub.add_parser("replay", help="verify, republish, export or plot a recording")
     add_arguments(replay)

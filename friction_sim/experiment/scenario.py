@@ -43,11 +43,11 @@ from typing import Any
 
 import yaml
 
-from friction_sim.control import ControllerConfig, MeanSpeedController
+from friction_sim.core.control import ControllerConfig, MeanSpeedController
 from friction_sim.errors import FrictionSimError, ParameterError
-from friction_sim.experiment import COMMAND_TOPICS, ExperimentSpec, ScheduledCommand
-from friction_sim.paramfile import read_params_file
-from friction_sim.params import Inputs, SliderParams, check_contact
+from friction_sim.experiment.runner import COMMAND_TOPICS, ExperimentSpec, ScheduledCommand
+from friction_sim.io.paramfile import read_params_file
+from friction_sim.core.params import Inputs, SliderParams, check_contact
 
 PLANT_KEYS = ("mass", "mu", "gravity", "drive_force", "excitation_amplitude", "excitation_frequency")
 CONTROLLER_KEYS = ("mass", "mu", "gravity", "integral_gain", "max_amplitude_ratio", "settle_margin",

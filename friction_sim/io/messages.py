@@ -1,7 +1,7 @@
 """The one place that turns friction_sim's records into ROS 2 messages.
 
 The slider node publishes these messages and the recorder
-(:mod:`friction_sim.recording`) logs them, so a recording holds exactly what
+(:mod:`friction_sim.io.recording`) logs them, so a recording holds exactly what
 the node publishes.  Every function returns a new message; nothing here
 imports rclpy, only the message packages.
 
@@ -39,8 +39,8 @@ from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rcl_interfaces.msg import Parameter, ParameterEvent, ParameterType, ParameterValue
 from std_msgs.msg import Float64
 
-from friction_sim.core import Event, Mode, SliderState
-from friction_sim.realtime import NS_PER_S, CommandOutcome, PeriodSummary
+from friction_sim.core.slider import Event, Mode, SliderState
+from friction_sim.core.realtime import NS_PER_S, CommandOutcome, PeriodSummary
 
 
 #: Inputs that arrive as a std_msgs/Float64 on the topic of the same name.

@@ -1,7 +1,7 @@
 """Reading and replaying recordings: ``friction-sim replay run.mcap``.
 
 * :func:`read_recording` reads a recording written by
-  :mod:`friction_sim.recording`.  It does not need the summary: it walks the
+  :mod:`friction_sim.io.recording`.  It does not need the summary: it walks the
   file record by record, so a file whose writer was killed (no footer) is read
   up to its last complete record, and :meth:`Recording.recovery_note` says how
   much was recovered.
@@ -40,8 +40,8 @@ from typing import TYPE_CHECKING, Any, Callable, Sequence, TextIO
 import numpy as np
 
 from friction_sim.errors import FrictionSimError, ParameterError, RecordingError
-from friction_sim.messages import NS_PER_S, ns_to_seconds, parameter_event_values
-from friction_sim.recording import (
+from friction_sim.io.messages import NS_PER_S, ns_to_seconds, parameter_event_values
+from friction_sim.io.recording import (
     INPUT_FIELDS, METADATA_NAME, PLANT_FIELDS, SUMMARY_METADATA_NAME, message_class,
 )
 
@@ -388,8 +388,8 @@ def initial_parameters(recording: Recording) -> dict[str, Any]:
 def verify(recording: Recording, tolerance: float = DEFAULT_TOLERANCE) -> VerifyResult:
     """Re-simulate the recording with the exact core and compare it with the
     recorded pose and velocity samples (see :class:`VerifyResult`)."""
-    from friction_sim.core import Slider
-    from friction_sim.params import Inputs, SliderParams
+    from friction_sim.core.slider import Slider
+    from friction_sim.core.params import Inputs, SliderParams
 
     problems: list[str] = []
     values = initial_parameters(recording)
@@ -877,7 +877,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m friction_sim.replay FILE ...``: errors are one line, exit 2."""
+    """``python -m friction_sim.io.replay FILE ...``: errors are one line, exit 2."""
     parser = argparse.ArgumentParser(prog="friction-sim replay",
                                      description="Verify, republish, export or plot a friction_sim recording.")
     add_arguments(parser)

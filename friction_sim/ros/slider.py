@@ -1,6 +1,6 @@
 """The slider node: ``ros2 run friction_sim slider``.
 
-A thin ROS 2 adapter around :class:`friction_sim.realtime.RealtimeSlider`:
+A thin ROS 2 adapter around :class:`friction_sim.core.realtime.RealtimeSlider`:
 it converts command messages into input changes, advances the exact core to
 the present on every tick, and publishes the state.  There is no physics here.
 
@@ -45,12 +45,12 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import Float64
 
 from friction_sim.errors import ParameterError
-from friction_sim.messages import fill_state_messages, key_values, mean_velocity_message, seconds_to_ns, time_msg
-from friction_sim.nodes.common import (
+from friction_sim.io.messages import fill_state_messages, key_values, mean_velocity_message, seconds_to_ns, time_msg
+from friction_sim.ros.common import (
     PolledGroup, float_descriptor, int_descriptor, run_node, take_all, text_descriptor, wall_ns,
 )
-from friction_sim.params import Inputs, SliderParams, check_contact
-from friction_sim.realtime import MAX_MEAN_WINDOW, MAX_PERIODS_PER_SECOND, CommandOutcome, RealtimeSlider, Tick, check_load
+from friction_sim.core.params import Inputs, SliderParams, check_contact
+from friction_sim.core.realtime import MAX_MEAN_WINDOW, MAX_PERIODS_PER_SECOND, CommandOutcome, RealtimeSlider, Tick, check_load
 
 QOS_DEPTH = 10
 COMMANDS_PER_TICK = QOS_DEPTH
@@ -310,7 +310,7 @@ def _open_recorder(values: dict[str, Any]) -> Any:
     parameters as the file's metadata."""
     if not values["log_path"]:
         return None
-    from friction_sim.recording import Recorder
+    from friction_sim.io.recording import Recorder
 
     return Recorder(values["log_path"], metadata=_recorded(values))
 

@@ -21,9 +21,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
 
-from friction_sim.experiment import settling_periods
-from friction_sim.params import Inputs, SliderParams
-from friction_sim.urelation import predict
+from friction_sim.experiment.runner import settling_periods
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.urelation import predict
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -235,10 +235,10 @@ def run_data_from_recording(path: Path) -> RunData:
     made relative to that start.  A plain slider recording (no scenario) is
     reported as one segment per accepted command.
     """
-    from friction_sim.experiment import SCENARIO_METADATA
-    from friction_sim.messages import stamp_ns
-    from friction_sim.replay import initial_parameters, read_recording, recorded_changes
-    from friction_sim.scenario import parse_scenario
+    from friction_sim.experiment.runner import SCENARIO_METADATA
+    from friction_sim.io.messages import stamp_ns
+    from friction_sim.io.replay import initial_parameters, read_recording, recorded_changes
+    from friction_sim.experiment.scenario import parse_scenario
 
     recording = read_recording(path)
     meta = recording.metadata.get(SCENARIO_METADATA, {})

@@ -14,9 +14,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from friction_sim.core import EventKind
-from friction_sim.simulation import SimulationResult
-from friction_sim.urelation import UMap
+from friction_sim.core.slider import EventKind
+from friction_sim.core.simulation import SimulationResult
+from friction_sim.core.urelation import UMap
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

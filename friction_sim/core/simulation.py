@@ -17,10 +17,10 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from friction_sim.core import Event, Slider, Trajectory
+from friction_sim.core.slider import Event, Slider, Trajectory
 from friction_sim.errors import ParameterError
-from friction_sim.params import Inputs, SliderParams, amplitude_ratio, drive_ratio, require_finite
-from friction_sim.urelation import nondimensional_speed, predict
+from friction_sim.core.params import Inputs, SliderParams, amplitude_ratio, drive_ratio, require_finite
+from friction_sim.core.urelation import nondimensional_speed, predict
 
 
 @dataclass(frozen=True)

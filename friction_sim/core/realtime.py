@@ -7,7 +7,7 @@ holds everything that is not message conversion:
   (elapsed wall time times the real-time factor), so a late or missed timer
   tick never changes the physics: the next tick simply advances further.
 * Commands take effect at the simulation time at which they are handled,
-  are validated once (:mod:`friction_sim.params`), and are counted; a
+  are validated once (:mod:`friction_sim.core.params`), and are counted; a
   rejected command leaves the last valid inputs in force.
 * Once per completed excitation period it reports the mean velocity over
   the last ``mean_window_periods`` whole periods and the stick fraction of
@@ -25,10 +25,10 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Any, Deque, Sequence
 
-from friction_sim.core import CycleMark, Event, Slider, SliderState
+from friction_sim.core.slider import CycleMark, Event, Slider, SliderState
 from friction_sim.errors import ParameterError
-from friction_sim.params import Inputs, SliderParams, check_contact, require_positive
-from friction_sim.urelation import Prediction, predict
+from friction_sim.core.params import Inputs, SliderParams, check_contact, require_positive
+from friction_sim.core.urelation import Prediction, predict
 
 NS_PER_S = 1_000_000_000
 #: Period marks the core keeps; more than this many periods in one tick are

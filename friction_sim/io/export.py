@@ -5,8 +5,8 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
-from friction_sim.core import Event, Trajectory
-from friction_sim.urelation import UMap
+from friction_sim.core.slider import Event, Trajectory
+from friction_sim.core.urelation import UMap
 
 TRAJECTORY_COLUMNS = (
     "t", "kind", "x", "v", "acceleration", "friction_force", "normal_force", "phase", "mode",

@@ -51,7 +51,7 @@ from typing import Any, Deque, NamedTuple
 import numpy as np
 
 from friction_sim.errors import ParameterError
-from friction_sim.params import Inputs, SliderParams, check_contact, require_finite
+from friction_sim.core.params import Inputs, SliderParams, check_contact, require_finite
 
 TWO_PI = 2.0 * math.pi
 NEVER = math.inf

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 from friction_sim.errors import FrictionSimError, ParameterError
-from friction_sim.params import Inputs, SliderParams
+from friction_sim.core.params import Inputs, SliderParams
 
 COMMAND_TOPICS = ("drive_force", "excitation_amplitude", "excitation_frequency", "target_speed", "external_wrench")
 
@@ -222,9 +222,9 @@ class _InProcess:
     def __init__(self, spec: ExperimentSpec, ns: str, executor: Any, result: ExperimentResult) -> None:
         from rclpy.parameter import Parameter
 
-        from friction_sim.nodes.common import wall_ns
-        from friction_sim.nodes.controller import ControllerNode
-        from friction_sim.nodes.slider import SliderNode
+        from friction_sim.ros.common import wall_ns
+        from friction_sim.ros.controller import ControllerNode
+        from friction_sim.ros.slider import SliderNode
 
         values = _plant_values(spec)
         if spec.log_path:
@@ -276,7 +276,7 @@ class _Attached:
             self._set_parameters(executor, "controller", _controller_values(spec))
         self.recorder = None
         if spec.log_path:
-            from friction_sim.recording import Recorder
+            from friction_sim.io.recording import Recorder
 
             values = _plant_values(spec)
             self.recorder = Recorder(spec.log_path, metadata={**values, "recorded_by": "experiment --attach"})
@@ -310,7 +310,7 @@ class _Attached:
             self.driver.create_subscription(kinds.get(topic, Float64), topic, self._keeper(topic), 100)
 
     def _keeper(self, topic: str) -> Callable[[Any], None]:
-        from friction_sim.messages import stamp_ns
+        from friction_sim.io.messages import stamp_ns
 
         def keep(msg: Any) -> None:
             header = getattr(msg, "header", None)
@@ -353,7 +353,7 @@ def _command_publishers(driver: Any) -> dict[str, Any]:
 def _collect_mean_velocity(driver: Any, result: ExperimentResult) -> None:
     from geometry_msgs.msg import TwistStamped
 
-    from friction_sim.messages import ns_to_seconds, stamp_ns
+    from friction_sim.io.messages import ns_to_seconds, stamp_ns
 
     driver.create_subscription(
         TwistStamped, "mean_velocity",
@@ -366,7 +366,7 @@ SCENARIO_METADATA = "friction_sim_scenario"
 
 def _record_target(recorder: Any, t: float, value: float) -> None:
     """Log a target the driver gave the controller (the slider never sees it)."""
-    from friction_sim.realtime import CommandOutcome
+    from friction_sim.core.realtime import CommandOutcome
 
     recorder.record_command(CommandOutcome(round(t * 1e9) / 1e9, "target_speed", {"target_speed": value}, True))
 

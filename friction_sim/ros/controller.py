@@ -1,6 +1,6 @@
 """The mean-speed controller node: ``ros2 run friction_sim controller``.
 
-A thin ROS 2 adapter around :class:`friction_sim.control.MeanSpeedController`.
+A thin ROS 2 adapter around :class:`friction_sim.core.control.MeanSpeedController`.
 All names are relative, so it runs in the same namespace as its slider.
 
 Subscriptions: ``target_speed`` (std_msgs/Float64, m/s), ``mean_velocity``
@@ -40,11 +40,11 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from std_msgs.msg import Float64
 
-from friction_sim.control import ControllerConfig, ControlOutput, MeanSpeedController
+from friction_sim.core.control import ControllerConfig, ControlOutput, MeanSpeedController
 from friction_sim.errors import ParameterError
-from friction_sim.messages import key_values, ns_to_seconds, stamp_ns
-from friction_sim.nodes.common import float_descriptor, int_descriptor, run_node, text_descriptor, wall_ns
-from friction_sim.params import SliderParams
+from friction_sim.io.messages import key_values, ns_to_seconds, stamp_ns
+from friction_sim.ros.common import float_descriptor, int_descriptor, run_node, text_descriptor, wall_ns
+from friction_sim.core.params import SliderParams
 
 QOS_DEPTH = 10
 PLANT_TIMEOUT = 5.0

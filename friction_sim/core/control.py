@@ -41,9 +41,9 @@ from functools import lru_cache
 from typing import Deque
 
 from friction_sim.errors import ParameterError
-from friction_sim.params import SliderParams, require_finite, require_positive
-from friction_sim.realtime import NS_PER_S
-from friction_sim.urelation import amplitude_ratio_for, u_map
+from friction_sim.core.params import SliderParams, require_finite, require_positive
+from friction_sim.core.realtime import NS_PER_S
+from friction_sim.core.urelation import amplitude_ratio_for, u_map
 
 
 

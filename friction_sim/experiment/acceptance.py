@@ -13,15 +13,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from friction_sim.control import ControllerConfig, MeanSpeedController
-from friction_sim.experiment import ExperimentResult, StepMetrics, step_metrics
-from friction_sim.params import Inputs
-from friction_sim.scenario import Expectation, Scenario, load_scenario
+from friction_sim.core.control import ControllerConfig, MeanSpeedController
+from friction_sim.experiment.runner import ExperimentResult, StepMetrics, step_metrics
+from friction_sim.core.params import Inputs
+from friction_sim.experiment.scenario import Expectation, Scenario, load_scenario
 
 
 def config_dir() -> Path:
     """The package's config/ folder: in the source tree, or installed by colcon."""
-    source = Path(__file__).resolve().parents[1] / "config"
+    source = Path(__file__).resolve().parents[2] / "config"
     if source.is_dir():
         return source
     from ament_index_python.packages import get_package_share_directory

@@ -36,14 +36,14 @@ the chunk and its message indexes are written whole) and flushes the file
 object every ``flush_interval`` (0.25 s) of wall time, so a writer killed
 with SIGKILL loses about that much plus the writer's backlog (normally a
 message or two); the promise is at most a second, which leaves room for a
-process that the machine stalls for a while.  :mod:`friction_sim.replay`
+process that the machine stalls for a while.  :mod:`friction_sim.io.replay`
 reads such a file up to its last complete record.  Ending on SIGINT or
 SIGTERM finishes the file (summary and footer) as long as the process gets
 to call :meth:`Recorder.finish` (context manager exit, ``destroy_node``, or
 the ``atexit`` hook every open recorder registers).
 
 :meth:`Recorder.record_tick` logs what a
-:class:`~friction_sim.realtime.RealtimeSlider` tick passed (the exact states
+:class:`~friction_sim.core.realtime.RealtimeSlider` tick passed (the exact states
 on its uniform log grid, independent of timer jitter, the events and the
 period means); the slider node and :func:`record_offline`, which runs the
 same realtime loop without a clock, both record through it.
@@ -70,16 +70,16 @@ from typing import Any, Iterable, Mapping, Sequence
 
 import yaml
 
-from friction_sim.core import Event, Slider
+from friction_sim.core.slider import Event, Slider
 from friction_sim.errors import ParameterError, RecordingError
-from friction_sim.messages import (
+from friction_sim.io.messages import (
     command_message, event_message, fill_state_messages, mean_velocity_message, ns_to_seconds,
     parameters_message, rejection_message, seconds_to_ns, value_text,
 )
-from friction_sim.params import Inputs, SliderParams
-from friction_sim.realtime import CommandOutcome, PeriodSummary, RealtimeSlider, Tick
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.realtime import CommandOutcome, PeriodSummary, RealtimeSlider, Tick
 
-_log = logging.getLogger("friction_sim.recording")
+_log = logging.getLogger("friction_sim.io.recording")
 
 #: Name of the MCAP metadata record that marks a friction_sim recording.
 METADATA_NAME = "friction_sim"
@@ -551,7 +551,7 @@ class Recorder:
         return self._put(("period", period, frame_id, None))
 
     def record_tick(self, tick: Tick, frame_id: str = "slideway") -> None:
-        """Queue what a :class:`~friction_sim.realtime.RealtimeSlider` tick
+        """Queue what a :class:`~friction_sim.core.realtime.RealtimeSlider` tick
         passed: the exact states on the log grid, the events, the period means."""
         for state in tick.samples:
             self.record_state(state, frame_id)
@@ -922,7 +922,7 @@ def record_offline(
     """Run the exact core for ``duration`` s of simulation time without a
     clock and record what the slider node records.
 
-    ``schedule`` holds :class:`friction_sim.simulation.Command` (field changes
+    ``schedule`` holds :class:`friction_sim.core.simulation.Command` (field changes
     at a time) or :class:`friction_sim.experiment.ScheduledCommand` entries;
     each change reaches the slider as the node would receive it (one command
     per topic; external forces as one external_wrench, the missing

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
-from friction_sim.report import SegmentRow, run_data_from_recording, table_text, write_report
-from friction_sim.scenario import load_scenario
+from friction_sim.experiment.report import SegmentRow, run_data_from_recording, table_text, write_report
+from friction_sim.experiment.scenario import load_scenario
 
 
 @dataclass(frozen=True)
@@ -33,7 +33,7 @@ def run_scenario(path: Path, *, output: Path | None = None, attach: str | None =
     ``attach``, drive nodes already running in that namespace."""
     import rclpy
 
-    from friction_sim.experiment import Status, run_experiment
+    from friction_sim.experiment.runner import Status, run_experiment
 
     scenario = load_scenario(path)
     folder = output or scenario.output

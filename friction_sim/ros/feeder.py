@@ -11,10 +11,10 @@ from typing import Sequence
 
 from rclpy.node import Node
 
-from friction_sim.paramfile import read_params_file
-from friction_sim.nodes.common import run_node
-from friction_sim.nodes.controller import ControllerNode
-from friction_sim.nodes.slider import SliderNode
+from friction_sim.io.paramfile import read_params_file
+from friction_sim.ros.common import run_node
+from friction_sim.ros.controller import ControllerNode
+from friction_sim.ros.slider import SliderNode
 
 
 def _overrides(path: Path | None, node_name: str) -> list:  # type: ignore[type-arg]
