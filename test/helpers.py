@@ -8,7 +8,7 @@ import contextlib
 import signal
 from typing import Iterator
 
-from friction_sim.core.simulation import Command
+from friction_sim.core.commands import Command
 
 
 class EndlessLoop(AssertionError):
@@ -39,9 +39,27 @@ def mirrored(schedule: list[Command]) -> list[Command]:
     """The schedule with every tangential force reversed (Fd -> -Fd, Fx -> -Fx)."""
     out = []
     for command in schedule:
-        changes = dict(command.changes)
+        values = dict(command.values)
         for name in ("drive_force", "external_force_x"):
-            if name in changes:
-                changes[name] = -changes[name]
-        out.append(Command(command.t, changes))
+            if name in values:
+                values[name] = -values[name]
+        out.append(Command(command.t, command.name, values))
     return out
+
+
+def rescaled_drive(schedule: list[Command], factor: float) -> list[Command]:
+    """The schedule with every drive force multiplied by ``factor`` (random_schedule
+    draws drive forces for mu ~ 0.1; a plant with another mu needs them scaled)."""
+    return [Command(c.t, c.name, {"drive_force": c.values["drive_force"] * factor}) if c.name == "drive_force" else c
+            for c in schedule]
+
+
+def grouped(schedule: list[Command]) -> list[Command]:
+    """The schedule with the commands at one time merged into one ``parameters``
+    command, in time order: commands at the same instant take effect together
+    (as the node and run_schedule take them), so a test that applies a schedule
+    by hand with set_inputs must apply each instant's values at once."""
+    merged: dict[float, dict[str, float]] = {}
+    for command in sorted(schedule, key=lambda c: c.t):
+        merged.setdefault(command.t, {}).update(command.values)
+    return [Command(t, "parameters", values) for t, values in merged.items()]

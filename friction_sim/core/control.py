@@ -41,7 +41,8 @@ from functools import lru_cache
 from typing import Deque
 
 from friction_sim.errors import ParameterError
-from friction_sim.core.params import SliderParams, require_finite, require_positive
+from friction_sim.core import spec
+from friction_sim.core.params import SliderParams, require_finite
 from friction_sim.core.realtime import NS_PER_S
 from friction_sim.core.urelation import amplitude_ratio_for, u_map
 
@@ -65,18 +66,8 @@ class ControllerConfig:
     settle_margin: float = 0.25
 
     def __post_init__(self) -> None:
-        gain = require_finite("integral_gain", self.integral_gain)
-        if not 0.0 <= gain <= 2.0:
-            raise ParameterError("integral_gain", gain, "must be in [0, 2]")
-        ratio = require_finite("max_amplitude_ratio", self.max_amplitude_ratio)
-        if not 0.0 < ratio < 1.0:
-            raise ParameterError("max_amplitude_ratio", ratio, "must be in (0, 1): a >= 1 lifts the slider off")
-        window = self.mean_window_periods
-        if isinstance(window, bool) or not isinstance(window, int) or window < 1:
-            raise ParameterError("mean_window_periods", window, "must be an integer >= 1")
-        margin = require_finite("settle_margin", self.settle_margin)
-        if not 0.0 <= margin <= 5.0:
-            raise ParameterError("settle_margin", margin, "must be in [0, 5] periods")
+        for setting in (spec.INTEGRAL_GAIN, spec.MAX_AMPLITUDE_RATIO, spec.MEAN_WINDOW_PERIODS, spec.SETTLE_MARGIN):
+            object.__setattr__(self, setting.name, setting.check(getattr(self, setting.name)))
 
 
 @dataclass(frozen=True)
@@ -143,8 +134,8 @@ class MeanSpeedController:
     def __init__(self, config: ControllerConfig, *, drive_force: float, frequency: float,
                  target_speed: float = 0.0) -> None:
         self._config = config
-        self._drive_force = require_finite("drive_force", drive_force)
-        self._frequency = require_positive("excitation_frequency", frequency)
+        self._drive_force = spec.DRIVE_FORCE.check(drive_force)
+        self._frequency = spec.EXCITATION_FREQUENCY.check(frequency)
         self._target = 0.0
         self._ratio = 1.0  # U_cmd / U*
         self._last_clean: tuple[float, float] | None = None  # (U_cmd, shortfall) for the secant
@@ -157,7 +148,7 @@ class MeanSpeedController:
 
     def set_target(self, speed: float) -> ControlOutput:
         """A new target mean speed [m/s]; it must agree in sign with the drive force."""
-        speed = require_finite("target_speed", speed)
+        speed = spec.TARGET_SPEED.check(speed)
         if speed != 0.0 and (self._drive_force == 0.0 or math.copysign(1.0, speed) != math.copysign(1.0, self._drive_force)):
             raise ParameterError(
                 "target_speed", speed,
@@ -168,14 +159,14 @@ class MeanSpeedController:
         return self._update()
 
     def set_drive_force(self, force: float) -> ControlOutput:
-        self._drive_force = require_finite("drive_force", force)
+        self._drive_force = spec.DRIVE_FORCE.check(force)
         if self._target != 0.0 and math.copysign(1.0, self._target) != math.copysign(1.0, force):
             self._target = 0.0  # the old target now points the wrong way
         self._last_clean = None
         return self._update()
 
     def set_frequency(self, frequency: float) -> ControlOutput:
-        self._frequency = require_positive("excitation_frequency", frequency)
+        self._frequency = spec.EXCITATION_FREQUENCY.check(frequency)
         self._last_clean = None
         return self._update()
 

@@ -1,12 +1,15 @@
-"""Validated parameters and inputs of the slider model, checked once at the edge.
+"""Validated parameters and inputs of the slider model: the single gate.
 
 :class:`SliderParams` holds what describes the plant (mass, friction
 coefficient, gravity); :class:`Inputs` holds what an operator or a controller
 changes while it runs (drive force, excitation amplitude and frequency, an
 optional external force).  Both are frozen dataclasses that refuse a bad value
 in ``__post_init__`` with a :class:`~friction_sim.errors.ParameterError` naming
-the field, the value and the limit.  The one cross-field rule, that the normal
-reaction must stay positive, lives in :func:`check_contact`.
+the field, the value and the limit; the ranges come from
+:mod:`friction_sim.core.spec`.  The cross-field rules live here too:
+:func:`check_contact` (the normal reaction must stay positive) and
+:func:`check_load` (what the real-time loop can follow).  Every path into the
+simulation (topics, parameters, scenarios, the CLI, replay) goes through them.
 
 Paper's Fig. 2 case (Kostek): Pa = 5 N, Fd = 0.7 N, f = 50 Hz, mu = 0.1,
 g = 10 m/s^2, m = 1 kg.  These are the defaults everywhere.
@@ -17,14 +20,19 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any, Iterable
+from typing import Any, TypeVar
 
+from friction_sim.core import spec
 from friction_sim.errors import ParameterError
 
+_T = TypeVar("_T")
 
-def require_finite(field: str, value: float) -> float:
-    """Return ``value`` as a float, or raise if it is not a finite real number."""
+
+def require_finite(field: str, value: Any) -> float:
+    """Return ``value`` as a float, or raise if it is not a finite real number.
+    (For values that are arguments of a call, not settings: durations, times.)"""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ParameterError(field, value, "must be a finite real number")
     number = float(value)
@@ -33,7 +41,7 @@ def require_finite(field: str, value: float) -> float:
     return number
 
 
-def require_positive(field: str, value: float) -> float:
+def require_positive(field: str, value: Any) -> float:
     """Return ``value`` as a float, or raise if it is not finite and > 0."""
     number = require_finite(field, value)
     if number <= 0.0:
@@ -41,17 +49,22 @@ def require_positive(field: str, value: float) -> float:
     return number
 
 
+def _check_fields(instance: Any, settings: dict[str, spec.Setting]) -> None:
+    """Validate every field of a frozen dataclass against its setting."""
+    for name, setting in settings.items():
+        object.__setattr__(instance, name, setting.check(getattr(instance, name)))
+
+
 @dataclass(frozen=True)
 class SliderParams:
     """The plant: mass [kg], Coulomb friction coefficient [-], gravity [m/s^2]."""
 
-    mass: float = 1.0
-    mu: float = 0.1
-    gravity: float = 10.0
+    mass: float = float(spec.MASS.default)
+    mu: float = float(spec.MU.default)
+    gravity: float = float(spec.GRAVITY.default)
 
     def __post_init__(self) -> None:
-        for name in ("mass", "mu", "gravity"):
-            object.__setattr__(self, name, require_positive(name, getattr(self, name)))
+        _check_fields(self, spec.PLANT)
 
     @property
     def weight(self) -> float:
@@ -74,24 +87,14 @@ class Inputs:
     external_force_z: extra normal force [N]; > 0 loads the contact.
     """
 
-    drive_force: float = 0.7
-    excitation_amplitude: float = 5.0
-    excitation_frequency: float = 50.0
-    external_force_x: float = 0.0
-    external_force_z: float = 0.0
+    drive_force: float = float(spec.DRIVE_FORCE.default)
+    excitation_amplitude: float = float(spec.EXCITATION_AMPLITUDE.default)
+    excitation_frequency: float = float(spec.EXCITATION_FREQUENCY.default)
+    external_force_x: float = float(spec.EXTERNAL_FORCE_X.default)
+    external_force_z: float = float(spec.EXTERNAL_FORCE_Z.default)
 
     def __post_init__(self) -> None:
-        for name in ("drive_force", "external_force_x", "external_force_z"):
-            object.__setattr__(self, name, require_finite(name, getattr(self, name)))
-        amplitude = require_finite("excitation_amplitude", self.excitation_amplitude)
-        if amplitude < 0.0:
-            raise ParameterError("excitation_amplitude", amplitude, "must be >= 0 N")
-        object.__setattr__(self, "excitation_amplitude", amplitude)
-        object.__setattr__(
-            self,
-            "excitation_frequency",
-            require_positive("excitation_frequency", self.excitation_frequency),
-        )
+        _check_fields(self, spec.INPUTS)
 
     @property
     def tangential_force(self) -> float:
@@ -103,13 +106,16 @@ class Inputs:
         return _replace(self, changes)
 
 
-def _replace(instance: Any, changes: dict[str, Any]) -> Any:
+def _replace(instance: _T, changes: dict[str, Any]) -> _T:
     """dataclasses.replace that names an unknown field instead of a TypeError."""
-    known = [f.name for f in dataclasses.fields(instance)]
+    known = [f.name for f in dataclasses.fields(instance)]  # type: ignore[arg-type]
     for name, value in changes.items():
         if name not in known:
             raise ParameterError(name, value, f"unknown field; known: {', '.join(known)}")
-    return dataclasses.replace(instance, **changes)
+    return dataclasses.replace(instance, **changes)  # type: ignore[type-var]
+
+
+_LIFT_OFF = "(the normal reaction would reach zero: the slider would lift off)"
 
 
 def check_contact(params: SliderParams, inputs: Inputs, changed: Iterable[str] = ()) -> None:
@@ -125,25 +131,37 @@ def check_contact(params: SliderParams, inputs: Inputs, changed: Iterable[str] =
     if pa < weight + fz:
         return
     changed = set(changed)
-    lift_off = "(the normal reaction would reach zero: the slider would lift off)"
     if weight + fz <= 0.0:
-        raise ParameterError("external_force_z", fz, f"must be > -mass*gravity = {-weight!r} N {lift_off}")
+        raise ParameterError("external_force_z", fz, f"must be > -mass*gravity = {-weight!r} N {_LIFT_OFF}")
     if "external_force_z" in changed and "excitation_amplitude" not in changed:
         raise ParameterError(
-            "external_force_z", fz, f"must be > excitation_amplitude - mass*gravity = {pa - weight!r} N {lift_off}"
+            "external_force_z", fz, f"must be > excitation_amplitude - mass*gravity = {pa - weight!r} N {_LIFT_OFF}"
         )
     for name in ("mass", "gravity"):
         if name in changed and "excitation_amplitude" not in changed:
-            other = params.gravity if name == "mass" else params.mass
-            unit = "kg" if name == "mass" else "m/s^2"
+            other_name, unit = ("gravity", "kg") if name == "mass" else ("mass", "m/s^2")
+            other = getattr(params, other_name)
             raise ParameterError(
                 name, getattr(params, name),
-                f"must be > (excitation_amplitude - external_force_z)/{'gravity' if name == 'mass' else 'mass'}"
-                f" = {(pa - fz) / other!r} {unit} {lift_off}",
+                f"must be > (excitation_amplitude - external_force_z)/{other_name} = {(pa - fz) / other!r} {unit} "
+                f"{_LIFT_OFF}",
             )
     raise ParameterError(
-        "excitation_amplitude", pa, f"must be < mass*gravity + external_force_z = {weight + fz!r} N {lift_off}"
+        "excitation_amplitude", pa, f"must be < mass*gravity + external_force_z = {weight + fz!r} N {_LIFT_OFF}"
     )
+
+
+def check_load(frequency: float, rate: float, field: str = "excitation_frequency") -> None:
+    """Refuse an excitation frequency and real-time factor the real-time loop
+    cannot keep up with; ``field`` is the one to blame (the one just set)."""
+    limit = spec.MAX_PERIODS_PER_SECOND
+    if frequency * rate <= limit:
+        return
+    why = f"(at most {limit:g} excitation periods per wall-clock second in real time)"
+    if field == "real_time_factor":
+        raise ParameterError(field, rate, f"must be <= {limit / frequency:g} at excitation_frequency "
+                                          f"{frequency:g} Hz {why}")
+    raise ParameterError(field, frequency, f"must be <= {limit / rate:g} Hz at real_time_factor {rate:g} {why}")
 
 
 def drive_ratio(params: SliderParams, inputs: Inputs) -> float:
@@ -154,3 +172,9 @@ def drive_ratio(params: SliderParams, inputs: Inputs) -> float:
 def amplitude_ratio(params: SliderParams, inputs: Inputs) -> float:
     """a = Pa / (m*g): the excitation amplitude over the weight."""
     return inputs.excitation_amplitude / params.weight
+
+
+__all__ = [
+    "Inputs", "SliderParams", "amplitude_ratio", "check_contact", "check_load", "drive_ratio",
+    "require_finite", "require_positive",
+]

@@ -23,35 +23,21 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
-from typing import Any, Deque, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any, Deque
 
-from friction_sim.core.slider import CycleMark, Event, Slider, SliderState
-from friction_sim.errors import ParameterError
-from friction_sim.core.params import Inputs, SliderParams, check_contact, require_positive
+from friction_sim.core import spec
+from friction_sim.core.commands import PARAMETERS, Command, Outcome, apply, reason
+from friction_sim.core.events import CycleMark, Event, SliderState
+from friction_sim.core.params import Inputs, SliderParams, check_load, require_positive
+from friction_sim.core.slider import Slider
 from friction_sim.core.urelation import Prediction, predict
+from friction_sim.errors import ParameterError
 
 NS_PER_S = 1_000_000_000
 #: Period marks the core keeps; more than this many periods in one tick are
 #: summarised only from the last ones (only at absurd real-time factors).
 _MARK_BACKLOG = 4096
-MAX_MEAN_WINDOW = 10_000
-#: The real-time loop simulates at most this many excitation periods per wall
-#: second (f times the real-time factor): each costs the core ~10 us, and a
-#: tick must stay well inside its millisecond.
-MAX_PERIODS_PER_SECOND = 20_000.0
-
-
-def check_load(frequency: float, rate: float, field: str = "excitation_frequency") -> None:
-    """Refuse an excitation frequency and real-time factor the loop cannot keep up with."""
-    if frequency * rate <= MAX_PERIODS_PER_SECOND:
-        return
-    if field == "real_time_factor":
-        raise ParameterError(field, rate, f"must be <= {MAX_PERIODS_PER_SECOND / frequency:g} at excitation_frequency "
-                                          f"{frequency:g} Hz (at most {MAX_PERIODS_PER_SECOND:g} excitation periods "
-                                          "per wall-clock second in real time)")
-    raise ParameterError(field, frequency, f"must be <= {MAX_PERIODS_PER_SECOND / rate:g} Hz at real_time_factor "
-                                           f"{rate:g} (at most {MAX_PERIODS_PER_SECOND:g} excitation periods per "
-                                           "wall-clock second in real time)")
 
 
 class SimClock:
@@ -85,18 +71,6 @@ class SimClock:
         """Change the real-time factor from ``wall_ns`` on."""
         rate = require_positive("real_time_factor", rate)
         self._sim0, self._wall0, self._rate = self.now_ns(wall_ns), wall_ns, rate
-
-
-@dataclass(frozen=True)
-class CommandOutcome:
-    """One command as handled: when (simulation time), what, and whether it
-    was accepted; ``reason`` says why not (field, value, limit)."""
-
-    t: float
-    topic: str
-    values: dict[str, float]
-    accepted: bool
-    reason: str = ""
 
 
 @dataclass(frozen=True)
@@ -142,10 +116,10 @@ class RealtimeSlider:
         real_time_factor: float = 1.0, publish_rate: float = 1000.0, mean_window_periods: int = 1,
         log_rate: float | None = None,
     ) -> None:
-        self.clock = SimClock(real_time_factor, wall_ns)
+        self.clock = SimClock(float(spec.REAL_TIME_FACTOR.check(real_time_factor)), wall_ns)
         check_load(inputs.excitation_frequency, self.clock.rate)
         self.slider = Slider(params, inputs, event_log_size=1000, cycle_log_size=_MARK_BACKLOG)
-        self.publish_rate = require_positive("publish_rate", publish_rate)
+        self.publish_rate = float(spec.PUBLISH_RATE.check(publish_rate))
         self._window: Deque[CycleMark] = deque(maxlen=2)
         self.set_mean_window(mean_window_periods)
         self._last_mark_n = -1
@@ -156,7 +130,7 @@ class RealtimeSlider:
         self.stats = TickStats(interval_start_ns=wall_ns)
         self.last_period: PeriodSummary | None = None
         self._prediction: tuple[SliderParams, Inputs, Prediction] | None = None
-        self.log_rate = require_positive("log_rate", log_rate) if log_rate is not None else None
+        self.log_rate = float(spec.LOG_RATE.check(log_rate)) if log_rate is not None else None
         self._next_log_index = 0  # the log grid is k / log_rate in simulation time
         # What advancing produced since the last tick (commands advance too).
         self._events: list[Event] = []
@@ -164,77 +138,96 @@ class RealtimeSlider:
 
     # -- commands -----------------------------------------------------------
 
-    def command(self, topic: str, values: dict[str, float], wall_ns: int) -> CommandOutcome:
-        """Apply input changes (field names of :class:`Inputs`) now, or refuse them."""
-        return self.commands([(topic, values)], wall_ns)[0]
+    def now(self, wall_ns: int) -> float:
+        """Simulation time [s] at wall time ``wall_ns`` (never before the slider's own)."""
+        return max(self.clock.now(wall_ns), self.slider.t)
 
-    def commands(self, batch: Sequence[tuple[str, dict[str, float]]], wall_ns: int) -> list[CommandOutcome]:
-        """Handle several commands at the same instant, in order.
+    def command(self, command: Command, wall_ns: int) -> Outcome:
+        """Apply one command now, or refuse it (see :meth:`commands`)."""
+        return self.commands([command], wall_ns)[0]
 
-        Each is validated against the inputs the ones before it left, and
-        accepted or refused on its own; the core then takes the resulting
-        inputs once (applying them one by one at the same instant would give
-        the same motion, at the cost of a new segment each).
+    def commands(self, batch: Sequence[Command], wall_ns: int) -> list[Outcome]:
+        """Handle several commands at the same instant (now), in order.
+
+        Each is validated against the state the ones before it left, through
+        the core's one gate (:func:`friction_sim.core.commands.apply` and the
+        real-time load rule), and accepted or refused on its own; the core
+        then takes the result once (applying them one by one at the same
+        instant would give the same motion, at the cost of a new segment each).
+        The outcomes carry the commands stamped with the time they took effect.
         """
         t = self._advance(wall_ns)
         params, inputs = self.slider.params, self.slider.inputs
         outcomes = []
-        for topic, values in batch:
+        for command in batch:
+            stamped = command.at(t)
             try:
-                candidate = inputs.replace(**values)
-                check_contact(params, candidate, values)
-                check_load(candidate.excitation_frequency, self.clock.rate)
+                new_params, new_inputs = apply(stamped, params, inputs)
+                check_load(new_inputs.excitation_frequency, self.clock.rate)
             except ParameterError as error:
-                outcomes.append(self._refuse(t, topic, values,
-                                             str(error) if error.field == topic else f"{topic}: {error}"))
+                outcomes.append(self._refuse(stamped, reason(stamped, error)))
                 continue
-            inputs = candidate
+            params, inputs = new_params, new_inputs
             self.accepted += 1
-            outcomes.append(CommandOutcome(t, topic, values, True))
-        if inputs != self.slider.inputs:
-            self.slider.set_inputs(inputs)
+            outcomes.append(Outcome(stamped))
+        self._take(params, inputs)
         return outcomes
 
-    def set_params(self, params: SliderParams, wall_ns: int) -> CommandOutcome:
-        """Change mass, mu and gravity now, if the present inputs allow it."""
+    def configure(self, values: Mapping[str, Any], wall_ns: int) -> Outcome:
+        """A set of node parameters, checked and applied as one new state, now.
+
+        ``values`` may hold plant and input fields (the physics, applied as one
+        ``parameters`` command), ``real_time_factor``, ``publish_rate`` and
+        ``mean_window_periods``.  Everything is checked against the state in
+        force before anything changes: the whole set takes effect, or none of
+        it (the refusal names the field that was set).
+        """
         t = self._advance(wall_ns)
-        values = {"mass": params.mass, "mu": params.mu, "gravity": params.gravity}
+        physics = {k: float(v) for k, v in values.items() if k in spec.PLANT or k in spec.INPUTS}
+        command = Command(t, PARAMETERS, physics)
         try:
-            self.slider.set_params(params)
+            params, inputs = apply(command, self.slider.params, self.slider.inputs)
+            rate = float(spec.REAL_TIME_FACTOR.check(values.get("real_time_factor", self.clock.rate)))
+            check_load(inputs.excitation_frequency, rate,
+                       "real_time_factor" if "real_time_factor" in values else "excitation_frequency")
+            publish_rate = float(spec.PUBLISH_RATE.check(values.get("publish_rate", self.publish_rate)))
+            window = int(spec.MEAN_WINDOW_PERIODS.check(values.get("mean_window_periods",
+                                                                   self.mean_window_periods)))
         except ParameterError as error:
-            return self._refuse(t, "parameters", values, f"parameters: {error}")
-        self.accepted += 1
-        return CommandOutcome(t, "parameters", values, True)
+            return self._refuse(command, str(error))
+        self._take(params, inputs)
+        self.clock.set_rate(rate, wall_ns)
+        self.publish_rate = publish_rate
+        self.set_mean_window(window)
+        if physics:
+            self.accepted += 1
+        return Outcome(command)
 
-    def refuse(self, topic: str, values: dict[str, Any], reason: str, wall_ns: int) -> CommandOutcome:
+    def refuse(self, command: Command, why: str, wall_ns: int) -> Outcome:
         """Count a command that was refused before it reached the core."""
-        return self._refuse(self._advance(wall_ns), topic, values, reason)
+        return self._refuse(command.at(self._advance(wall_ns)), why)
 
-    def _refuse(self, t: float, topic: str, values: dict[str, Any], reason: str) -> CommandOutcome:
+    def _refuse(self, command: Command, why: str) -> Outcome:
         self.rejected += 1
-        self.last_rejection = reason
-        return CommandOutcome(t, topic, values, False, reason)
+        self.last_rejection = why
+        return Outcome(command, why)
+
+    def _take(self, params: SliderParams, inputs: Inputs) -> None:
+        """Hand new (validated) parameters and inputs to the core, if they changed."""
+        if params != self.slider.params or inputs != self.slider.inputs:
+            self.slider.set_plant(params, inputs)
 
     # -- settings -----------------------------------------------------------
 
     def set_mean_window(self, periods: int) -> None:
         """Average the mean velocity over the last ``periods`` whole periods."""
-        if isinstance(periods, bool) or not isinstance(periods, int) or not 1 <= periods <= MAX_MEAN_WINDOW:
-            raise ParameterError("mean_window_periods", periods, f"must be an integer in [1, {MAX_MEAN_WINDOW}]")
+        periods = spec.MEAN_WINDOW_PERIODS.check(periods)
         self._window = deque(self._window, maxlen=periods + 1)
 
     @property
     def mean_window_periods(self) -> int:
         assert self._window.maxlen is not None
         return self._window.maxlen - 1
-
-    def set_publish_rate(self, rate: float) -> None:
-        self.publish_rate = require_positive("publish_rate", rate)
-
-    def set_real_time_factor(self, rate: float, wall_ns: int) -> None:
-        check_load(self.slider.inputs.excitation_frequency, rate, "real_time_factor")
-        self._advance(wall_ns)
-        self.clock.set_rate(rate, wall_ns)
 
     # -- the tick -------------------------------------------------------------
 
@@ -268,7 +261,7 @@ class RealtimeSlider:
 
     def _advance(self, wall_ns: int) -> float:
         """Advance to the present, keeping the events and log samples on the way."""
-        t = max(self.clock.now(wall_ns), self.slider.t)
+        t = self.now(wall_ns)
         self._log_samples(t)
         self._events.extend(self.slider.advance_to(t))
         return t

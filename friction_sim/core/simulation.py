@@ -12,23 +12,18 @@ from __future__ import annotations
 
 import math
 import time
+from itertools import groupby
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import numpy as np
 
-from friction_sim.core.slider import Event, Slider, Trajectory
+from friction_sim.core.commands import Command, apply_all
+from friction_sim.core.events import Event, Trajectory
+from friction_sim.core.slider import Slider
 from friction_sim.errors import ParameterError
 from friction_sim.core.params import Inputs, SliderParams, amplitude_ratio, drive_ratio, require_finite
 from friction_sim.core.urelation import nondimensional_speed, predict
-
-
-@dataclass(frozen=True)
-class Command:
-    """Set some inputs (field names of :class:`Inputs`) at simulation time ``t``."""
-
-    t: float
-    changes: dict[str, float]
 
 
 Schedule = Sequence[Command]
@@ -48,31 +43,35 @@ def random_schedule(
         t += rng.exponential(mean_periods / frequency)
         if t >= duration:
             return commands
-        changes = {
-            "drive_force": float(rng.uniform(-1.0, 1.0) * 0.12 * weight),
-            "excitation_amplitude": float(rng.uniform(0.0, 0.8) * weight),
-            "excitation_frequency": float(frequency * rng.uniform(0.5, 2.0)),
-        }
+        commands.append(Command(t, "drive_force", {"drive_force": float(rng.uniform(-1.0, 1.0) * 0.12 * weight)}))
+        commands.append(Command(t, "excitation_amplitude",
+                                {"excitation_amplitude": float(rng.uniform(0.0, 0.8) * weight)}))
+        commands.append(Command(t, "excitation_frequency",
+                                {"excitation_frequency": float(frequency * rng.uniform(0.5, 2.0))}))
         if external:
-            changes["external_force_x"] = float(rng.uniform(-0.02, 0.02) * weight)
-            changes["external_force_z"] = float(rng.uniform(0.0, 0.1) * weight)
-        commands.append(Command(t, changes))
+            commands.append(Command(t, "external_wrench", {
+                "external_force_x": float(rng.uniform(-0.02, 0.02) * weight),
+                "external_force_z": float(rng.uniform(0.0, 0.1) * weight),
+            }))
 
 
 def run_schedule(slider: Slider, schedule: Schedule, sample_times: np.ndarray) -> Trajectory:
     """Apply ``schedule`` to ``slider`` at its command times and return the
     exact state at ``sample_times`` (ascending).  A command at the same time as
-    a sample is applied first."""
+    a sample is applied first; commands at the same time take effect together
+    (validated in order, one new segment), as the slider node takes a batch."""
     sample_times = np.asarray(sample_times, dtype=float)
     pieces: list[Trajectory] = []
     first = 0
-    for command in sorted(schedule, key=lambda c: c.t):
-        last = int(np.searchsorted(sample_times, command.t, side="left"))
+    for t, group in groupby(sorted(schedule, key=lambda c: c.t), key=lambda c: c.t):
+        last = int(np.searchsorted(sample_times, t, side="left"))
         if last > first:
             pieces.append(slider.sample(sample_times[first:last]))
             first = last
-        slider.advance_to(command.t)
-        slider.set_inputs(**command.changes)
+        slider.advance_to(t)
+        commands = list(group)
+        params, inputs = apply_all(commands, slider.params, slider.inputs)
+        slider.set_plant(params, inputs, {name for c in commands for name in c.values})
     if first < sample_times.size:
         pieces.append(slider.sample(sample_times[first:]))
     return _concatenate(pieces)

@@ -21,12 +21,13 @@ import pytest
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
-from helpers import EndlessLoop, mirrored, time_limit
+from helpers import EndlessLoop, grouped, mirrored, time_limit
 
 from friction_sim.core.slider import EventKind, Mode, Slider
 from friction_sim.errors import FrictionSimError, ParameterError
 from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.simulation import Command, random_schedule, run_schedule
+from friction_sim.core.commands import Command
+from friction_sim.core.simulation import random_schedule, run_schedule
 
 TWO_PI = 2.0 * math.pi
 PAPER = dict(m=1.0, mu=0.1, g=10.0, fd=0.7, pa=5.0, f=50.0)
@@ -407,12 +408,12 @@ def test_cut_invariance_random_schedule(seed, external):
 
     cut = paper_slider(event_log_size=None)
     cuts = list(_cuts(rng, t_end, 4000))
-    for command in schedule:
+    for command in grouped(schedule):
         for t in [c for c in cuts if c < command.t]:
             cut.advance_to(t)
         cuts = [c for c in cuts if c >= command.t]
         cut.advance_to(command.t)
-        cut.set_inputs(**command.changes)
+        cut.set_inputs(**command.values)
     for t in cuts:
         cut.advance_to(t)
     cut.advance_to(t_end)
@@ -578,7 +579,7 @@ def test_reversal_under_excitation_agrees_with_reference(fd):
     t_flip, t_end = 0.006, 0.1  # the flip happens during the first slip
     slider = paper_slider(event_log_size=None)
     times = np.linspace(0.0, t_end, 1001)
-    tr = run_schedule(slider, [Command(t_flip, {"drive_force": fd})], times)
+    tr = run_schedule(slider, [Command(t_flip, "drive_force", {"drive_force": fd})], times)
     kinds = [e.kind for e in slider.events]
     assert kinds[:2] == [EventKind.SLIP_START, EventKind.REVERSAL]
     assert slider.events[1].before is Mode.FORWARD and slider.events[1].after is Mode.BACKWARD
@@ -638,7 +639,7 @@ def test_continuity_at_events(seed):
     params = SliderParams()
     inputs, amax = Inputs(), max_acceleration(params, Inputs())
     for c in schedule:
-        inputs = inputs.replace(**c.changes)
+        inputs = inputs.replace(**c.values)
         amax = max(amax, max_acceleration(params, inputs))
 
     dt = 1e-9

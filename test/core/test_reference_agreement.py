@@ -27,7 +27,9 @@ import pytest
 
 from friction_sim.core.slider import Slider
 from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.simulation import Command, random_schedule, run_schedule
+from friction_sim.core.commands import Command
+from helpers import grouped, rescaled_drive
+from friction_sim.core.simulation import random_schedule, run_schedule
 from friction_sim.core.urelation import dimensional_speed, u_map
 
 import reference
@@ -42,8 +44,8 @@ def reference_schedule(start, schedule):
     """The core's (initial Inputs, Commands) as the reference's piecewise list."""
     current = dataclasses.asdict(start)
     out = [(0.0, ReferenceInputs(**current))]
-    for command in sorted(schedule, key=lambda c: c.t):
-        current = {**current, **command.changes}
+    for command in grouped(schedule):
+        current = {**current, **command.values}
         out.append((command.t, ReferenceInputs(**current)))
     return out
 
@@ -92,10 +94,7 @@ def test_random_schedules_other_plant_agree_with_reference(seed):
     t_end = 1.0  # ~30 periods at 30 Hz
     schedule = random_schedule(rng, t_end, frequency=30.0, weight=weight, external=True)
     # random_schedule scales drive forces for mu ~ 0.1; rescale to this mu
-    schedule = [
-        Command(c.t, {**c.changes, "drive_force": c.changes["drive_force"] * params.mu / 0.1})
-        for c in schedule
-    ]
+    schedule = rescaled_drive(schedule, params.mu / 0.1)
     start = Inputs(drive_force=0.8 * params.mu * weight, excitation_amplitude=0.4 * weight,
                    excitation_frequency=30.0)
     slider, _, _ = compare(params, start, schedule, t_end)
@@ -104,7 +103,7 @@ def test_random_schedules_other_plant_agree_with_reference(seed):
 
 def test_reversal_heavy_schedule_agrees_with_reference():
     """Drive force flipping sign every ~1.3 periods, often mid-slip."""
-    flips = [Command(0.026 * k + 0.003, {"drive_force": (-1) ** k * 0.85}) for k in range(1, 30)]
+    flips = [Command(0.026 * k + 0.003, "drive_force", {"drive_force": (-1) ** k * 0.85}) for k in range(1, 30)]
     slider, _, _ = compare(SliderParams(), Inputs(drive_force=0.85, excitation_amplitude=6.0),
                            flips, 0.8)
     kinds = [e.kind.value for e in slider.events]

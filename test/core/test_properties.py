@@ -14,11 +14,12 @@ import numpy as np
 from hypothesis import HealthCheck, Phase, assume, given, settings
 from hypothesis import strategies as st
 
-from helpers import EndlessLoop, mirrored, time_limit
+from helpers import EndlessLoop, grouped, mirrored, rescaled_drive, time_limit
 
 from friction_sim.core.slider import EventKind, Mode, Slider
 from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.simulation import Command, random_schedule, run_schedule
+from friction_sim.core.commands import Command
+from friction_sim.core.simulation import random_schedule, run_schedule
 from friction_sim.core.urelation import u_map
 
 TWO_PI = 2.0 * math.pi
@@ -55,8 +56,7 @@ def schedule_for(seed, params, f, periods, external):
     rng = np.random.default_rng(seed)
     duration = periods / f
     commands = random_schedule(rng, duration, frequency=f, weight=params.weight, external=external)
-    return [Command(c.t, {**c.changes, "drive_force": c.changes["drive_force"] * params.mu / 0.1})
-            for c in commands], duration
+    return rescaled_drive(commands, params.mu / 0.1), duration
 
 
 # --------------------------------------------------------------------------
@@ -149,11 +149,11 @@ def test_cut_invariance(mass, mu, g, f, phi, a, seed, external, cuts):
         run_schedule(one, schedule, np.array([duration]))
         run_schedule(grid, schedule, np.linspace(0.0, duration, 1001))
         times = sorted(c * duration for c in cuts)
-        for command in schedule:
+        for command in grouped(schedule):
             while times and times[0] < command.t:
                 many.advance_to(times.pop(0))
             many.advance_to(command.t)
-            many.set_inputs(**command.changes)
+            many.set_inputs(**command.values)
         for t in times:
             many.advance_to(t)
         many.advance_to(duration)
@@ -208,7 +208,7 @@ def test_time_only_forward_and_stuck_means_still(mass, mu, g, f, phi, a, seed, e
     # advance in random steps, applying the schedule
     slider = Slider(params, inputs, event_log_size=None)
     steps = sorted({c * duration for c in cuts} | {c.t for c in schedule} | {duration})
-    pending = sorted(schedule, key=lambda c: c.t)
+    pending = grouped(schedule)
     last_t, last_stuck_time, last_event_t = 0.0, 0.0, -math.inf
     with time_limit(10.0, "advance_to"):
         for t in steps:
@@ -221,7 +221,7 @@ def test_time_only_forward_and_stuck_means_still(mass, mu, g, f, phi, a, seed, e
             assert last_stuck_time <= slider.stuck_time <= slider.t + 1e-15
             last_t, last_stuck_time = t, slider.stuck_time
             while pending and pending[0].t == t:
-                slider.set_inputs(**pending.pop(0).changes)
+                slider.set_inputs(**pending.pop(0).values)
     assert not pending
     times = [e.t for e in slider.events]
     assert times == sorted(times)
@@ -246,7 +246,7 @@ def test_time_only_forward_and_stuck_means_still(mass, mu, g, f, phi, a, seed, e
     current, amax = inputs, 0.0
     for command in [None] + sorted(schedule, key=lambda c: c.t):
         if command is not None:
-            current = current.replace(**command.changes)
+            current = current.replace(**command.values)
         load = params.weight + current.external_force_z + current.excitation_amplitude
         amax = max(amax, (abs(current.tangential_force) + params.mu * load) / params.mass)
     dt = np.diff(grid)
