@@ -18,7 +18,7 @@ MPLBACKEND := Agg
 export ROS_DOMAIN_ID ROS_AUTOMATIC_DISCOVERY_RANGE MPLBACKEND
 
 .DEFAULT_GOAL := test
-.PHONY: venv .venv test demo bench clean distclean
+.PHONY: venv .venv lint test demo bench clean distclean
 
 venv .venv: $(STAMP)
 
@@ -33,7 +33,16 @@ $(STAMP): requirements.txt requirements-dev.txt constraints.txt setup.py setup.c
 	touch $(VENV)/COLCON_IGNORE
 	touch $@
 
-test: $(STAMP)
+# Static checks; configuration in pyproject.toml ([tool.ruff], [tool.mypy]).
+# Both always run, so one pass shows every finding; either one failing fails lint.
+lint: $(STAMP)
+	@status=0; \
+	echo "ruff check friction_sim test bench"; $(VPY) -m ruff check friction_sim test bench || status=1; \
+	echo "mypy"; $(VPY) -m mypy || status=1; \
+	exit $$status
+
+# Lint first: a lint failure fails `make test` before any test runs.
+test: $(STAMP) lint
 	$(VPY) -m pytest -q test $(PYTEST_ARGS)
 
 demo: $(STAMP)
