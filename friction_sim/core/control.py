@@ -34,18 +34,17 @@ the Pa on its way to the plant is delayed as much as the samples coming back.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections import deque
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Deque
 
-from friction_sim.errors import ParameterError
 from friction_sim.core import spec
 from friction_sim.core.params import SliderParams, require_finite
 from friction_sim.core.realtime import NS_PER_S
 from friction_sim.core.urelation import amplitude_ratio_for, u_map
-
+from friction_sim.errors import ParameterError
 
 
 @dataclass(frozen=True)
@@ -91,7 +90,7 @@ class SampleClock:
     to tell whether a sample's window lies wholly after the last change of Pa."""
 
     def __init__(self) -> None:
-        self._samples: Deque[tuple[float, int]] = deque(maxlen=64)  # ~1 s at 50 Hz: a steady rate
+        self._samples: deque[tuple[float, int]] = deque(maxlen=64)  # ~1 s at 50 Hz: a steady rate
         self._change_wall_ns: int | None = None
 
     def note_change(self, wall_ns: int) -> None:
@@ -115,7 +114,7 @@ class SampleClock:
         """
         rate, samples = self.rate(), list(self._samples)
         lateness = [((w1 - w0) / NS_PER_S) * rate - (t1 - t0)
-                    for (t0, w0), (t1, w1) in zip(samples, samples[1:])]
+                    for (t0, w0), (t1, w1) in itertools.pairwise(samples)]
         return max([0.0, *lateness])
 
     def add(self, stamp: float, wall_ns: int, period: float, window_periods: int, margin: float) -> bool:
@@ -134,8 +133,8 @@ class MeanSpeedController:
     def __init__(self, config: ControllerConfig, *, drive_force: float, frequency: float,
                  target_speed: float = 0.0) -> None:
         self._config = config
-        self._drive_force = spec.DRIVE_FORCE.check(drive_force)
-        self._frequency = spec.EXCITATION_FREQUENCY.check(frequency)
+        self._drive_force = float(spec.DRIVE_FORCE.check(drive_force))
+        self._frequency = float(spec.EXCITATION_FREQUENCY.check(frequency))
         self._target = 0.0
         self._ratio = 1.0  # U_cmd / U*
         self._last_clean: tuple[float, float] | None = None  # (U_cmd, shortfall) for the secant
@@ -148,8 +147,9 @@ class MeanSpeedController:
 
     def set_target(self, speed: float) -> ControlOutput:
         """A new target mean speed [m/s]; it must agree in sign with the drive force."""
-        speed = spec.TARGET_SPEED.check(speed)
-        if speed != 0.0 and (self._drive_force == 0.0 or math.copysign(1.0, speed) != math.copysign(1.0, self._drive_force)):
+        speed = float(spec.TARGET_SPEED.check(speed))
+        against = self._drive_force == 0.0 or math.copysign(1.0, speed) != math.copysign(1.0, self._drive_force)
+        if speed != 0.0 and against:
             raise ParameterError(
                 "target_speed", speed,
                 f"must have the sign of drive_force = {self._drive_force!r} N (the slider only creeps that way)",
@@ -159,14 +159,14 @@ class MeanSpeedController:
         return self._update()
 
     def set_drive_force(self, force: float) -> ControlOutput:
-        self._drive_force = spec.DRIVE_FORCE.check(force)
+        self._drive_force = float(spec.DRIVE_FORCE.check(force))
         if self._target != 0.0 and math.copysign(1.0, self._target) != math.copysign(1.0, force):
             self._target = 0.0  # the old target now points the wrong way
         self._last_clean = None
         return self._update()
 
     def set_frequency(self, frequency: float) -> ControlOutput:
-        self._frequency = spec.EXCITATION_FREQUENCY.check(frequency)
+        self._frequency = float(spec.EXCITATION_FREQUENCY.check(frequency))
         self._last_clean = None
         return self._update()
 
@@ -188,7 +188,8 @@ class MeanSpeedController:
                 step = config.integral_gain * error
                 if self._last_clean is not None:
                     previous_command, previous_error = self._last_clean
-                    slope = (previous_error - error) / (command - previous_command) if command != previous_command else 0.0
+                    moved = command - previous_command
+                    slope = (previous_error - error) / moved if moved != 0.0 else 0.0
                     if slope > 0.0:
                         step = error / slope
                 self._last_clean = (command, error)

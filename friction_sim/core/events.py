@@ -13,6 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+
 class Mode(IntEnum):
     """What the slider is doing: its slip direction, or stuck."""
 
@@ -92,8 +93,12 @@ class Trajectory:
 
     def states(self) -> list[SliderState]:
         """The samples as :class:`SliderState` records, in time order."""
-        columns = (self.t, self.x, self.v, self.acceleration, self.friction_force, self.normal_force, self.phase)
-        return [SliderState(*(float(c[k]) for c in columns), Mode(int(self.mode[k]))) for k in range(self.t.size)]
+        return [
+            SliderState(float(self.t[k]), float(self.x[k]), float(self.v[k]), float(self.acceleration[k]),
+                        float(self.friction_force[k]), float(self.normal_force[k]), float(self.phase[k]),
+                        Mode(int(self.mode[k])))
+            for k in range(self.t.size)
+        ]
 
 
 __all__ = ["CycleMark", "Event", "EventKind", "Mode", "SliderState", "Trajectory"]

@@ -22,9 +22,9 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
 from collections.abc import Mapping, Sequence
-from typing import Any, Deque
+from dataclasses import dataclass
+from typing import Any
 
 from friction_sim.core import spec
 from friction_sim.core.commands import PARAMETERS, Command, Outcome, apply, reason
@@ -120,7 +120,7 @@ class RealtimeSlider:
         check_load(inputs.excitation_frequency, self.clock.rate)
         self.slider = Slider(params, inputs, event_log_size=1000, cycle_log_size=_MARK_BACKLOG)
         self.publish_rate = float(spec.PUBLISH_RATE.check(publish_rate))
-        self._window: Deque[CycleMark] = deque(maxlen=2)
+        self._window: deque[CycleMark] = deque(maxlen=2)
         self.set_mean_window(mean_window_periods)
         self._last_mark_n = -1
         self.accepted = 0

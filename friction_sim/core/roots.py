@@ -191,7 +191,8 @@ def trig_remainders(psi: Any, xp: ModuleType = math) -> tuple[Any, Any, Any]:
 def _speed(w0: float, g0: float, k: float, cos0: float, sin0: float, omega: float, tau: float) -> float:
     """w(tau) of a slip segment: w0 + g0*tau + k*(cos0*(1 - cos psi) - sin0*(psi - sin psi))."""
     c1, s2, _ = trig_remainders(omega * tau)
-    return w0 + g0 * tau + k * (cos0 * c1 - sin0 * s2)
+    speed: float = w0 + g0 * tau + k * (cos0 * c1 - sin0 * s2)
+    return speed
 
 
 def _falling_root(

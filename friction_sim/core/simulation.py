@@ -12,19 +12,19 @@ from __future__ import annotations
 
 import math
 import time
-from itertools import groupby
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from itertools import groupby
+from typing import Any
 
 import numpy as np
 
 from friction_sim.core.commands import Command, apply_all
 from friction_sim.core.events import Event, Trajectory
-from friction_sim.core.slider import Slider
-from friction_sim.errors import ParameterError
 from friction_sim.core.params import Inputs, SliderParams, amplitude_ratio, drive_ratio, require_finite
+from friction_sim.core.slider import Slider
 from friction_sim.core.urelation import nondimensional_speed, predict
-
+from friction_sim.errors import ParameterError
 
 Schedule = Sequence[Command]
 
@@ -37,7 +37,7 @@ def random_schedule(
     benchmark: drive force of either sign, amplitude in [0, 0.95*weight),
     frequency within a factor of two of ``frequency``, optionally an
     external force.  Times are random, not on the period grid."""
-    commands = []
+    commands: list[Command] = []
     t = 0.0
     while True:
         t += rng.exponential(mean_periods / frequency)
@@ -80,8 +80,12 @@ def run_schedule(slider: Slider, schedule: Schedule, sample_times: np.ndarray) -
 def _concatenate(pieces: list[Trajectory]) -> Trajectory:
     if len(pieces) == 1:
         return pieces[0]
-    names = ("t", "x", "v", "acceleration", "friction_force", "normal_force", "phase", "mode")
-    return Trajectory(*(np.concatenate([getattr(p, n) for p in pieces]) for n in names),
+
+    def joined(name: str) -> np.ndarray:
+        return np.concatenate([getattr(p, name) for p in pieces])
+
+    return Trajectory(joined("t"), joined("x"), joined("v"), joined("acceleration"), joined("friction_force"),
+                      joined("normal_force"), joined("phase"), joined("mode"),
                       events=tuple(e for p in pieces for e in p.events))
 
 

@@ -44,7 +44,7 @@ import math
 from collections import deque
 from dataclasses import fields
 from types import ModuleType
-from typing import Any, Deque
+from typing import Any
 
 import numpy as np
 
@@ -52,7 +52,13 @@ from friction_sim.core.events import MODES as _MODES
 from friction_sim.core.events import CycleMark, Event, EventKind, Mode, SliderState, Trajectory
 from friction_sim.core.params import Inputs, SliderParams, check_contact, require_finite
 from friction_sim.core.roots import (
-    NEVER, TWO_PI, can_ever_slip, from_rest_b0, next_slip_start, slip_stop_delay, trig_remainders,
+    NEVER,
+    TWO_PI,
+    can_ever_slip,
+    from_rest_b0,
+    next_slip_start,
+    slip_stop_delay,
+    trig_remainders,
 )
 from friction_sim.errors import ParameterError
 
@@ -207,11 +213,11 @@ class Slider:
             raise ParameterError("event_log_size", event_log_size, "must be an integer >= 0 or None")
         if cycle_log_size is not None and not (isinstance(cycle_log_size, int) and cycle_log_size >= 0):
             raise ParameterError("cycle_log_size", cycle_log_size, "must be an integer >= 0 or None")
-        self._events: Deque[Event] = deque(maxlen=event_log_size)
+        self._events: deque[Event] = deque(maxlen=event_log_size)
         self._counts = {kind: 0 for kind in EventKind}
         self._stuck_time = 0.0
         self._cache: dict[tuple[float, float, float, float, int], tuple[float, Any]] = {}
-        self._marks: Deque[CycleMark] | None = None
+        self._marks: deque[CycleMark] | None = None
         self._next_mark_n, self._next_mark_t = 1, NEVER
         x0 = require_finite("x0", x0)
         if cycle_log_size != 0:

@@ -38,8 +38,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from friction_sim.errors import ParameterError
 from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.errors import ParameterError
 
 _TWO_PI = 2.0 * np.pi
 _FOUR_PI2 = 4.0 * np.pi**2

@@ -11,9 +11,9 @@ import math
 import numpy as np
 import pytest
 
+from friction_sim.core.params import Inputs, SliderParams, check_contact
 from friction_sim.core.slider import Slider
 from friction_sim.errors import FrictionSimError, ParameterError
-from friction_sim.core.params import Inputs, SliderParams, check_contact
 
 NAN = float("nan")
 INF = float("inf")

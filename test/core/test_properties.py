@@ -14,13 +14,12 @@ import numpy as np
 from hypothesis import HealthCheck, Phase, assume, given, settings
 from hypothesis import strategies as st
 
-from helpers import EndlessLoop, grouped, mirrored, rescaled_drive, time_limit
-
-from friction_sim.core.slider import EventKind, Mode, Slider
 from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.commands import Command
 from friction_sim.core.simulation import random_schedule, run_schedule
+from friction_sim.core.slider import EventKind, Mode, Slider
 from friction_sim.core.urelation import u_map
+
+from helpers import grouped, mirrored, rescaled_drive, time_limit
 
 TWO_PI = 2.0 * math.pi
 BOUNDARY_MARGIN = 1e-9

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from reference import (
+    ReferenceInputs,
     brute_force_mean_velocity,
     reference_solution,
-    ReferenceInputs,
 )
 
 M, MU, G = 1.0, 0.1, 10.0

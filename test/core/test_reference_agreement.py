@@ -25,14 +25,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from friction_sim.core.slider import Slider
-from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.commands import Command
-from helpers import grouped, rescaled_drive
+from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.simulation import random_schedule, run_schedule
+from friction_sim.core.slider import Slider
 from friction_sim.core.urelation import dimensional_speed, u_map
 
 import reference
+from helpers import grouped, rescaled_drive
+
 ReferenceInputs = reference.ReferenceInputs
 
 X_TOL = 1e-8
@@ -80,7 +81,7 @@ def test_random_schedules_agree_with_reference(seed, external):
     t_end = 0.8  # 40 periods at the nominal 50 Hz (frequency varies 25..100 Hz)
     schedule = random_schedule(rng, t_end, external=external)
     assert len(schedule) >= 3
-    slider, traj, ref = compare(SliderParams(), Inputs(), schedule, t_end)
+    slider, _traj, ref = compare(SliderParams(), Inputs(), schedule, t_end)
     assert len(slider.events) >= 4
     assert np.max(np.abs(ref.x)) > 0.0
 

@@ -21,13 +21,13 @@ import pytest
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
-from helpers import EndlessLoop, grouped, mirrored, time_limit
-
+from friction_sim.core.commands import Command
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.simulation import random_schedule, run_schedule
 from friction_sim.core.slider import EventKind, Mode, Slider
 from friction_sim.errors import FrictionSimError, ParameterError
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.commands import Command
-from friction_sim.core.simulation import random_schedule, run_schedule
+
+from helpers import EndlessLoop, grouped, mirrored, time_limit
 
 TWO_PI = 2.0 * math.pi
 PAPER = dict(m=1.0, mu=0.1, g=10.0, fd=0.7, pa=5.0, f=50.0)
@@ -124,8 +124,8 @@ def test_still_before_slip_start():
 
 
 def test_one_period_closed_form():
-    m, mu, g = PAPER["m"], PAPER["mu"], PAPER["g"]
-    theta_a, psi_b, psi_c, d = periodic_slip(0.7, 0.5)
+    _m, mu, g = PAPER["m"], PAPER["mu"], PAPER["g"]
+    theta_a, _psi_b, psi_c, d = periodic_slip(0.7, 0.5)
     assert abs(theta_a - THETA_A) < 1e-15
     # sanity of the closed-form integral against quadrature of w
     d_quad, _ = quad(w_units, 0.0, psi_c, args=(0.7, 0.5, theta_a), epsabs=0, epsrel=1e-13)
@@ -148,7 +148,7 @@ def test_one_period_closed_form():
 
 def test_velocity_is_exactly_zero_at_the_stick_and_peaks_at_point_b():
     mu, g = PAPER["mu"], PAPER["g"]
-    theta_a, psi_b, psi_c, _ = periodic_slip(0.7, 0.5)
+    theta_a, psi_b, _psi_c, _ = periodic_slip(0.7, 0.5)
     slider = paper_slider()
     events = slider.advance_to(PERIOD)
     stick = events[1]
@@ -460,7 +460,7 @@ def test_energy_balance():
     t_end = 0.11
     slider = Slider(params, pieces[0][1], event_log_size=None)
     oracle = _Oracle()
-    work_in, events, bounds = 0.0, [], []
+    work_in, events, _bounds = 0.0, [], []
     theta0 = 0.0  # my own phase bookkeeping
     friction_work = 0.0
     for i, (t0, inputs) in enumerate(pieces):
@@ -486,7 +486,7 @@ def test_energy_balance():
             return mu * reaction * abs(oracle.state(t).v)
 
         points = sorted({e.t for e in inside if t0 < e.t < t1})
-        value, err = quad(power, t0, t1, points=points or None, limit=400, epsabs=0.0, epsrel=1e-12)
+        value, _err = quad(power, t0, t1, points=points or None, limit=400, epsabs=0.0, epsrel=1e-12)
         friction_work += value
         theta0 += omega * (t1 - t0)
 

@@ -15,7 +15,6 @@ import pytest
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
-from friction_sim.errors import FrictionSimError, ParameterError
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.simulation import simulate
 from friction_sim.core.urelation import (
@@ -28,6 +27,7 @@ from friction_sim.core.urelation import (
     stop_phase_advance,
     u_map,
 )
+from friction_sim.errors import FrictionSimError, ParameterError
 
 TWO_PI = 2.0 * math.pi
 
