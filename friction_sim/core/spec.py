@@ -116,9 +116,10 @@ def table(*settings: Setting) -> dict[str, Setting]:
 
 # -- the plant -------------------------------------------------------------------
 
-MASS = Setting("mass", 1.0, "kg", "slider mass m", 1e-6, 1e6)
+_STAYS_ON = "Pa < m g + Fz must still hold"
+MASS = Setting("mass", 1.0, "kg", "slider mass m", 1e-6, 1e6, rule=_STAYS_ON)
 MU = Setting("mu", 0.1, "-", "Coulomb friction coefficient", 1e-6, 10.0)
-GRAVITY = Setting("gravity", 10.0, "m/s^2", "gravity g", 1e-6, 1e3)
+GRAVITY = Setting("gravity", 10.0, "m/s^2", "gravity g", 1e-6, 1e3, rule=_STAYS_ON)
 PLANT = table(MASS, MU, GRAVITY)
 
 # -- the inputs ------------------------------------------------------------------
@@ -172,20 +173,43 @@ ACTIVE = Setting("active", True, "-", "regulate now; false: stand by (publish no
 
 SLIDER_NODE = table(
     MASS, MU, GRAVITY,
-    DRIVE_FORCE.described("drive force Fd [N] along +x; setting it acts like the topic"),
+    DRIVE_FORCE.described("drive force Fd along +x; setting it acts like the topic"),
     EXCITATION_AMPLITUDE, EXCITATION_FREQUENCY,
     PUBLISH_RATE, REAL_TIME_FACTOR, PUBLISH_CLOCK, MEAN_WINDOW_PERIODS, FRAME_ID, LOG_PATH, LOG_RATE,
 )
 CONTROLLER_NODE = table(
-    MASS.described("model: slider mass m"),
+    MASS.described("model: slider mass m (replaced at start-up by plant_node's, if it answers within 5 s)",
+                   rule=""),
     MU.described("model: Coulomb friction coefficient"),
-    GRAVITY.described("model: gravity g"),
+    GRAVITY.described("model: gravity g", rule=""),
     EXCITATION_FREQUENCY.described("initial excitation frequency f; then it follows the topic", rule=""),
     DRIVE_FORCE.described("initial drive force Fd; then it follows the topic"),
     TARGET_SPEED, INTEGRAL_GAIN, MAX_AMPLITUDE_RATIO, SETTLE_MARGIN,
     MEAN_WINDOW_PERIODS.described("the slider's mean_velocity window (read from plant_node)"),
     PLANT_NODE, ACTIVE,
 )
+
+
+def markdown_table(settings: dict[str, Setting]) -> str:
+    """The README table of ``settings``: one row each with default, unit, range
+    (and cross-field rule) and meaning.  The README holds exactly this text; a
+    test checks it, so the documentation cannot drift from the code."""
+    rows = ["| parameter | default | unit | range / rule | meaning |", "|---|---|---|---|---|"]
+    for setting in settings.values():
+        limits = "; ".join(part for part in (setting.range_text(), setting.rule) if part) or "–"
+        meaning = setting.description + ("; start-up only" if setting.start_only else "")
+        unit = setting.unit if setting.unit not in ("", "-") else "–"
+        rows.append(f"| `{setting.name}` | {_default_text(setting.default)} | {unit} | {limits} "
+                    f"| {meaning} |")
+    return "\n".join(rows) + "\n"
+
+
+def _default_text(value: Value) -> str:
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, str):
+        return f"`{value}`" if value else "''"
+    return repr(value)
 
 
 def defaults(settings: dict[str, Setting]) -> dict[str, Value]:
@@ -195,5 +219,5 @@ def defaults(settings: dict[str, Setting]) -> dict[str, Value]:
 
 __all__ = [
     "CONTROLLER_NODE", "INPUTS", "MAX_MEAN_WINDOW", "MAX_PERIODS_PER_SECOND", "PLANT", "SLIDER_NODE",
-    "Setting", "Value", "defaults", "table",
+    "Setting", "Value", "defaults", "markdown_table", "table",
 ]
