@@ -2,7 +2,7 @@
 
 Measures, in one run on this machine:
   (a) what recording costs the 1 kHz tick thread: the time of one
-      ``Recorder.record_state`` call (a queue put), and of a whole logged tick
+      ``Recorder.on_states`` call (a queue put), and of a whole logged tick
       of :class:`RealtimeSlider` (advance the core through the grid point, take
       the exact state, queue it with the tick's events), median and 99th
       percentile;
@@ -31,12 +31,15 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 import numpy as np
 
-from friction_sim.core.slider import Slider
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.realtime import RealtimeSlider
-from friction_sim.io.recording import Recorder, record_offline
-from friction_sim.io.replay import read_recording, verify
 from friction_sim.core.simulation import random_schedule
+from friction_sim.core.slider import Slider
+from friction_sim.io.offline import record_offline
+from friction_sim.io.reader import read_recording
+from friction_sim.io.recorder import Recorder
+from friction_sim.io.sinks import deliver_tick
+from friction_sim.io.verify import verify
 
 
 def percentile(samples: list[float], q: float) -> float:
@@ -50,18 +53,18 @@ def tick_thread_costs(folder: Path, steps: int) -> None:
         state = slider.state()
         for _ in range(steps):
             started = time.perf_counter()
-            recorder.record_state(state)
+            recorder.on_states([state], "slideway")
             puts.append(time.perf_counter() - started)
             time.sleep(0.0002)  # let the writer keep up, as a 1 kHz loop would
         rt = RealtimeSlider(SliderParams(), Inputs(), wall_ns=0, log_rate=1000.0)
         grid = []
         for k in range(1, steps + 1):
             started = time.perf_counter()
-            recorder.record_tick(rt.tick(k * 1_000_000))
+            deliver_tick([recorder], rt.tick(k * 1_000_000), "slideway")
             grid.append(time.perf_counter() - started)
             time.sleep(0.0002)
         dropped = recorder.dropped
-    print(f"(a) tick thread: record_state {statistics.median(puts) * 1e6:.1f} us median, "
+    print(f"(a) tick thread: on_states {statistics.median(puts) * 1e6:.1f} us median, "
           f"{percentile(puts, 99) * 1e6:.1f} us p99; logged tick (advance + state + queue) "
           f"{statistics.median(grid) * 1e6:.1f} us median, {percentile(grid, 99) * 1e6:.1f} us p99; "
           f"{dropped} dropped")

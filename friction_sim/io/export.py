@@ -1,12 +1,22 @@
-"""Writing results to CSV files (the only file output of the offline jobs)."""
+"""Writing results to CSV files: the offline jobs' U maps and trajectories, and
+a recording's topics (``friction-sim replay --csv``)."""
 
 from __future__ import annotations
 
 import csv
+import json
+import math
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
-from friction_sim.core.slider import Event, Trajectory
+from friction_sim.core.events import Event, Trajectory
+from friction_sim.core.realtime import NS_PER_S
 from friction_sim.core.urelation import UMap
+from friction_sim.errors import RecordingError
+
+if TYPE_CHECKING:  # the offline jobs write CSV without loading the ROS message packages
+    from friction_sim.io.reader import Recording
 
 TRAJECTORY_COLUMNS = (
     "t", "kind", "x", "v", "acceleration", "friction_force", "normal_force", "phase", "mode",
@@ -47,4 +57,89 @@ def write_trajectory_csv(trajectory: Trajectory, events: list[Event], path: Path
         writer = csv.writer(stream)
         writer.writerow(TRAJECTORY_COLUMNS)
         writer.writerows(row[2] for row in rows)
+    return path
+
+
+# -- recordings: one CSV per topic ----------------------------------------------------
+
+
+def flatten(msg: Any, prefix: str = "") -> dict[str, Any]:
+    """A message as {dotted.field: value}: nested messages flattened, byte
+    fields as integers, sequences as a JSON list (of flattened messages)."""
+    from friction_sim.io.cdr import field_names, is_message
+
+    row: dict[str, Any] = {}
+    for name in field_names(msg):
+        value = getattr(msg, name)
+        key = f"{prefix}{name}"
+        if is_message(value):
+            row.update(flatten(value, key + "."))
+        else:
+            row[key] = _cell(value)
+    return row
+
+
+def _cell(value: Any) -> Any:
+    """One CSV cell: floats at full precision, sequences as JSON."""
+    from friction_sim.io.cdr import is_message
+
+    if isinstance(value, bytes):
+        return value[0] if len(value) == 1 else value.hex()
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, (list, tuple)) or (hasattr(value, "__len__") and hasattr(value, "tolist")
+                                            and not isinstance(value, str)):
+        items = value.tolist() if hasattr(value, "tolist") else list(value)
+        return json.dumps([flatten(v) if is_message(v) else _json_item(v) for v in items])
+    return value
+
+
+def _json_item(value: Any) -> Any:
+    """One element of a sequence as JSON takes it (non-finite floats as text)."""
+    if isinstance(value, bytes):
+        return value[0] if len(value) == 1 else value.hex()
+    if isinstance(value, float) and not math.isfinite(value):
+        return repr(value)
+    return value
+
+
+def select_topics(recording: Recording, topics: Sequence[str] | None) -> list[str]:
+    """``topics`` (leading / ignored) or, if none are given, every recorded
+    topic; RecordingError naming a topic the recording does not have."""
+    available = list(recording.topics)
+    if not topics:
+        return available
+    wanted = [t.lstrip("/") for t in topics]
+    unknown = [t for t in wanted if t not in recording.topics]
+    if unknown:
+        raise RecordingError(f"no topic {', '.join(unknown)} in {recording.path}; topics: {', '.join(available)}")
+    return wanted
+
+
+def export_csv(recording: Recording, directory: str | Path, topics: Sequence[str] | None = None) -> list[Path]:
+    """One CSV per topic in ``directory`` (``<topic>.csv``): columns
+    log_time_ns, t (s), then the flattened message fields."""
+    directory = Path(directory)
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise RecordingError(f"cannot create {directory}: {error.strerror or error}") from None
+    return [_write_topic(recording, topic, directory / (topic.strip("/").replace("/", "__") + ".csv"))
+            for topic in select_topics(recording, topics)]
+
+
+def _write_topic(recording: Recording, topic: str, path: Path) -> Path:
+    """The CSV of one topic: a column per field that any of its messages has."""
+    rows = [(raw.log_time, flatten(recording.decode(raw))) for raw in recording.messages_on(topic)]
+    columns: list[str] = []
+    for _, row in rows:
+        columns.extend(key for key in row if key not in columns)
+    try:
+        with path.open("w", newline="") as stream:
+            writer = csv.writer(stream)
+            writer.writerow(["log_time_ns", "t", *columns])
+            for log_time, row in rows:
+                writer.writerow([log_time, repr(log_time / NS_PER_S), *(row.get(c, "") for c in columns)])
+    except OSError as error:
+        raise RecordingError(f"cannot write {path}: {error.strerror or error}") from None
     return path

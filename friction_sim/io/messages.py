@@ -1,7 +1,7 @@
 """The one place that turns friction_sim's records into ROS 2 messages.
 
 The slider node publishes these messages and the recorder
-(:mod:`friction_sim.io.recording`) logs them, so a recording holds exactly what
+(:mod:`friction_sim.io.recorder`) logs them, so a recording holds exactly what
 the node publishes.  Every function returns a new message; nothing here
 imports rclpy, only the message packages.
 
@@ -31,37 +31,53 @@ nanoseconds (:func:`seconds_to_ns`), the resolution of a ROS time stamp.
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+import importlib
+import re
+from collections.abc import Mapping
+from typing import Any
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rcl_interfaces.msg import Parameter, ParameterEvent, ParameterType, ParameterValue
-from std_msgs.msg import Float64
 
-from friction_sim.core.slider import Event, Mode, SliderState
-from friction_sim.core.realtime import NS_PER_S, CommandOutcome, PeriodSummary
+from friction_sim.core.commands import COMMANDS, PARAMETERS, Command, Outcome, float_values
+from friction_sim.core.events import Event, Mode, SliderState
+from friction_sim.core.realtime import NS_PER_S, PeriodSummary
+from friction_sim.errors import RecordingError
 
-
-#: Inputs that arrive as a std_msgs/Float64 on the topic of the same name.
-FLOAT_COMMANDS = ("drive_force", "excitation_amplitude", "excitation_frequency", "target_speed")
 #: The state topics, sampled on the recording's uniform grid.
 STATE_TOPICS = ("pose", "velocity", "friction_force")
-
-#: topic -> message type of every topic a recording can hold.
-TOPIC_TYPES: dict[str, type] = {
-    "pose": PoseStamped,
-    "velocity": TwistStamped,
-    "friction_force": WrenchStamped,
-    "mean_velocity": TwistStamped,
-    **{topic: Float64 for topic in FLOAT_COMMANDS},
-    "external_wrench": WrenchStamped,
-    "events": DiagnosticStatus,
-    "rejected_commands": DiagnosticStatus,
-    "parameters": ParameterEvent,
+#: topic -> message type name of every topic a recording can hold (the
+#: command topics come from the one table, :data:`friction_sim.core.commands.COMMANDS`).
+TOPIC_TYPES: dict[str, str] = {
+    "pose": "geometry_msgs/msg/PoseStamped",
+    "velocity": "geometry_msgs/msg/TwistStamped",
+    "friction_force": "geometry_msgs/msg/WrenchStamped",
+    "mean_velocity": "geometry_msgs/msg/TwistStamped",
+    **{name: entry.message_type for name, entry in COMMANDS.items()},
+    "events": "diagnostic_msgs/msg/DiagnosticStatus",
+    "rejected_commands": "diagnostic_msgs/msg/DiagnosticStatus",
+    PARAMETERS: "rcl_interfaces/msg/ParameterEvent",
 }
-#: Topics that hold accepted commands (``parameters`` holds changes too).
-COMMAND_TOPICS = (*FLOAT_COMMANDS, "external_wrench", "parameters")
+#: Topics that hold accepted commands (``parameters`` holds other changes too).
+COMMAND_TOPICS = (*COMMANDS, PARAMETERS)
+
+
+def message_class(type_name: str) -> type:
+    """The message class for ``pkg/msg/Type`` (or ``pkg/Type``), imported by name."""
+    match = _TYPE_NAME.match(type_name)
+    if match is None:
+        raise RecordingError(f"not a ROS 2 message type name: {type_name!r}")
+    package, _, name = match.groups()
+    try:
+        module = importlib.import_module(f"{package}.msg")
+        return getattr(module, name)  # type: ignore[no-any-return]
+    except (ImportError, AttributeError):
+        raise RecordingError(f"message type {package}/msg/{name} is not installed") from None
+
+
+_TYPE_NAME = re.compile(r"^([a-zA-Z][a-zA-Z0-9_]*)/((?:msg|srv)/)?([a-zA-Z][a-zA-Z0-9_]*)$")
 
 
 # -- time ---------------------------------------------------------------------
@@ -85,9 +101,9 @@ def time_msg(ns: int, msg: Time | None = None) -> Time:
     return msg
 
 
-def stamp_ns(stamp: Time) -> int:
-    """A builtin_interfaces/Time as nanoseconds."""
-    return stamp.sec * NS_PER_S + stamp.nanosec
+def stamp_ns(stamp: Any) -> int:
+    """A builtin_interfaces/Time (generated ROS 2 or decoded rosbags message) as nanoseconds."""
+    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
 
 
 # -- the state ----------------------------------------------------------------
@@ -129,35 +145,50 @@ def mean_velocity_message(period: PeriodSummary, frame_id: str = "slideway") -> 
 # -- commands -----------------------------------------------------------------
 
 
-def command_message(outcome: CommandOutcome, frame_id: str = "") -> Float64 | WrenchStamped | ParameterEvent:
-    """An accepted (or any) command as the message it arrived as.
-
-    Float64 for drive_force, excitation_amplitude, excitation_frequency and
-    target_speed; WrenchStamped (force.x = external_force_x, force.z =
-    external_force_z) for external_wrench; for ``parameters`` (a change made
-    with ``ros2 param set``) a ParameterEvent whose changed_parameters carry
-    the field names and values.
-    """
-    topic, values = outcome.topic, outcome.values
-    if topic in FLOAT_COMMANDS:
-        return Float64(data=float(values[topic]))
-    if topic == "external_wrench":
-        msg = WrenchStamped()
-        time_msg(seconds_to_ns(outcome.t), msg.header.stamp)
+def command_message(command: Command, frame_id: str = "") -> Any:
+    """A command as the message it travels in (see :data:`COMMANDS`): the
+    values written at their message fields; a stamped message gets the
+    command's time and ``frame_id``.  A ``parameters`` command (a change made
+    with ``ros2 param set``) becomes a ParameterEvent whose changed_parameters
+    carry the field names and values."""
+    if command.name == PARAMETERS:
+        return parameters_message(command.values, command.t, changed=True)
+    entry = COMMANDS[command.name]
+    msg = message_class(entry.message_type)()
+    if hasattr(msg, "header"):
+        time_msg(seconds_to_ns(command.t), msg.header.stamp)
         msg.header.frame_id = frame_id
-        msg.wrench.force.x = float(values.get("external_force_x", 0.0))
-        msg.wrench.force.z = float(values.get("external_force_z", 0.0))
-        return msg
-    if topic == "parameters":
-        return parameters_message(values, outcome.t, changed=True)
-    raise ValueError(f"no message for command topic {topic!r}; known: {', '.join(COMMAND_TOPICS)}")
+    for name, path in zip(entry.fields, entry.message_fields):
+        *parents, leaf = path.split(".")
+        holder = msg
+        for parent in parents:
+            holder = getattr(holder, parent)
+        setattr(holder, leaf, float(command.values.get(name, 0.0)))
+    return msg
 
 
-def rejection_message(outcome: CommandOutcome) -> DiagnosticStatus:
+def command_from_message(name: str, msg: Any, t: float) -> Command:
+    """The command that message ``msg`` on command topic ``name`` carries, at
+    simulation time ``t`` (a ParameterEvent on ``parameters``: its changed
+    plant and input fields)."""
+    if name == PARAMETERS:
+        new, changed = parameter_event_values(msg)
+        return Command(t, PARAMETERS, float_values({**new, **changed}))
+    entry = COMMANDS[name]
+    values = {}
+    for field, path in zip(entry.fields, entry.message_fields):
+        value = msg
+        for part in path.split("."):
+            value = getattr(value, part)
+        values[field] = float(value)
+    return Command(t, name, values)
+
+
+def rejection_message(outcome: Outcome) -> DiagnosticStatus:
     """A refused command: level WARN, name = its topic, message = the reason,
     values = the refused values."""
     return DiagnosticStatus(
-        level=DiagnosticStatus.WARN, name=outcome.topic, message=outcome.reason,
+        level=DiagnosticStatus.WARN, name=outcome.name, message=outcome.reason,
         values=key_values(outcome.values),
     )
 
@@ -227,8 +258,9 @@ def parameter_value(value: Any) -> ParameterValue:
     raise TypeError(f"cannot express {value!r} as a ROS parameter value")
 
 
-def parameter_python_value(value: ParameterValue) -> Any:
-    """The Python value of an rcl_interfaces/ParameterValue (None if not set)."""
+def parameter_python_value(value: Any) -> Any:
+    """The Python value of an rcl_interfaces/ParameterValue (None if not set),
+    a generated ROS 2 message or a decoded rosbags one."""
     kind = value.type
     if kind == ParameterType.PARAMETER_BOOL:
         return bool(value.bool_value)
@@ -238,8 +270,9 @@ def parameter_python_value(value: ParameterValue) -> Any:
         return float(value.double_value)
     if kind == ParameterType.PARAMETER_STRING:
         return str(value.string_value)
-    if kind == ParameterType.PARAMETER_BYTE_ARRAY:
-        return b"".join(value.byte_array_value)
+    if kind == ParameterType.PARAMETER_BYTE_ARRAY:  # rclpy: a list of bytes; rosbags: a uint8 array
+        items = value.byte_array_value
+        return b"".join(items) if len(items) and isinstance(items[0], bytes) else bytes(bytearray(items))
     if kind == ParameterType.PARAMETER_BOOL_ARRAY:
         return [bool(v) for v in value.bool_array_value]
     if kind == ParameterType.PARAMETER_INTEGER_ARRAY:
@@ -267,8 +300,9 @@ def parameters_message(
     return msg
 
 
-def parameter_event_values(msg: ParameterEvent) -> tuple[dict[str, Any], dict[str, Any]]:
-    """(new, changed) parameter values of a ParameterEvent, by name."""
+def parameter_event_values(msg: Any) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(new, changed) parameter values of a ParameterEvent (generated ROS 2 or
+    decoded rosbags message), by name."""
     new = {p.name: parameter_python_value(p.value) for p in msg.new_parameters}
     changed = {p.name: parameter_python_value(p.value) for p in msg.changed_parameters}
     return new, changed
@@ -285,8 +319,8 @@ def key_values(values: Mapping[str, Any]) -> list[KeyValue]:
 
 
 __all__ = [
-    "COMMAND_TOPICS", "FLOAT_COMMANDS", "NS_PER_S", "STATE_TOPICS", "TOPIC_TYPES",
-    "command_message", "event_message", "fill_state_messages", "mean_velocity_message",
-    "ns_to_seconds", "parameter_event_values", "parameter_python_value", "parameter_value",
-    "parameters_message", "rejection_message", "seconds_to_ns", "stamp_ns", "state_messages", "time_msg",
+    "COMMAND_TOPICS", "NS_PER_S", "STATE_TOPICS", "TOPIC_TYPES", "command_from_message", "command_message",
+    "event_message", "fill_state_messages", "mean_velocity_message", "message_class", "ns_to_seconds",
+    "parameter_event_values", "parameter_python_value", "parameter_value", "parameters_message",
+    "rejection_message", "seconds_to_ns", "stamp_ns", "state_messages", "time_msg",
 ]

@@ -1,0 +1,103 @@
+"""Recording a run without a clock: what the slider node would record, as fast as it computes.
+
+:func:`record_offline` drives :class:`~friction_sim.core.realtime.RealtimeSlider`
+with a counter instead of a wall clock and hands what it produces to a
+:class:`~friction_sim.io.recorder.Recorder` through the same sink calls as
+the node (:func:`~friction_sim.io.sinks.deliver_tick`, ``on_command``,
+``on_parameters``), so an offline recording and a live one are the same file.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+from itertools import groupby
+from typing import Any
+
+from friction_sim.core.commands import PARAMETERS, SLIDER, Command, consumed_by
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.realtime import RealtimeSlider
+from friction_sim.errors import ParameterError
+from friction_sim.io.messages import seconds_to_ns
+from friction_sim.io.recorder import Recorder, RecordingStats, plant_parameters, recording_metadata
+from friction_sim.io.sinks import deliver_tick
+
+#: The commands the slider node takes (a controller's target speed is not among them).
+_SLIDER_COMMANDS = frozenset([*(entry.name for entry in consumed_by(SLIDER)), PARAMETERS])
+
+
+def record_offline(
+    path: str | os.PathLike[str], params: SliderParams | None = None, inputs: Inputs | None = None,
+    schedule: Sequence[Command] = (), duration: float = 1.0, log_rate: float = 1000.0, *,
+    frame_id: str = "slideway", mean_window_periods: int = 1, tick_rate: float | None = None,
+    metadata: Mapping[str, Any] | None = None,
+) -> RecordingStats:
+    """Run the exact core for ``duration`` s of simulation time without a
+    clock and record what the slider node records.
+
+    Each :class:`~friction_sim.core.commands.Command` of ``schedule`` reaches
+    the slider at its time (in whole nanoseconds, as the node stamps it);
+    commands at the same time arrive together, as one batch, in schedule
+    order; each is recorded accepted or refused.  States are logged on the
+    grid ``k / log_rate``; the mean velocity comes from the core's period
+    marks through :class:`RealtimeSlider`, ticked at ``tick_rate`` (default
+    ``log_rate``), exactly as in the node.
+    """
+    params = params if params is not None else SliderParams()
+    inputs = inputs if inputs is not None else Inputs()
+    duration = _time("duration", duration)
+    rate = float(tick_rate if tick_rate is not None else log_rate)
+    rt = RealtimeSlider(params, inputs, wall_ns=0, real_time_factor=1.0, publish_rate=rate,
+                        mean_window_periods=mean_window_periods, log_rate=log_rate)
+    batches = _batches(schedule)
+    extra = dict(metadata or {})
+    extra.setdefault("recorded_by", "record_offline")
+    extra.setdefault("mean_window_periods", mean_window_periods)
+    with Recorder(path, recording_metadata(params, inputs, log_rate=log_rate, frame_id=frame_id, **extra),
+                  block_when_full=True) as recorder:
+        recorder.on_parameters({**plant_parameters(params, inputs), "log_rate": float(log_rate),
+                                "frame_id": frame_id, "mean_window_periods": mean_window_periods}, 0.0, changed=False)
+        _run(rt, recorder, batches, seconds_to_ns(duration), rate, frame_id)
+    return recorder.stats
+
+
+def _run(rt: RealtimeSlider, recorder: Recorder, batches: list[tuple[int, list[Command]]], end_ns: int,
+         rate: float, frame_id: str) -> None:
+    """What the node does, with the clock replaced by a counter: before each
+    tick, the commands due by then, each batch at its own time."""
+    pending = list(reversed(batches))
+    k = 0
+    while True:
+        tick_ns = min(round(k * 1e9 / rate), end_ns)
+        while pending and pending[-1][0] <= tick_ns:
+            t_ns, batch = pending.pop()
+            for outcome in rt.commands(batch, t_ns):
+                recorder.on_command(outcome, frame_id)
+        deliver_tick([recorder], rt.tick(tick_ns), frame_id)
+        if tick_ns >= end_ns:
+            return
+        k += 1
+
+
+def _batches(schedule: Sequence[Command]) -> list[tuple[int, list[Command]]]:
+    """The schedule as (time [ns], commands) in time order, a batch per time,
+    schedule order within a batch; refuses times < 0 and commands the slider
+    does not take."""
+    for command in schedule:
+        _time("t", command.t)
+        if command.name not in _SLIDER_COMMANDS:
+            raise ParameterError("topic", command.name, "is not a slider input (record_offline runs no controller)")
+    ordered = sorted(schedule, key=lambda command: seconds_to_ns(command.t))
+    return [(t_ns, list(batch)) for t_ns, batch in groupby(ordered, key=lambda command: seconds_to_ns(command.t))]
+
+
+def _time(name: str, value: float) -> float:
+    """``value`` as a finite time >= 0 s, or a ParameterError naming ``name``."""
+    value = float(value)
+    if not (math.isfinite(value) and value >= 0.0):
+        raise ParameterError(name, value, "must be a finite time >= 0 s")
+    return value
+
+
+__all__ = ["record_offline"]

@@ -1,0 +1,54 @@
+"""What consumes a run: the sink interface.
+
+The slider node (and the offline recorder) hand everything that happens to a
+list of sinks: the exact state samples, the events, the period means, every
+command with its outcome, and the parameters.  The MCAP recorder is one sink;
+a live view is another.  A sink must be cheap to call (the tick thread calls
+it): queue the work, do it elsewhere.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any, Protocol
+
+from friction_sim.core.commands import Outcome
+from friction_sim.core.events import Event, SliderState
+from friction_sim.core.realtime import PeriodSummary, Tick
+
+
+class Sink(Protocol):
+    """A consumer of a run.  Times are simulation time [s]."""
+
+    def on_states(self, states: Sequence[SliderState], frame_id: str) -> None:
+        """Exact states on the log grid, in time order."""
+
+    def on_event(self, event: Event) -> None:
+        """A transition of the motion (slip start, stick, reversal)."""
+
+    def on_period(self, period: PeriodSummary, frame_id: str) -> None:
+        """The mean velocity of the window ending with a completed period."""
+
+    def on_command(self, outcome: Outcome, frame_id: str) -> None:
+        """A command as handled: accepted, or refused with the reason."""
+
+    def on_parameters(self, values: Mapping[str, Any], t: float, *, changed: bool) -> None:
+        """Parameter values: the set at start (``changed`` False) or a later change."""
+
+    def close(self) -> None:
+        """The run is over: finish whatever was written (idempotent)."""
+
+
+def deliver_tick(sinks: Sequence[Sink], tick: Tick, frame_id: str) -> None:
+    """Hand what a real-time tick passed to every sink: the states on the log
+    grid, the events and the period means."""
+    for sink in sinks:
+        if tick.samples:
+            sink.on_states(tick.samples, frame_id)
+        for event in tick.events:
+            sink.on_event(event)
+        for period in tick.periods:
+            sink.on_period(period, frame_id)
+
+
+__all__ = ["Sink", "deliver_tick"]

@@ -1,0 +1,202 @@
+"""Republishing a recording on its topics with its timing, like ``ros2 bag play``.
+
+The recorded messages are published as recorded (serialized CDR: rclpy
+publishers take the bytes as they are), so nothing is decoded here.
+"""
+
+from __future__ import annotations
+
+import gc
+import math
+import threading
+import time
+import uuid
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, TextIO
+
+import rclpy
+import yaml
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from friction_sim.errors import ParameterError
+from friction_sim.io.export import select_topics
+from friction_sim.io.messages import NS_PER_S, ns_to_seconds
+from friction_sim.io.reader import Channel, RawMessage, Recording
+
+
+@dataclass
+class PublishResult:
+    """What :func:`publish` sent: messages, loops, and the largest lateness
+    of a publish call behind its scheduled wall time [s]."""
+
+    messages: int = 0
+    loops: int = 0
+    max_late: float = 0.0
+    interrupted: bool = False
+
+
+def qos(channel: Channel) -> QoSProfile:
+    """The publisher QoS of a recorded channel: depth 10, with the recorded
+    reliability and durability (reliable, volatile unless recorded otherwise)."""
+    profile = QoSProfile(depth=10)
+    try:
+        offered = yaml.safe_load(channel.metadata.get("offered_qos_profiles", "") or "[]") or []
+        first = offered[0] if offered else {}
+    except (yaml.YAMLError, IndexError, TypeError, KeyError):
+        first = {}
+    reliability, durability = first.get("reliability"), first.get("durability")
+    if reliability in ("best_effort", 2):
+        profile.reliability = ReliabilityPolicy.BEST_EFFORT
+    if durability in ("transient_local", 1):
+        profile.durability = DurabilityPolicy.TRANSIENT_LOCAL
+    return profile
+
+
+def publish(
+    recording: Recording, *, rate: float = 1.0, loop: bool = False, topics: Sequence[str] | None = None,
+    namespace: str = "", wait_for_subscribers: int = 0, wait_timeout: float = 5.0, delay: float = 0.0,
+    progress: TextIO | None = None, stop: threading.Event | None = None, node_name: str | None = None,
+) -> PublishResult:
+    """Republish the recorded messages (as recorded, serialized) on their
+    topics, the recorded log times scaled by 1/``rate``; with ``loop`` start
+    over until ``stop`` is set or Ctrl-C.  Topic names are the recorded
+    (relative) names, resolved in ``namespace``.  With
+    ``wait_for_subscribers`` it first waits (up to ``wait_timeout`` s) until
+    every publisher has that many subscriptions, then waits ``delay`` s
+    (discovery may need a moment to match both ends).  Progress goes to
+    ``progress`` (a one-line bar when it is a TTY, else a line a second).
+    rclpy is initialised here if the caller has not done so.
+    """
+    if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0.0):
+        raise ParameterError("rate", rate, "must be a finite factor > 0")
+    selected = select_topics(recording, topics)
+    wanted = set(selected)
+    messages = sorted((m for m in recording.messages if m.topic in wanted), key=lambda m: m.log_time)
+    own_context = not rclpy.ok()
+    if own_context:
+        rclpy.init()
+    node = None
+    try:
+        node = rclpy.create_node(node_name or f"friction_sim_replay_{uuid.uuid4().hex[:8]}",
+                                 namespace=namespace or "/")
+        publishers = _publishers(node, recording, selected)
+        _wait_for_subscribers(publishers, wait_for_subscribers, wait_timeout, stop)
+        if delay > 0.0:
+            time.sleep(delay)
+        return _play(messages, publishers, rate, loop, progress, stop)
+    finally:
+        if node is not None:
+            node.destroy_node()
+        if own_context:
+            rclpy.try_shutdown()
+
+
+def _publishers(node: Node, recording: Recording, topics: list[str]) -> dict[str, Any]:
+    """A publisher per topic, of its recorded type and QoS."""
+    return {topic: node.create_publisher(recording.message_type(topic), topic, qos(recording.topics[topic]))
+            for topic in topics}
+
+
+def _wait_for_subscribers(publishers: dict[str, Any], count: int, timeout: float,
+                          stop: threading.Event | None) -> None:
+    """Wait up to ``timeout`` s until every publisher has ``count`` subscriptions."""
+    if count <= 0:
+        return
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and not (stop is not None and stop.is_set()):
+        if all(p.get_subscription_count() >= count for p in publishers.values()):
+            return
+        time.sleep(0.01)
+
+
+def _play(messages: list[RawMessage], publishers: dict[str, Any], rate: float, loop: bool,
+          progress: TextIO | None, stop: threading.Event | None) -> PublishResult:
+    """Publish ``messages`` once, or in a loop until stopped."""
+    result = PublishResult()
+    if not messages:
+        return result
+    bar = _Progress(progress, ns_to_seconds(messages[-1].log_time - messages[0].log_time), rate)
+    # A full garbage collection of a large heap can stall this thread for
+    # ~100 ms; leave the objects that exist now out of collections while
+    # playing, so the recorded timing holds.
+    gc.freeze()
+    try:
+        while True:
+            _play_once(messages, publishers, rate, result, bar, stop)
+            result.loops += 1
+            if not loop or (stop is not None and stop.is_set()):
+                break
+    except KeyboardInterrupt:
+        result.interrupted = True
+    finally:
+        gc.unfreeze()
+    bar.close(result)
+    return result
+
+
+def _play_once(messages: list[RawMessage], publishers: dict[str, Any], rate: float, result: PublishResult,
+               bar: _Progress, stop: threading.Event | None) -> None:
+    """Publish every message at its recorded time (scaled by 1/rate) after the start."""
+    first = messages[0].log_time
+    start = time.monotonic() + 0.01
+    for raw in messages:
+        if stop is not None and stop.is_set():
+            result.interrupted = True
+            return
+        target = start + (raw.log_time - first) / NS_PER_S / rate
+        _sleep_until(target)
+        publishers[raw.topic].publish(raw.data)
+        result.messages += 1
+        result.max_late = max(result.max_late, time.monotonic() - target)
+        bar.update(ns_to_seconds(raw.log_time - first), result.messages)
+
+
+def _sleep_until(target: float) -> None:
+    """Sleep until monotonic time ``target``: coarse sleep, then a short
+    GIL-releasing spin for the last millisecond."""
+    while True:
+        remaining = target - time.monotonic()
+        if remaining <= 0.0:
+            return
+        time.sleep(remaining - 0.001 if remaining > 0.002 else 0)
+
+
+class _Progress:
+    """``[#####.....]  12.3/60.0 s  x1.0  1234 msgs`` on a TTY (redrawn in
+    place), or one plain line per second of wall time otherwise."""
+
+    def __init__(self, stream: TextIO | None, total: float, rate: float) -> None:
+        self.stream, self.total, self.rate = stream, total, rate
+        self.tty = bool(stream is not None and getattr(stream, "isatty", lambda: False)())
+        self.last = 0.0
+
+    def update(self, t: float, count: int, *, force: bool = False) -> None:
+        """Show progress at recorded time ``t`` (at most 10 times a second on a TTY, else once)."""
+        if self.stream is None:
+            return
+        now = time.monotonic()
+        if not force and now - self.last < (0.1 if self.tty else 1.0):
+            return
+        self.last = now
+        fraction = t / self.total if self.total > 0 else 1.0
+        text = f"{t:9.3f}/{self.total:.3f} s  x{self.rate:g}  {count} msgs"
+        if self.tty:
+            filled = round(30 * fraction)
+            self.stream.write(f"\r[{'#' * filled}{'.' * (30 - filled)}] {text}")
+        else:
+            self.stream.write(f"replay: {100 * fraction:5.1f}%  {text}\n")
+        self.stream.flush()
+
+    def close(self, result: PublishResult) -> None:
+        """The final line."""
+        if self.stream is None:
+            return
+        self.update(self.total, result.messages, force=True)
+        if self.tty:
+            self.stream.write("\n")
+        self.stream.flush()
+
+
+__all__ = ["PublishResult", "publish", "qos"]

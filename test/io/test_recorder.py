@@ -1,0 +1,276 @@
+"""Recording: every record round-trips through the file, the MCAP layout
+rosbag2 and Foxglove expect, data on disk within the flush interval, the
+non-blocking queue, and the log grid whatever the tick times."""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import json
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+from mcap.reader import make_reader
+from recording_helpers import plain
+
+from friction_sim.core.commands import Command, Outcome
+from friction_sim.core.events import Event, EventKind, Mode, SliderState
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.realtime import PeriodSummary, RealtimeSlider
+from friction_sim.core.simulation import random_schedule
+from friction_sim.errors import RecordingError
+from friction_sim.io import messages as M
+from friction_sim.io.offline import record_offline
+from friction_sim.io.reader import read_recording
+from friction_sim.io.recorder import METADATA_NAME, Recorder
+from friction_sim.io.sinks import deliver_tick
+from friction_sim.io.typesupport import message_definition, message_type_name, share_directory, type_hash
+
+STATE = SliderState(t=1.2345678901, x=1.5e-4, v=-2.5e-3, acceleration=0.3, friction_force=-0.95,
+                    normal_force=9.5, phase=1.0, mode=Mode.BACKWARD)
+FLOAT_COMMANDS = ("drive_force", "excitation_amplitude", "excitation_frequency", "target_speed")
+
+
+# -- round trip through the file ------------------------------------------------------
+
+
+def every_record() -> dict[str, Any]:
+    return {
+        "state": STATE,
+        "event": Event(1.0, EventKind.STICK, 2e-4, 3.0, Mode.FORWARD, Mode.STUCK),
+        "period": PeriodSummary(n=7, t=0.14, mean_velocity=2.1e-3, window_periods=1, stick_fraction=0.4),
+        "commands": [Outcome(Command(0.3 + 0.01 * k, topic, {topic: 0.5 + k}))
+                     for k, topic in enumerate(FLOAT_COMMANDS)]
+        + [Outcome(Command(0.4, "external_wrench", {"external_force_x": 0.05, "external_force_z": 1.5})),
+           Outcome(Command(0.45, "parameters", {"mu": 0.12})),
+           Outcome(Command(0.5, "excitation_amplitude", {"excitation_amplitude": 20.0}), "too large")],
+        "parameters": {"mass": 1.0, "mu": 0.1, "gravity": 10.0, "drive_force": 0.7, "excitation_amplitude": 5.0,
+                       "excitation_frequency": 50.0, "frame_id": "slideway", "mean_window_periods": 2},
+    }
+
+
+def test_every_message_type_round_trips_through_the_file(tmp_path: Path) -> None:
+    records = every_record()
+    path = tmp_path / "all.mcap"
+    from std_msgs.msg import String
+
+    with Recorder(path, metadata={"mass": 1.0}) as recorder:
+        recorder.on_parameters(records["parameters"], 0.0, changed=False)
+        recorder.on_states([records["state"]], "rail")
+        recorder.on_event(records["event"])
+        recorder.on_period(records["period"], "rail")
+        for outcome in records["commands"]:
+            recorder.on_command(outcome, "rail")
+        assert recorder.write("notes", String(data="hello"), 42)
+        assert recorder.dropped == 0, "every record was queued"
+    expected: list[tuple[str, int, Any]] = [("parameters", 0, M.parameters_message(records["parameters"], 0.0))]
+    ns = M.seconds_to_ns(STATE.t)
+    expected += [(topic, ns, msg) for topic, msg in zip(M.STATE_TOPICS, M.state_messages(STATE, "rail"))]
+    expected.append(("events", 1_000_000_000, M.event_message(records["event"])))
+    expected.append(("mean_velocity", 140_000_000, M.mean_velocity_message(records["period"], "rail")))
+    for outcome in records["commands"]:
+        topic = outcome.name if outcome.accepted else "rejected_commands"
+        msg = M.command_message(outcome.command, "rail") if outcome.accepted else M.rejection_message(outcome)
+        expected.append((topic, M.seconds_to_ns(outcome.t), msg))
+    expected.append(("notes", 42, String(data="hello")))
+
+    recording = read_recording(path)
+    assert recording.complete and recording.profile == "ros2"
+    got = [(raw.topic, raw.log_time, recording.decode(raw)) for raw in recording.messages]
+    assert [(topic, t) for topic, t, _ in got] == [(topic, t) for topic, t, _ in expected]
+    for (topic, _, msg), (_, _, want) in zip(got, expected):
+        # Decoded with rosbags: the same type (by name) and the same field values as the message written.
+        assert message_type_name(type(msg)) == message_type_name(type(want)) and plain(msg) == plain(want), topic
+    assert recording.topics["parameters"].type_name == "rcl_interfaces/msg/ParameterEvent"
+    assert recording.topics["rejected_commands"].type_name == "diagnostic_msgs/msg/DiagnosticStatus"
+
+
+def varied_schedule() -> list[Command]:
+    schedule = random_schedule(np.random.default_rng(7), 1.5, external=True)
+    schedule.append(Command(0.5, "excitation_amplitude", {"excitation_amplitude": 50.0}))  # refused: lift-off
+    schedule.append(Command(0.8, "parameters", {"mass": 1.2, "mu": 0.12}))  # a plant change, as ros2 param set
+    return schedule
+
+
+def test_file_layout_is_what_rosbag2s_mcap_plugin_writes(tmp_path: Path) -> None:
+    path = tmp_path / "run.mcap"
+    stats = record_offline(path, schedule=varied_schedule(), duration=1.0, log_rate=500.0)
+    with path.open("rb") as stream:
+        reader = make_reader(stream)
+        header = reader.get_header()
+        summary = reader.get_summary()
+        metadata = {record.name: dict(record.metadata) for record in reader.iter_metadata()}
+    assert summary is not None, "summary section"
+    assert header.profile == "ros2" and header.library.startswith("friction_sim/")
+    assert summary.statistics.message_count == stats.messages
+    assert summary.statistics.chunk_count == len(summary.chunk_indexes) >= 1
+    assert {index.compression for index in summary.chunk_indexes} == {"zstd"}
+    assert sum(summary.statistics.channel_message_counts.values()) == stats.messages
+    for schema in summary.schemas.values():
+        assert schema.encoding == "ros2msg"
+        package, kind, name = schema.name.split("/")
+        assert kind == "msg"
+        installed = (share_directory(package) / "msg" / f"{name}.msg").read_text()
+        text = schema.data.decode()
+        assert text == message_definition(schema.name) and text.startswith(installed)
+    for channel in summary.channels.values():
+        schema = summary.schemas[channel.schema_id]
+        assert channel.message_encoding == "cdr"
+        assert set(channel.metadata) == {"offered_qos_profiles", "topic_type_hash"}
+        package, _, name = schema.name.split("/")
+        described = json.loads((share_directory(package) / "msg" / f"{name}.json").read_text())
+        assert channel.metadata["topic_type_hash"] == described["type_hashes"][0]["hash_string"]
+        assert channel.metadata["topic_type_hash"].startswith("RIHS01_")
+        assert yaml.safe_load(channel.metadata["offered_qos_profiles"]) == [{
+            "history": "keep_last", "depth": 10, "reliability": "reliable", "durability": "volatile",
+            "deadline": {"sec": 9223372036, "nsec": 854775807}, "lifespan": {"sec": 9223372036, "nsec": 854775807},
+            "liveliness": "automatic", "liveliness_lease_duration": {"sec": 9223372036, "nsec": 854775807},
+            "avoid_ros_namespace_conventions": False}]
+    ours = metadata[METADATA_NAME]
+    assert float(ours["log_rate"]) == 500.0 and float(ours["mass"]) == 1.0 and float(ours["drive_force"]) == 0.7
+    assert metadata["friction_sim_summary"] == {"messages": str(stats.messages), "dropped": "0"}
+    bag = yaml.safe_load(metadata["rosbag2"]["serialized_metadata"])
+    assert bag["version"] == 9 and bag["storage_identifier"] == "mcap" and bag["ros_distro"] == "jazzy"
+    assert bag["message_count"] == stats.messages
+    assert bag["duration"]["nanoseconds"] == stats.last_ns - stats.first_ns == 1_000_000_000
+    assert bag["relative_file_paths"] == [path.name] and bag["files"][0]["message_count"] == stats.messages
+    counts = {topic["topic_metadata"]["name"]: topic["message_count"] for topic in bag["topics_with_message_count"]}
+    assert counts == stats.per_topic
+    for topic in bag["topics_with_message_count"]:
+        meta = topic["topic_metadata"]
+        assert meta["serialization_format"] == "cdr"
+        assert meta["type_description_hash"] == type_hash(meta["type"])
+        assert meta["offered_qos_profiles"][0]["reliability"] == "reliable"
+
+
+def test_message_definitions_follow_rosbag2s_layout() -> None:
+    text = message_definition("geometry_msgs/msg/PoseStamped")
+    sections = text.split("\n" + "=" * 80 + "\n")
+    assert [s.split("\n", 1)[0] for s in sections[1:]] == [
+        "MSG: geometry_msgs/Pose", "MSG: geometry_msgs/Point", "MSG: geometry_msgs/Quaternion",
+        "MSG: std_msgs/Header", "MSG: builtin_interfaces/Time"]
+    share = share_directory("geometry_msgs")
+    assert share is not None and (share / "msg" / "PoseStamped.msg").is_file(), "the wheels ship .msg files"
+    assert sections[0] == (share / "msg" / "PoseStamped.msg").read_text()
+    status = message_definition("diagnostic_msgs/msg/DiagnosticStatus")
+    key_value = (share_directory("diagnostic_msgs") / "msg" / "KeyValue.msg").read_text()
+    assert status.endswith("\n" + "=" * 80 + "\nMSG: diagnostic_msgs/KeyValue\n" + key_value)
+
+
+# -- durability ------------------------------------------------------------------------
+
+
+def test_written_data_is_readable_within_the_flush_interval_while_recording(tmp_path: Path) -> None:
+    path = tmp_path / "live.mcap"
+    recorder = Recorder(path, metadata={"mass": 1.0}, flush_interval=0.2)
+    try:
+        written = time.monotonic()
+        recorder.on_states([STATE], "slideway")
+        while time.monotonic() - written < 10.0:
+            live = read_recording(path, require_friction_sim=False)
+            if live.messages:
+                break
+            time.sleep(0.02)
+        # Flushed every 0.2 s; without the periodic flush nothing reaches the disk before finish().
+        assert time.monotonic() - written < 3.0, "on disk within the flush interval (3 s for a loaded machine)"
+        assert not live.complete and len(live.messages) == 3
+        assert "no footer" in (live.recovery_note() or "")
+    finally:
+        recorder.finish()
+    assert read_recording(path).complete
+
+
+# -- the queue --------------------------------------------------------------------------
+
+
+class StalledRecorder(Recorder):
+    """A recorder whose writer thread is stuck (a slow disk)."""
+
+    gate = threading.Event()
+
+    def _handle(self, item: Any) -> None:
+        self.gate.wait(10.0)
+        super()._handle(item)
+
+
+def test_a_full_queue_drops_and_counts_without_blocking_the_caller(tmp_path: Path) -> None:
+    path = tmp_path / "stalled.mcap"
+    recorder = StalledRecorder(path, metadata={"mass": 1.0}, queue_size=10)
+    slowest, accepted = 0.0, 0
+    for k in range(100):
+        started = time.perf_counter()
+        before = recorder.dropped
+        recorder.on_states([dataclasses.replace(STATE, t=k * 1e-3)], "slideway")
+        accepted += recorder.dropped == before
+        slowest = max(slowest, time.perf_counter() - started)
+    # A blocked call would wait for the stalled writer (10 s); 0.5 s leaves room for a loaded machine.
+    assert slowest < 0.5, f"write() never waits for the writer (slowest call {slowest:.3f} s)"
+    assert accepted in (10, 11) and recorder.dropped == 100 - accepted
+    StalledRecorder.gate.set()
+    stats = recorder.finish()
+    assert stats.dropped == 100 - accepted and stats.per_topic["pose"] == accepted
+    recording = read_recording(path)
+    assert recording.dropped == 100 - accepted
+    assert len(recording.messages_on("pose")) == accepted
+    before = recorder.dropped
+    recorder.on_states([STATE], "slideway")
+    assert recorder.dropped == before + 1, "after finish nothing is written"
+
+
+def test_finish_is_idempotent_and_unwritable_paths_are_one_line_errors(tmp_path: Path) -> None:
+    recorder = Recorder(tmp_path / "a.mcap")
+    first = recorder.finish()
+    assert recorder.finish() is first and recorder.finished
+    for bad in (tmp_path / "missing" / "run.mcap", tmp_path):
+        with pytest.raises(RecordingError) as error:
+            Recorder(bad)
+        message = str(error.value)
+        assert message.startswith("cannot write recording") and "\n" not in message
+
+
+def test_a_bad_message_is_dropped_without_ending_the_recording(tmp_path: Path) -> None:
+    from std_msgs.msg import Float64, String
+
+    path = tmp_path / "bad.mcap"
+    with Recorder(path, metadata={"mass": 1.0}) as recorder:
+        recorder.write("drive_force", Float64(data=0.5), 1)
+        recorder.write("drive_force", String(data="not a force"), 2)  # another type on the same topic
+        recorder.on_parameters({"odd": object()}, 0.0, changed=False)  # no ROS parameter type holds this
+        recorder.on_states([STATE], "slideway")
+    assert recorder.stats.dropped == 2 and recorder.stats.error is None
+    recording = read_recording(path)
+    assert recording.complete and len(recording.messages_on("drive_force")) == 1 and recording.dropped == 2
+    assert len(recording.messages_on("pose")) == 1
+
+
+# -- sampling ---------------------------------------------------------------------------
+
+
+def test_recorded_states_are_on_the_grid_whatever_the_tick_times(tmp_path: Path) -> None:
+    """Jittery ticks and commands between them: the logged states are the
+    exact states at k / log_rate, and every event is logged once, in order."""
+    rng = np.random.default_rng(11)
+    rt = RealtimeSlider(SliderParams(), Inputs(), wall_ns=0, log_rate=2000.0)
+    path = tmp_path / "grid.mcap"
+    commands = sorted(rng.integers(0, 500_000_000, 12))
+    with Recorder(path, metadata={"log_rate": 2000.0}) as recorder:
+        wall = 0
+        while wall < 500_000_000:
+            wall = min(500_000_000, wall + int(rng.integers(100_000, 4_000_000)))
+            while commands and commands[0] <= wall:
+                when = int(commands.pop(0))
+                command = Command(0.0, "drive_force", {"drive_force": float(rng.uniform(-1, 1))})
+                recorder.on_command(rt.command(command, when), "")
+            deliver_tick([recorder], rt.tick(wall), "slideway")
+    recording = read_recording(path, require_friction_sim=False)
+    times = np.array([raw.log_time for raw in recording.messages_on("pose")])
+    assert np.array_equal(times, np.round(np.arange(1001) / 2000.0 * 1e9).astype(np.int64))
+    events = recording.decoded("events")
+    assert len(events) == sum(rt.slider.event_counts.values())
+    assert [float({kv.key: kv.value for kv in m.values}["t"]) for _, m in events] == [e.t for e in rt.slider.events]
+    assert all(a <= b for (a, _), (b, _) in itertools.pairwise(events))

@@ -1,0 +1,52 @@
+"""Helpers shared by the recording tests (test/io, test/ros): the replay
+subcommand's arguments, copying a recording, and messages as plain values."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from friction_sim.io.reader import read_recording
+from friction_sim.io.recorder import METADATA_NAME, Recorder
+
+
+def replay_args(path: Path, **options: Any) -> argparse.Namespace:
+    """The parsed options of ``friction-sim replay path`` with ``options`` set."""
+    defaults = dict(file=path, verify=False, tolerance=1e-9, publish=False, rate=1.0, loop=False, topics=None,
+                    namespace="", delay=0.0, csv=None, plot=None)
+    defaults.update(options)
+    return argparse.Namespace(**defaults)
+
+
+def rewrite(source: Path, target: Path, edit: Callable[[str, int, Any], Any] = lambda topic, t, msg: msg,
+            **recorder_options: Any) -> Path:
+    """Copy a recording message by message; ``edit`` may change a message or
+    drop it (None)."""
+    recording = read_recording(source)
+    with Recorder(target, metadata=recording.metadata[METADATA_NAME], **recorder_options) as out:
+        for raw in recording.messages:
+            msg = edit(raw.topic, raw.log_time, recording.decode(raw))
+            if msg is not None:
+                out.write(raw.topic, msg, raw.log_time)
+    return target
+
+
+def plain(value: Any) -> Any:
+    """rclpy and rosbags messages as comparable plain Python values."""
+    if hasattr(value, "get_fields_and_field_types"):
+        return {name: plain(getattr(value, name)) for name in value.get_fields_and_field_types()}
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: plain(getattr(value, f.name)) for f in dataclasses.fields(value)
+                if f.name != "__msgtype__" and not f.name.isupper()}  # constants are not fields
+    if isinstance(value, bytes):
+        return value[0] if len(value) == 1 else list(value)
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (list, tuple, np.ndarray)) or type(value).__name__ == "array":
+        return [plain(v) for v in value]
+    return value

@@ -1,0 +1,103 @@
+"""--publish: the recorded messages on real topics with the recorded timing."""
+
+from __future__ import annotations
+
+import io
+import threading
+import time
+import uuid
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from recording_helpers import plain
+
+from friction_sim.core.commands import Command
+from friction_sim.errors import RecordingError
+from friction_sim.io.offline import record_offline
+from friction_sim.io.reader import read_recording
+from friction_sim.ros.republisher import publish
+
+
+@pytest.fixture(scope="module")
+def ros() -> Iterator[None]:
+    rclpy.init()
+    yield
+    rclpy.try_shutdown()
+
+
+def test_publish_keeps_the_recorded_timing(ros: None, tmp_path: Path) -> None:
+    path = tmp_path / "short.mcap"
+    record_offline(path, schedule=[Command(0.3, "drive_force", {"drive_force": 0.9}),
+                                   Command(0.62, "drive_force", {"drive_force": 0.6})],
+                   duration=1.0, log_rate=100.0)
+    recording = read_recording(path)
+    topics = ["pose", "velocity", "events", "drive_force"]
+    namespace = f"/replay_{uuid.uuid4().hex[:8]}"
+    listener = rclpy.create_node("listener", namespace=namespace)
+    arrivals: dict[str, list[tuple[float, Any]]] = {topic: [] for topic in topics}
+
+    def keeper(topic: str) -> Callable[[Any, Any], None]:
+        # The time the middleware received the sample (not when the executor got to it).
+        return lambda msg, info: arrivals[topic].append((info["received_timestamp"] / 1e9, msg))
+
+    for topic in topics:
+        listener.create_subscription(recording.message_type(topic), topic, keeper(topic), 200)
+    executor = SingleThreadedExecutor()
+    executor.add_node(listener)
+    outcome: dict[str, Any] = {}
+    player = threading.Thread(target=lambda: outcome.update(result=publish(
+        recording, topics=topics, namespace=namespace, wait_for_subscribers=1, wait_timeout=10.0, delay=0.3)))
+    expected = {topic: recording.decoded(topic) for topic in topics}
+    total = sum(len(v) for v in expected.values())
+    try:
+        player.start()
+        deadline = time.monotonic() + 20.0
+        while sum(len(v) for v in arrivals.values()) < total and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.002)
+        player.join(timeout=10.0)
+    finally:
+        executor.shutdown(timeout_sec=0.0)
+        listener.destroy_node()
+    assert outcome["result"].messages == total
+    pairs = []  # (recorded log time [s], arrival [s]); reliable topics arrive in order
+    for topic in topics:
+        assert len(arrivals[topic]) == len(expected[topic]), topic
+        for (log_time, sent), (arrived, received) in zip(expected[topic], arrivals[topic]):
+            assert plain(received) == plain(sent), topic  # an rclpy message received, a rosbags one decoded
+            pairs.append((log_time / 1e9, arrived))
+    pairs.sort()
+    # Timing error: each arrival's offset from the typical offset (the median, so one late first message
+    # does not shift them all). Deadlines are absolute, so errors do not add up; on a loaded CI machine a
+    # few messages may still arrive late, which the 90th percentile tolerates and the maximum bounds.
+    offsets = [arrived - recorded for recorded, arrived in pairs]
+    typical = float(np.median(offsets))
+    errors = np.sort([abs(offset - typical) for offset in offsets])
+    p90 = errors[int(0.9 * len(errors))]
+    assert p90 <= 0.003, f"90th percentile timing error {p90 * 1e3:.2f} ms"
+    assert errors[-1] <= 0.05, f"largest timing error {errors[-1] * 1e3:.2f} ms"
+    half = len(offsets) // 2
+    drift = float(np.median(offsets[half:]) - np.median(offsets[:half]))
+    assert abs(drift) <= 0.002, f"the second half runs {drift * 1e3:.2f} ms behind the first"
+    assert pairs[-1][0] - pairs[0][0] == pytest.approx(1.0)
+
+
+def test_publish_loops_at_a_faster_rate_and_reports_progress(ros: None, tmp_path: Path) -> None:
+    path = tmp_path / "short.mcap"
+    record_offline(path, duration=0.5, log_rate=100.0)
+    recording = read_recording(path)
+    stop = threading.Event()
+    threading.Timer(1.5, stop.set).start()
+    progress = io.StringIO()
+    started = time.monotonic()
+    result = publish(recording, rate=5.0, loop=True, topics=["/pose"], stop=stop, progress=progress)
+    assert time.monotonic() - started < 5.0, "the stop event ends it"
+    # At x1 a 0.5 s recording loops at most 3 times in 1.5 s; x5 manages about 15.
+    assert result.loops >= 6 and result.messages >= 5 * 51 and result.interrupted
+    assert "replay:" in progress.getvalue() and "x5 " in progress.getvalue()
+    with pytest.raises(RecordingError, match="no topic warp"):
+        publish(recording, topics=["warp"])
