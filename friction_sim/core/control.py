@@ -117,11 +117,20 @@ class SampleClock:
                     for (t0, w0), (t1, w1) in itertools.pairwise(samples)]
         return max([0.0, *lateness])
 
+    def observe(self, stamp: float, wall_ns: int) -> None:
+        """Record a sample's stamp and arrival without judging it (a controller
+        standing by still learns the plant's real-time factor this way)."""
+        self._samples.append((stamp, wall_ns))
+
     def add(self, stamp: float, wall_ns: int, period: float, window_periods: int, margin: float) -> bool:
         """Record a sample; True when its window began after the last change,
         with ``margin`` periods plus the current delivery jitter to spare."""
-        self._samples.append((stamp, wall_ns))
+        self.observe(stamp, wall_ns)
         if self._change_wall_ns is None:  # nothing of ours applied yet: not our plant's answer
+            return False
+        if len(self._samples) < 3:
+            # The real-time factor is not known yet (it needs two intervals): a
+            # plant at half speed would have its mixed windows judged clean.
             return False
         since_change = (wall_ns - self._change_wall_ns) / NS_PER_S * self.rate()
         return since_change >= (window_periods + margin) * period + self.jitter()
