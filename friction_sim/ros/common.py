@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import sys
 import time
-from typing import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
@@ -20,6 +21,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.subscription import Subscription
 
+from friction_sim.core.spec import Setting
 from friction_sim.errors import FrictionSimError
 
 RCLError = _rclpy.RCLError
@@ -60,23 +62,27 @@ def take_all(subscription: Subscription, limit: int) -> list[object]:
     return messages
 
 
-def float_descriptor(description: str, low: float, high: float) -> ParameterDescriptor:
-    """A double parameter limited to [low, high]."""
-    return ParameterDescriptor(
-        description=description,
-        floating_point_range=[FloatingPointRange(from_value=low, to_value=high, step=0.0)],
-    )
+def descriptor(setting: Setting) -> ParameterDescriptor:
+    """The ROS parameter descriptor of a setting of the one vocabulary
+    (:mod:`friction_sim.core.spec`): its description with the unit, its range
+    (rclpy refuses a value outside it before any callback runs), and read-only
+    for a setting that takes effect at start-up only."""
+    unit = f" [{setting.unit}]" if setting.unit not in ("", "-") else ""
+    text = f"{setting.description}{unit}" + (f"; {setting.rule}" if setting.rule else "")
+    result = ParameterDescriptor(description=text, read_only=setting.start_only)
+    if setting.kind is float and setting.low is not None and setting.high is not None:
+        result.floating_point_range = [FloatingPointRange(from_value=setting.low, to_value=setting.high, step=0.0)]
+    elif setting.kind is int and setting.low is not None and setting.high is not None:
+        result.integer_range = [IntegerRange(from_value=int(setting.low), to_value=int(setting.high), step=1)]
+    return result
 
 
-def int_descriptor(description: str, low: int, high: int) -> ParameterDescriptor:
-    """An integer parameter limited to [low, high]."""
-    return ParameterDescriptor(
-        description=description, integer_range=[IntegerRange(from_value=low, to_value=high, step=1)]
-    )
-
-
-def text_descriptor(description: str) -> ParameterDescriptor:
-    return ParameterDescriptor(description=description)
+def declare_settings(node: Node, settings: Mapping[str, Setting]) -> dict[str, Any]:
+    """Declare every setting as a parameter of ``node`` (default, descriptor)
+    and return the values in force (the defaults, or the overrides given at start)."""
+    for name, setting in settings.items():
+        node.declare_parameter(name, setting.default, descriptor(setting))
+    return {name: node.get_parameter(name).value for name in settings}
 
 
 def wall_ns() -> int:
@@ -89,7 +95,7 @@ def run_node(
     *, prog: str = "friction_sim",
 ) -> int:
     """Initialise rclpy, build the node(s), spin until shut down; return the exit code."""
-    rclpy.init(args=args)
+    rclpy.init(args=list(args) if args is not None else None)
     nodes: list[Node] = []
     executor = SingleThreadedExecutor()
     try:

@@ -28,8 +28,10 @@ effect.
 from __future__ import annotations
 
 import copy
+import functools
 import time
-from typing import Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TwistStamped
@@ -40,35 +42,22 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from std_msgs.msg import Float64
 
+from friction_sim.core import spec
+from friction_sim.core.commands import CONTROLLER, consumed_by
 from friction_sim.core.control import ControllerConfig, ControlOutput, MeanSpeedController
-from friction_sim.errors import ParameterError
-from friction_sim.io.messages import key_values, ns_to_seconds, stamp_ns
-from friction_sim.ros.common import float_descriptor, int_descriptor, run_node, text_descriptor, wall_ns
 from friction_sim.core.params import SliderParams
+from friction_sim.errors import ParameterError
+from friction_sim.io.messages import command_from_message, key_values, message_class, ns_to_seconds, stamp_ns
+from friction_sim.ros.common import declare_settings, run_node, wall_ns
 
 QOS_DEPTH = 10
 PLANT_TIMEOUT = 5.0
 DISCOVERY_SETTLE = 0.5
-MODEL = ("mass", "mu", "gravity")
+MODEL = tuple(spec.PLANT)
+#: The node's parameters: declared once in the one vocabulary.
+PARAMETERS = spec.CONTROLLER_NODE
 #: Parameters that make up the ControllerConfig.
 CONFIG = {*MODEL, "integral_gain", "max_amplitude_ratio", "settle_margin", "mean_window_periods"}
-
-#: name -> (default, descriptor); defaults are the paper's Fig. 2 case.
-PARAMETERS: dict[str, tuple[Any, Any]] = {
-    "mass": (1.0, float_descriptor("model: slider mass m [kg]", 1e-6, 1e6)),
-    "mu": (0.1, float_descriptor("model: Coulomb friction coefficient [-]", 1e-6, 10.0)),
-    "gravity": (10.0, float_descriptor("model: gravity g [m/s^2]", 1e-6, 1e3)),
-    "excitation_frequency": (50.0, float_descriptor("initial excitation frequency f [Hz]", 1e-3, 1e5)),
-    "drive_force": (0.7, float_descriptor("initial drive force Fd [N]", -1e6, 1e6)),
-    "target_speed": (0.0002, float_descriptor("target mean speed V* [m/s]", -1e3, 1e3)),
-    "integral_gain": (0.4, float_descriptor("first integral step per clean sample [-]", 0.0, 2.0)),
-    "max_amplitude_ratio": (0.95, float_descriptor("largest Pa/(m g) applied, < 1", 1e-3, 0.999)),
-    "settle_margin": (0.25, float_descriptor(
-        "periods a sample window keeps clear of a change (plus the observed delivery jitter)", 0.0, 5.0)),
-    "mean_window_periods": (1, int_descriptor("periods in the slider's mean_velocity window", 1, 10_000)),
-    "plant_node": ("slider", text_descriptor("node to read mass, mu, gravity from at start-up ('' = none)")),
-    "active": (True, text_descriptor("regulate now; false: stand by (publish nothing) until a target arrives")),
-}
 
 
 class ControllerNode(Node):
@@ -76,9 +65,7 @@ class ControllerNode(Node):
 
     def __init__(self, node_name: str = "controller", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
-        for name, (default, descriptor) in PARAMETERS.items():
-            self.declare_parameter(name, default, descriptor)
-        values = {name: self.get_parameter(name).value for name in PARAMETERS}
+        values = declare_settings(self, PARAMETERS)
         self._control = MeanSpeedController(
             _config(values), drive_force=values["drive_force"], frequency=values["excitation_frequency"],
             target_speed=values["target_speed"],
@@ -93,10 +80,10 @@ class ControllerNode(Node):
         self.output_listeners: list[Callable[[ControlOutput], None]] = []
         self._amplitude_pub = self.create_publisher(Float64, "excitation_amplitude", QOS_DEPTH)
         self._diag_pub = self.create_publisher(DiagnosticArray, "diagnostics", QOS_DEPTH)
-        self.create_subscription(Float64, "target_speed", self._on_target, QOS_DEPTH)
+        for entry in consumed_by(CONTROLLER):  # target_speed, drive_force, excitation_frequency
+            self.create_subscription(message_class(entry.message_type), entry.name,
+                                     functools.partial(self._on_command, entry.name), QOS_DEPTH)
         self.create_subscription(TwistStamped, "mean_velocity", self._on_mean_velocity, QOS_DEPTH)
-        self.create_subscription(Float64, "drive_force", self._on_drive_force, QOS_DEPTH)
-        self.create_subscription(Float64, "excitation_frequency", self._on_frequency, QOS_DEPTH)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(1.0, self._publish_diagnostics, clock=steady)
         self.add_on_set_parameters_callback(self._set_parameters)
@@ -172,21 +159,22 @@ class ControllerNode(Node):
 
     # -- commands -----------------------------------------------------------------
 
-    def _on_target(self, msg: Float64) -> None:
-        if self._apply("target_speed", msg.data, self._control.set_target) and not self.active:
+    def _on_command(self, name: str, msg: Any) -> None:
+        """A command on one of the topics the controller consumes: each sets one
+        input of the control law (a target makes a standing-by controller active)."""
+        command = command_from_message(name, msg, 0.0)
+        (field, value), = command.values.items()
+        setters = {"target_speed": self._control.set_target, "drive_force": self._control.set_drive_force,
+                   "excitation_frequency": self._control.set_frequency}
+        if self._apply(name, value, setters[field]) and field == "target_speed" and not self.active:
             self.active = True
             self._publish(self._control.output)
 
-    def _on_drive_force(self, msg: Float64) -> None:
-        self._apply("drive_force", msg.data, self._control.set_drive_force)
-
-    def _on_frequency(self, msg: Float64) -> None:
-        self._apply("excitation_frequency", msg.data, self._control.set_frequency)
-
     def _on_mean_velocity(self, msg: TwistStamped) -> None:
-        if not (self.ready and self.active):
-            return
         t = ns_to_seconds(stamp_ns(msg.header.stamp))
+        if not (self.ready and self.active):
+            self._control.clock.observe(t, wall_ns())  # learn the plant's pace while standing by
+            return
         self._apply("mean_velocity", msg.twist.linear.x,
                     lambda v: self._control.on_mean_velocity(v, t, wall_ns()), always_publish=True)
 
@@ -292,7 +280,7 @@ class ControllerNode(Node):
 
 def _config(values: dict[str, Any]) -> ControllerConfig:
     return ControllerConfig(
-        model=SliderParams(values["mass"], values["mu"], values["gravity"]),
+        model=SliderParams(**{name: values[name] for name in MODEL}),
         integral_gain=values["integral_gain"], max_amplitude_ratio=values["max_amplitude_ratio"],
         mean_window_periods=values["mean_window_periods"], settle_margin=values["settle_margin"],
     )

@@ -6,10 +6,11 @@ started separately in the same namespace, talking over the same topics.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 from friction_sim.io.paramfile import read_params_file
 from friction_sim.ros.common import run_node
@@ -17,12 +18,10 @@ from friction_sim.ros.controller import ControllerNode
 from friction_sim.ros.slider import SliderNode
 
 
-def _overrides(path: Path | None, node_name: str) -> list:  # type: ignore[type-arg]
+def _overrides(path: Path | None, node_name: str) -> list[Parameter]:
     """Parameters for ``node_name`` from a ROS 2 params file (``/**`` or the node's own key)."""
     if path is None:
         return []
-    from rclpy.parameter import Parameter
-
     return [Parameter(name, value=value) for name, value in read_params_file(path, node_name).items()]
 
 

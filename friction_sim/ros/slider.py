@@ -32,7 +32,8 @@ from __future__ import annotations
 import sys
 import threading
 import time
-from typing import Any, Callable, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
@@ -41,43 +42,32 @@ from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.subscription import Subscription
 from rosgraph_msgs.msg import Clock as ClockMsg
-from std_msgs.msg import Float64
 
-from friction_sim.errors import ParameterError
-from friction_sim.io.messages import fill_state_messages, key_values, mean_velocity_message, seconds_to_ns, time_msg
-from friction_sim.ros.common import (
-    PolledGroup, float_descriptor, int_descriptor, run_node, take_all, text_descriptor, wall_ns,
+from friction_sim.core import spec
+from friction_sim.core.commands import SLIDER, Outcome, consumed_by
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.realtime import RealtimeSlider
+from friction_sim.io.messages import (
+    command_from_message,
+    fill_state_messages,
+    key_values,
+    mean_velocity_message,
+    message_class,
+    seconds_to_ns,
+    time_msg,
 )
-from friction_sim.core.params import Inputs, SliderParams, check_contact
-from friction_sim.core.realtime import MAX_MEAN_WINDOW, MAX_PERIODS_PER_SECOND, CommandOutcome, RealtimeSlider, Tick, check_load
+from friction_sim.io.sinks import Sink, deliver_tick
+from friction_sim.ros.common import PolledGroup, declare_settings, run_node, take_all, wall_ns
 
 QOS_DEPTH = 10
 COMMANDS_PER_TICK = QOS_DEPTH
 _QUIET_PUBLISHER = PublisherEventCallbacks(use_default_callbacks=False)
 _QUIET_SUBSCRIPTION = SubscriptionEventCallbacks(use_default_callbacks=False)
 TICK_SWITCH_INTERVAL = 0.0005
-PLANT = ("mass", "mu", "gravity")
-INPUTS = ("drive_force", "excitation_amplitude", "excitation_frequency")
-
-#: name -> (default, descriptor); defaults are the paper's Fig. 2 case.
-PARAMETERS: dict[str, tuple[Any, Any]] = {
-    "mass": (1.0, float_descriptor("slider mass m [kg]", 1e-6, 1e6)),
-    "mu": (0.1, float_descriptor("Coulomb friction coefficient [-]", 1e-6, 10.0)),
-    "gravity": (10.0, float_descriptor("gravity g [m/s^2]", 1e-6, 1e3)),
-    "drive_force": (0.7, float_descriptor("drive force Fd [N] along +x", -1e6, 1e6)),
-    "excitation_amplitude": (5.0, float_descriptor("excitation amplitude Pa [N], < m*g", 0.0, 1e6)),
-    "excitation_frequency": (50.0, float_descriptor("excitation frequency f [Hz]", 1e-3, MAX_PERIODS_PER_SECOND)),
-    "publish_rate": (1000.0, float_descriptor("state publishing rate [Hz]", 1.0, 10_000.0)),
-    "real_time_factor": (1.0, float_descriptor("simulated seconds per wall second", 1e-3, 1e3)),
-    "publish_clock": (False, text_descriptor("publish simulation time on /clock")),
-    "mean_window_periods": (1, int_descriptor("whole periods averaged in mean_velocity", 1, MAX_MEAN_WINDOW)),
-    "frame_id": ("slideway", text_descriptor("header.frame_id of published messages")),
-    "log_path": ("", text_descriptor("record the run to this MCAP file ('' = no recording); set at start")),
-    "log_rate": (1000.0, float_descriptor("recorded state samples per simulated second", 1.0, 100_000.0)),
-}
-#: Parameters that only take effect at start-up.
-START_ONLY = ("log_path", "log_rate")
+#: The node's parameters: declared once in the one vocabulary.
+PARAMETERS = spec.SLIDER_NODE
 
 
 class SliderNode(Node):
@@ -85,24 +75,20 @@ class SliderNode(Node):
 
     def __init__(self, node_name: str = "slider", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
-        self.command_listeners: list[Callable[[CommandOutcome], None]] = []
-        self.tick_listeners: list[Callable[[Tick], None]] = []
-        for name, (default, descriptor) in PARAMETERS.items():
-            self.declare_parameter(name, default, descriptor)
-        values = {name: self.get_parameter(name).value for name in PARAMETERS}
-        params = SliderParams(**{name: values[name] for name in PLANT})
-        inputs = Inputs(**{name: values[name] for name in INPUTS})
-        check_contact(params, inputs)
-        self.recorder = _open_recorder(values)
+        values = declare_settings(self, PARAMETERS)
+        params = SliderParams(**{name: values[name] for name in spec.PLANT})
+        inputs = Inputs(**{name: values[name] for name in spec.INPUTS if name in values})
         self._rt = RealtimeSlider(
             params, inputs, wall_ns=wall_ns(), real_time_factor=values["real_time_factor"],
             publish_rate=values["publish_rate"], mean_window_periods=values["mean_window_periods"],
-            log_rate=values["log_rate"] if self.recorder is not None else None,
+            log_rate=values["log_rate"] if values["log_path"] else None,
         )
+        #: Consumers of the run (the recorder, a live view, a test's probe).
+        self.sinks: list[Sink] = []
+        self.recorder = _open_recorder(values)
         if self.recorder is not None:
-            self.recorder.record_parameters(_recorded(values), 0.0)
-            self.command_listeners.append(self.recorder.record_command)
-            self.tick_listeners.append(lambda tick: self.recorder.record_tick(tick, self._frame_id))
+            self.sinks.append(self.recorder)
+            self.recorder.on_parameters(_recorded(values), 0.0, changed=False)
         self._frame_id: str = values["frame_id"]
         self._publish_clock: bool = values["publish_clock"]
         self._make_publishers()
@@ -119,7 +105,8 @@ class SliderNode(Node):
         self._ticker.start()
 
     def destroy_node(self) -> None:
-        """Stop the tick thread before the publishers go away; finish the recording."""
+        """Stop the tick thread before the publishers go away; close the sinks
+        (finishing the recording)."""
         self._stop.set()
         if self._ticker.is_alive() and threading.current_thread() is not self._ticker:
             self._ticker.join(timeout=2.0)
@@ -131,6 +118,8 @@ class SliderNode(Node):
                 self.get_logger().info(note)
             else:  # after Ctrl-C the context (and /rosout) is gone already
                 print(f"[slider] {note}", file=sys.stderr)
+        for sink in self.sinks:
+            sink.close()
         super().destroy_node()
 
     @property
@@ -153,41 +142,38 @@ class SliderNode(Node):
         self._clock_msg = ClockMsg()
 
     def _make_subscriptions(self) -> None:
+        """One polled subscription per command topic the slider consumes (from
+        the command table); the tick thread drains them."""
         polled = PolledGroup()
-
-        def subscribe(kind: type, topic: str, convert: Callable[[Any], tuple[str, dict[str, float]]]) -> Any:
-            # The "callback" of a polled subscription converts a message into a command.
-            return self.create_subscription(kind, topic, convert, QOS_DEPTH, callback_group=polled,
-                                            event_callbacks=_QUIET_SUBSCRIPTION)
-
-        self._commands = [subscribe(Float64, name, _float_command(name)) for name in INPUTS]
-        self._commands.append(subscribe(WrenchStamped, "external_wrench", _wrench_command))
+        self._commands: list[tuple[str, Subscription]] = [
+            (entry.name, self.create_subscription(
+                message_class(entry.message_type), entry.name, _unused, QOS_DEPTH, callback_group=polled,
+                event_callbacks=_QUIET_SUBSCRIPTION))
+            for entry in consumed_by(SLIDER)
+        ]
 
     def _take_commands(self) -> None:
         """Apply every command waiting on the command topics (tick thread)."""
-        batch = [subscription.callback(msg) for subscription in self._commands
-                 for msg in take_all(subscription, COMMANDS_PER_TICK)]
-        if batch:
-            with self._lock:
-                outcomes = self._rt.commands(batch, wall_ns())
-            for outcome in outcomes:
-                self._report(outcome)
+        waiting = [(name, msg) for name, subscription in self._commands
+                   for msg in take_all(subscription, COMMANDS_PER_TICK)]
+        if not waiting:
+            return
+        with self._lock:
+            now = wall_ns()
+            t = self._rt.now(now)
+            outcomes = self._rt.commands([command_from_message(name, msg, t) for name, msg in waiting], now)
+        for outcome in outcomes:
+            self._report(outcome)
 
     # -- commands ---------------------------------------------------------------
 
-    def _command(self, topic: str, values: dict[str, float]) -> CommandOutcome:
-        with self._lock:
-            outcome = self._rt.command(topic, values, wall_ns())
-        self._report(outcome)
-        return outcome
-
-    def _report(self, outcome: CommandOutcome) -> None:
+    def _report(self, outcome: Outcome) -> None:
         if not outcome.accepted:
             self.get_logger().warning(
                 f"{outcome.reason}; last valid value kept", throttle_duration_sec=1.0
             )
-        for listener in self.command_listeners:
-            listener(outcome)
+        for sink in self.sinks:
+            sink.on_command(outcome, self._frame_id)
 
     # -- publishing -------------------------------------------------------------
 
@@ -208,7 +194,7 @@ class SliderNode(Node):
             try:
                 self._take_commands()
                 self._on_tick()
-            except Exception:  # noqa: BLE001 - a shutdown racing a publish ends the loop
+            except Exception:
                 if self.context.ok() and not self._stop.is_set():
                     raise
                 return
@@ -226,8 +212,7 @@ class SliderNode(Node):
         if self._publish_clock:
             time_msg(seconds_to_ns(state.t), self._clock_msg.clock)
             self._clock_pub.publish(self._clock_msg)
-        for listener in self.tick_listeners:
-            listener(tick)
+        deliver_tick(self.sinks, tick, self._frame_id)
 
     def _on_diagnostics(self) -> None:
         with self._lock:
@@ -242,44 +227,18 @@ class SliderNode(Node):
     # -- parameters ---------------------------------------------------------------
 
     def _set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
-        """The one place for cross-field rules, and atomic: the change reaches
-        the core here, under the lock, or it is refused and nothing changes.
-        It is checked against the inputs in force (which topic commands may
-        have changed since the parameters were last set)."""
-        late = [p.name for p in changes if p.name in START_ONLY]
-        if late:
-            reason = f"{late[0]} only takes effect at start-up (use --ros-args -p {late[0]}:=...)"
-            return SetParametersResult(successful=False, reason=reason)
+        """The one place for cross-field rules, and atomic: the whole set is
+        checked by the core against the state in force (which topic commands
+        may have changed since the parameters were last set) and reaches the
+        simulation as one new state, under the lock, or it is refused and
+        nothing changes."""
         values = {p.name: p.value for p in changes}
-        plant = {n: values[n] for n in PLANT if n in values}
-        inputs = {n: values[n] for n in INPUTS if n in values}
-        now = wall_ns()
         with self._lock:
-            rt = self._rt
-            try:
-                params = rt.slider.params.replace(**plant)
-                new_inputs = rt.slider.inputs.replace(**inputs)
-                check_contact(params, new_inputs, values)
-                check_load(new_inputs.excitation_frequency, values.get("real_time_factor", rt.clock.rate),
-                           "real_time_factor" if "real_time_factor" in values else "excitation_frequency")
-                if "mean_window_periods" in values:
-                    rt.set_mean_window(values["mean_window_periods"])
-            except ParameterError as error:
-                outcome = rt.refuse("parameters", values, str(error), now)
-                refused = True
-            else:
-                refused = False
-                outcomes = [rt.set_params(params, now)] if plant else []
-                outcomes += rt.commands([("parameters", inputs)], now) if inputs else []
-                if "real_time_factor" in values:
-                    rt.set_real_time_factor(values["real_time_factor"], now)
-                if "publish_rate" in values:
-                    rt.set_publish_rate(values["publish_rate"])
-        if refused:
+            outcome = self._rt.configure(values, wall_ns())
+        if outcome.values or not outcome.accepted:
             self._report(outcome)
+        if not outcome.accepted:
             return SetParametersResult(successful=False, reason=outcome.reason)
-        for outcome in outcomes:
-            self._report(outcome)
         return SetParametersResult(successful=True)
 
     def _parameters_set(self, changes: list[Parameter]) -> None:
@@ -287,22 +246,15 @@ class SliderNode(Node):
         record of the non-physics ones (physics changes were recorded as commands)."""
         self._publish_clock = self.get_parameter("publish_clock").value
         self._frame_id = self.get_parameter("frame_id").value
-        others = {p.name for p in changes} - set(PLANT) - set(INPUTS)
-        if self.recorder is not None and others:
-            self.recorder.record_parameters({n: self.get_parameter(n).value for n in others},
-                                            self._rt.clock.now(wall_ns()), changed=True)
+        others = {p.name for p in changes} - set(spec.PLANT) - set(spec.INPUTS)
+        if others:
+            t = self._rt.clock.now(wall_ns())
+            for sink in self.sinks:
+                sink.on_parameters({n: self.get_parameter(n).value for n in others}, t, changed=True)
 
 
-def _float_command(name: str) -> Callable[[Float64], tuple[str, dict[str, float]]]:
-    """std_msgs/Float64 on topic ``name`` -> the command setting input ``name``."""
-    return lambda msg: (name, {name: msg.data})
-
-
-def _wrench_command(msg: WrenchStamped) -> tuple[str, dict[str, float]]:
-    """external_wrench: force.x tangential, force.z normal (torques and force.y
-    have no meaning for a slider on a line and are ignored)."""
-    force = msg.wrench.force
-    return "external_wrench", {"external_force_x": force.x, "external_force_z": force.z}
+def _unused(msg: Any) -> None:
+    """The callback of a polled subscription: never called (the tick thread takes its messages)."""
 
 
 def _open_recorder(values: dict[str, Any]) -> Any:
@@ -310,7 +262,7 @@ def _open_recorder(values: dict[str, Any]) -> Any:
     parameters as the file's metadata."""
     if not values["log_path"]:
         return None
-    from friction_sim.io.recording import Recorder
+    from friction_sim.io.recorder import Recorder
 
     return Recorder(values["log_path"], metadata=_recorded(values))
 
