@@ -22,6 +22,7 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 import rclpy
 
 from friction_sim.experiment.acceptance import acceptance_scenarios, judge
+from friction_sim.experiment.report import command_label
 from friction_sim.experiment.runner import ExperimentResult, run_experiment
 from friction_sim.experiment.scenario import Scenario
 
@@ -35,8 +36,8 @@ def draw(runs: list[tuple[Scenario, ExperimentResult]], path: Path) -> None:
         t = [s for s, _ in result.mean_velocity]
         ax.plot(t, [v * 1e3 for _, v in result.mean_velocity], ".-", markersize=3, linewidth=0.8,
                 label="measured mean speed")
-        steps = [(0.0, case.initial_target or 0.0)] + [(when, value) for when, topic, value in result.commands
-                                                 if topic == "target_speed"]
+        steps = [(0.0, case.initial_target or 0.0)] + [(c.t, c.values["target_speed"]) for c in result.commands
+                                                       if c.name == "target_speed"]
         xs, ys = [], []
         for (t0, v0), (t1, _) in zip(steps, steps[1:] + [(case.duration, None)]):
             xs += [t0, t1]
@@ -53,10 +54,10 @@ def draw(runs: list[tuple[Scenario, ExperimentResult]], path: Path) -> None:
                        color="tab:red", linewidth=0.9, label="Pa")
         right.set_ylabel("Pa [N]", color="tab:red")
         right.set_ylim(0.0, 10.0)
-        for when, topic, value in result.commands:
-            if topic != "target_speed":
-                ax.axvline(when, color="0.6", linewidth=0.8)
-                ax.annotate(f"{topic} -> {value:g}", (when, ax.get_ylim()[1] * 0.9), fontsize=8,
+        for command in result.commands:
+            if command.name != "target_speed":
+                ax.axvline(command.t, color="0.6", linewidth=0.8)
+                ax.annotate(command_label(command), (command.t, ax.get_ylim()[1] * 0.9), fontsize=8,
                             xytext=(3, 0), textcoords="offset points")
         ax.legend(loc="upper left", fontsize=8)
     axes[-1].set_xlabel("simulation time [s]")

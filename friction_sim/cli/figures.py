@@ -5,18 +5,22 @@ so the core and the nodes never pay for it.
 * :func:`u_map_figure` is the paper's Fig. 3: U over (Fd/FfN, Pa/Q).
 * :func:`trace_figure` is the paper's Fig. 2: forces with the impulse areas,
   acceleration, velocity and displacement, with the points A, B, C.
+* :func:`report_figure` is an experiment report's picture: target and
+  measured mean speed, Pa, Fd and f against time.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from friction_sim.core.slider import EventKind
+from friction_sim.core.events import EventKind
 from friction_sim.core.simulation import SimulationResult
 from friction_sim.core.urelation import UMap
+from friction_sim.experiment.report import RunData, SegmentRow, inputs_at
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -122,3 +126,35 @@ def _mark_points(axes: np.ndarray, result: SimulationResult) -> None:
         speed_axis.annotate(label, (t * 1e3, v), textcoords="offset points", xytext=(4, 6), fontsize=9)
         for axis in axes:
             axis.axvline(t * 1e3, color="0.75", linewidth=0.6, zorder=0)
+
+
+def report_figure(data: RunData, rows: Sequence[SegmentRow]) -> Figure:
+    """Target and measured mean speed, Pa, Fd and f against time, the
+    segments' starts marked."""
+    fig = _pyplot_free_figure(figsize=(10.0, 9.0), layout="constrained")
+    ax_v, ax_pa, ax_fd, ax_f = fig.subplots(4, 1, sharex=True)
+    _speed_panel(ax_v, data, rows)
+    times = [0.0] + [c.t for c in data.commands] + [data.duration]
+    states = [data.inputs] + [inputs_at(data, c.t) for c in data.commands]
+    for axis, name, label in ((ax_pa, "excitation_amplitude", "Pa [N]"), (ax_fd, "drive_force", "Fd [N]"),
+                              (ax_f, "excitation_frequency", "f [Hz]")):
+        axis.step(times, [getattr(s, name) for s in states] + [getattr(states[-1], name)], where="post")
+        axis.set_ylabel(label)
+    for r in rows[1:]:
+        for axis in (ax_v, ax_pa, ax_fd, ax_f):
+            axis.axvline(r.start, color="0.8", linewidth=0.7, zorder=0)
+    ax_f.set_xlabel("simulation time [s]")
+    fig.suptitle(data.name)
+    return fig
+
+
+def _speed_panel(ax: Any, data: RunData, rows: Sequence[SegmentRow]) -> None:
+    """Measured mean speed, with each segment's target (closed loop) or prediction (open loop)."""
+    ax.plot([t for t, _ in data.mean_velocity], [v * 1e3 for _, v in data.mean_velocity], ".-",
+            markersize=2, linewidth=0.7, label="measured mean speed")
+    for r in rows:
+        ax.plot([r.start, r.end], [r.target * 1e3] * 2, "k--" if r.mode == "closed loop" else "g:", linewidth=1.2)
+    ax.plot([], [], "k--", label="target (closed loop)")
+    ax.plot([], [], "g:", label="U-relation prediction (open loop)")
+    ax.set_ylabel("mean speed [mm/s]")
+    ax.legend(loc="upper left", fontsize=8)

@@ -13,10 +13,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from friction_sim.core.commands import in_force
 from friction_sim.core.control import ControllerConfig, MeanSpeedController
-from friction_sim.experiment.runner import ExperimentResult, StepMetrics, step_metrics
 from friction_sim.core.params import Inputs
+from friction_sim.experiment.metrics import StepMetrics, step_metrics
 from friction_sim.experiment.scenario import Expectation, Scenario, load_scenario
+from friction_sim.experiment.spec import ExperimentResult
 
 
 def config_dir() -> Path:
@@ -36,6 +38,8 @@ def acceptance_scenarios() -> list[Scenario]:
 
 @dataclass(frozen=True)
 class Verdict:
+    """One expectation judged: the target it was about, the metrics measured, and whether it was met."""
+
     expectation: Expectation
     target: float
     metrics: StepMetrics
@@ -62,11 +66,7 @@ def judge(scenario: Scenario, result: ExperimentResult) -> list[Verdict]:
 
 def inputs_at(scenario: Scenario, t: float) -> Inputs:
     """The plant's inputs scheduled to be in force at ``t``."""
-    inputs = scenario.inputs
-    for command in scenario.schedule:
-        if command.t <= t and command.topic in ("drive_force", "excitation_frequency"):
-            inputs = inputs.replace(**{command.topic: float(command.value)})  # type: ignore[arg-type]
-    return inputs
+    return in_force(scenario.schedule, scenario.params, scenario.inputs, t)[1]
 
 
 def _unreachable(scenario: Scenario, target: float, t: float) -> bool:
@@ -83,8 +83,8 @@ def target_at(scenario: Scenario, t: float, initial: float) -> float:
     """The target speed scheduled to be in force at ``t``."""
     target = initial
     for command in scenario.schedule:
-        if command.topic == "target_speed" and command.t <= t:
-            target = float(command.value)  # type: ignore[arg-type]
+        if command.t <= t:
+            target = float(command.values.get("target_speed", target))
     return target
 
 

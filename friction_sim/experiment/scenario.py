@@ -43,18 +43,27 @@ from typing import Any
 
 import yaml
 
+from friction_sim.core import spec as settings
+from friction_sim.core.commands import COMMANDS, SLIDER, Command, apply
 from friction_sim.core.control import ControllerConfig, MeanSpeedController
+from friction_sim.core.params import Inputs, SliderParams, check_contact, check_load
 from friction_sim.errors import FrictionSimError, ParameterError
-from friction_sim.experiment.runner import COMMAND_TOPICS, ExperimentSpec, ScheduledCommand
+from friction_sim.experiment.spec import ExperimentSpec
 from friction_sim.io.paramfile import read_params_file
-from friction_sim.core.params import Inputs, SliderParams, check_contact
 
-PLANT_KEYS = ("mass", "mu", "gravity", "drive_force", "excitation_amplitude", "excitation_frequency")
-CONTROLLER_KEYS = ("mass", "mu", "gravity", "integral_gain", "max_amplitude_ratio", "settle_margin",
-                   "plant_node", "target_speed")
+#: Keys of ``plant:``: the plant and those inputs the slider takes as parameters.
+PLANT_KEYS = tuple(name for name in (*settings.PLANT, *settings.INPUTS) if name in settings.SLIDER_NODE)
+#: Controller parameters the scenario derives itself: the initial drive force
+#: and frequency come from the plant, the mean window from the slider, and
+#: ``active`` from whether a target is given.
+_DERIVED_CONTROLLER_KEYS = ("excitation_frequency", "drive_force", "mean_window_periods", "active")
+#: Keys of ``controller:``: the controller node's other parameters.
+CONTROLLER_KEYS = tuple(name for name in settings.CONTROLLER_NODE if name not in _DERIVED_CONTROLLER_KEYS)
 TOP_KEYS = ("name", "description", "duration", "real_time_factor", "output", "log_rate", "plant",
             "plant_params", "controller", "schedule", "namespace", "expect")
 EXPECT_KEYS = ("t", "within", "periods", "overshoot")
+
+Entry = tuple[yaml.Node, Any]  # a YAML node and its plain value
 
 
 @dataclass(frozen=True)
@@ -79,11 +88,11 @@ class Scenario:
     duration: float
     params: SliderParams
     inputs: Inputs
-    schedule: tuple[ScheduledCommand, ...]
+    schedule: tuple[Command, ...]
     controller: dict[str, Any] | None
     real_time_factor: float = 1.0
     output: Path = Path("out")
-    log_rate: float = 1000.0
+    log_rate: float = float(settings.LOG_RATE.default)
     namespace: str | None = None
     description: str = ""
     expect: tuple[Expectation, ...] = ()
@@ -91,6 +100,7 @@ class Scenario:
 
     @property
     def closed_loop(self) -> bool:
+        """Whether a controller runs."""
         return self.controller is not None
 
     @property
@@ -108,8 +118,8 @@ class Scenario:
         return ExperimentSpec(
             duration=self.duration, schedule=self.schedule, plant=self.params, inputs=self.inputs,
             controller=self.controller is not None, controller_parameters=controller,
-            real_time_factor=self.real_time_factor, log_rate=self.log_rate,
-            notes={"scenario": self.source, "name": self.name},
+            real_time_factor=self.real_time_factor, log_rate=self.log_rate, name=self.name,
+            notes={"scenario": self.source},
         )
 
 
@@ -143,12 +153,14 @@ class _Parser:
         self.base = base
 
     def fail(self, node: yaml.Node, message: str) -> ScenarioError:
+        """The one-line refusal ``file: line N: message``."""
         return ScenarioError(f"{self.where}: line {node.start_mark.line + 1}: {message}")
 
-    def mapping(self, node: yaml.Node, allowed: tuple[str, ...], what: str) -> dict[str, tuple[yaml.Node, Any]]:
+    def mapping(self, node: yaml.Node, allowed: tuple[str, ...], what: str) -> dict[str, Entry]:
+        """The entries of a mapping node, refusing unknown and repeated keys."""
         if not isinstance(node, yaml.MappingNode):
             raise self.fail(node, f"{what} must be a mapping")
-        entries: dict[str, tuple[yaml.Node, Any]] = {}
+        entries: dict[str, Entry] = {}
         for key_node, value_node in node.value:
             key = key_node.value
             if key not in allowed:
@@ -158,7 +170,8 @@ class _Parser:
             entries[key] = (value_node, yaml.safe_load(yaml.serialize(value_node)))
         return entries
 
-    def number(self, entry: tuple[yaml.Node, Any], key: str, *, positive: bool = False) -> float:
+    def number(self, entry: Entry, key: str, *, positive: bool = False) -> float:
+        """A finite number (> 0 with ``positive``)."""
         node, value = entry
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise self.fail(node, f"{key} = {value!r} rejected: must be a finite number")
@@ -167,71 +180,78 @@ class _Parser:
         return float(value)
 
     def scenario(self, root: yaml.MappingNode, text: str) -> Scenario:
+        """The whole scenario, validated section by section."""
         top = self.mapping(root, TOP_KEYS, "the scenario")
         if "duration" not in top:
             raise self.fail(root, "missing key 'duration' (simulated seconds)")
         duration = self.number(top["duration"], "duration", positive=True)
         rate = self.number(top["real_time_factor"], "real_time_factor", positive=True) \
             if "real_time_factor" in top else 1.0
-        log_rate = self.number(top["log_rate"], "log_rate", positive=True) if "log_rate" in top else 1000.0
+        log_rate = self.number(top["log_rate"], "log_rate", positive=True) if "log_rate" in top \
+            else float(settings.LOG_RATE.default)
         name = str(top["name"][1]) if "name" in top else "experiment"
-        params, inputs = self.plant(top)
+        params, inputs = self.plant(top, rate)
         controller = self.controller(top.get("controller"), params, inputs)
-        schedule = self.schedule(top.get("schedule"), duration, params, inputs, controller is not None)
-        output = Path(str(top["output"][1])) if "output" in top else Path("out") / name
+        schedule = _Schedule(self, params, inputs, rate, controller).read(top.get("schedule"), duration)
         return Scenario(
             name=name, duration=duration, params=params, inputs=inputs, schedule=schedule,
-            controller=controller, real_time_factor=rate, output=output, log_rate=log_rate,
-            namespace=str(top["namespace"][1]) if "namespace" in top else None,
-            description=str(top["description"][1]) if "description" in top else "",
-            expect=self.expectations(top.get("expect"), schedule), source=text,
+            controller=controller, real_time_factor=rate, output=_text(top, "output", Path("out") / name, Path),
+            log_rate=log_rate, namespace=_text(top, "namespace", None, str),
+            description=_text(top, "description", "", str), expect=self.expectations(top.get("expect"), schedule),
+            source=text,
         )
 
-    def expectations(self, entry: tuple[yaml.Node, Any] | None,
-                     schedule: tuple[ScheduledCommand, ...]) -> tuple[Expectation, ...]:
+    def expectations(self, entry: Entry | None, schedule: tuple[Command, ...]) -> tuple[Expectation, ...]:
+        """The ``expect`` list; each judges a change the schedule makes (or the start)."""
         if entry is None:
             return ()
         if not isinstance(entry[0], yaml.SequenceNode):
             raise self.fail(entry[0], "expect must be a list of {t, within, periods[, overshoot]}")
-        found = []
-        for item in entry[0].value:
-            fields = self.mapping(item, EXPECT_KEYS, "an expect entry")
-            for key in ("t", "within", "periods"):
-                if key not in fields:
-                    raise self.fail(item, f"an expect entry needs '{key}'")
-            t = self.number(fields["t"], "t")
-            if t != 0.0 and not any(c.t == t for c in schedule):
-                raise self.fail(fields["t"][0], f"t = {t!r}: no scheduled command at that time to judge")
-            periods = self.number(fields["periods"], "periods", positive=True)
-            found.append(Expectation(
-                t=t, within=self.number(fields["within"], "within", positive=True), periods=int(periods),
-                overshoot=self.number(fields["overshoot"], "overshoot") if "overshoot" in fields else math.inf))
-        return tuple(found)
+        return tuple(self.expectation(item, schedule) for item in entry[0].value)
 
-    def plant(self, top: dict[str, tuple[yaml.Node, Any]]) -> tuple[SliderParams, Inputs]:
+    def expectation(self, item: yaml.Node, schedule: tuple[Command, ...]) -> Expectation:
+        """One ``expect`` entry."""
+        fields = self.mapping(item, EXPECT_KEYS, "an expect entry")
+        for key in ("t", "within", "periods"):
+            if key not in fields:
+                raise self.fail(item, f"an expect entry needs '{key}'")
+        t = self.number(fields["t"], "t")
+        if t != 0.0 and not any(c.t == t for c in schedule):
+            raise self.fail(fields["t"][0], f"t = {t!r}: no scheduled command at that time to judge")
+        periods = self.number(fields["periods"], "periods", positive=True)
+        overshoot = self.number(fields["overshoot"], "overshoot") if "overshoot" in fields else math.inf
+        return Expectation(t=t, within=self.number(fields["within"], "within", positive=True), periods=int(periods),
+                           overshoot=overshoot)
+
+    def plant(self, top: dict[str, Entry], rate: float) -> tuple[SliderParams, Inputs]:
+        """The plant and initial inputs (``plant:`` or ``plant_params:``), checked as the slider would."""
         if "plant" in top and "plant_params" in top:
             raise self.fail(top["plant_params"][0], "give either 'plant' or 'plant_params', not both")
         values: dict[str, float] = {}
         if "plant" in top:
-            for key, entry in self.mapping(top["plant"][0], PLANT_KEYS, "plant").items():
-                values[key] = self.number(entry, key)
+            values = {key: self.number(entry, key)
+                      for key, entry in self.mapping(top["plant"][0], PLANT_KEYS, "plant").items()}
         elif "plant_params" in top:
             values = self.params_file(top["plant_params"])
         try:
-            params = SliderParams(**{k: v for k, v in values.items() if k in ("mass", "mu", "gravity")})
-            inputs = Inputs(**{k: v for k, v in values.items() if k not in ("mass", "mu", "gravity")})
+            params = SliderParams(**{k: v for k, v in values.items() if k in settings.PLANT})
+            inputs = Inputs(**{k: v for k, v in values.items() if k in settings.INPUTS})
             check_contact(params, inputs)
+            check_load(inputs.excitation_frequency, rate)
         except ParameterError as error:
-            node = top["plant"][0] if "plant" in top else top.get("plant_params", (None,))[0]
-            if "plant" in top:
-                for key_node, _ in node.value:
-                    if key_node.value == error.field:
-                        node = key_node
-            raise self.fail(node, f"plant: {error}") if node is not None else ScenarioError(
-                f"{self.where}: plant: {error}") from error
+            raise self.plant_error(top, error) from error
         return params, inputs
 
-    def params_file(self, entry: tuple[yaml.Node, Any]) -> dict[str, float]:
+    def plant_error(self, top: dict[str, Entry], error: ParameterError) -> ScenarioError:
+        """A refused plant, at the line of the key it blames (or of the section)."""
+        node = top["plant"][0] if "plant" in top else top.get("plant_params", (None,))[0]
+        if node is None:
+            return ScenarioError(f"{self.where}: plant: {error}")
+        if "plant" in top:
+            node = next((key for key, _ in node.value if key.value == error.field), node)
+        return self.fail(node, f"plant: {error}")
+
+    def params_file(self, entry: Entry) -> dict[str, float]:
         """The slider's values from a ROS 2 parameters file (``/**`` or ``slider`` section)."""
         node, value = entry
         path = (self.base / str(value)) if not Path(str(value)).is_absolute() else Path(str(value))
@@ -243,85 +263,103 @@ class _Parser:
             raise self.fail(node, f"plant_params: {error}") from error
         return {k: v for k, v in values.items() if k in PLANT_KEYS}
 
-    def controller(self, entry: tuple[yaml.Node, Any] | None, params: SliderParams,
-                   inputs: Inputs) -> dict[str, Any] | None:
+    def controller(self, entry: Entry | None, params: SliderParams, inputs: Inputs) -> dict[str, Any] | None:
+        """The controller's parameters (None: open loop), checked as the controller node would."""
         if entry is None or entry[1] is False or entry[1] is None:
             return None
         if entry[1] is True:
             return {}
-        settings: dict[str, Any] = {}
         items = self.mapping(entry[0], CONTROLLER_KEYS, "controller")
-        for key, item in items.items():
-            settings[key] = str(item[1]) if key == "plant_node" else self.number(item, key)
-        try:  # the rules the controller node applies to its parameters
-            model = params.replace(**{k: settings[k] for k in ("mass", "mu", "gravity") if k in settings})
-            config = ControllerConfig(model=model, **{k: settings[k] for k in (
-                "integral_gain", "max_amplitude_ratio", "settle_margin") if k in settings})
-            MeanSpeedController(config, drive_force=inputs.drive_force, frequency=inputs.excitation_frequency,
-                                target_speed=settings.get("target_speed", 0.0))
+        try:
+            values = {key: settings.CONTROLLER_NODE[key].check(item[1]) for key, item in items.items()}
+            _controller_model(values, params, inputs)
         except ParameterError as error:
             node = items[error.field][0] if error.field in items else entry[0]
             raise self.fail(node, f"controller: {error}") from error
-        return settings
+        return values
 
-    def schedule(self, entry: tuple[yaml.Node, Any] | None, duration: float, params: SliderParams,
-                 inputs: Inputs, closed_loop: bool) -> tuple[ScheduledCommand, ...]:
+
+def _controller_model(values: dict[str, Any], params: SliderParams, inputs: Inputs) -> MeanSpeedController:
+    """The controller the node would build from ``values`` (raises what it would refuse)."""
+    model = params.replace(**{k: values[k] for k in settings.PLANT if k in values})
+    config = ControllerConfig(model=model, **{k: values[k] for k in (
+        "integral_gain", "max_amplitude_ratio", "settle_margin") if k in values})
+    return MeanSpeedController(config, drive_force=inputs.drive_force, frequency=inputs.excitation_frequency,
+                               target_speed=values.get("target_speed", 0.0))
+
+
+def _text(top: dict[str, Entry], key: str, default: Any, kind: type) -> Any:
+    """An optional top-level value as ``kind`` (``default`` when absent)."""
+    return kind(str(top[key][1])) if key in top else default
+
+
+class _Schedule:
+    """Reads the schedule: one command per entry, each checked against the
+    state the entries before it leave, through the core's gate."""
+
+    def __init__(self, parser: _Parser, params: SliderParams, inputs: Inputs, rate: float,
+                 controller: dict[str, Any] | None) -> None:
+        self.parser = parser
+        self.params, self.inputs, self.rate = params, inputs, rate
+        self.controller = controller
+
+    def read(self, entry: Entry | None, duration: float) -> tuple[Command, ...]:
+        """The validated, time-ordered schedule."""
         if entry is None:
             return ()
         node = entry[0]
         if not isinstance(node, yaml.SequenceNode):
-            raise self.fail(node, "schedule must be a list of {t: ..., <topic>: value}")
-        commands: list[ScheduledCommand] = []
-        current = inputs
+            raise self.parser.fail(node, "schedule must be a list of {t: ..., <topic>: value}")
+        commands: list[Command] = []
         for item in node.value:
-            command = self.command(item, duration, closed_loop)
+            command = self.command(item, duration)
             if commands and command.t < commands[-1].t:
-                raise self.fail(item, f"t = {command.t!r} s comes before the previous command's {commands[-1].t!r} s")
-            current = self.check_effect(item, command, params, current)
+                raise self.parser.fail(item, f"t = {command.t!r} s comes before the previous command's "
+                                             f"{commands[-1].t!r} s")
+            self.take(item, command)
             commands.append(command)
         return tuple(commands)
 
-    def command(self, item: yaml.Node, duration: float, closed_loop: bool) -> ScheduledCommand:
-        entries = self.mapping(item, ("t", *COMMAND_TOPICS), "a schedule entry")
+    def command(self, item: yaml.Node, duration: float) -> Command:
+        """One schedule entry: its time and exactly one command topic with its value."""
+        entries = self.parser.mapping(item, ("t", *COMMANDS), "a schedule entry")
         if "t" not in entries:
-            raise self.fail(item, "a schedule entry needs 't' (simulation time in s)")
-        t = self.number(entries["t"], "t")
+            raise self.parser.fail(item, "a schedule entry needs 't' (simulation time in s)")
+        t = self.parser.number(entries["t"], "t")
         if not 0.0 <= t < duration:
-            raise self.fail(entries["t"][0], f"t = {t!r} rejected: must be in [0, duration = {duration!r}) s")
-        topics = [k for k in entries if k != "t"]
-        if len(topics) != 1:
-            raise self.fail(item, f"a schedule entry sets exactly one of {', '.join(COMMAND_TOPICS)} "
-                                  f"(found {', '.join(topics) or 'none'})")
-        topic = topics[0]
-        if topic == "target_speed" and not closed_loop:
-            raise self.fail(entries[topic][0], "target_speed needs a controller: add a 'controller:' section")
-        if topic == "external_wrench":
-            wrench = entries[topic]
-            force = self.mapping(wrench[0], ("x", "z"), "external_wrench")
-            value: Any = (self.number(force["x"], "external_wrench.x") if "x" in force else 0.0,
-                          self.number(force["z"], "external_wrench.z") if "z" in force else 0.0)
-        else:
-            value = self.number(entries[topic], topic)
-        return ScheduledCommand(t, topic, value)
+            raise self.parser.fail(entries["t"][0], f"t = {t!r} rejected: must be in [0, duration = {duration!r}) s")
+        names = [k for k in entries if k != "t"]
+        if len(names) != 1:
+            raise self.parser.fail(item, f"a schedule entry sets exactly one of {', '.join(COMMANDS)} "
+                                         f"(found {', '.join(names) or 'none'})")
+        name = names[0]
+        if SLIDER not in COMMANDS[name].consumers and self.controller is None:
+            raise self.parser.fail(entries[name][0], f"{name} needs a controller: add a 'controller:' section")
+        return Command(t, name, self.values(name, entries[name]))
 
-    def check_effect(self, item: yaml.Node, command: ScheduledCommand, params: SliderParams,
-                     current: Inputs) -> Inputs:
-        """Apply an open-loop command to the inputs in force, refusing what the slider would refuse."""
-        changes: dict[str, float]
-        if command.topic == "target_speed":
-            target = float(command.value)  # type: ignore[arg-type]
-            if target != 0.0 and (current.drive_force == 0.0 or (target > 0.0) != (current.drive_force > 0.0)):
-                raise self.fail(item, f"target_speed = {target!r} at t = {command.t!r} s rejected: must have the "
-                                      f"sign of drive_force = {current.drive_force!r} N in force then")
-            return current
-        if command.topic == "external_wrench":
-            x, z = command.value  # type: ignore[misc]
-            changes = {"external_force_x": x, "external_force_z": z}
-        else:
-            changes = {command.topic: float(command.value)}  # type: ignore[arg-type]
+    def values(self, name: str, entry: Entry) -> dict[str, float]:
+        """The command's fields: a number for a one-field command; for several
+        (external_wrench), a mapping keyed by their message fields (x, z), 0 when left out."""
+        spec = COMMANDS[name]
+        if len(spec.fields) == 1:
+            return {spec.fields[0]: self.parser.number(entry, name)}
+        keys = tuple(path.rsplit(".", 1)[-1] for path in spec.message_fields)
+        given = self.parser.mapping(entry[0], keys, name)
+        return {field_name: self.parser.number(given[key], f"{name}.{key}") if key in given else 0.0
+                for field_name, key in zip(spec.fields, keys)}
+
+    def take(self, item: yaml.Node, command: Command) -> None:
+        """Apply ``command`` to the state in force, refusing what the nodes would refuse."""
         try:
-            new = current.replace(**changes)
-            check_contact(params, new, changes)
+            params, inputs = apply(command, self.params, self.inputs)
+            check_load(inputs.excitation_frequency, self.rate)
+            if "target_speed" in command.values:
+                _controller_model({**(self.controller or {}), **command.values}, params, inputs)
         except ParameterError as error:
-            raise self.fail(item, f"{command.topic} at t = {command.t!r} s: {error}") from error
-        return new
+            raise self.parser.fail(item, f"{command.name} at t = {command.t!r} s: {error}") from error
+        self.params, self.inputs = params, inputs
+
+
+__all__ = [
+    "CONTROLLER_KEYS", "PLANT_KEYS", "Expectation", "Scenario", "ScenarioError", "load_scenario", "parse_scenario",
+]

@@ -92,7 +92,7 @@ def test_simulate_csv_has_uniform_samples_and_events(tmp_path: Path) -> None:
     [
         (("simulate", "--amplitude", "12"), ("excitation_amplitude", "12.0", "10.0")),
         (("simulate", "--mass", "nan"), ("mass", "nan")),
-        (("simulate", "--mu", "-1"), ("mu", "-1.0", "> 0")),
+        (("simulate", "--mu", "-1"), ("mu", "-1.0", "[1e-06, 10]")),
         (("simulate", "--frequency", "0"), ("excitation_frequency", "0.0")),
         (("simulate", "--duration", "0.001"), ("duration", "0.001")),
         (("simulate", "--mass", "heavy"), ("--mass", "heavy")),

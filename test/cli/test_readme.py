@@ -20,10 +20,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from friction_sim.ros.controller import PARAMETERS as CONTROLLER_PARAMETERS
-from friction_sim.ros.slider import PARAMETERS as SLIDER_PARAMETERS
+from friction_sim.core.spec import CONTROLLER_NODE, SLIDER_NODE
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 README = (ROOT / "README.md").read_text()
 NOT_RUN_HERE = {"make test"}  # this test is part of it
 
@@ -65,13 +64,14 @@ TOPIC_TYPES = {
     "/pose": "geometry_msgs/msg/PoseStamped", "/velocity": "geometry_msgs/msg/TwistStamped",
     "/friction_force": "geometry_msgs/msg/WrenchStamped", "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
 }
-NODES = {"/slider": SLIDER_PARAMETERS, "/controller": CONTROLLER_PARAMETERS}
+NODES = {"/slider": SLIDER_NODE, "/controller": CONTROLLER_NODE}
 
 
 def _message(type_name: str) -> type:
-    package, _, name = type_name.split("/")
-    module = __import__(f"{package}.msg", fromlist=[name])
-    return getattr(module, name)
+    """The message class (imported here: the module itself needs no ROS)."""
+    from friction_sim.io.messages import message_class
+
+    return message_class(type_name)
 
 
 def _fill(msg: object, values: dict) -> None:
@@ -93,7 +93,7 @@ def test_ros2_command_matches_the_real_interface(command: str) -> None:
             if word == "-p":
                 name, value = words[i + 1].split(":=")
                 assert name in params
-                assert isinstance(yaml.safe_load(value), type(params[name][0]))
+                assert isinstance(yaml.safe_load(value), params[name].kind)
             if word == "--params-file":
                 assert words[i + 1].endswith("config/slider.yaml") and (ROOT / "config/slider.yaml").is_file()
     elif words[:3] == ["ros2", "topic", "pub"]:
@@ -104,7 +104,6 @@ def test_ros2_command_matches_the_real_interface(command: str) -> None:
         assert words[3] in TOPIC_TYPES
     elif words[:3] == ["ros2", "param", "set"]:
         node, name, value = words[3:6]
-        default, _ = NODES[node][name]
-        assert isinstance(yaml.safe_load(value), type(default))
+        assert isinstance(yaml.safe_load(value), NODES[node][name].kind)
     else:
         assert words[0] in ("colcon", "source"), f"unchecked command: {command}"

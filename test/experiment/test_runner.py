@@ -12,8 +12,9 @@ import pytest
 
 from friction_sim.cli.jobs import report_recording, run_scenario
 from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.io.replay import read_recording, verify
 from friction_sim.core.urelation import predict
+from friction_sim.io.reader import read_recording
+from friction_sim.io.verify import verify
 
 SCENARIO = """\
 name: short
@@ -113,7 +114,8 @@ def test_a_bad_scenario_fails_before_anything_starts(tmp_path: Path) -> None:
 def test_attach_drives_nodes_running_in_another_process(tmp_path: Path) -> None:
     namespace = "/attached_" + tmp_path.name[-8:].replace("-", "_")
     feeder = subprocess.Popen([str(Path(sys.executable).parent / "friction-sim"), "feeder", "--ros-args",
-                               "-r", f"__ns:={namespace}"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                               "-r", f"__ns:={namespace}"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                              text=True)
     try:
         scenario = tmp_path / "attach.yaml"
         scenario.write_text(SCENARIO.replace("name: short", "name: attached"))
