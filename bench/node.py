@@ -23,7 +23,6 @@ from __future__ import annotations
 import argparse
 import os
 import random
-import statistics
 import subprocess
 import sys
 import tempfile
@@ -193,7 +192,8 @@ def main() -> int:
         with tempfile.TemporaryDirectory() as folder:
             for logging in (False, True):
                 log = Path(folder) / "bench.mcap"
-                print(f"\n=== slider at publish_rate 1000 Hz, recording {'ON (log_rate 1000 Hz)' if logging else 'off'}")
+                state = 'ON (log_rate 1000 Hz)' if logging else 'off'
+                print(f"\n=== slider at publish_rate 1000 Hz, recording {state}")
                 figures[logging] = run_node_pass(listener, args.duration, log if logging else None)
                 if logging:
                     size = log.stat().st_size

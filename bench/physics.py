@@ -26,11 +26,13 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 import numpy as np
 
-from friction_sim.core.slider import Slider
+from friction_sim.core.commands import Command
 from friction_sim.core.params import Inputs, SliderParams
-from reference import ReferenceInputs, reference_solution
-from friction_sim.core.simulation import Command, random_schedule, run_schedule, simulate
+from friction_sim.core.simulation import random_schedule, run_schedule, simulate
+from friction_sim.core.slider import Slider
 from friction_sim.core.urelation import dimensional_speed, u_grid, u_map
+
+from reference import ReferenceInputs, reference_solution
 
 PARAMS = SliderParams()
 FREQUENCY = 50.0
@@ -46,11 +48,20 @@ def median_time(function, repeats: int) -> float:
     return statistics.median(samples)
 
 
-def run_core(schedule: list[Command], duration: float) -> Slider:
-    slider = Slider(PARAMS, Inputs(), event_log_size=1000)
+def at_once(schedule: list[Command]) -> list[tuple[float, dict[str, float]]]:
+    """The schedule's changes merged per instant (commands at one time take
+    effect together, as the node and run_schedule apply them)."""
+    merged: dict[float, dict[str, float]] = {}
     for command in schedule:
-        slider.advance_to(command.t)
-        slider.set_inputs(**command.changes)
+        merged.setdefault(command.t, {}).update(command.values)
+    return sorted(merged.items())
+
+
+def run_core(changes: list[tuple[float, dict[str, float]]], duration: float) -> Slider:
+    slider = Slider(PARAMS, Inputs(), event_log_size=1000)
+    for t, values in changes:
+        slider.advance_to(t)
+        slider.set_inputs(**values)
     slider.advance_to(duration)
     return slider
 
@@ -58,9 +69,9 @@ def run_core(schedule: list[Command], duration: float) -> Slider:
 def reference_schedule(schedule: list[Command]) -> list[tuple[float, ReferenceInputs]]:
     pieces = [(0.0, ReferenceInputs())]
     current = Inputs()
-    for command in schedule:
-        current = current.replace(**command.changes)
-        pieces.append((command.t, ReferenceInputs(
+    for t, values in at_once(schedule):
+        current = current.replace(**values)
+        pieces.append((t, ReferenceInputs(
             current.drive_force, current.excitation_amplitude, current.excitation_frequency,
             current.external_force_x, current.external_force_z)))
     return pieces
@@ -71,7 +82,7 @@ def moving_schedule(rng: np.random.Generator, duration: float) -> list[Command]:
     period (phi in [0.6, 0.95], a in [0.35, 0.8]): the costly case."""
     commands, t = [], 0.0
     while (t := t + rng.exponential(4.0 / FREQUENCY)) < duration:
-        commands.append(Command(t, {
+        commands.append(Command(t, "parameters", {
             "drive_force": float(rng.uniform(0.6, 0.95)), "excitation_amplitude": float(rng.uniform(3.5, 8.0)),
             "excitation_frequency": float(rng.uniform(40.0, 60.0))}))
     return commands
@@ -89,8 +100,9 @@ def throughput(quick: bool, moving: bool) -> None:
         schedule = random_schedule(rng, duration, frequency=FREQUENCY, mean_periods=4.0)
         title = "anything goes: phi in [-1.2, 1.2], a in [0, 0.8], f in [25, 100] Hz"
     # The random frequencies make "periods" a matter of phase: count them exactly.
-    core_time = median_time(lambda: run_core(schedule, duration), 3 if quick else 9)
-    slider = run_core(schedule, duration)
+    changes = at_once(schedule)
+    core_time = median_time(lambda: run_core(changes, duration), 3 if quick else 9)
+    slider = run_core(changes, duration)
     phase_periods = _phase_periods(schedule, duration)
     counts = slider.event_counts
 
@@ -108,7 +120,7 @@ def throughput(quick: bool, moving: bool) -> None:
     core_rate = phase_periods / core_time
     ref_rate = ref_periods / ref_time
     print(f"(a) single-slider throughput, inputs changed at random every ~4 periods; {title}")
-    print(f"    schedule: {len(schedule)} commands over {phase_periods:.0f} excitation periods "
+    print(f"    schedule: {len(changes)} input changes over {phase_periods:.0f} excitation periods "
           f"({duration:g} s simulated); events: "
           + ", ".join(f"{k.value} {n}" for k, n in counts.items()))
     print(f"    exact core:            {core_rate:12,.0f} periods/s  (median of repeats, {core_time:.3f} s)")
@@ -124,9 +136,9 @@ def throughput(quick: bool, moving: bool) -> None:
 def _phase_periods(schedule: list[Command], duration: float) -> float:
     """Excitation periods elapsed (phase / 2 pi) under a schedule of frequencies."""
     total, t, f = 0.0, 0.0, FREQUENCY
-    for command in schedule:
-        total += (command.t - t) * f
-        t, f = command.t, command.changes.get("excitation_frequency", f)
+    for when, values in at_once(schedule):
+        total += (when - t) * f
+        t, f = when, values.get("excitation_frequency", f)
     return total + (duration - t) * f
 
 

@@ -21,7 +21,7 @@ os.environ['MPLBACKEND'] = 'Agg'
 
 # CI runs the property tests on a fixed set of examples (reproducible runs);
 # on a developer's machine hypothesis explores new ones every time.
-from hypothesis import settings  # noqa: E402
+from hypothesis import settings
 
 settings.register_profile('ci', derandomize=True, database=None)
 if os.environ.get('CI'):

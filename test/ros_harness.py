@@ -7,7 +7,8 @@ import statistics
 import subprocess
 import time
 from collections import defaultdict
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import rclpy
@@ -110,7 +111,7 @@ class Probe:
         self.node.destroy_node()
 
 
-def kill_if_running(process: "subprocess.Popen[str]") -> None:
+def kill_if_running(process: subprocess.Popen[str]) -> None:
     """Test clean-up: a node process a failed test left running is killed."""
     if process.poll() is None:
         process.kill()
