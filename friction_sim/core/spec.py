@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from friction_sim.errors import ParameterError
@@ -44,6 +44,13 @@ class Setting:
     rule: str = ""
     start_only: bool = False
     flag: str | None = None
+    _low: float = field(init=False, repr=False, compare=False, default=-math.inf)
+    _high: float = field(init=False, repr=False, compare=False, default=math.inf)
+
+    def __post_init__(self) -> None:
+        # The bounds as floats (+-inf when open), for the fast path of check().
+        object.__setattr__(self, "_low", -math.inf if self.low is None else float(self.low))
+        object.__setattr__(self, "_high", math.inf if self.high is None else float(self.high))
 
     @property
     def kind(self) -> type:
@@ -58,6 +65,8 @@ class Setting:
     def check(self, value: Any) -> Any:
         """``value`` converted to this setting's type, or a :class:`ParameterError`
         that names the field, quotes the value and states the limit."""
+        if type(value) is float and type(self.default) is float and self._low <= value <= self._high:
+            return value  # the common case, on the path of every input change (NaN fails the comparison)
         kind = self.kind
         if kind is bool:
             if not isinstance(value, bool):
