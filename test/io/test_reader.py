@@ -31,18 +31,6 @@ def varied_schedule() -> list[Command]:
     return schedule
 
 
-@pytest.fixture(scope="module")
-def real_recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """2 s at 1 kHz with random commands, external forces, a refused command
-    and a plant change."""
-    path = tmp_path_factory.mktemp("rec") / "run.mcap"
-    schedule = random_schedule(np.random.default_rng(21), 2.0, external=True)
-    schedule += [Command(0.7, "excitation_amplitude", {"excitation_amplitude": 40.0}),
-                 Command(1.1, "parameters", {"mass": 1.3})]
-    record_offline(path, schedule=schedule, duration=2.0)
-    return path
-
-
 def test_rosbags_decodes_every_message_from_the_stored_schema_text(tmp_path: Path) -> None:
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore

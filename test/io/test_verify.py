@@ -10,24 +10,11 @@ import pytest
 from recording_helpers import replay_args, rewrite
 
 from friction_sim.cli.replay import run
-from friction_sim.core.commands import Command
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.simulation import random_schedule
 from friction_sim.io.offline import record_offline
 from friction_sim.io.reader import read_recording
 from friction_sim.io.verify import verify
-
-
-@pytest.fixture(scope="module")
-def real_recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """2 s at 1 kHz with random commands, external forces, a refused command
-    and a plant change."""
-    path = tmp_path_factory.mktemp("rec") / "run.mcap"
-    schedule = random_schedule(np.random.default_rng(21), 2.0, external=True)
-    schedule += [Command(0.7, "excitation_amplitude", {"excitation_amplitude": 40.0}),
-                 Command(1.1, "parameters", {"mass": 1.3})]
-    record_offline(path, schedule=schedule, duration=2.0)
-    return path
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
