@@ -14,6 +14,9 @@ the environment when rclpy initialises, so they must be set here:
 
 import os
 import random
+from collections.abc import Iterator
+
+import pytest
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.SystemRandom().randint(1, 100)))
@@ -26,3 +29,14 @@ from hypothesis import settings
 settings.register_profile('ci', derandomize=True, database=None)
 if os.environ.get('CI'):
     settings.load_profile('ci')
+
+
+@pytest.fixture(scope='module')
+def ros() -> Iterator[None]:
+    """rclpy initialised for the tests of one module (imported here, after the
+    environment above is set)."""
+    import rclpy
+
+    rclpy.init()
+    yield
+    rclpy.try_shutdown()

@@ -31,6 +31,7 @@ nanoseconds (:func:`seconds_to_ns`), the resolution of a ROS time stamp.
 
 from __future__ import annotations
 
+import functools
 import importlib
 import re
 from collections.abc import Mapping
@@ -64,6 +65,7 @@ TOPIC_TYPES: dict[str, str] = {
 COMMAND_TOPICS = (*COMMANDS, PARAMETERS)
 
 
+@functools.cache
 def message_class(type_name: str) -> type:
     """The message class for ``pkg/msg/Type`` (or ``pkg/Type``), imported by name."""
     match = _TYPE_NAME.match(type_name)

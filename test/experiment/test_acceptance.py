@@ -3,20 +3,11 @@
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterator
 
 import pytest
-import rclpy
 
 from friction_sim.experiment.acceptance import acceptance_scenarios, judge
 from friction_sim.experiment.runner import run_experiment
-
-
-@pytest.fixture(scope="module")
-def ros() -> Iterator[None]:
-    rclpy.init()
-    yield
-    rclpy.try_shutdown()
 
 
 @pytest.mark.parametrize("case", acceptance_scenarios(), ids=lambda c: c.name)

@@ -11,11 +11,9 @@ import subprocess
 import sys
 import time
 import uuid
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.parameter import Parameter
 
@@ -29,13 +27,6 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 # -- over real topics -------------------------------------------------------------
-
-
-@pytest.fixture(scope="module")
-def ros() -> Iterator[None]:
-    rclpy.init()
-    yield
-    rclpy.try_shutdown()
 
 
 def test_controller_reads_the_plant_and_reports_diagnostics(ros: None) -> None:

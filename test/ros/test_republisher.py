@@ -6,7 +6,7 @@ import io
 import threading
 import time
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -21,13 +21,6 @@ from friction_sim.errors import RecordingError
 from friction_sim.io.offline import record_offline
 from friction_sim.io.reader import read_recording
 from friction_sim.ros.republisher import publish
-
-
-@pytest.fixture(scope="module")
-def ros() -> Iterator[None]:
-    rclpy.init()
-    yield
-    rclpy.try_shutdown()
 
 
 def test_publish_keeps_the_recorded_timing(ros: None, tmp_path: Path) -> None:
