@@ -107,6 +107,13 @@ class Command:
         """The values that change the inputs (see :class:`Inputs`)."""
         return {k: v for k, v in self.values.items() if k in spec.INPUTS}
 
+    @property
+    def for_slider(self) -> bool:
+        """Whether the slider takes this command: a parameter change of the
+        physics, or a topic the slider subscribes to (a target speed is the
+        controller's alone)."""
+        return self.name == PARAMETERS or SLIDER in COMMANDS[self.name].consumers
+
     def at(self, t: float) -> Command:
         """The same command at another time."""
         return Command(t, self.name, self.values)

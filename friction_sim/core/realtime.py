@@ -160,7 +160,7 @@ class RealtimeSlider:
         params, inputs = self.slider.params, self.slider.inputs
         outcomes = []
         for command in batch:
-            stamped = command.at(t)
+            stamped = command if command.t == t else command.at(t)  # the node stamps them already
             try:
                 new_params, new_inputs = apply(stamped, params, inputs)
                 check_load(new_inputs.excitation_frequency, self.clock.rate)

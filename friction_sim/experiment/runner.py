@@ -129,7 +129,7 @@ def _start_recording(spec: ExperimentSpec, recorder: Any, start: float) -> None:
 def _record_unseen(recorder: Any, command: Command) -> None:
     """Log a command the slider does not consume (a target for the controller):
     the slider's recording would not hold it otherwise."""
-    if recorder is not None and SLIDER not in COMMANDS[command.name].consumers:
+    if recorder is not None and not command.for_slider:
         recorder.on_command(Outcome(command.at(round(command.t * 1e9) / 1e9)), "")
 
 

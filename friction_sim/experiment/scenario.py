@@ -44,7 +44,7 @@ from typing import Any
 import yaml
 
 from friction_sim.core import spec as settings
-from friction_sim.core.commands import COMMANDS, SLIDER, Command, apply
+from friction_sim.core.commands import COMMANDS, Command, apply
 from friction_sim.core.control import ControllerConfig, MeanSpeedController
 from friction_sim.core.params import Inputs, SliderParams, check_contact, check_load
 from friction_sim.errors import FrictionSimError, ParameterError
@@ -333,7 +333,7 @@ class _Schedule:
             raise self.parser.fail(item, f"a schedule entry sets exactly one of {', '.join(COMMANDS)} "
                                          f"(found {', '.join(names) or 'none'})")
         name = names[0]
-        if SLIDER not in COMMANDS[name].consumers and self.controller is None:
+        if not Command(t, name).for_slider and self.controller is None:
             raise self.parser.fail(entries[name][0], f"{name} needs a controller: add a 'controller:' section")
         return Command(t, name, self.values(name, entries[name]))
 

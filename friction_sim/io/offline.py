@@ -15,16 +15,13 @@ from collections.abc import Mapping, Sequence
 from itertools import groupby
 from typing import Any
 
-from friction_sim.core.commands import PARAMETERS, SLIDER, Command, consumed_by
+from friction_sim.core.commands import Command
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.realtime import RealtimeSlider
 from friction_sim.errors import ParameterError
 from friction_sim.io.messages import seconds_to_ns
 from friction_sim.io.recorder import Recorder, RecordingStats, plant_parameters, recording_metadata
 from friction_sim.io.sinks import deliver_tick
-
-#: The commands the slider node takes (a controller's target speed is not among them).
-_SLIDER_COMMANDS = frozenset([*(entry.name for entry in consumed_by(SLIDER)), PARAMETERS])
 
 
 def record_offline(
@@ -86,7 +83,7 @@ def _batches(schedule: Sequence[Command]) -> list[tuple[int, list[Command]]]:
     does not take."""
     for command in schedule:
         _time("t", command.t)
-        if command.name not in _SLIDER_COMMANDS:
+        if not command.for_slider:
             raise ParameterError("topic", command.name, "is not a slider input (record_offline runs no controller)")
     ordered = sorted(schedule, key=lambda command: seconds_to_ns(command.t))
     return [(t_ns, list(batch)) for t_ns, batch in groupby(ordered, key=lambda command: seconds_to_ns(command.t))]
