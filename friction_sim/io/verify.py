@@ -13,11 +13,12 @@ from __future__ import annotations
 import contextlib
 import math
 from dataclasses import dataclass
+from itertools import groupby
 from typing import Any
 
 import numpy as np
 
-from friction_sim.core.commands import COMMANDS, PARAMETERS, SLIDER, Command, apply
+from friction_sim.core.commands import PARAMETERS, Command, apply
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.slider import Slider
 from friction_sim.errors import ParameterError, RecordingError
@@ -117,17 +118,12 @@ def recorded_commands(recording: Recording) -> list[Command]:
     return [command for _, _, command in sorted(found, key=lambda item: item[:2])]
 
 
-def _changes_slider(command: Command) -> bool:
-    """Whether the slider node takes ``command`` (a target speed is the controller's)."""
-    return command.name == PARAMETERS or SLIDER in COMMANDS[command.name].consumers
-
-
 def verify(recording: Recording, tolerance: float = DEFAULT_TOLERANCE) -> VerifyResult:
     """Re-simulate the recording with the exact core and compare it with the
     recorded pose and velocity samples (see :class:`VerifyResult`)."""
     values = initial_parameters(recording)
     slider = _initial_slider(recording, values)
-    commands = [command for command in recorded_commands(recording) if _changes_slider(command)]
+    commands = [command for command in recorded_commands(recording) if command.for_slider]
     pose_ns, pose = state_series(recording, "pose", lambda m: (m.pose.position.x,), 1)
     vel_ns, vel = state_series(recording, "velocity", lambda m: (m.twist.linear.x,), 1)
     times_ns = np.unique(np.concatenate([pose_ns, vel_ns]))
@@ -163,28 +159,40 @@ def _initial_slider(recording: Recording, values: dict[str, Any]) -> Slider:
 def _resimulate(slider: Slider, commands: list[Command], times_ns: IntArray,
                 times: FloatArray) -> tuple[FloatArray, FloatArray, list[str]]:
     """(x, v) of ``slider`` at ``times`` with ``commands`` applied at their
-    times (a command at a sample's time first), and the commands that could
-    not be applied."""
+    times (a sample at a command's time is taken before it, as the node logs
+    it), and the commands that could not be applied.  Commands recorded at
+    one instant were one batch in the node: they take effect together."""
     x_sim = np.empty(times_ns.size)
     v_sim = np.empty(times_ns.size)
     problems: list[str] = []
     first = 0
-    for command in commands:
-        last = int(np.searchsorted(times_ns, seconds_to_ns(command.t), side="right"))
+    for t_ns, batch in groupby(commands, key=lambda command: seconds_to_ns(command.t)):
+        last = int(np.searchsorted(times_ns, t_ns, side="right"))
         if last > first:
             trajectory = slider.sample(np.maximum(times[first:last], slider.t))
             x_sim[first:last], v_sim[first:last] = trajectory.x, trajectory.v
             first = last
-        try:
-            slider.advance_to(max(command.t, slider.t))
-            params, inputs = apply(command, slider.params, slider.inputs)
-            slider.set_plant(params, inputs, set(command.values))
-        except ParameterError as error:
-            problems.append(f"the command recorded at t = {command.t:.9f} s cannot be applied: {error}")
+        _apply_batch(slider, list(batch), problems)
     if first < times_ns.size:
         trajectory = slider.sample(np.maximum(times[first:], slider.t))
         x_sim[first:], v_sim[first:] = trajectory.x, trajectory.v
     return x_sim, v_sim, problems
+
+
+def _apply_batch(slider: Slider, batch: list[Command], problems: list[str]) -> None:
+    """Advance to the batch's time and apply its commands as one change
+    (each through the core's gate; one that cannot be applied is reported)."""
+    slider.advance_to(max(batch[0].t, slider.t))
+    params, inputs = slider.params, slider.inputs
+    changed: set[str] = set()
+    for command in batch:
+        try:
+            params, inputs = apply(command, params, inputs)
+            changed.update(command.values)
+        except ParameterError as error:
+            problems.append(f"the command recorded at t = {command.t:.9f} s cannot be applied: {error}")
+    if changed:
+        slider.set_plant(params, inputs, changed)
 
 
 def _log_rate(recording: Recording, initial: dict[str, Any]) -> float | None:
