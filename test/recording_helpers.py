@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from friction_sim.core.commands import Command
+from friction_sim.core.simulation import random_schedule
 from friction_sim.io.reader import read_recording
 from friction_sim.io.recorder import METADATA_NAME, Recorder
 
@@ -50,3 +52,11 @@ def plain(value: Any) -> Any:
     if isinstance(value, (list, tuple, np.ndarray)) or type(value).__name__ == "array":
         return [plain(v) for v in value]
     return value
+
+
+def varied_schedule() -> list[Command]:
+    """1.5 s of random commands with external forces, a refused command and a plant change."""
+    schedule = random_schedule(np.random.default_rng(7), 1.5, external=True)
+    schedule.append(Command(0.5, "excitation_amplitude", {"excitation_amplitude": 50.0}))  # refused: lift-off
+    schedule.append(Command(0.8, "parameters", {"mass": 1.2, "mu": 0.12}))  # a plant change, as ros2 param set
+    return schedule

@@ -11,24 +11,14 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pytest
-from recording_helpers import plain, replay_args, rewrite
+from recording_helpers import plain, replay_args, rewrite, varied_schedule
 
 from friction_sim.cli.replay import run
-from friction_sim.core.commands import Command
-from friction_sim.core.simulation import random_schedule
 from friction_sim.io.offline import record_offline
 from friction_sim.io.reader import read_recording
 
 ROOT = Path(__file__).resolve().parents[2]
-
-
-def varied_schedule() -> list[Command]:
-    schedule = random_schedule(np.random.default_rng(7), 1.5, external=True)
-    schedule.append(Command(0.5, "excitation_amplitude", {"excitation_amplitude": 50.0}))  # refused: lift-off
-    schedule.append(Command(0.8, "parameters", {"mass": 1.2, "mu": 0.12}))  # a plant change, as ros2 param set
-    return schedule
 
 
 def test_rosbags_decodes_every_message_from_the_stored_schema_text(tmp_path: Path) -> None:

@@ -16,13 +16,12 @@ import numpy as np
 import pytest
 import yaml
 from mcap.reader import make_reader
-from recording_helpers import plain
+from recording_helpers import plain, varied_schedule
 
 from friction_sim.core.commands import Command, Outcome
 from friction_sim.core.events import Event, EventKind, Mode, SliderState
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.realtime import PeriodSummary, RealtimeSlider
-from friction_sim.core.simulation import random_schedule
 from friction_sim.errors import RecordingError
 from friction_sim.io import messages as M
 from friction_sim.io.offline import record_offline
@@ -88,13 +87,6 @@ def test_every_message_type_round_trips_through_the_file(tmp_path: Path) -> None
         assert message_type_name(type(msg)) == message_type_name(type(want)) and plain(msg) == plain(want), topic
     assert recording.topics["parameters"].type_name == "rcl_interfaces/msg/ParameterEvent"
     assert recording.topics["rejected_commands"].type_name == "diagnostic_msgs/msg/DiagnosticStatus"
-
-
-def varied_schedule() -> list[Command]:
-    schedule = random_schedule(np.random.default_rng(7), 1.5, external=True)
-    schedule.append(Command(0.5, "excitation_amplitude", {"excitation_amplitude": 50.0}))  # refused: lift-off
-    schedule.append(Command(0.8, "parameters", {"mass": 1.2, "mu": 0.12}))  # a plant change, as ros2 param set
-    return schedule
 
 
 def test_file_layout_is_what_rosbag2s_mcap_plugin_writes(tmp_path: Path) -> None:
