@@ -13,6 +13,12 @@ holds everything that is not message conversion:
   the last ``mean_window_periods`` whole periods and the stick fraction of
   the last period, from the core's exact period marks.
 * It keeps the tick statistics the node publishes as diagnostics.
+* A change of plant or inputs is taken under a guard: if the core raises
+  while taking it, or the state it leaves is not finite, everything is put
+  back as it was and the command is refused with the reason.  If advancing
+  ever fails (or the state stops being finite) under inputs the core had
+  taken, the run cannot go on: :class:`SimulationFault` is raised, and from
+  then on every call raises it again (the node reports it and stops).
 
 Every outcome is a typed record, so the node only converts and publishes,
 and a recorder can log exactly what happened and when.
@@ -32,12 +38,62 @@ from friction_sim.core.events import CycleMark, Event, SliderState
 from friction_sim.core.params import Inputs, SliderParams, check_load, require_positive
 from friction_sim.core.slider import Slider
 from friction_sim.core.urelation import Prediction, predict
-from friction_sim.errors import ParameterError
+from friction_sim.errors import FrictionSimError, ParameterError
 
 NS_PER_S = 1_000_000_000
 #: Period marks the core keeps; more than this many periods in one tick are
 #: summarised only from the last ones (only at absurd real-time factors).
 _MARK_BACKLOG = 4096
+
+
+class SimulationFault(FrictionSimError):
+    """The exact core failed while advancing under inputs it had taken, or its
+    state stopped being finite: the run cannot go on.  The message says when
+    and why, on one line."""
+
+
+class _Checkpoint:
+    """The slider as it was, to put back if taking a change fails.
+
+    The core's attributes are saved by reference (its records are immutable);
+    its dicts are copied (a few entries); of its deques (the event and period
+    logs, thousands of entries) only the last entry is remembered, and on
+    restore whatever was appended after it is popped.  That costs about a
+    microsecond, where copying the logs would cost twenty at every command.
+    """
+
+    __slots__ = ("attributes", "tails")
+
+    def __init__(self, slider: Slider) -> None:
+        self.attributes = dict(vars(slider))
+        self.tails: dict[str, Any] = {}
+        for name, value in self.attributes.items():
+            if isinstance(value, (dict, list, set)):
+                self.attributes[name] = value.copy()
+            elif isinstance(value, deque):
+                self.tails[name] = value[-1] if value else None
+
+    def restore(self, slider: Slider) -> None:
+        for name, tail in self.tails.items():
+            log: deque[Any] = self.attributes[name]
+            while log and log[-1] is not tail:
+                log.pop()
+        vars(slider).clear()
+        vars(slider).update(self.attributes)
+
+
+def _non_finite(state: SliderState) -> str:
+    """'' if every number of ``state`` is finite, else the first that is not (``x = inf``)."""
+    for name in ("t", "x", "v", "acceleration", "friction_force", "normal_force"):
+        value = getattr(state, name)
+        if not math.isfinite(value):
+            return f"{name} = {value!r}"
+    return ""
+
+
+def _one_line(error: BaseException) -> str:
+    text = str(error).splitlines()[0] if str(error) else ""
+    return f"{type(error).__name__}: {text}" if text else type(error).__name__
 
 
 class SimClock:
@@ -114,10 +170,12 @@ class RealtimeSlider:
     def __init__(
         self, params: SliderParams, inputs: Inputs, *, wall_ns: int,
         real_time_factor: float = 1.0, publish_rate: float = 1000.0, mean_window_periods: int = 1,
-        log_rate: float | None = None,
+        log_rate: float | None = None, load_blame: str = "excitation_frequency",
     ) -> None:
+        """``load_blame`` names the setting a refusal of f x real_time_factor
+        blames (``excitation_frequency`` or ``real_time_factor``): the one the user set."""
         self.clock = SimClock(float(spec.REAL_TIME_FACTOR.check(real_time_factor)), wall_ns)
-        check_load(inputs.excitation_frequency, self.clock.rate)
+        check_load(inputs.excitation_frequency, self.clock.rate, load_blame)
         self.slider = Slider(params, inputs, event_log_size=1000, cycle_log_size=_MARK_BACKLOG)
         self.publish_rate = float(spec.PUBLISH_RATE.check(publish_rate))
         self._window: deque[CycleMark] = deque(maxlen=2)
@@ -135,6 +193,8 @@ class RealtimeSlider:
         # What advancing produced since the last tick (commands advance too).
         self._events: list[Event] = []
         self._samples: list[SliderState] = []
+        #: Why the run cannot go on ('' while it can): see :class:`SimulationFault`.
+        self.fault = ""
 
     # -- commands -----------------------------------------------------------
 
@@ -154,24 +214,52 @@ class RealtimeSlider:
         real-time load rule), and accepted or refused on its own; the core
         then takes the result once (applying them one by one at the same
         instant would give the same motion, at the cost of a new segment each).
+        If the core cannot take the result (see :meth:`_take`), the accepted
+        commands are taken one by one and each one it cannot take is refused.
         The outcomes carry the commands stamped with the time they took effect.
         """
         t = self._advance(wall_ns)
-        params, inputs = self.slider.params, self.slider.inputs
-        outcomes = []
+        start = self.slider.params, self.slider.inputs
+        params, inputs = start
+        outcomes: list[Outcome] = []
+        taken: list[int] = []  # indices of the accepted outcomes
         for command in batch:
             stamped = command if command.t == t else command.at(t)  # the node stamps them already
             try:
-                new_params, new_inputs = apply(stamped, params, inputs)
-                check_load(new_inputs.excitation_frequency, self.clock.rate)
+                params, inputs = self._check(stamped, params, inputs)
             except ParameterError as error:
                 outcomes.append(self._refuse(stamped, reason(stamped, error)))
                 continue
-            params, inputs = new_params, new_inputs
-            self.accepted += 1
+            taken.append(len(outcomes))
             outcomes.append(Outcome(stamped))
-        self._take(params, inputs)
+        if taken and self._take(params, inputs):
+            self._take_one_by_one(outcomes, taken, *start)
+        self.accepted += sum(outcomes[i].accepted for i in taken)
         return outcomes
+
+    def _check(self, command: Command, params: SliderParams, inputs: Inputs) -> tuple[SliderParams, Inputs]:
+        """Plant and inputs after ``command`` (the one gate plus the real-time load rule)."""
+        params, inputs = apply(command, params, inputs)
+        check_load(inputs.excitation_frequency, self.clock.rate)
+        return params, inputs
+
+    def _take_one_by_one(self, outcomes: list[Outcome], taken: list[int], params: SliderParams,
+                         inputs: Inputs) -> None:
+        """The core could not take a batch as a whole: take its accepted commands
+        one at a time, refusing each it cannot take (or that the refusal of an
+        earlier one made invalid)."""
+        for index in taken:
+            command = outcomes[index].command
+            try:
+                new_params, new_inputs = self._check(command, params, inputs)
+            except ParameterError as error:
+                outcomes[index] = self._refuse(command, reason(command, error))
+                continue
+            problem = self._take(new_params, new_inputs)
+            if problem:
+                outcomes[index] = self._refuse(command, f"{command.name}: {problem}")
+                continue
+            params, inputs = new_params, new_inputs
 
     def configure(self, values: Mapping[str, Any], wall_ns: int) -> Outcome:
         """A set of node parameters, checked and applied as one new state, now.
@@ -195,7 +283,9 @@ class RealtimeSlider:
                                                                    self.mean_window_periods)))
         except ParameterError as error:
             return self._refuse(command, str(error))
-        self._take(params, inputs)
+        problem = self._take(params, inputs)
+        if problem:
+            return self._refuse(command, f"{', '.join(values)}: {problem}")
         self.clock.set_rate(rate, wall_ns)
         self.publish_rate = publish_rate
         self.set_mean_window(window)
@@ -212,10 +302,28 @@ class RealtimeSlider:
         self.last_rejection = why
         return Outcome(command, why)
 
-    def _take(self, params: SliderParams, inputs: Inputs) -> None:
-        """Hand new (validated) parameters and inputs to the core, if they changed."""
-        if params != self.slider.params or inputs != self.slider.inputs:
-            self.slider.set_plant(params, inputs)
+    def _take(self, params: SliderParams, inputs: Inputs) -> str:
+        """Hand new (validated) parameters and inputs to the core, if they changed.
+
+        Returns '' when the core took them, else why not: the core raised, or
+        the state it leaves is not finite; then the core is put back exactly
+        as it was (a checkpoint taken first).
+        """
+        slider = self.slider
+        if params == slider.params and inputs == slider.inputs:
+            return ""
+        checkpoint = _Checkpoint(slider)
+        try:
+            slider.set_plant(params, inputs)
+            problem = _non_finite(slider.state())
+            if math.isnan(slider.next_event_time):
+                problem = problem or "the next event time is nan"
+        except Exception as error:  # noqa: BLE001 - any failure of the core refuses the change
+            problem = _one_line(error)
+        if problem:
+            checkpoint.restore(slider)
+            return f"the simulation cannot take this state ({problem}); last valid state kept"
+        return ""
 
     # -- settings -----------------------------------------------------------
 
@@ -232,12 +340,24 @@ class RealtimeSlider:
     # -- the tick -------------------------------------------------------------
 
     def tick(self, wall_ns: int) -> Tick:
-        """Advance to the present and collect what happened on the way."""
+        """Advance to the present and collect what happened on the way.
+
+        Raises :class:`SimulationFault` if the state there (or at a log sample
+        on the way) is not finite.
+        """
         self._count_tick(wall_ns)
         self._advance(wall_ns)
+        state = self.slider.state()
+        problem = _non_finite(state)
+        for sample in self._samples:
+            if problem:
+                break
+            problem = _non_finite(sample)
+        if problem:
+            self._fail(f"the state became non-finite ({problem})")
         events, samples = self._events, tuple(self._samples)
         self._events, self._samples = [], []
-        return Tick(self.slider.state(), events, self._new_periods(), samples)
+        return Tick(state, events, self._new_periods(), samples)
 
     def _log_samples(self, t: float) -> None:
         """Advance through the log grid points up to ``t`` not logged yet,
@@ -260,11 +380,24 @@ class RealtimeSlider:
             self._samples.append(self.slider.state())
 
     def _advance(self, wall_ns: int) -> float:
-        """Advance to the present, keeping the events and log samples on the way."""
-        t = self.now(wall_ns)
-        self._log_samples(t)
-        self._events.extend(self.slider.advance_to(t))
+        """Advance to the present, keeping the events and log samples on the way
+        (a failure of the core is a :class:`SimulationFault`)."""
+        if self.fault:
+            raise SimulationFault(self.fault)
+        try:
+            t = self.now(wall_ns)
+            self._log_samples(t)
+            self._events.extend(self.slider.advance_to(t))
+        except Exception as error:  # noqa: BLE001 - whatever the core raised, the run cannot go on
+            self._fail(f"advancing failed ({_one_line(error)})")
         return t
+
+    def _fail(self, why: str) -> None:
+        """Stop for good: every later call raises the same fault."""
+        slider = self.slider
+        self.fault = (f"simulation fault at t = {slider.t!r} s: {why}, with inputs {slider.inputs} "
+                      f"and plant {slider.params}")
+        raise SimulationFault(self.fault)
 
     def _new_periods(self) -> list[PeriodSummary]:
         summaries = []
