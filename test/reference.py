@@ -52,6 +52,12 @@ the functions that need it; importing this module needs numpy alone.
 
 A second, even simpler cross-check, :func:`brute_force_mean_velocity`, is a
 fixed-step semi-implicit Euler integrator with explicit stick handling.
+
+For exactness checks at the last bits, :func:`high_precision_u` and
+:func:`high_precision_slip` evaluate the periodic slip's textbook closed form
+(asin start, bracketed root of the speed, integral of the speed) in mpmath at
+many digits, from the exact values of the given floats.  mpmath is a test
+dependency only and is imported lazily, like scipy.
 """
 
 from __future__ import annotations
@@ -69,6 +75,8 @@ __all__ = [
     'ReferenceResult',
     'reference_solution',
     'brute_force_mean_velocity',
+    'high_precision_u',
+    'high_precision_slip',
 ]
 
 _TWO_PI: float = 2.0 * math.pi
@@ -721,3 +729,51 @@ def brute_force_mean_velocity(
                 v = v_new
                 x += h * v
     return (x - x_start) / (periods * period)
+
+
+def high_precision_slip(phi: float, a: float, dps: int = 80) -> tuple[Any, Any, Any]:
+    """``(theta_A, psi_C, U)`` of the periodic slip for 1 - a < phi < 1 in mpmath
+    at ``dps`` digits: the start phase asin((1 - phi)/a), the phase the slip
+    lasts (root of w(psi) = (phi - 1)*psi + a*(cos thA - cos(thA + psi)) on
+    (pi - 2*thA, 2*pi]) and U = D/(4*pi^2), D = the integral of w up to psi_C.
+    The textbook form, with its cancellations: the many digits pay for them.
+    """
+    import mpmath
+
+    with mpmath.workdps(dps):
+        phi_, a_ = mpmath.mpf(phi), mpmath.mpf(a)
+        if not (0 < a_ < 1 and 1 - a_ < phi_ < 1):
+            raise ValueError(f'need 1 - a < phi < 1 and 0 < a < 1, got phi={phi!r}, a={a!r}')
+        p = phi_ - 1
+        theta = mpmath.asin((1 - phi_) / a_)
+        cos_a, sin_a = mpmath.cos(theta), mpmath.sin(theta)
+
+        def speed(psi: Any) -> Any:
+            return p * psi + a_ * (cos_a - mpmath.cos(theta + psi))
+
+        lo, hi = mpmath.pi - 2 * theta, 2 * mpmath.pi
+        # Bisection to a few digits (w falls monotonically on the bracket),
+        # then the secant method to full precision.
+        for _ in range(60):
+            mid = (lo + hi) / 2
+            lo, hi = (mid, hi) if speed(mid) > 0 else (lo, mid)
+        psi_c = mpmath.findroot(speed, (lo, hi), solver='secant', tol=mpmath.mpf(10) ** (-dps + 5))
+        travel = p * psi_c**2 / 2 + a_ * (psi_c * cos_a - mpmath.sin(theta + psi_c) + sin_a)
+        return theta, psi_c, travel / (4 * mpmath.pi**2)
+
+
+def high_precision_u(phi: float, a: float, dps: int = 80) -> float:
+    """U(phi, a) in mpmath (see :func:`high_precision_slip`), rounded to a float;
+    0 for |phi| <= 1 - a, a/(2*pi) at |phi| = 1, inf beyond, sign of phi."""
+    import mpmath
+
+    sign = -1.0 if phi < 0 else 1.0
+    with mpmath.workdps(dps):
+        phi_, a_ = abs(mpmath.mpf(phi)), mpmath.mpf(a)
+        if phi_ <= 1 - a_:
+            return 0.0 * sign
+        if phi_ == 1:
+            return sign * float(a_ / (2 * mpmath.pi))
+        if phi_ > 1:
+            return sign * math.inf
+        return sign * float(high_precision_slip(abs(phi), a, dps)[2])

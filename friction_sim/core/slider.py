@@ -91,26 +91,33 @@ class _Plant:
 
 
 class _Segment:
-    """Closed-form motion from (t0, x0, w0, phase0) under constant inputs.
+    """Closed-form motion from (x0, w0, phase0) under constant inputs.
 
     ``direction`` 0 is stuck; +-1 is a slip, whose speed w = direction*v.
     ``phase0`` is in [0, 2*pi); ``cycles`` counts the whole excitation periods
-    before it, so the total phase at t0 is 2*pi*cycles + phase0.
+    before it, so the total phase at its start is 2*pi*cycles + phase0.
+
+    It starts at time ``t0``; ``s0`` is that start as an offset from the
+    slider's phase anchor (see :class:`Slider`), before rounding to ``t0``, and
+    the next event is timed from it, so event times do not inherit one
+    another's rounding.  The position is a double-double
+    ``x0 + xl``, so that a long run's travel is a sum without rounding drift.
     """
 
     __slots__ = (
-        "t0", "x0", "w0", "phase0", "cycles", "direction", "omega", "b0", "b1", "g0",
-        "tangential", "load", "amplitude", "mu", "cos0", "sin0", "stop",
+        "t0", "s0", "x0", "xl", "w0", "phase0", "cycles", "direction", "plant", "omega", "b0", "b1", "g0",
+        "cos0", "sin0", "stop",
     )
 
     def __init__(
-        self, t0: float, x0: float, w0: float, phase0: float, cycles: int, direction: int, plant: _Plant,
+        self, s0: float, t0: float, x0: float, xl: float, w0: float, phase0: float, cycles: int,
+        direction: int, plant: _Plant,
     ) -> None:
-        self.t0, self.x0, self.w0, self.phase0, self.direction = t0, x0, w0, phase0, direction
-        self.cycles = cycles
-        self.omega, self.tangential, self.load = plant.omega, plant.tangential, plant.load
-        self.amplitude, self.mu = plant.amplitude, plant.mu
-        self.stop: tuple[float, float] | None = None  # (x - x0, raw phase) where a slip from rest stops
+        self.s0, self.t0 = s0, t0
+        self.x0, self.xl, self.w0, self.phase0, self.direction = x0, xl, w0, phase0, direction
+        self.cycles, self.plant, self.omega = cycles, plant, plant.omega
+        #: (signed travel, raw phase) where the slip stops (None: it never stops)
+        self.stop: tuple[float, float] | None = None
         if direction:  # a stuck segment needs none of a slip's constants
             self.b1 = plant.b1
             self.cos0, self.sin0 = math.cos(phase0), math.sin(phase0)
@@ -128,16 +135,23 @@ class _Segment:
 
     def after(self, tau: Any, xp: ModuleType = math) -> tuple[Any, Any, Any, Any, Any, Any]:
         """:meth:`evaluate` at ``tau`` after the segment's start."""
+        plant = self.plant
         theta = self.phase0 + self.omega * tau
         sin_theta = xp.sin(theta)
-        normal = self.load - self.amplitude * sin_theta
+        normal = plant.load - plant.amplitude * sin_theta
         s = self.direction
         if s == 0:
             zero = tau * 0.0
-            return self.x0 + zero, zero, zero, -self.tangential + zero, normal, theta
+            return self.x0 + zero, zero, zero, -plant.tangential + zero, normal, theta
         w, travel = self.speed_and_travel(tau, xp)
         acceleration = s * (self.b0 + self.b1 * sin_theta)
-        return self.x0 + s * travel, s * w, acceleration, -s * self.mu * normal, normal, theta
+        return self.x0 + (self.xl + s * travel), s * w, acceleration, -s * plant.mu * normal, normal, theta
+
+    def position(self, tau: float) -> tuple[float, float]:
+        """The position ``tau`` into the segment as a double-double (hi, lo)."""
+        if self.direction == 0:
+            return self.x0, self.xl
+        return _two_sum(self.x0, self.xl + self.direction * self.speed_and_travel(tau)[1])
 
     def speed_and_travel(self, tau: Any, xp: ModuleType = math) -> tuple[Any, Any]:
         """Speed w and distance travelled (>= 0, along the slip) ``tau`` into a slip."""
@@ -150,12 +164,19 @@ class _Segment:
         )
         return w, travel
 
-    def time_of_cycle(self, n: int) -> float:
-        """When the total phase reaches 2*pi*n (t0 if it already had)."""
+    def to_cycle(self, n: int) -> float:
+        """tau at which the total phase reaches 2*pi*n (0 if it already had)."""
         whole = n - self.cycles
         if whole <= 0:
-            return self.t0
-        return self.t0 + (TWO_PI * whole - self.phase0) / self.omega
+            return 0.0
+        return (TWO_PI * whole - self.phase0) / self.omega
+
+
+def _two_sum(a: float, b: float) -> tuple[float, float]:
+    """(a + b rounded, its exact rounding error) (Knuth's TwoSum)."""
+    hi = a + b
+    bb = hi - a
+    return hi, (a - (hi - bb)) + (b - bb)
 
 
 def _changed(old: Any, new: Any) -> set[str]:
@@ -191,6 +212,16 @@ class Slider:
     :attr:`event_counts` always counts every event.  With ``cycle_log_size``
     other than 0 the slider also keeps a :class:`CycleMark` at the start of every
     excitation period (``None``: all of them), for per-period mean speeds.
+
+    Event times are anchored to the excitation phase: the slider keeps one
+    anchor (time ``t_a`` at total phase 2*pi*cycles_a + phase_a), set at the
+    start and whenever the frequency changes, and computes the time of every
+    event and period start afresh from it, as
+    t_a + (cycles - cycles_a)/f + (phase - phase_a)/omega (plus the slip's
+    duration for a stop).  Rounding errors therefore do not add up from one
+    event to the next: after a million periods a slip still starts within a
+    few units in the last place of t of its exact time, wherever the run
+    started.
     """
 
     def __init__(
@@ -218,7 +249,7 @@ class Slider:
         self._stuck_time = 0.0
         self._cache: dict[tuple[float, float, float, float, int], tuple[float, Any]] = {}
         self._marks: deque[CycleMark] | None = None
-        self._next_mark_n, self._next_mark_t = 1, NEVER
+        self._next_mark_n, self._next_mark_t, self._next_mark_s = 1, NEVER, NEVER
         x0 = require_finite("x0", x0)
         if cycle_log_size != 0:
             self._marks = deque(maxlen=cycle_log_size)
@@ -226,7 +257,8 @@ class Slider:
                 self._marks.append(CycleMark(0, self._t, x0, 0.0))
         self._can_slip = can_ever_slip(self._params, self._inputs)
         self._plant = _Plant(self._params, self._inputs)
-        self._start_stuck(self._t, x0, phase, 0)
+        self._set_anchor(self._t, 0, phase)
+        self._start_stuck(self._t, 0.0, x0, 0.0, phase, 0)
 
     # -- read-only views -------------------------------------------------------
 
@@ -295,7 +327,7 @@ class Slider:
             raise ParameterError("t", t, f"must be finite and >= the current time {self._t!r} s")
         happened: list[Event] = []
         while True:
-            if self._next_mark_t <= self._next_t:
+            if self._next_mark_s <= self._next_s:  # by phase: a mark and an event may round to one t
                 if self._next_mark_t > t:
                     break
                 self._mark_cycle()
@@ -361,73 +393,103 @@ class Slider:
 
     # -- internals: acting on events -------------------------------------------
 
+    def _set_anchor(self, t: float, cycles: int, phase: float) -> None:
+        """Tie time ``t`` to total phase 2*pi*cycles + phase under the present
+        frequency; every later event time is computed from here."""
+        self._origin, self._origin_cycles, self._origin_phase = t, cycles, phase
+        self._frequency = self._inputs.excitation_frequency
+        self._schedule_mark()
+
+    def _offset(self, cycles: int, phase: float) -> float:
+        """When (after the anchor) the total phase reaches 2*pi*cycles + phase."""
+        return (cycles - self._origin_cycles) / self._frequency + (phase - self._origin_phase) / self._plant.omega
+
+    def _time(self, s: float, floor: float) -> float:
+        """Absolute time of anchor offset ``s``, never before ``floor``."""
+        t = self._origin + s
+        return t if t >= floor else floor
+
     def _rebase(self, params: SliderParams, inputs: Inputs) -> None:
         """Start a new segment at the current time from the current state."""
         seg = self._seg
-        x, v, _, _, _, theta = seg.evaluate(self._t)
+        tau = self._t - seg.t0
+        theta = seg.phase0 + seg.omega * tau
+        x, xl = seg.position(tau)
+        w = seg.speed_and_travel(tau)[0] if seg.direction != 0 else 0.0
         phase, cycles = _reduce_phase(theta, seg.cycles)
         if seg.direction == 0:
-            self._stuck_time += self._t - seg.t0
+            self._stuck_time += tau
         self._params, self._inputs = params, inputs
         self._can_slip = can_ever_slip(params, inputs)
         self._plant = _Plant(params, inputs)
-        w = seg.direction * v
+        if inputs.excitation_frequency != self._frequency:
+            self._set_anchor(self._t, cycles, phase)
+        s = self._t - self._origin
         if seg.direction != 0 and w > 0.0:
-            self._start_slip(self._t, x, w, phase, cycles, seg.direction)
+            self._start_slip(self._t, s, x, xl, w, phase, cycles, seg.direction)
         else:
-            self._start_stuck(self._t, x, phase, cycles)
+            self._start_stuck(self._t, s, x, xl, phase, cycles)
 
-    def _start_stuck(self, t: float, x: float, phase: float, cycles: int, after_stop: int = 0) -> None:
+    def _start_stuck(
+        self, t: float, s: float, x: float, xl: float, phase: float, cycles: int, after_stop: int = 0
+    ) -> None:
         plant = self._plant
-        self._seg = _Segment(t, x, 0.0, phase, cycles, 0, plant)
+        self._seg = _Segment(s, t, x, xl, 0.0, phase, cycles, 0, plant)
         direction = plant.direction
         delta, start_phase = NEVER, NEVER
         if self._can_slip:
             delta, start_phase = next_slip_start(phase, plant.b0[direction], plant.b1,
                                                  closing=after_stop == direction)
-        self._next_t = t + delta / plant.omega
         # The start passes 2*pi on the way if it lies "behind" the present phase.
         wraps = start_phase < phase or (start_phase == phase and delta > 0.0)
-        self._next_start = (start_phase, direction, cycles + 1 if wraps else cycles)
-        self._schedule_mark()
+        start_cycles = cycles + 1 if wraps else cycles
+        self._next_start = (start_phase, direction, start_cycles)
+        if delta == 0.0 or delta == NEVER:
+            self._next_s = s + delta
+        else:
+            self._next_s = max(s, self._offset(start_cycles, start_phase))
+        self._next_t = self._time(self._next_s, t)
 
     def _start_slip(
-        self, t: float, x: float, w: float, phase: float, cycles: int, direction: int
+        self, t: float, s: float, x: float, xl: float, w: float, phase: float, cycles: int, direction: int
     ) -> None:
-        self._seg = seg = _Segment(t, x, w, phase, cycles, direction, self._plant)
-        self._schedule_mark()
+        self._seg = seg = _Segment(s, t, x, xl, w, phase, cycles, direction, self._plant)
         if w == 0.0:
             # Every slip from rest at this phase under these inputs is this slip:
-            # its stop (time, travel, phase) is computed once.
+            # its stop (duration, travel, phase) is computed once.
             key = (phase, seg.b0, seg.b1, seg.omega, direction)
             entry = self._cache.get(key)
             if entry is None:
                 if len(self._cache) >= _CACHE_LIMIT:
                     self._cache.clear()
-                delay = slip_stop_delay(0.0, seg.b0, seg.b1, phase, seg.omega)
-                stop = None
-                if delay < NEVER:
-                    stop = (direction * seg.speed_and_travel(delay)[1], phase + seg.omega * delay)
-                entry = self._cache[key] = (delay, stop)
-            delay, seg.stop = entry
+                entry = self._cache[key] = self._slip_stop(seg, 0.0, phase, direction)
         else:
-            delay = slip_stop_delay(w, seg.b0, seg.b1, phase, seg.omega)
-        self._next_t = t + delay
+            entry = self._slip_stop(seg, w, phase, direction)
+        delay, seg.stop = entry
+        # The stop is timed from the slip's own (anchored) start: no sum of increments.
+        self._next_s = s + delay
+        self._next_t = self._time(self._next_s, t)
+
+    @staticmethod
+    def _slip_stop(seg: _Segment, w: float, phase: float, direction: int) -> tuple[float, Any]:
+        """(duration, (signed travel, raw phase) at the stop or None) of a slip."""
+        delay = slip_stop_delay(w, seg.b0, seg.b1, phase, seg.omega)
+        if delay == NEVER:
+            return delay, None
+        return delay, (direction * seg.speed_and_travel(delay)[1], phase + seg.omega * delay)
 
     def _apply(self) -> Event:
         """Carry out the event at ``_next_t`` and start the segment after it."""
-        seg, t = self._seg, self._next_t
+        seg, t, s = self._seg, self._next_t, self._next_s
         if seg.direction == 0:
-            self._stuck_time += t - seg.t0
+            self._stuck_time += s - seg.s0
             phase, direction, cycles = self._next_start
             event = Event(t, EventKind.SLIP_START, seg.x0, phase, Mode.STUCK, _MODES[direction])
-            self._start_slip(t, seg.x0, 0.0, phase, cycles, direction)
+            self._start_slip(t, s, seg.x0, seg.xl, 0.0, phase, cycles, direction)
             return self._log(event)
-        if seg.stop is not None:
-            travel, theta = seg.stop
-            x = seg.x0 + travel
-        else:
-            x, _, _, _, _, theta = seg.evaluate(t)
+        assert seg.stop is not None  # an endless slip has no event
+        travel, theta = seg.stop
+        x, xl = _two_sum(seg.x0, seg.xl + travel)
         phase, cycles = _reduce_phase(theta, seg.cycles)
         plant = self._plant
         direction = plant.direction
@@ -435,24 +497,29 @@ class Slider:
         if direction == -seg.direction and self._can_slip and next_slip_start(
             phase, plant.b0[direction], plant.b1
         )[0] == 0.0:
-            self._start_slip(t, x, 0.0, phase, cycles, direction)
+            self._start_slip(t, s, x, xl, 0.0, phase, cycles, direction)
             return self._log(Event(t, EventKind.REVERSAL, x, phase, before, _MODES[direction]))
-        self._start_stuck(t, x, phase, cycles, after_stop=seg.direction)
+        self._start_stuck(t, s, x, xl, phase, cycles, after_stop=seg.direction)
         return self._log(Event(t, EventKind.STICK, x, phase, before, Mode.STUCK))
 
     def _schedule_mark(self) -> None:
+        """Aim at the start of period ``_next_mark_n``, timed from the anchor."""
         if self._marks is not None:
-            self._next_mark_t = self._seg.time_of_cycle(self._next_mark_n)
+            self._next_mark_s = self._offset(self._next_mark_n, 0.0)
+            self._next_mark_t = self._origin + self._next_mark_s
 
     def _mark_cycle(self) -> None:
         """Record the start of period ``_next_mark_n`` and aim at the next."""
-        seg, t = self._seg, self._next_mark_t
+        seg, n = self._seg, self._next_mark_n
+        t = max(self._next_mark_t, seg.t0)  # a start that rounding put before this segment's is at it
+        # Where the slider is when the phase passes 2*pi*n exactly (not at the rounded t).
+        tau = seg.to_cycle(n)
         if seg.direction == 0:  # only x is needed: no full state evaluation
-            x, stuck = seg.x0, self._stuck_time + (t - seg.t0)
+            x, stuck = seg.x0, self._stuck_time + tau
         else:
-            x, stuck = seg.x0 + seg.direction * seg.speed_and_travel(t - seg.t0)[1], self._stuck_time
+            x, stuck = seg.x0 + (seg.xl + seg.direction * seg.speed_and_travel(tau)[1]), self._stuck_time
         assert self._marks is not None
-        self._marks.append(CycleMark(self._next_mark_n, t, x, stuck))
+        self._marks.append(CycleMark(n, t, x, stuck))
         self._next_mark_n += 1
         self._schedule_mark()
 
