@@ -24,8 +24,21 @@ U = V*f/(g*mu) depends on (phi, a) alone.  It is exact here, not fitted:
   limit of the above); phi > 1 accelerates without bound (U = inf).
 * Negative phi mirrors: U(-phi, a) = -U(phi, a).
 
-psi_C is found for whole arrays at once by Newton's method kept inside the
-bracket [pi - 2*theta_A, 2*pi], where w is monotone.  The inverse a(U, phi),
+Near the motion boundary these textbook forms cancel catastrophically (the
+slip is tiny, its terms are not), so they are evaluated in the same
+cancellation-free form as the slider's closed form: with 1 - cos(psi),
+psi - sin(psi) and psi^2/2 - (1 - cos(psi)) from
+:func:`~friction_sim.core.roots.trig_remainders`, and because
+phi - 1 + a*sin(theta_A) = 0,
+
+    w(psi) = a*(cos(theta_A)*(1 - cos psi) - sin(theta_A)*(psi - sin psi))
+    D      = a*(cos(theta_A)*(psi_C - sin psi_C) - sin(theta_A)*(psi_C^2/2 - 1 + cos psi_C)),
+
+where cos(theta_A) comes from the distance to the boundary
+phi - (1 - a), computed without rounding.  psi_C is found for whole arrays
+at once by Newton's method kept inside the bracket [pi - 2*theta_A, 2*pi],
+where w is monotone; each element stops on its own, so a value does not
+depend on the array it came in.  The inverse a(U, phi),
 which the controller uses, inverts the monotone rise of U with a by a
 bracketed (Illinois) secant iteration, again on whole arrays.
 """
@@ -39,6 +52,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.roots import trig_remainders
 from friction_sim.errors import ParameterError
 
 _TWO_PI = 2.0 * np.pi
@@ -57,14 +71,44 @@ def slip_start_phase(phi: ArrayLike, a: ArrayLike) -> Any:
     the slider never slips from rest)."""
     phi_, a_ = np.broadcast_arrays(np.abs(np.asarray(phi, float)), np.asarray(a, float))
     with np.errstate(divide="ignore", invalid="ignore"):
-        edge = (1.0 - phi_) / a_
-        theta = np.where((edge < 1.0) & (edge >= -1.0), np.arcsin(np.clip(edge, -1.0, 1.0)), np.nan)
+        sin_a, cos_a = _start_sin_cos(phi_, a_)
+        theta = np.where((sin_a < 1.0) & (sin_a >= -1.0) & (cos_a > 0.0), np.arctan2(sin_a, cos_a), np.nan)
     return _result(theta, phi, a)
 
 
+def _beyond_boundary(phi: NDArray[np.float64], a: NDArray[np.float64]) -> NDArray[np.float64]:
+    """phi - (1 - a), as exactly as its sign: > 0 where the slider moves.
+
+    phi + a is split into its rounded sum and the exact rounding error
+    (TwoSum), and the sum minus 1 is exact (Sterbenz) wherever it matters, so
+    the distance keeps its full relative precision however small it is.
+    """
+    total = phi + a
+    part = total - phi
+    with np.errstate(invalid="ignore"):
+        error = (phi - (total - part)) + (a - part)
+        beyond: NDArray[np.float64] = (total - 1.0) + error
+    return np.where(np.isfinite(total), beyond, total - 1.0)  # inf stays inf, NaN NaN
+
+
+def _start_sin_cos(
+    phi: NDArray[np.float64], a: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(sin, cos) of theta_A for phi >= 0: sin = (1 - phi)/a, and
+    cos = sqrt(1 - sin^2) = sqrt(e*(2 - e)) with e = 1 - sin = (phi - (1 - a))/a,
+    accurate to the last bits even where theta_A is within 1e-6 of pi/2.
+    NaN where there is no slip start (e outside (0, 2])."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e = _beyond_boundary(phi, a) / a
+        cos_a = np.sqrt(e * (2.0 - e))
+        return (1.0 - phi) / a, np.where((e > 0.0) & (e <= 2.0), cos_a, np.nan)
+
+
 def moves(phi: ArrayLike, a: ArrayLike) -> Any:
-    """True where the slider moves at all: |phi| > 1 - a (the motion boundary)."""
-    result = np.abs(np.asarray(phi, float)) > 1.0 - np.asarray(a, float)
+    """True where the slider moves at all: |phi| > 1 - a (the motion boundary),
+    decided exactly on the given floats, as :func:`u_map` and the slider do."""
+    phi_, a_ = np.broadcast_arrays(np.abs(np.asarray(phi, float)), np.asarray(a, float))
+    result = _beyond_boundary(phi_, a_) > 0.0
     return bool(result) if np.ndim(result) == 0 else result
 
 
@@ -82,36 +126,58 @@ def stop_phase_advance(phi: ArrayLike, a: ArrayLike) -> Any:
     return _result(psi, phi, a)
 
 
-def _stop_phase(phi: NDArray[np.float64], a: NDArray[np.float64]) -> NDArray[np.float64]:
-    """psi_C for phi >= 0 (NaN where there is no periodic slip)."""
-    psi = np.full(phi.shape, np.nan)
-    slipping = (phi > 1.0 - a) & (phi < 1.0) & (a > 0.0)
-    psi[(phi == 1.0) & (a > 0.0)] = _TWO_PI
-    if not np.any(slipping):
-        return psi
-    p, q = phi[slipping] - 1.0, a[slipping]
-    theta_a = np.arcsin((1.0 - phi[slipping]) / q)
-    cos_a = np.cos(theta_a)
-    lo = np.pi - 2.0 * theta_a
+def _periodic_slip(
+    phi: NDArray[np.float64], a: NDArray[np.float64]
+) -> tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """For phi >= 0: where there is one periodic slip per period (1 - a < phi < 1),
+    and there sin(theta_A), cos(theta_A) and psi_C."""
+    sin_all, cos_all = _start_sin_cos(phi, a)
+    slipping = (cos_all > 0.0) & (phi < 1.0) & (a > 0.0)
+    sin_a, cos_a = sin_all[slipping], cos_all[slipping]
+    # w/a = cos_a*(1 - cos x) - sin_a*(x - sin x) rises on (0, pi - 2*theta_A) and
+    # falls from there to below zero at 2*pi; near the boundary its root is
+    # close to 3*(pi/2 - theta_A) (the cubic w ~ x^2*(delta/2 - x/6)).
+    delta = np.arctan2(cos_a, sin_a)  # pi/2 - theta_A, without cancellation
+    lo = 2.0 * delta
     hi = np.full_like(lo, _TWO_PI)
-    # Start from the midpoint and iterate Newton inside the bracket.
-    x = 0.5 * (lo + hi)
+    x = np.clip(3.0 * delta, lo, hi)
+    active = np.ones(x.shape, dtype=bool)
     for _ in range(100):
-        w = p * x + q * (cos_a - np.cos(theta_a + x))
+        c1, s2, _c2 = trig_remainders(x, np)
+        w = cos_a * c1 - sin_a * s2
         lo = np.where(w > 0.0, x, lo)
         hi = np.where(w < 0.0, x, hi)
-        slope = p + q * np.sin(theta_a + x)
+        slope = cos_a * np.sin(x) - sin_a * c1
         with np.errstate(divide="ignore", invalid="ignore"):
             step = x - w / slope
         outside = ~((step > lo) & (step < hi)) | ~np.isfinite(step)
         step = np.where(outside, 0.5 * (lo + hi), step)
         step = np.where(w == 0.0, x, step)
+        # Each element stops on its own: its value must not depend on its neighbours.
         done = np.abs(step - x) <= 4.0 * np.finfo(float).eps * np.abs(x)
-        x = step
-        if np.all(done):
+        x = np.where(active, step, x)
+        active &= ~done
+        if not np.any(active):
             break
+    return slipping, sin_a, cos_a, x
+
+
+def _stop_phase(phi: NDArray[np.float64], a: NDArray[np.float64]) -> NDArray[np.float64]:
+    """psi_C for phi >= 0 (NaN where there is no periodic slip)."""
+    psi = np.full(phi.shape, np.nan)
+    psi[(phi == 1.0) & (a > 0.0)] = _TWO_PI
+    slipping, _, _, x = _periodic_slip(phi, a)
     psi[slipping] = x
     return psi
+
+
+def _travel(a: NDArray[np.float64], sin_a: NDArray[np.float64], cos_a: NDArray[np.float64],
+            psi: NDArray[np.float64]) -> NDArray[np.float64]:
+    """D = a*(cos_a*(psi - sin psi) - sin_a*(psi^2/2 - 1 + cos psi)) >= 0: the
+    travel of one periodic slip in units of mu*g/omega^2."""
+    _, s2, c2 = trig_remainders(psi, np)
+    travel: NDArray[np.float64] = np.maximum(a * (cos_a * s2 - sin_a * c2), 0.0)
+    return travel
 
 
 def u_map(phi: ArrayLike, a: ArrayLike) -> Any:
@@ -124,13 +190,9 @@ def u_map(phi: ArrayLike, a: ArrayLike) -> Any:
     _check_ratio(a_arr)
     mag = np.abs(phi_arr)
     u = np.zeros(phi_arr.shape)
-    psi = _stop_phase(mag, a_arr)
-    periodic = np.isfinite(psi) & (mag < 1.0)
+    periodic, sin_a, cos_a, psi = _periodic_slip(mag, a_arr)
     if np.any(periodic):
-        p, q, x = mag[periodic] - 1.0, a_arr[periodic], psi[periodic]
-        theta_a = np.arcsin((1.0 - mag[periodic]) / q)
-        travel = 0.5 * p * x * x + q * (x * np.cos(theta_a) - np.sin(theta_a + x) + np.sin(theta_a))
-        u[periodic] = travel / _FOUR_PI2
+        u[periodic] = _travel(a_arr[periodic], sin_a, cos_a, psi) / _FOUR_PI2
     u[mag == 1.0] = a_arr[mag == 1.0] / _TWO_PI
     u[mag > 1.0] = np.inf
     u[np.isnan(mag)] = np.nan
@@ -201,19 +263,17 @@ def _u_and_slope(phi: NDArray[np.float64], a: NDArray[np.float64]) -> tuple[NDAr
     """U and dU/da where 1 - a < phi < 1 (one periodic slip per period).
 
     With D(psi) the travel per period, U = D(psi_C)/(4 pi^2); psi_C moves with
-    a, but dD/dpsi = w(psi_C) = 0, so only the explicit dependence on a and on
-    theta_A = asin((1 - phi)/a) remains (d theta_A/da = -tan(theta_A)/a).
+    a, but dD/dpsi = w(psi_C) = 0, and so does dD/d(theta_A) (it equals
+    w(psi_C) too, since phi - 1 + a*sin(theta_A) = 0), so only the explicit
+    factor a remains: dD/da = sin_a*(1 - cos psi_C) + cos_a*(psi_C - sin psi_C).
     """
-    psi = _stop_phase(phi, a)
-    theta = np.arcsin((1.0 - phi) / a)
-    sin_a, cos_a = np.sin(theta), np.cos(theta)
-    sin_c, cos_c = np.sin(theta + psi), np.cos(theta + psi)
-    by_a = psi * cos_a - sin_c + sin_a
-    travel = 0.5 * (phi - 1.0) * psi * psi + a * by_a
-    by_theta = a * (-psi * sin_a - cos_c + cos_a)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        slope = (by_a - by_theta * sin_a / (a * cos_a)) / _FOUR_PI2
-    return travel / _FOUR_PI2, slope
+    travel = np.zeros(phi.shape)
+    slope = np.full(phi.shape, np.nan)
+    slipping, sin_a, cos_a, psi = _periodic_slip(phi, a)
+    c1, s2, _ = trig_remainders(psi, np)
+    travel[slipping] = _travel(a[slipping], sin_a, cos_a, psi)
+    slope[slipping] = sin_a * c1 + cos_a * s2
+    return travel / _FOUR_PI2, slope / _FOUR_PI2
 
 
 def nondimensional_speed(v: ArrayLike, frequency: float, gravity: float, mu: float) -> Any:

@@ -9,6 +9,7 @@ mu*g/omega**2) per period, hence U = V*f/(g*mu) = D/(4*pi**2).
 
 import math
 import time
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -96,15 +97,29 @@ def test_arrays_broadcast():
 # --------------------------------------------------------------------------
 
 
+def last_still_phi(a: float) -> float:
+    """The largest float phi with phi <= 1 - a exactly (on the given floats,
+    as the slider decides it): 1 - a rounded may lie a hair above 1 - a."""
+    edge = 1.0 - a
+    while Fraction(edge) + Fraction(a) > 1:
+        edge = math.nextafter(edge, 0.0)
+    return edge
+
+
 @pytest.mark.parametrize("a", [0.0, 0.1, 0.5, 0.9, 0.99])
 def test_zero_where_nothing_moves(a):
-    phi = np.linspace(0.0, 1.0 - a, 101)
+    edge = last_still_phi(a)
+    phi = np.linspace(0.0, edge, 101)
+    phi[-1] = edge
     assert np.all(u_map(phi, a) == 0.0)
     assert np.all(u_map(-phi, a) == 0.0)
-    assert u_map(1.0 - a, a) == 0.0  # the boundary itself does not move
-    assert not moves(1.0 - a, a)
-    assert motion_boundary(1.0 - a) == pytest.approx(a, abs=1e-15)
+    assert u_map(edge, a) == 0.0  # the boundary itself does not move
+    assert not moves(edge, a)
+    assert motion_boundary(edge) == pytest.approx(a, abs=1e-15)
     assert np.all(np.isnan(stop_phase_advance(phi[:-1], a)))
+    beyond = math.nextafter(edge, 2.0)  # one float further moves, however little
+    if a > 0.0:
+        assert moves(beyond, a) and u_map(beyond, a) > 0.0
 
 
 def test_sign_symmetry():
