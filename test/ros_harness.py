@@ -3,9 +3,11 @@ sends it commands, all spun in the test's own thread (no launch_testing)."""
 
 from __future__ import annotations
 
+import math
 import statistics
 import subprocess
 import time
+import uuid
 from collections import defaultdict
 from collections.abc import Callable
 from typing import Any
@@ -34,6 +36,33 @@ INPUTS = {
     "external_wrench": WrenchStamped,
     "target_speed": Float64,
 }
+
+
+class CommandLog:
+    """A sink that keeps the commands as the node handled them (the rest it ignores)."""
+
+    def __init__(self, outcomes: list[Any]) -> None:
+        self.outcomes = outcomes
+
+    def on_states(self, states: object, frame_id: str) -> None: ...
+    def on_event(self, event: object) -> None: ...
+    def on_period(self, period: object, frame_id: str) -> None: ...
+    def on_parameters(self, values: object, t: float, *, changed: bool) -> None: ...
+    def close(self) -> None: ...
+
+    def on_command(self, outcome: Any, frame_id: str) -> None:
+        self.outcomes.append(outcome)
+
+
+def namespace() -> str:
+    """A fresh namespace per test: nodes of different tests never meet."""
+    return f"/t{uuid.uuid4().hex[:8]}"
+
+
+def diagnostics_values(msg: Any) -> dict[str, str]:
+    """key -> value of the one status of a DiagnosticArray."""
+    (status,) = msg.status
+    return {kv.key: kv.value for kv in status.values}
 
 
 def stamp_ns(msg: Any) -> int:
@@ -106,6 +135,17 @@ class Probe:
         (result,) = future.result().results
         return result.successful, result.reason
 
+    def set_parameters_atomically(self, node: str, values: dict[str, object]) -> tuple[bool, str]:
+        """One SetParametersAtomically call to ``node``'s service: (successful, reason)."""
+        if node not in self._clients:
+            self._clients[node] = AsyncParameterClient(self.node, node)
+            assert self._clients[node].wait_for_services(15.0), f"{node} offers no parameter services"
+        future = self._clients[node].set_parameters_atomically(
+            [Parameter(name, value=value) for name, value in values.items()])
+        assert self.spin_until(future.done, 15.0), f"{node} did not answer the atomic set"
+        result = future.result().result
+        return result.successful, result.reason
+
     def close(self) -> None:
         self.executor.shutdown(timeout_sec=0.0)
         self.node.destroy_node()
@@ -118,8 +158,13 @@ def kill_if_running(process: subprocess.Popen[str]) -> None:
         process.communicate()
 
 
-def flood(namespace: str, rate: int, seconds: float) -> int:
-    """Publish drive_force commands at ``rate`` per second (run in its own process)."""
+#: An invalid flood cycles through these drive forces: half NaN or inf, half finite but out of range.
+INVALID = (math.nan, math.inf, 1e308, -5e6, math.nan, -math.inf, 2e6, -1e300)
+
+
+def flood(namespace: str, rate: int, seconds: float, kind: str = "valid") -> int:
+    """Publish drive_force commands at ``rate`` per second (run in its own process):
+    valid ones (0.7 ... 0.71 N), or ``invalid`` ones (:data:`INVALID`)."""
     rclpy.init()
     node = rclpy.create_node("flooder", namespace=namespace)
     publisher = node.create_publisher(Float64, "drive_force", 10)
@@ -129,7 +174,7 @@ def flood(namespace: str, rate: int, seconds: float) -> int:
     start, sent, msg = time.monotonic(), 0, Float64()
     while (now := time.monotonic()) - start < seconds:
         while sent < int((now - start) * rate):
-            msg.data = 0.7 + 1e-4 * (sent % 100)
+            msg.data = 0.7 + 1e-4 * (sent % 100) if kind == "valid" else INVALID[sent % len(INVALID)]
             publisher.publish(msg)
             sent += 1
         time.sleep(0.001)
@@ -141,4 +186,4 @@ def flood(namespace: str, rate: int, seconds: float) -> int:
 if __name__ == "__main__":
     import sys
 
-    print(flood(sys.argv[1], int(sys.argv[2]), float(sys.argv[3])))
+    print(flood(sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), *sys.argv[4:5]))

@@ -13,8 +13,18 @@ Subscriptions: ``drive_force``, ``excitation_amplitude``,
 the contact; held until the next message).
 Publications: ``pose``, ``velocity``, ``friction_force`` at ``publish_rate``;
 ``mean_velocity`` once per completed excitation period; ``diagnostics`` at
-1 Hz; ``/clock`` when ``publish_clock`` is true.  Header stamps are
-simulation time.
+1 Hz; ``/clock`` while ``publish_clock`` is true (the publisher exists only
+then).  The states' and mean velocities' header stamps are simulation time
+(when the state was); the diagnostics' stamp is the node's clock, as
+``diagnostic_updater`` stamps it (wall time, or /clock with ``use_sim_time``),
+the same rule the controller follows on the same topic.
+
+Bad input is refused, counted and warned about at most once a second (the
+rest cost a clock read).  If the exact core cannot take a command, it is
+refused and the state stays as it was; if the simulation itself fails, the
+node logs the reason once, reports ERROR on ``diagnostics`` and exits with
+code 3 (:data:`~friction_sim.ros.common.EXIT_FAULT`): it never keeps running
+without ticking.
 
 Ticks run in a dedicated thread rather than an executor timer: rclpy's
 executor rebuilds its wait set in Python on every wake-up (about 0.4 ms for a
@@ -29,10 +39,11 @@ diagnostics; a lock keeps it and the tick thread apart.
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -46,9 +57,10 @@ from rclpy.subscription import Subscription
 from rosgraph_msgs.msg import Clock as ClockMsg
 
 from friction_sim.core import spec
-from friction_sim.core.commands import SLIDER, Outcome, consumed_by
+from friction_sim.core.commands import PARAMETERS as PARAMETER_COMMAND
+from friction_sim.core.commands import PHYSICS_FIELDS, SLIDER, Command, Outcome, consumed_by
 from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.realtime import RealtimeSlider
+from friction_sim.core.realtime import RealtimeSlider, SimulationFault
 from friction_sim.io.messages import (
     command_from_message,
     fill_state_messages,
@@ -59,7 +71,19 @@ from friction_sim.io.messages import (
     time_msg,
 )
 from friction_sim.io.sinks import Sink, deliver_tick
-from friction_sim.ros.common import PolledGroup, declare_settings, run_node, take_all, wall_ns
+from friction_sim.ros.common import (
+    EXIT_FAULT,
+    FaultSignal,
+    NameWatch,
+    PolledGroup,
+    ThrottledWarning,
+    declare_settings,
+    node_help,
+    run_node,
+    take_all,
+    wall_ns,
+    watch_parameter_refusals,
+)
 
 QOS_DEPTH = 10
 COMMANDS_PER_TICK = QOS_DEPTH
@@ -68,6 +92,17 @@ _QUIET_SUBSCRIPTION = SubscriptionEventCallbacks(use_default_callbacks=False)
 TICK_SWITCH_INTERVAL = 0.0005
 #: The node's parameters: declared once in the one vocabulary.
 PARAMETERS = spec.SLIDER_NODE
+#: What the node publishes (topic, type, meaning), for --help.
+PUBLICATIONS = (
+    ("pose", "geometry_msgs/msg/PoseStamped", "position.x = x [m], at publish_rate"),
+    ("velocity", "geometry_msgs/msg/TwistStamped", "linear.x = v [m/s], at publish_rate"),
+    ("friction_force", "geometry_msgs/msg/WrenchStamped",
+     "force.x = friction force [N] (signed), force.z = normal reaction R [N], at publish_rate"),
+    ("mean_velocity", "geometry_msgs/msg/TwistStamped",
+     "linear.x = mean speed [m/s] over the last mean_window_periods whole periods, once per period"),
+    ("diagnostics", "diagnostic_msgs/msg/DiagnosticArray", "status 'slider', 1 Hz"),
+    ("/clock", "rosgraph_msgs/msg/Clock", "simulation time, while publish_clock is true"),
+)
 
 
 class SliderNode(Node):
@@ -81,8 +116,10 @@ class SliderNode(Node):
         self._rt = RealtimeSlider(
             params, inputs, wall_ns=wall_ns(), real_time_factor=values["real_time_factor"],
             publish_rate=values["publish_rate"], mean_window_periods=values["mean_window_periods"],
-            log_rate=values["log_rate"] if values["log_path"] else None,
+            log_rate=values["log_rate"] if values["log_path"] else None, load_blame=_load_blame(values),
         )
+        #: The exit code run_node ends with (0, or EXIT_RECORDING_FAILED after a failed recording).
+        self.exit_code = 0
         #: Consumers of the run (the recorder, a live view, a test's probe).
         self.sinks: list[Sink] = []
         self.recorder = _open_recorder(values)
@@ -90,13 +127,16 @@ class SliderNode(Node):
             self.sinks.append(self.recorder)
             self.recorder.on_parameters(_recorded(values), 0.0, changed=False)
         self._frame_id: str = values["frame_id"]
-        self._publish_clock: bool = values["publish_clock"]
-        self._make_publishers()
+        self._lock = threading.Lock()
+        self._warn = ThrottledWarning(self.get_logger())
+        self._fault = FaultSignal(self)
+        self._make_publishers(values["publish_clock"])
         self._make_subscriptions()
+        self.names = NameWatch(self)
         self.create_timer(1.0, self._on_diagnostics, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        watch_parameter_refusals(self, PARAMETERS, self._parameter_refused)
         self.add_on_set_parameters_callback(self._set_parameters)
         self.add_post_set_parameters_callback(self._parameters_set)
-        self._lock = threading.Lock()
         self._stop = threading.Event()
         # Let the tick thread take the GIL within 0.5 ms even while the
         # executor thread is busy with a flood of commands (default: 5 ms).
@@ -126,20 +166,36 @@ class SliderNode(Node):
     def realtime(self) -> RealtimeSlider:
         return self._rt
 
+    @property
+    def fault(self) -> str:
+        """Why the node stopped ('' while it runs): see :class:`SimulationFault`."""
+        return self._fault.reason
+
     # -- wiring ---------------------------------------------------------------
 
-    def _make_publishers(self) -> None:
-        def publisher(kind: type, topic: str) -> Any:
-            return self.create_publisher(kind, topic, QOS_DEPTH, event_callbacks=_QUIET_PUBLISHER)
-
-        self._pose_pub = publisher(PoseStamped, "pose")
-        self._velocity_pub = publisher(TwistStamped, "velocity")
-        self._friction_pub = publisher(WrenchStamped, "friction_force")
-        self._mean_pub = publisher(TwistStamped, "mean_velocity")
-        self._diag_pub = publisher(DiagnosticArray, "diagnostics")
-        self._clock_pub = publisher(ClockMsg, "/clock")
+    def _make_publishers(self, publish_clock: bool) -> None:
+        self._pose_pub = self._publisher(PoseStamped, "pose")
+        self._velocity_pub = self._publisher(TwistStamped, "velocity")
+        self._friction_pub = self._publisher(WrenchStamped, "friction_force")
+        self._mean_pub = self._publisher(TwistStamped, "mean_velocity")
+        self._diag_pub = self._publisher(DiagnosticArray, "diagnostics")
         self._pose, self._velocity, self._friction = PoseStamped(), TwistStamped(), WrenchStamped()
         self._clock_msg = ClockMsg()
+        self._clock_pub: Any = None
+        self._set_publish_clock(publish_clock)
+
+    def _publisher(self, kind: type, topic: str) -> Any:
+        return self.create_publisher(kind, topic, QOS_DEPTH, event_callbacks=_QUIET_PUBLISHER)
+
+    def _set_publish_clock(self, on: bool) -> None:
+        """Advertise /clock only while it is published (the tick thread publishes
+        it under the lock, so it never sees a publisher being destroyed)."""
+        with self._lock:
+            if on and self._clock_pub is None:
+                self._clock_pub = self._publisher(ClockMsg, "/clock")
+            elif not on and self._clock_pub is not None:
+                self.destroy_publisher(self._clock_pub)
+                self._clock_pub = None
 
     def _make_subscriptions(self) -> None:
         """One polled subscription per command topic the slider consumes (from
@@ -167,17 +223,36 @@ class SliderNode(Node):
 
     # -- commands ---------------------------------------------------------------
 
-    def _report(self, outcome: Outcome) -> None:
+    def _report(self, outcome: Outcome, warn: Callable[[str], Any] | None = None) -> None:
+        """Hand a handled command to the sinks; warn about a refusal (by default
+        on the node's throttle: a flood of bad commands costs a clock read each)."""
         if not outcome.accepted:
-            self.get_logger().warning(
-                f"{outcome.reason}; last valid value kept", throttle_duration_sec=1.0
-            )
+            (warn or self._warn)(f"{outcome.reason}; last valid value kept")
+        for sink in self.sinks:
+            sink.on_command(outcome, self._frame_id)
+
+    def _parameter_refused(self, name: str, value: Any, why: str) -> None:
+        """rclpy refused a parameter value before our callbacks (range, type,
+        read-only): counted and recorded like any refusal (common has warned)."""
+        number = isinstance(value, (int, float)) and not isinstance(value, bool)
+        values = {name: float(value)} if number and name in PHYSICS_FIELDS else {}
+        with self._lock:
+            outcome = self._rt.refuse(Command(0.0, PARAMETER_COMMAND, values), why, wall_ns())
         for sink in self.sinks:
             sink.on_command(outcome, self._frame_id)
 
     # -- publishing -------------------------------------------------------------
 
     def _tick_loop(self) -> None:
+        """Tick until stopped; any failure is reported once and ends the node
+        (:meth:`_fail`), never a thread that dies in silence."""
+        try:
+            self._ticks()
+        except Exception as error:  # noqa: BLE001 - reported, and the node stops
+            if not self._stop.is_set() and self.context.ok():
+                self._fail(error)
+
+    def _ticks(self) -> None:
         """Tick at publish_rate on absolute deadlines; after a stall, go on from
         now rather than bursting to catch up (the physics follows the clock)."""
         deadline = time.monotonic()
@@ -191,17 +266,27 @@ class SliderNode(Node):
                 deadline = time.monotonic()
             if self._stop.is_set() or not self.context.ok():
                 return
-            try:
-                self._take_commands()
-                self._on_tick()
-            except Exception:
-                if self.context.ok() and not self._stop.is_set():
-                    raise
-                return
+            self._take_commands()
+            self._on_tick()
+
+    def _fail(self, error: BaseException) -> None:
+        """The run cannot go on: log why and report ERROR on diagnostics (once),
+        then end the executor (run_node exits with EXIT_FAULT)."""
+        reason = str(error) if isinstance(error, SimulationFault) else \
+            f"tick failed: {type(error).__name__}: {error}".splitlines()[0]
+        if not self._fault.claim(reason):
+            return
+        self.get_logger().error(f"{reason}; stopping (exit code {EXIT_FAULT})")
+        with contextlib.suppress(Exception):  # the reason is logged already; the node stops anyway
+            self._on_diagnostics()
+        self._fault.fire()
 
     def _on_tick(self) -> None:
         with self._lock:
             tick = self._rt.tick(wall_ns())
+            if self._clock_pub is not None:
+                time_msg(seconds_to_ns(tick.state.t), self._clock_msg.clock)
+                self._clock_pub.publish(self._clock_msg)
         state = tick.state
         fill_state_messages(state, self._frame_id, self._pose, self._velocity, self._friction)
         self._pose_pub.publish(self._pose)
@@ -209,19 +294,16 @@ class SliderNode(Node):
         self._friction_pub.publish(self._friction)
         for period in tick.periods:
             self._mean_pub.publish(mean_velocity_message(period, self._frame_id))
-        if self._publish_clock:
-            time_msg(seconds_to_ns(state.t), self._clock_msg.clock)
-            self._clock_pub.publish(self._clock_msg)
         deliver_tick(self.sinks, tick, self._frame_id)
 
     def _on_diagnostics(self) -> None:
         with self._lock:
             report = self._rt.diagnostics(wall_ns())
         status = DiagnosticStatus(name="slider", hardware_id=self.get_fully_qualified_name())
-        status.level, status.message = _health(report)
+        status.level, status.message = _health(report, self.fault, self.names.problem)
         status.values = key_values(report)
         msg = DiagnosticArray(status=[status])
-        time_msg(seconds_to_ns(report["sim_time"]), msg.header.stamp)
+        msg.header.stamp = self.get_clock().now().to_msg()
         self._diag_pub.publish(msg)
 
     # -- parameters ---------------------------------------------------------------
@@ -233,10 +315,14 @@ class SliderNode(Node):
         simulation as one new state, under the lock, or it is refused and
         nothing changes."""
         values = {p.name: p.value for p in changes}
-        with self._lock:
-            outcome = self._rt.configure(values, wall_ns())
+        try:
+            with self._lock:
+                outcome = self._rt.configure(values, wall_ns())
+        except SimulationFault as fault:  # the run cannot go on: say so, answer, stop
+            self._fail(fault)
+            return SetParametersResult(successful=False, reason=str(fault))
         if outcome.values or not outcome.accepted:
-            self._report(outcome)
+            self._report(outcome, self.get_logger().warning)  # each refused set is warned
         if not outcome.accepted:
             return SetParametersResult(successful=False, reason=outcome.reason)
         return SetParametersResult(successful=True)
@@ -244,7 +330,8 @@ class SliderNode(Node):
     def _parameters_set(self, changes: list[Parameter]) -> None:
         """After a successful set: the settings the tick thread reads, and the
         record of the non-physics ones (physics changes were recorded as commands)."""
-        self._publish_clock = self.get_parameter("publish_clock").value
+        self.get_logger().info("parameters set: " + ", ".join(f"{p.name} = {p.value!r}" for p in changes))
+        self._set_publish_clock(self.get_parameter("publish_clock").value)
         self._frame_id = self.get_parameter("frame_id").value
         others = {p.name for p in changes} - set(spec.PLANT) - set(spec.INPUTS)
         if others:
@@ -271,9 +358,20 @@ def _recorded(values: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in values.items() if k not in ("log_path",)}
 
 
-def _health(report: dict[str, Any]) -> tuple[bytes, str]:
-    """OK, or WARN with the reason: the timer falls behind or commands were refused."""
-    problems = []
+def _load_blame(values: dict[str, Any]) -> str:
+    """The parameter a start-up refusal of f x real_time_factor blames: the
+    real-time factor if it was set (differs from its default), else the frequency."""
+    return "real_time_factor" if values["real_time_factor"] != spec.REAL_TIME_FACTOR.default \
+        else "excitation_frequency"
+
+
+def _health(report: dict[str, Any], fault: str = "", name_problem: str = "") -> tuple[bytes, str]:
+    """ERROR with the reason when the simulation stopped; else OK, or WARN with
+    the reasons: the timer falls behind, commands were refused, the node's
+    name is taken twice."""
+    if fault:
+        return DiagnosticStatus.ERROR, fault
+    problems = [name_problem] if name_problem else []
     if report["tick_rate"] < 0.8 * report["publish_rate"]:
         problems.append(f"tick rate {report['tick_rate']:.0f} Hz < 80% of {report['publish_rate']:g} Hz")
     if report["late_ticks"]:
@@ -285,9 +383,17 @@ def _health(report: dict[str, Any]) -> tuple[bytes, str]:
     return DiagnosticStatus.WARN, "; ".join(problems)
 
 
+def help_text() -> str:
+    """What ``slider --help`` prints after the usage line."""
+    subscriptions = [(entry.name, entry.message_type, entry.description) for entry in consumed_by(SLIDER)]
+    return node_help("The exact stick-slip slider in real time: advances the event-driven core to the "
+                     "present at publish_rate and publishes its state; takes commands on topics and "
+                     "parameters.", PARAMETERS, subscriptions, PUBLICATIONS)
+
+
 def main(args: Sequence[str] | None = None) -> int:
-    """``ros2 run friction_sim slider [--ros-args ...]``."""
-    return run_node(SliderNode, args, prog="slider")
+    """``ros2 run friction_sim slider [--help] [--ros-args ...]``."""
+    return run_node(SliderNode, args, prog="slider", help_text=help_text())
 
 
 if __name__ == "__main__":

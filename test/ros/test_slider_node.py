@@ -10,7 +10,6 @@ import statistics
 import subprocess
 import sys
 import time
-import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -28,29 +27,17 @@ from friction_sim.core.slider import Slider
 from friction_sim.core.urelation import predict
 from friction_sim.ros.slider import SliderNode
 
-from ros_harness import Probe, kill_if_running, median_interval_ns, stamp_ns
+from ros_harness import (
+    CommandLog,
+    Probe,
+    diagnostics_values,
+    kill_if_running,
+    median_interval_ns,
+    namespace,
+    stamp_ns,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
-
-
-class CommandLog:
-    """A sink that keeps the commands as the node handled them (the rest it ignores)."""
-
-    def __init__(self, outcomes: list[Outcome]) -> None:
-        self.outcomes = outcomes
-
-    def on_states(self, states: object, frame_id: str) -> None: ...
-    def on_event(self, event: object) -> None: ...
-    def on_period(self, period: object, frame_id: str) -> None: ...
-    def on_parameters(self, values: object, t: float, *, changed: bool) -> None: ...
-    def close(self) -> None: ...
-
-    def on_command(self, outcome: Outcome, frame_id: str) -> None:
-        self.outcomes.append(outcome)
-
-
-def namespace() -> str:
-    return f"/t{uuid.uuid4().hex[:8]}"
 
 
 @pytest.fixture
@@ -66,11 +53,6 @@ def rig(ros: None) -> Iterator[tuple[SliderNode, Probe, list[Outcome]]]:
     node.destroy_node()
 
 
-def diagnostics_values(msg) -> dict[str, str]:  # type: ignore[no-untyped-def]
-    (status,) = msg.status
-    return {kv.key: kv.value for kv in status.values}
-
-
 def test_topic_contract_names_types_and_namespace(rig) -> None:  # type: ignore[no-untyped-def]
     node, probe, _ = rig
     ns = node.get_namespace()
@@ -80,7 +62,7 @@ def test_topic_contract_names_types_and_namespace(rig) -> None:  # type: ignore[
     assert published[f"{ns}/friction_force"] == ["geometry_msgs/msg/WrenchStamped"]
     assert published[f"{ns}/mean_velocity"] == ["geometry_msgs/msg/TwistStamped"]
     assert published[f"{ns}/diagnostics"] == ["diagnostic_msgs/msg/DiagnosticArray"]
-    assert published["/clock"] == ["rosgraph_msgs/msg/Clock"]
+    assert "/clock" not in published, "no /clock publisher while publish_clock is false"
     subscribed = dict(node.get_subscriber_names_and_types_by_node("slider", ns))
     for name in ("drive_force", "excitation_amplitude", "excitation_frequency"):
         assert subscribed[f"{ns}/{name}"] == ["std_msgs/msg/Float64"]
@@ -243,14 +225,29 @@ def test_parameters_via_the_parameter_services(rig) -> None:  # type: ignore[no-
     assert 2.5 < ratio < 3.5
 
 
-def test_clock_is_published_when_asked(ros: None) -> None:
+def test_clock_is_published_when_asked_and_advertised_only_then(ros: None) -> None:
     ns = namespace()
     node = SliderNode(namespace=ns, parameter_overrides=[Parameter("publish_clock", value=True)])
     probe = Probe(ns, node, outputs={"/clock": ClockMsg, "pose": PoseStamped})
+
+    def clock_publishers() -> list[str]:
+        return [kind for topic, kinds in node.get_publisher_names_and_types_by_node("slider", ns)
+                for kind in kinds if topic == "/clock"]
+
     try:
         assert probe.spin_until(lambda: len(probe.received["/clock"]) > 50, 15.0)
         clocks = [m.clock.sec * 10**9 + m.clock.nanosec for m in probe.received["/clock"]]
         assert clocks == sorted(clocks)
+        assert clock_publishers() == ["rosgraph_msgs/msg/Clock"]
+        # publish_clock can change at run time: the publisher goes, and comes back.
+        assert probe.set_parameter(f"{ns}/slider", "publish_clock", False) == (True, "")
+        off_ns = round(node.realtime.slider.t * 1e9)  # the answer came: nothing later is published
+        assert probe.spin_until(lambda: not clock_publishers(), 10.0)
+        probe.spin_for(0.3)
+        count = len(probe.received["/clock"])
+        assert all(m.clock.sec * 10**9 + m.clock.nanosec <= off_ns for m in probe.received["/clock"])
+        assert probe.set_parameter(f"{ns}/slider", "publish_clock", True) == (True, "")
+        assert probe.spin_until(lambda: len(probe.received["/clock"]) > count + 50, 15.0)
     finally:
         probe.close()
         node.destroy_node()
