@@ -202,13 +202,13 @@ def test_an_atomic_set_valid_together_is_applied_whole(ros: None) -> None:
         # Within [1, 7] N and spread over more than 3 N: m g = 4 N and Pa = 3 N, both in force
         # (the mass alone would lift off; Pa alone gives [7, 13] N).
         low, high = normal_range()
-        assert 1.0 - 1e-9 <= low and high <= 7.0 + 1e-9 and high - low > 3.0, (low, high)
+        assert low >= 1.0 - 1e-9 and high <= 7.0 + 1e-9 and high - low > 3.0, (low, high)
         # Refused whole: Pa = 3.5 N would lift a 0.3 kg slider off; nothing changes.
         successful, reason = probe.set_parameters_atomically(slider, {"mass": 0.3, "excitation_amplitude": 3.5})
         assert not successful and "excitation_amplitude = 3.5" in reason and "3.0 N" in reason
         probe.spin_for(0.3)
         low, high = normal_range()
-        assert 1.0 - 1e-9 <= low and high <= 7.0 + 1e-9 and high - low > 3.0, (low, high)
+        assert low >= 1.0 - 1e-9 and high <= 7.0 + 1e-9 and high - low > 3.0, (low, high)
     finally:
         code, err = stop(process)
         probe.close()
