@@ -21,7 +21,7 @@ import numpy as np
 
 from friction_sim.core.commands import Command, apply_all
 from friction_sim.core.events import Event, Trajectory
-from friction_sim.core.params import Inputs, SliderParams, amplitude_ratio, drive_ratio, require_finite
+from friction_sim.core.params import Inputs, SliderParams, require_finite
 from friction_sim.core.slider import Slider
 from friction_sim.core.urelation import nondimensional_speed, predict
 from friction_sim.errors import ParameterError
@@ -59,34 +59,36 @@ def run_schedule(slider: Slider, schedule: Schedule, sample_times: np.ndarray) -
     """Apply ``schedule`` to ``slider`` at its command times and return the
     exact state at ``sample_times`` (ascending).  A command at the same time as
     a sample is applied first; commands at the same time take effect together
-    (validated in order, one new segment), as the slider node takes a batch."""
+    (validated in order, one new segment), as the slider node takes a batch.
+    The trajectory's events are every event the slider went through, in time
+    order: those between samples, and those between the last sample before a
+    command and the command (or after the last sample, up to the last command)."""
     sample_times = np.asarray(sample_times, dtype=float)
     pieces: list[Trajectory] = []
+    events: list[Event] = []
     first = 0
     for t, group in groupby(sorted(schedule, key=lambda c: c.t), key=lambda c: c.t):
         last = int(np.searchsorted(sample_times, t, side="left"))
         if last > first:
             pieces.append(slider.sample(sample_times[first:last]))
+            events.extend(pieces[-1].events)
             first = last
-        slider.advance_to(t)
+        events.extend(slider.advance_to(t))
         commands = list(group)
         params, inputs = apply_all(commands, slider.params, slider.inputs)
         slider.set_plant(params, inputs, {name for c in commands for name in c.values})
     if first < sample_times.size:
         pieces.append(slider.sample(sample_times[first:]))
-    return _concatenate(pieces)
+        events.extend(pieces[-1].events)
+    return _concatenate(pieces, events)
 
 
-def _concatenate(pieces: list[Trajectory]) -> Trajectory:
-    if len(pieces) == 1:
-        return pieces[0]
-
+def _concatenate(pieces: list[Trajectory], events: list[Event]) -> Trajectory:
     def joined(name: str) -> np.ndarray:
         return np.concatenate([getattr(p, name) for p in pieces])
 
     return Trajectory(joined("t"), joined("x"), joined("v"), joined("acceleration"), joined("friction_force"),
-                      joined("normal_force"), joined("phase"), joined("mode"),
-                      events=tuple(e for p in pieces for e in p.events))
+                      joined("normal_force"), joined("phase"), joined("mode"), events=tuple(events))
 
 
 @dataclass(frozen=True)
@@ -96,7 +98,9 @@ class SimulationResult:
     ``mean_velocity`` [m/s] is measured from the simulated motion over
     ``periods`` whole excitation periods after ``settle`` seconds;
     ``u_measured`` is it made nondimensional, ``u_exact`` the U relation's
-    value for the same (phi, a).
+    value for the same (phi, a).  Both use the effective groups, which are
+    the paper's without an external force: phi = (Fd + Fx)/(mu*(m*g + Fz)),
+    a = Pa/(m*g + Fz) and gravity (m*g + Fz)/m.
     """
 
     params: SliderParams
@@ -166,12 +170,13 @@ def simulate(
     mean_velocity = (slider.state().x - x_start) / (periods * period)
     slider.advance_to(max(duration, slider.t))
     wall = time.perf_counter() - started
-    phi, ratio = drive_ratio(params, inputs), amplitude_ratio(params, inputs)
+    prediction = predict(params, inputs)
     return SimulationResult(
         params=params, inputs=inputs, duration=duration, settle=settle, periods=periods,
         mean_velocity=mean_velocity,
-        u_measured=nondimensional_speed(mean_velocity, inputs.excitation_frequency, params.gravity, params.mu),
-        u_exact=predict(params, inputs).u, phi=phi, amplitude_ratio=ratio,
+        u_measured=nondimensional_speed(mean_velocity, inputs.excitation_frequency, prediction.effective_gravity,
+                                        params.mu),
+        u_exact=prediction.u, phi=prediction.effective_phi, amplitude_ratio=prediction.effective_amplitude_ratio,
         event_counts={kind.value: n for kind, n in slider.event_counts.items()},
         wall_time=wall, trajectory=trajectory,
         events=slider.events if sample_rate is not None else [],

@@ -45,6 +45,7 @@ bracketed (Illinois) secant iteration, again on whole arrays.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -312,23 +313,32 @@ class Prediction:
     ``phi`` and ``amplitude_ratio`` are the paper's groups, Fd/(mu*m*g) and
     Pa/(m*g).  With an external force the relation still holds with the
     effective groups (Fd + Fx)/(mu*(m*g + Fz)) and Pa/(m*g + Fz), and an
-    effective gravity (m*g + Fz)/m; ``u`` and ``mean_velocity`` use those.
+    effective gravity (m*g + Fz)/m; ``u`` and ``mean_velocity`` use those, and
+    so must a U measured to be compared with ``u`` (the ``effective_*``
+    fields; equal to the paper's groups without an external force).
     """
 
     phi: float
     amplitude_ratio: float
     u: float
     mean_velocity: float
+    effective_phi: float = math.nan
+    effective_amplitude_ratio: float = math.nan
+    effective_gravity: float = math.nan
 
 
 def predict(params: SliderParams, inputs: Inputs) -> Prediction:
     """The exact periodic mean speed for ``params`` and ``inputs`` (inf when
     the slider accelerates without bound)."""
     load = params.weight + inputs.external_force_z
-    u = u_map(inputs.tangential_force / (params.mu * load), inputs.excitation_amplitude / load)
+    # (m*g + Fz)/m as g + Fz/m: exactly g without an external force
+    phi, ratio, gravity = (inputs.tangential_force / (params.mu * load), inputs.excitation_amplitude / load,
+                           params.gravity + inputs.external_force_z / params.mass)
+    u = u_map(phi, ratio)
     return Prediction(
         phi=inputs.drive_force / (params.mu * params.weight),
         amplitude_ratio=inputs.excitation_amplitude / params.weight,
         u=u,
-        mean_velocity=dimensional_speed(u, inputs.excitation_frequency, load / params.mass, params.mu),
+        mean_velocity=dimensional_speed(u, inputs.excitation_frequency, gravity, params.mu),
+        effective_phi=phi, effective_amplitude_ratio=ratio, effective_gravity=gravity,
     )

@@ -338,4 +338,17 @@ def test_simulate_predicts_with_the_external_force() -> None:
     from friction_sim.core.simulation import simulate
 
     result = simulate(SliderParams(), Inputs(external_force_x=0.1, external_force_z=2.0), 1.0, settle=0.1)
-    assert result.u_exact == pytest.approx(result.u_measured * 10.0 / 12.0, rel=1e-9)
+    assert result.u_exact == pytest.approx(my_u(0.8 / 1.2, 5.0 / 12.0), rel=1e-12)
+    # measured and exact U are made with the same (effective) groups: they agree
+    assert result.u_measured == pytest.approx(result.u_exact, rel=1e-9)
+    assert result.phi == pytest.approx(0.8 / 1.2, rel=1e-15)
+    assert result.amplitude_ratio == pytest.approx(5.0 / 12.0, rel=1e-15)
+    # the case: a load taken off (Fz = -2 N), measured 0.0454 against exact 0.0568 before
+    lighter = simulate(SliderParams(), Inputs(external_force_z=-2.0), 1.0, settle=0.1)
+    assert lighter.u_exact == pytest.approx(my_u(0.7 / 0.8, 5.0 / 8.0), rel=1e-12)
+    assert lighter.u_measured == pytest.approx(lighter.u_exact, rel=1e-9)
+    # without an external force the effective groups are the paper's, to the bit
+    plain = simulate(SliderParams(mass=3.0, gravity=0.1), Inputs(drive_force=0.021, excitation_amplitude=0.15),
+                     1.0, settle=0.1)
+    assert (plain.phi, plain.amplitude_ratio) == (0.021 / (0.1 * (3.0 * 0.1)), 0.15 / (3.0 * 0.1))
+    assert plain.u_measured == pytest.approx(plain.u_exact, rel=1e-9)
