@@ -30,21 +30,69 @@ error.  :class:`SampleClock` decides from the sample's stamp (simulation time)
 and arrival time (wall clock) whether its window lies wholly after the change;
 on a loaded machine the margin grows by the delivery jitter it observes, since
 the Pa on its way to the plant is delayed as much as the samples coming back.
+
+Samples no plant in force could produce are refused (:class:`ParameterError`
+naming the value and the limit), and the state never holds a non-finite
+value, whatever the (finite, in range) inputs:
+
+* a sample must be finite and within the speed limit of the plants in force
+  (:func:`speed_limit`).  Coulomb friction only ever brakes the slider, so
+  from rest it gains at most |Fd|/m of speed per second of slip; a slip of
+  the periodic regime (|phi| < 1) starts from rest and ends within the
+  period, so the mean speed of a window is at most |Fd|/(2 m f) (the exact
+  relation never exceeds |Fd|/(2 pi m f)), backwards for a negative drive
+  as well as forwards.  The limit is :data:`SPEED_LIMIT_FACTOR` |Fd|/(m f),
+  four times that: room for a slip that outlasts a period after a change, a
+  plant lighter than the model, an external force the controller does not
+  see.  With |phi| >= 1 the slider slides away and any speed comes in time:
+  no limit.  After a change of drive force, frequency or mass, the limit of
+  the plant before holds as well until :data:`LIMIT_SLACK_SAMPLES` samples
+  past the window have come and one is within the new limit (windows that
+  began before the change are still on their way);
+* only samples within the present plant's own limit are integrated;
+* the state r is kept within :data:`RATIO_LIMITS` and moves by a factor in
+  [1/4, 4]; a target whose U* is zero in floating point (1e-321 m/s at
+  1 mHz) asks for standing still (Pa = 0), and nothing is integrated for it;
+* every input change is a transaction: if anything raises, the controller
+  is left exactly as it was.
 """
 
 from __future__ import annotations
 
 import itertools
 import math
+import numbers
 from collections import deque
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import lru_cache
 
 from friction_sim.core import spec
-from friction_sim.core.params import SliderParams, require_finite
+from friction_sim.core.params import SliderParams
 from friction_sim.core.realtime import NS_PER_S
 from friction_sim.core.urelation import amplitude_ratio_for, u_map
 from friction_sim.errors import ParameterError
+
+#: The state r = U_cmd/U* stays within these bounds: a model may be off by a
+#: factor of a million in scale, and r can neither overflow nor reach 0 (from
+#: which a multiplicative step would never bring it back).
+RATIO_LIMITS = (1e-6, 1e6)
+#: A mean-velocity sample is refused beyond this many times |Fd|/(m f).
+SPEED_LIMIT_FACTOR = 2.0
+#: Samples past the mean window after a change of the plant before the limit
+#: of the plant before the change is dropped (those still queued on their way).
+LIMIT_SLACK_SAMPLES = 12
+
+
+def speed_limit(drive_force: float, model: SliderParams, frequency: float) -> float:
+    """The largest |mean velocity| [m/s] a slider of the model's mass, driven
+    by ``drive_force`` at excitation ``frequency``, can show (see the module
+    doc); inf when |phi| >= 1 (it slides away, and reaches any speed in time)."""
+    force = abs(drive_force)
+    if force >= model.mu * model.weight:
+        return math.inf
+    return SPEED_LIMIT_FACTOR * force / (model.mass * frequency)
 
 
 @dataclass(frozen=True)
@@ -149,8 +197,24 @@ class MeanSpeedController:
         self._last_clean: tuple[float, float] | None = None  # (U_cmd, shortfall) for the secant
         self.clock = SampleClock()
         self.measured_speed = math.nan
+        self._limit = speed_limit(self._drive_force, config.model, self._frequency)
+        self._envelope = self._limit  # the largest limit of the plants whose windows may still come
+        self._settling = 0  # samples to come before the envelope may shrink to the limit
         self.output = self._decide()
         self.set_target(target_speed)
+
+    @contextmanager
+    def _transaction(self) -> Iterator[None]:
+        """Undo every change of the state if the body raises (a refusal or a
+        fault): the controller is as it was.  The sample clock's observations
+        are facts about the plant and stay."""
+        saved = dict(self.__dict__)
+        try:
+            yield
+        except BaseException:
+            self.__dict__.clear()
+            self.__dict__.update(saved)
+            raise
 
     # -- inputs ---------------------------------------------------------------
 
@@ -163,48 +227,106 @@ class MeanSpeedController:
                 "target_speed", speed,
                 f"must have the sign of drive_force = {self._drive_force!r} N (the slider only creeps that way)",
             )
-        self._target = speed
-        self._last_clean = None
-        return self._update()
+        with self._transaction():
+            self._target = speed
+            self._last_clean = None
+            return self._update()
 
     def set_drive_force(self, force: float) -> ControlOutput:
-        self._drive_force = float(spec.DRIVE_FORCE.check(force))
-        if self._target != 0.0 and math.copysign(1.0, self._target) != math.copysign(1.0, force):
-            self._target = 0.0  # the old target now points the wrong way
-        self._last_clean = None
-        return self._update()
+        force = float(spec.DRIVE_FORCE.check(force))
+        with self._transaction():
+            self._drive_force = force
+            if self._target != 0.0 and math.copysign(1.0, self._target) != math.copysign(1.0, force):
+                self._target = 0.0  # the old target now points the wrong way
+            self._last_clean = None
+            self._plant_changed()
+            return self._update()
 
     def set_frequency(self, frequency: float) -> ControlOutput:
-        self._frequency = float(spec.EXCITATION_FREQUENCY.check(frequency))
-        self._last_clean = None
-        return self._update()
+        frequency = float(spec.EXCITATION_FREQUENCY.check(frequency))
+        with self._transaction():
+            self._frequency = frequency
+            self._last_clean = None
+            self._plant_changed()
+            return self._update()
 
     def on_mean_velocity(self, speed: float, stamp: float, wall_ns: int) -> ControlOutput:
         """A measured mean speed [m/s] over the plant's last window, stamped with
-        the simulation time at its end and received at ``wall_ns``."""
-        speed = require_finite("mean_velocity", speed)
-        self.measured_speed = speed
+        the simulation time at its end and received at ``wall_ns``.  Refused
+        (:class:`ParameterError`, nothing changes) if it is not finite or no
+        plant in force could produce it."""
+        with self._transaction():
+            speed = self._plausible(speed)
+            self.measured_speed = speed
+            config = self.config
+            clean = self.clock.add(stamp, wall_ns, 1.0 / self._frequency, config.mean_window_periods,
+                                   config.settle_margin)
+            out = self.output
+            if (clean and self._target != 0.0 and out.u_target != 0.0 and not out.unreachable
+                    and not out.runaway and abs(speed) <= self._limit):
+                self._integrate(speed, out)
+            return self._update()
+
+    def _plausible(self, speed: float) -> float:
+        """``speed`` as a float, or a refusal: not finite, or beyond the limit
+        of the plants in force.  Shrinks the envelope once the samples show
+        the plant before the last change is gone."""
+        if isinstance(speed, bool) or not isinstance(speed, numbers.Real):
+            raise ParameterError("mean_velocity", speed, "must be a finite number [m/s]")
+        speed = float(speed)
+        if not math.isfinite(speed):
+            raise ParameterError("mean_velocity", speed, "must be finite [m/s]")
+        if abs(speed) > self._envelope:
+            raise ParameterError("mean_velocity", speed, self._limit_words())
+        if self._settling > 0:
+            self._settling -= 1
+        elif abs(speed) <= self._limit:
+            self._envelope = self._limit
+        return speed
+
+    def _limit_words(self) -> str:
+        model, force, frequency = self.config.model, self._drive_force, self._frequency
+        plant = f"m = {model.mass:g} kg, Fd = {force:g} N, f = {frequency:g} Hz"
+        creep = abs(force) / (2.0 * math.pi * model.mass * frequency)
+        now = (f"{SPEED_LIMIT_FACTOR:g} |Fd|/(m f) = {self._limit:.6g} m/s for {plant}; such a slider creeps at most "
+               f"|Fd|/(2 pi m f) = {creep:.3g} m/s")
+        if self._envelope > self._limit:
+            return (f"|mean_velocity| must be <= {self._envelope:.6g} m/s, the limit of the plant before the last "
+                    f"change (now {now}); a faster sample is from no plant in force")
+        return f"|mean_velocity| must be <= {now}; a faster sample is from no plant in force"
+
+    def _plant_changed(self) -> None:
+        """Drive force, frequency or the model's mass changed: a new speed
+        limit, and the old one still holds for the windows on their way."""
+        limit = speed_limit(self._drive_force, self._config.model, self._frequency)
+        if limit != self._limit:
+            self._envelope = max(self._envelope, limit)
+            self._settling = self._config.mean_window_periods + LIMIT_SLACK_SAMPLES
+            self._limit = limit
+
+    def _integrate(self, speed: float, out: ControlOutput) -> None:
+        """Move the state r on a clean sample (see the module doc)."""
         config = self.config
-        clean = self.clock.add(stamp, wall_ns, 1.0 / self._frequency, config.mean_window_periods,
-                               config.settle_margin)
-        out = self.output
-        if clean and self._target != 0.0 and not out.unreachable and not out.runaway:
-            # The shortfall in the target's direction, in units of U.
-            error = math.copysign(1.0, self._target) * (self._target - speed) * self._frequency / (
-                config.model.gravity * config.model.mu)
-            if not (out.saturated and error > 0.0):
-                command = abs(out.u_target) * self._ratio
-                step = config.integral_gain * error
-                if self._last_clean is not None:
-                    previous_command, previous_error = self._last_clean
-                    moved = command - previous_command
-                    slope = (previous_error - error) / moved if moved != 0.0 else 0.0
-                    if slope > 0.0:
-                        step = error / slope
-                self._last_clean = (command, error)
-                command = min(max(command + step, 0.25 * command), 4.0 * command)
-                self._ratio = command / abs(out.u_target)
-        return self._update()
+        # The shortfall in the target's direction, in units of U (finite: |speed| is within the limit).
+        error = math.copysign(1.0, self._target) * (self._target - speed) * self._frequency / (
+            config.model.gravity * config.model.mu)
+        if out.saturated and error > 0.0:
+            return  # anti-windup: never further in the direction of a saturated output
+        command = abs(out.u_target) * self._ratio
+        if not (0.0 < command < math.inf):
+            return  # U_cmd underflows: nothing to scale
+        step = config.integral_gain * error
+        if self._last_clean is not None:
+            previous_command, previous_error = self._last_clean
+            moved = command - previous_command
+            slope = (previous_error - error) / moved if moved != 0.0 else 0.0
+            if slope > 0.0:
+                step = error / slope
+        new_command = min(max(command + step, 0.25 * command), 4.0 * command)
+        ratio = _clamp(self._ratio * (new_command / command), *RATIO_LIMITS)
+        if math.isfinite(ratio):
+            self._last_clean = (command, error)
+            self._ratio = ratio
 
     # -- the law ----------------------------------------------------------------
 
@@ -215,8 +337,10 @@ class MeanSpeedController:
     @config.setter
     def config(self, config: ControllerConfig) -> None:
         """A new model or tuning takes effect at once."""
-        self._config = config
-        self.output = self._decide()
+        with self._transaction():
+            self._config = config
+            self._plant_changed()
+            self.output = self._decide()
 
     def _update(self) -> ControlOutput:
         self.output = self._decide()
@@ -229,15 +353,23 @@ class MeanSpeedController:
         runaway = abs(phi) >= 1.0
         if self._target == 0.0 or runaway:
             return self._output(0.0, u_target, phi, 0.0 if self._target == 0.0 else math.nan, False, False, runaway)
+        if u_target == 0.0:
+            # So slow that U* is zero in floating point (1e-321 m/s at 1 mHz): standing still is closest.
+            return self._output(0.0, u_target, phi, 0.0, False, False, False)
         u_top = _u_top(phi, top)
         if abs(u_target) > abs(u_top):
             return self._output(top, u_target, phi, math.nan, True, True, False)
         feedforward = _inverse(u_target, phi, top)
         u_command = u_target * self._ratio
         if abs(u_command) >= abs(u_top):
-            self._ratio = abs(u_top / u_target)  # anti-windup: no ratio beyond the top
+            # Anti-windup: no ratio beyond the top (u_top / u_target <= r here, so no overflow).
+            self._ratio = _clamp(abs(u_top) / abs(u_target), *RATIO_LIMITS)
             return self._output(top, u_target, phi, feedforward, True, False, False)
-        return self._output(_inverse(u_command, phi, top), u_target, phi, feedforward, False, False, False)
+        ratio = _inverse(u_command, phi, top)
+        if not 0.0 <= ratio <= top:  # not expected: the relation is exact and u_command <= u_top
+            raise ArithmeticError(f"the inverse U relation gave a = {ratio!r} for U = {u_command!r}, "
+                                  f"phi = {phi!r} (expected 0 <= a <= {top!r})")
+        return self._output(ratio, u_target, phi, feedforward, False, False, False)
 
     def _output(self, ratio: float, u_target: float, phi: float, feedforward: float,
                 saturated: bool, unreachable: bool, runaway: bool) -> ControlOutput:
@@ -247,6 +379,11 @@ class MeanSpeedController:
             integral=u_target * (self._ratio - 1.0),
             saturated=saturated, unreachable=unreachable, runaway=runaway,
         )
+
+    @property
+    def sample_limit(self) -> float:
+        """The largest |mean velocity| accepted now [m/s] (inf: any finite one)."""
+        return self._envelope
 
     @property
     def drive_force(self) -> float:
@@ -259,6 +396,10 @@ class MeanSpeedController:
     @property
     def target_speed(self) -> float:
         return self._target
+
+
+def _clamp(value: float, low: float, high: float) -> float:
+    return min(max(value, low), high)
 
 
 # The controller decides once per sample, mostly on unchanged inputs: remember
