@@ -116,3 +116,42 @@ def test_colcon_build_install_layout(tmp_path):
                        if n in ('build', 'install', 'log') or n.endswith('.egg-info'))
     assert not leftovers, f'colcon build left {leftovers} in the repo'
     shutil.rmtree(tmp_path, ignore_errors=True)
+
+
+# Each runtime requirement (requirements.txt) and the rosdep keys that bring it on a
+# ROS 2 Jazzy install: ROS packages by their own names, Python packages by the keys
+# of rosdep's python.yaml (ros/rosdistro, checked at 8468e88: python3-numpy,
+# python3-yaml, python3-matplotlib; pip keys mcap-ros2-support, which installs mcap,
+# and python3-rosbags-pip).  A new requirement fails this test until it is mapped.
+ROSDEP_KEYS = {
+    'ros-jazzy-rclpy': {'rclpy', 'rcl_interfaces', 'builtin_interfaces', 'rosgraph_msgs',
+                        'ament_index_python'},
+    'ros-jazzy-common-interfaces': {'std_msgs', 'geometry_msgs', 'diagnostic_msgs'},
+    'numpy': {'python3-numpy'},
+    'pyyaml': {'python3-yaml'},
+    'mcap': {'mcap-ros2-support'},
+    'rosbags': {'python3-rosbags-pip'},
+    'matplotlib': {'python3-matplotlib'},
+}
+
+
+def _requirements() -> set:
+    names = set()
+    for line in (REPO / 'requirements.txt').read_text().splitlines():
+        line = line.split('#', 1)[0].strip()
+        if line:
+            names.add(re.split(r'[\[<>=!~; ]', line, maxsplit=1)[0].lower())
+    return names
+
+
+def test_package_xml_declares_every_runtime_requirement_by_a_rosdep_key():
+    from catkin_pkg.package import parse_package
+
+    exec_deps = {d.name for d in parse_package(str(REPO / 'package.xml')).exec_depends}
+    requirements = _requirements()
+    assert requirements == set(ROSDEP_KEYS), 'map each requirements.txt entry to its rosdep keys here'
+    for requirement in sorted(requirements):
+        missing = ROSDEP_KEYS[requirement] - exec_deps
+        assert not missing, f'{requirement} (requirements.txt) needs <exec_depend> {sorted(missing)}'
+    declared = set().union(*ROSDEP_KEYS.values())
+    assert exec_deps <= declared, f'package.xml declares what requirements.txt lacks: {exec_deps - declared}'

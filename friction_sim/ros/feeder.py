@@ -13,7 +13,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from friction_sim.io.paramfile import read_params_file
-from friction_sim.ros.common import run_node
+from friction_sim.ros.common import EXIT_CODES, run_node
 from friction_sim.ros.controller import ControllerNode
 from friction_sim.ros.slider import SliderNode
 
@@ -39,4 +39,6 @@ def main(args: Sequence[str] | None = None, slider_params: Path | None = None,
             slider.destroy_node()  # its tick thread and recorder must not outlive the failure
             raise
 
-    return run_node(make, args, prog="feeder")
+    return run_node(make, args, prog="feeder", help_text=(
+        "Slider and controller in one process, on one executor, talking over the same topics as the two "
+        "nodes started separately (see slider --help and controller --help).\n\n" + EXIT_CODES))
