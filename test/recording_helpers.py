@@ -60,3 +60,36 @@ def varied_schedule() -> list[Command]:
     schedule.append(Command(0.5, "excitation_amplitude", {"excitation_amplitude": 50.0}))  # refused: lift-off
     schedule.append(Command(0.8, "parameters", {"mass": 1.2, "mu": 0.12}))  # a plant change, as ros2 param set
     return schedule
+
+
+def copy_recording(source: Path, target: Path, *, chunk_size: int = 4 * 1024 * 1024,
+                   topic: Callable[[str], str] = lambda name: name,
+                   keep: Callable[[str, int], bool] = lambda name, log_time: True,
+                   metadata: dict[str, dict[str, str]] | None = None) -> Path:
+    """Copy a recording record by record with mcap alone (no friction_sim
+    reader): chunks of ``chunk_size`` bytes, topics renamed by ``topic``,
+    only the messages ``keep(topic, log time)`` accepts, metadata records
+    replaced or added by ``metadata``.  Serialized messages are copied as
+    they are."""
+    from mcap.reader import make_reader
+    from mcap.writer import CompressionType, Writer
+
+    with source.open("rb") as stream, target.open("wb") as out:
+        reader = make_reader(stream)
+        summary = reader.get_summary()
+        assert summary is not None
+        header = reader.get_header()
+        writer = Writer(out, chunk_size=chunk_size, compression=CompressionType.ZSTD)
+        writer.start(profile=header.profile, library=header.library)
+        records = {record.name: dict(record.metadata) for record in reader.iter_metadata()}
+        for name, data in {**records, **(metadata or {})}.items():
+            writer.add_metadata(name, data)
+        schemas = {sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in summary.schemas.items()}
+        channels = {cid: writer.register_channel(topic(c.topic), c.message_encoding, schemas[c.schema_id],
+                                                 dict(c.metadata)) for cid, c in summary.channels.items()}
+        for _, channel, message in reader.iter_messages(log_time_order=False):
+            if keep(channel.topic, message.log_time):
+                writer.add_message(channels[channel.id], message.log_time, message.data, message.publish_time,
+                                   message.sequence)
+        writer.finish()
+    return target

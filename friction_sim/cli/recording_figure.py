@@ -1,15 +1,28 @@
 """The figure of a recording (``friction-sim replay --plot``): position,
-velocity, friction force and normal force R against time, commands marked."""
+velocity, friction force and normal force R against time, commands marked.
+
+The file is streamed in two passes (the commands; the states, thinned to
+the extremes of each run of samples, :func:`friction_sim.io.series.thinned_series`),
+so a figure of a day-long recording takes as little memory as one of a minute."""
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
 from friction_sim.core.commands import PARAMETERS
-from friction_sim.io.messages import NS_PER_S, ns_to_seconds, parameter_event_values
+from friction_sim.io.messages import (
+    COMMAND_TOPICS,
+    NS_PER_S,
+    command_from_message,
+    ns_to_seconds,
+    parameter_event_values,
+)
 from friction_sim.io.reader import Recording
-from friction_sim.io.series import state_series
-from friction_sim.io.verify import recorded_commands
+from friction_sim.io.series import FORCE, POSITION, VELOCITY, thinned_series
+
+#: About how many points each trace of the figure keeps.
+POINTS = 4000
+REJECTED = "rejected_commands"
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -26,42 +39,48 @@ def _label(name: str, values: dict[str, float]) -> str:
 
 
 def command_marks(recording: Recording) -> list[tuple[float, str, bool]]:
-    """(t [s], label, accepted) of every command in the recording (refused ones too)."""
-    marks = [(command.t, _label(command.name, dict(command.values)), True)
-             for command in recorded_commands(recording) if command.name != PARAMETERS]
+    """(t [s], label, accepted) of every command in the recording (refused
+    ones too; every parameter change, not only the physics), in one pass."""
+    names = {recording.topic_name(topic): topic for topic in (*COMMAND_TOPICS, REJECTED)}
+    marks: list[tuple[float, str, bool]] = []
     initial_seen = False
-    for t_ns, msg in recording.decoded(PARAMETERS):  # every parameter change, not only the physics
-        new, changed = parameter_event_values(msg)
-        if new and not initial_seen:
-            initial_seen = True
-            continue
-        values = {**new, **changed}
-        if values:
-            marks.append((ns_to_seconds(t_ns), _label(PARAMETERS, values), True))
-    for t_ns, msg in recording.decoded("rejected_commands"):
-        marks.append((ns_to_seconds(t_ns), f"refused {msg.name}", False))
+    for raw in recording.iter_messages([*COMMAND_TOPICS, REJECTED]):
+        topic, msg, t = names[raw.topic], recording.decode(raw), ns_to_seconds(raw.log_time)
+        if topic == REJECTED:
+            marks.append((t, f"refused {msg.name}", False))
+        elif topic == PARAMETERS:
+            new, changed = parameter_event_values(msg)
+            if new and not initial_seen:
+                initial_seen = True
+                continue
+            values = {**new, **changed}
+            if values:
+                marks.append((t, _label(PARAMETERS, values), True))
+        else:
+            command = command_from_message(topic, msg, t)
+            if command.values:
+                marks.append((t, _label(topic, dict(command.values)), True))
     return sorted(marks)
 
 
-def plot(recording: Recording) -> Figure:
+def plot(recording: Recording, points: int = POINTS) -> Figure:
     """Position, velocity, friction force and normal force R against time,
-    with every command marked (refused ones dotted red).  matplotlib is
-    imported here; the Figure is not registered with pyplot."""
+    with every command marked (refused ones dotted red); each trace thinned
+    to about ``points`` points.  matplotlib is imported here; the Figure is
+    not registered with pyplot."""
     from matplotlib.figure import Figure
 
-    pose_ns, pose = state_series(recording, "pose", lambda m: (m.pose.position.x,), 1)
-    vel_ns, vel = state_series(recording, "velocity", lambda m: (m.twist.linear.x,), 1)
-    force_ns, force = state_series(recording, "friction_force",
-                                   lambda m: (m.wrench.force.x, m.wrench.force.y, m.wrench.force.z), 3)
+    series = thinned_series(recording, {"pose": POSITION, "velocity": VELOCITY, "friction_force": FORCE,
+                                        "mean_velocity": VELOCITY}, points)
+    (pose_ns, pose), (vel_ns, vel) = series["pose"], series["velocity"]
+    (force_ns, force), (mean_ns, mean) = series["friction_force"], series["mean_velocity"]
     figure = Figure(figsize=(10, 9), layout="constrained")
     axes = figure.subplots(4, 1, sharex=True)
     axes[0].plot(pose_ns / NS_PER_S, pose[:, 0] * 1e3, lw=0.8)
     axes[0].set_ylabel("position x [mm]")
     axes[1].plot(vel_ns / NS_PER_S, vel[:, 0] * 1e3, lw=0.8, label="v")
-    mean = recording.decoded("mean_velocity")
-    if mean:
-        axes[1].step([ns_to_seconds(t) for t, _ in mean], [m.twist.linear.x * 1e3 for _, m in mean],
-                     where="pre", lw=1.2, label="mean over window")
+    if mean_ns.size:
+        axes[1].step(mean_ns / NS_PER_S, mean[:, 0] * 1e3, where="pre", lw=1.2, label="mean over window")
         axes[1].legend(loc="upper right", fontsize="small")
     axes[1].set_ylabel("velocity v [mm/s]")
     axes[2].plot(force_ns / NS_PER_S, force[:, 0], lw=0.8, color="tab:red")

@@ -19,6 +19,13 @@ This module is pure (no ROS, no matplotlib): the picture is
 :mod:`friction_sim.io`; what the experiment was (its schedule, duration and
 initial target) comes from the scenario metadata record the runner wrote
 (:mod:`friction_sim.experiment.spec`).
+
+A recording is streamed (:func:`run_data_from_recording`): one pass reads
+the commands, a second the mean speeds and the events chunk by chunk,
+keeping only what the rows depend on (:class:`_Keeper`) and a thinned curve
+for the picture, so memory stays bounded whatever the length.  A recording
+whose recorder dropped messages is refused with the count: its rows would
+be wrong.
 """
 
 from __future__ import annotations
@@ -37,6 +44,8 @@ from friction_sim.experiment.metrics import settling_periods
 from friction_sim.experiment.spec import SCENARIO_METADATA, ScenarioRecord, read_scenario_metadata
 
 TOLERANCE = 0.01
+#: About how many mean-speed samples a report read from a recording keeps for its picture.
+PICTURE_POINTS = 2000
 
 
 @dataclass
@@ -60,6 +69,10 @@ class RunData:
     #: (t, v) samples, used for the stick fraction when the events were not
     #: recorded (a recording made with ``experiment --attach``).
     velocity: list[tuple[float, float]] = field(default_factory=list)
+    #: The settling band of the report.  Read from a recording, ``mean_velocity``,
+    #: ``events`` and ``velocity`` hold only the samples the rows at this
+    #: tolerance depend on, plus a thinned mean-speed curve for the picture.
+    tolerance: float = TOLERANCE
 
 
 @dataclass(frozen=True)
@@ -132,31 +145,46 @@ def command_label(command: Command) -> str:
     return f"{command.name} = ({', '.join(f'{v:g}' for v in values)}) N"
 
 
-def build_report(data: RunData, tolerance: float = TOLERANCE) -> list[SegmentRow]:
-    """One row per segment between scheduled commands."""
+def segments(data: RunData) -> list[tuple[float, float]]:
+    """(start, end) of each segment: between scheduled commands, to the end of the run."""
     bounds = sorted({0.0, *(c.t for c in data.schedule)})
+    return [(start, end) for start, end in zip(bounds, bounds[1:] + [data.duration]) if end - start > 0.0]
+
+
+def segment_target(data: RunData, start: float) -> tuple[str, float]:
+    """(mode, target speed) of the segment starting at ``start``: the target
+    in force (closed loop), else the speed the U relation predicts for the
+    scheduled inputs (open loop)."""
+    target = target_at(data, start + 1e-9)
+    if target is not None:
+        return "closed loop", target
+    return "open loop", predict(data.params, inputs_at(data, start + 1e-9, include_controller=False)).mean_velocity
+
+
+def stick_window(data: RunData, end: float) -> tuple[float, float]:
+    """The window of the stick fraction of a segment ending at ``end``: its last whole period."""
+    return end - 1.0 / inputs_at(data, end - 1e-9).excitation_frequency, end
+
+
+def build_report(data: RunData, tolerance: float | None = None) -> list[SegmentRow]:
+    """One row per segment between scheduled commands (settling band
+    ``tolerance``, by default the data's)."""
     labels = {c.t: command_label(c) for c in data.schedule}  # the last command at a time names it
-    rows = []
-    for start, end in zip(bounds, bounds[1:] + [data.duration]):
-        if end - start > 0.0:
-            rows.append(_segment(data, start, end, labels.get(start, "start"), tolerance))
-    return rows
+    band = data.tolerance if tolerance is None else tolerance
+    return [_segment(data, start, end, labels.get(start, "start"), band) for start, end in segments(data)]
 
 
 def _segment(data: RunData, start: float, end: float, label: str, tolerance: float) -> SegmentRow:
     """The row of the segment [start, end]."""
     inputs = inputs_at(data, end - 1e-9)
-    target = target_at(data, start + 1e-9)
-    mode = "closed loop" if target is not None else "open loop"
-    if target is None:
-        target = predict(data.params, inputs_at(data, start + 1e-9, include_controller=False)).mean_velocity
+    mode, target = segment_target(data, start)
     samples = [(t, v) for t, v in data.mean_velocity if start < t <= end + 1e-9]
     achieved = samples[-1][1] if samples else math.nan
     return SegmentRow(
         start=start, end=end, mode=mode, command=label, target=target, achieved=achieved,
         error=achieved / target - 1.0 if target else achieved,
         settling_periods=settling_periods(samples, start, target, inputs.excitation_frequency, tolerance),
-        stick_fraction=_stick_fraction(data, end - 1.0 / inputs.excitation_frequency, end),
+        stick_fraction=_stick_fraction(data, *stick_window(data, end)),
     )
 
 
@@ -198,25 +226,27 @@ def report_markdown(data: RunData, rows: Sequence[SegmentRow], picture: str) -> 
 # -- from a recording --------------------------------------------------------------
 
 
-def run_data_from_recording(path: Path) -> RunData:
+def run_data_from_recording(path: Path, tolerance: float = TOLERANCE) -> RunData:
     """Everything a report needs, read back from an experiment's recording.
 
     What the experiment was (schedule, duration, initial target and the
     simulation time it started at) is in the ``friction_sim_scenario``
     metadata record; all times are made relative to that start.  A plain
     slider recording (no scenario) is reported as one segment per accepted
-    command.
+    command.  The file is streamed; RecordingError (one line) if the
+    recorder dropped messages.
     """
-    from friction_sim.io.messages import stamp_ns
     from friction_sim.io.reader import read_recording
     from friction_sim.io.verify import initial_parameters, recorded_commands
 
     recording = read_recording(path)
+    recording.refuse_dropped("summarised")
     meta = recording.metadata.get(SCENARIO_METADATA, {})
     start_ns = int(meta.get("start_ns", recording.start_ns))
     start = start_ns / 1e9
     params, inputs = _initial_state(initial_parameters(recording))
-    recorded = [c.at(c.t - start) for c in recorded_commands(recording) if c.inputs]
+    every = [c.at(c.t - start) for c in recorded_commands(recording)]
+    recorded = [c for c in every if c.inputs]
     params, inputs = in_force([c for c in recorded if c.t < 0.0], params, inputs, 0.0)
     commands = [c for c in recorded if c.t >= 0.0]
     scenario = _scenario_record(meta)
@@ -226,16 +256,120 @@ def run_data_from_recording(path: Path) -> RunData:
     else:
         schedule = [c for c in commands if c.name in COMMANDS]
         duration, name = recording.end_ns / 1e9 - start, recording.path.stem
-        targets = [(t / 1e9 - start, msg.data) for t, msg in recording.decoded("target_speed")]
-    mean_velocity = [(stamp_ns(m.header.stamp) / 1e9 - start, m.twist.linear.x)
-                     for _, m in recording.decoded("mean_velocity") if stamp_ns(m.header.stamp) >= start_ns]
-    velocity = [] if recording.messages_on("events") else [
-        (t / 1e9 - start, m.twist.linear.x) for t, m in recording.decoded("velocity")]
-    return RunData(
-        params=params, inputs=inputs, duration=duration, schedule=schedule, commands=commands,
-        targets=sorted(targets), mean_velocity=mean_velocity,
-        events=[(t / 1e9 - start, m.name) for t, m in recording.decoded("events")], name=name, velocity=velocity,
-    )
+        targets = [(c.t, c.values["target_speed"]) for c in every if "target_speed" in c.values]
+    data = RunData(params=params, inputs=inputs, duration=duration, schedule=schedule, commands=commands,
+                   targets=sorted(targets), name=name, tolerance=tolerance)
+    _Keeper(data, recording.count("mean_velocity")).read(recording, start_ns)
+    return data
+
+
+_Sample = tuple[int, float, Any]  # (order read, t, value): a kept sample or event
+
+
+class _Keeper:
+    """Streams a recording's mean speeds and events into ``data``, keeping
+    only what :func:`build_report` reads, which gives the same rows as every
+    sample would:
+
+    * settling and achieved speed of a segment depend only on its last
+      sample outside the band, the first one inside after it and its last
+      sample;
+    * the stick fraction of a window depends only on the events inside it
+      and the last stick or slip before it (or, without events, the velocity
+      samples inside it);
+
+    plus the smallest and largest mean speed of every run of samples, so
+    that the picture shows the whole curve in about PICTURE_POINTS points.
+    """
+
+    def __init__(self, data: RunData, samples: int) -> None:
+        self.data = data
+        self.spans = [(start, end) + segment_target(data, start) for start, end in segments(data)]
+        # per segment: the last sample outside the band, the first inside after it, the last
+        self.outside: list[_Sample | None] = [None] * len(self.spans)
+        self.inside: list[_Sample | None] = [None] * len(self.spans)
+        self.last: list[_Sample | None] = [None] * len(self.spans)
+        self.windows = [stick_window(data, end) for _, end in segments(data)]
+        self.before: list[_Sample | None] = [None] * len(self.windows)  # (order, t, kind)
+        self.events: list[_Sample] = []
+        self.velocity: list[tuple[float, float]] = []
+        self.step = max(1, -(-samples // max(1, PICTURE_POINTS // 2)))
+        self.run: list[_Sample] = []
+        self.curve: list[_Sample] = []
+        self.count = 0
+
+    def read(self, recording: Any, start_ns: int) -> None:
+        """One pass over mean_velocity and events (velocity if no events were recorded)."""
+        from friction_sim.io.series import VELOCITY, stamps_ns, state_values, status_names
+
+        topics = ["mean_velocity", "events"] if recording.count("events") else ["mean_velocity", "velocity"]
+        relative = {recording.topic_name(topic): topic for topic in topics}
+        start = start_ns / 1e9
+        for block in recording.iter_chunks(topics):
+            groups: dict[str, list[Any]] = {topic: [] for topic in topics}
+            for raw in block:
+                groups[relative[raw.topic]].append(raw)
+            if groups["mean_velocity"]:
+                stamps = stamps_ns(groups["mean_velocity"])
+                _, values = state_values(recording, groups["mean_velocity"], VELOCITY)
+                for stamp, v in zip(stamps.tolist(), values[:, 0].tolist()):
+                    if stamp >= start_ns:
+                        self.mean_speed(stamp / 1e9 - start, v)
+            if groups.get("events"):
+                for raw, kind in zip(groups["events"], status_names(recording, groups["events"])):
+                    self.event(raw.log_time / 1e9 - start, kind)
+            if groups.get("velocity"):
+                times, values = state_values(recording, groups["velocity"], VELOCITY)
+                for t_ns, v in zip(times.tolist(), values[:, 0].tolist()):
+                    self.velocity_sample(t_ns / 1e9 - start, v)
+        self.finish()
+
+    def mean_speed(self, t: float, v: float) -> None:
+        """One mean-speed sample (time order)."""
+        sample = (self.count, t, v)
+        self.count += 1
+        for k, (start, end, _, target) in enumerate(self.spans):
+            if start < t <= end + 1e-9:
+                inside = abs(v - target) <= self.data.tolerance * abs(target) if target else v == 0.0
+                if not inside:
+                    self.outside[k], self.inside[k] = sample, None
+                elif self.inside[k] is None:
+                    self.inside[k] = sample
+                self.last[k] = sample
+        self.run.append(sample)
+        if len(self.run) >= self.step:
+            self._thin()
+
+    def _thin(self) -> None:
+        """Keep the smallest and the largest sample of the run."""
+        if self.run:
+            self.curve += {min(self.run, key=lambda s: s[2]), max(self.run, key=lambda s: s[2])}
+            self.run = []
+
+    def event(self, t: float, kind: str) -> None:
+        """One stick/slip event (time order)."""
+        event = (self.count, t, kind)
+        self.count += 1
+        for k, (low, high) in enumerate(self.windows):
+            if t < low:
+                if kind in ("slip_start", "stick"):
+                    self.before[k] = event
+            elif t <= high and (not self.events or self.events[-1] is not event):
+                self.events.append(event)
+
+    def velocity_sample(self, t: float, v: float) -> None:
+        """One velocity sample (only read when no events were recorded)."""
+        if any(low <= t <= high for low, high in self.windows):
+            self.velocity.append((t, v))
+
+    def finish(self) -> None:
+        """Put what was kept into the data, in time order (file order at one time)."""
+        self._thin()
+        kept = {s for s in (*self.outside, *self.inside, *self.last, *self.curve) if s is not None}
+        self.data.mean_velocity = [(t, v) for _, t, v in sorted(kept, key=lambda s: (s[1], s[0]))]
+        events = set(self.events) | {e for e in self.before if e is not None}
+        self.data.events = [(t, kind) for _, t, kind in sorted(events, key=lambda e: (e[1], e[0]))]
+        self.data.velocity = self.velocity
 
 
 def _initial_state(initial: dict[str, Any]) -> tuple[SliderParams, Inputs]:
@@ -264,6 +398,7 @@ def _scheduled_targets(scenario: ScenarioRecord) -> list[tuple[float, float]]:
 
 
 __all__ = [
-    "TOLERANCE", "RunData", "SegmentRow", "build_report", "command_label", "inputs_at", "report_markdown",
-    "run_data_from_recording", "stick_fraction", "table_markdown", "table_text", "target_at",
+    "PICTURE_POINTS", "TOLERANCE", "RunData", "SegmentRow", "build_report", "command_label", "inputs_at",
+    "report_markdown", "run_data_from_recording", "segment_target", "segments", "stick_fraction", "stick_window",
+    "table_markdown", "table_text", "target_at",
 ]

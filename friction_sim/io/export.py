@@ -1,5 +1,6 @@
 """Writing results to CSV files: the offline jobs' U maps and trajectories, and
-a recording's topics (``friction-sim replay --csv``)."""
+a recording's topics (``friction-sim replay --csv``, streamed: one pass over
+the file, a row written per message, whatever the length)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import csv
 import json
 import math
 from collections.abc import Sequence
+from contextlib import ExitStack
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -104,42 +106,59 @@ def _json_item(value: Any) -> Any:
 
 
 def select_topics(recording: Recording, topics: Sequence[str] | None) -> list[str]:
-    """``topics`` (leading / ignored) or, if none are given, every recorded
-    topic; RecordingError naming a topic the recording does not have."""
+    """The stored names of ``topics`` (as stored, absolute or relative to the
+    recorded node) or, if none are given, of every recorded topic;
+    RecordingError naming a topic the recording does not have."""
     available = list(recording.topics)
     if not topics:
         return available
-    wanted = [t.lstrip("/") for t in topics]
-    unknown = [t for t in wanted if t not in recording.topics]
+    found = {topic: recording.topic_name(topic) for topic in topics}
+    unknown = [topic for topic, stored in found.items() if stored is None]
     if unknown:
         raise RecordingError(f"no topic {', '.join(unknown)} in {recording.path}; topics: {', '.join(available)}")
-    return wanted
+    return list(dict.fromkeys(stored for stored in found.values() if stored is not None))
 
 
 def export_csv(recording: Recording, directory: str | Path, topics: Sequence[str] | None = None) -> list[Path]:
-    """One CSV per topic in ``directory`` (``<topic>.csv``): columns
-    log_time_ns, t (s), then the flattened message fields."""
+    """One CSV per topic in ``directory`` (named after the topic relative to
+    the recorded node: ``pose.csv``): columns log_time_ns, t (s), then the
+    flattened message fields (every message of a topic has its type's)."""
     directory = Path(directory)
     try:
         directory.mkdir(parents=True, exist_ok=True)
     except OSError as error:
         raise RecordingError(f"cannot create {directory}: {error.strerror or error}") from None
-    return [_write_topic(recording, topic, directory / (topic.strip("/").replace("/", "__") + ".csv"))
-            for topic in select_topics(recording, topics)]
-
-
-def _write_topic(recording: Recording, topic: str, path: Path) -> Path:
-    """The CSV of one topic: a column per field that any of its messages has."""
-    rows = [(raw.log_time, flatten(recording.decode(raw))) for raw in recording.messages_on(topic)]
-    columns: list[str] = []
-    for _, row in rows:
-        columns.extend(key for key in row if key not in columns)
+    stored = select_topics(recording, topics)
+    paths = {topic: directory / (recording.relative_name(topic).strip("/").replace("/", "__") + ".csv")
+             for topic in stored}
     try:
-        with path.open("w", newline="") as stream:
-            writer = csv.writer(stream)
-            writer.writerow(["log_time_ns", "t", *columns])
-            for log_time, row in rows:
-                writer.writerow([log_time, repr(log_time / NS_PER_S), *(row.get(c, "") for c in columns)])
+        with ExitStack() as files:
+            writers = {topic: _TopicCsv(files.enter_context(path.open("w", newline=""))) for topic, path in
+                       paths.items()}
+            for raw in recording.iter_messages(stored):
+                writers[raw.topic].write(raw.log_time, flatten(recording.decode(raw)))
+            for writer in writers.values():
+                writer.finish()
     except OSError as error:
-        raise RecordingError(f"cannot write {path}: {error.strerror or error}") from None
-    return path
+        raise RecordingError(f"cannot write CSV files in {directory}: {error.strerror or error}") from None
+    return list(paths.values())
+
+
+class _TopicCsv:
+    """The CSV of one topic: the header from its first message (or no fields)."""
+
+    def __init__(self, stream: Any) -> None:
+        self.writer = csv.writer(stream)
+        self.columns: list[str] | None = None
+
+    def write(self, log_time: int, row: dict[str, Any]) -> None:
+        """One message's row."""
+        if self.columns is None:
+            self.columns = list(row)
+            self.writer.writerow(["log_time_ns", "t", *self.columns])
+        self.writer.writerow([log_time, repr(log_time / NS_PER_S), *(row.get(c, "") for c in self.columns)])
+
+    def finish(self) -> None:
+        """The header of a topic without messages."""
+        if self.columns is None:
+            self.writer.writerow(["log_time_ns", "t"])

@@ -1,34 +1,65 @@
-"""Reading a recording: :func:`read_recording` -> :class:`Recording`.
+"""Reading a recording: :func:`read_recording` -> :class:`Recording`, streamed.
 
-The file is read with ``mcap``'s :class:`~mcap.stream_reader.StreamReader`,
-record by record from the start: no summary is needed, so a file whose
-writer was killed (no footer) is read up to its last complete record, and
-:meth:`Recording.recovery_note` says how much was recovered.  Messages stay
+:func:`read_recording` reads only what describes the file.  A finished
+file (footer, summary, statistics) is described by its summary and metadata
+records, found through the summary offsets and the metadata index: a few
+KiB read, whatever the length.  A file whose writer was killed or failed
+(a full disk: no footer) is read once from the start, record by record with
+``mcap``'s :class:`~mcap.stream_reader.StreamReader`, keeping counts, never
+messages, up to the end of its last complete record;
+:meth:`Recording.recovery_note` says how much was recovered.
+
+Messages are read when asked for, chunk by chunk (:meth:`Recording.iter_chunks`,
+:meth:`Recording.iter_messages`, see :mod:`friction_sim.io.chunks`): memory
+holds one chunk at a time whatever the length of the file.  They stay
 serialized (:class:`RawMessage`); :meth:`Recording.decode` decodes one with
-rosbags (:mod:`friction_sim.io.cdr`), without ROS.
+rosbags (:mod:`friction_sim.io.cdr`), without ROS.  ``messages``,
+``messages_on`` and ``decoded`` collect lists, for short files and tests.
 
-Errors (missing file, not MCAP, not a friction_sim recording) raise
-:class:`~friction_sim.errors.RecordingError` with one line.
+Topic names: recordings store fully qualified names the way rosbag2 does
+(``/pose``, ``/feeder1/pose``); older friction_sim recordings stored them
+relative (``pose``).  Every method that takes a topic takes either the
+stored name or the name relative to the recorded node (``pose``,
+``events``): :meth:`Recording.topic_name` resolves it.
+
+Errors (missing file, not MCAP, not a friction_sim recording, a finished
+file damaged in its middle, a file with dropped messages where the tool
+needs all of them) raise :class:`~friction_sim.errors.RecordingError` with
+one line.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, NamedTuple
+
+from mcap.opcode import Opcode
 
 from friction_sim.errors import RecordingError
 from friction_sim.io import cdr
+from friction_sim.io.chunks import (
+    DAMAGED,
+    MCAP_MAGIC,
+    ExactReads,
+    chunk_counts,
+    chunk_data,
+    chunk_messages,
+    data_records,
+    read_summary,
+    until_damaged,
+)
 from friction_sim.io.messages import message_class, ns_to_seconds
 from friction_sim.io.recorder import METADATA_NAME, SUMMARY_METADATA_NAME
 
-MCAP_MAGIC = b"\x89MCAP0\r\n"
+#: The topic every friction_sim recording has; its namespace is the recording's.
+POSE = "pose"
 
 
 @dataclass(frozen=True)
 class Channel:
-    """One recorded topic."""
+    """One recorded topic (``topic`` as stored in the file)."""
 
     id: int
     topic: str
@@ -37,9 +68,8 @@ class Channel:
     metadata: dict[str, str]
 
 
-@dataclass(frozen=True)
-class RawMessage:
-    """One recorded message, still serialized (CDR)."""
+class RawMessage(NamedTuple):
+    """One recorded message, still serialized (CDR); ``topic`` as stored."""
 
     topic: str
     log_time: int
@@ -48,11 +78,13 @@ class RawMessage:
 
 @dataclass
 class Recording:
-    """Everything read from a recording, in file order.
+    """What describes a recording; its messages are read on demand.
 
-    ``complete`` is False when the file has no footer (its writer was
-    killed); then ``messages`` holds what was flushed before, and
-    ``truncated_bytes`` how many bytes at the end were incomplete.
+    ``complete`` is False when the file has no footer (its writer was killed,
+    or failed); then the messages are those flushed before, and
+    ``truncated_bytes`` counts the bytes at the end that were incomplete.
+    ``counts`` is messages per channel id, ``start_ns``/``end_ns`` the log
+    time range [ns] (0 without messages).
     """
 
     path: Path
@@ -60,61 +92,160 @@ class Recording:
     library: str = ""
     schemas: dict[int, tuple[str, str, bytes]] = field(default_factory=dict)
     channels: dict[int, Channel] = field(default_factory=dict)
-    messages: list[RawMessage] = field(default_factory=list)
     metadata: dict[str, dict[str, str]] = field(default_factory=dict)
     statistics: Any = None
     complete: bool = False
     truncated_bytes: int = 0
     file_size: int = 0
     chunks: int = 0
-    _by_topic: dict[str, list[RawMessage]] | None = field(default=None, repr=False)
+    counts: dict[int, int] = field(default_factory=dict)
+    start_ns: int = 0
+    end_ns: int = 0
 
-    # -- topics and messages -----------------------------------------------------
+    # -- topics --------------------------------------------------------------------
 
     @property
     def topics(self) -> dict[str, Channel]:
-        """topic -> channel, in order of first appearance."""
+        """stored topic -> channel, in order of first appearance."""
         return {channel.topic: channel for channel in self.channels.values()}
 
-    def messages_on(self, topic: str) -> list[RawMessage]:
-        """The messages of one topic, in file order."""
-        if self._by_topic is None:
-            by_topic: dict[str, list[RawMessage]] = {}
-            for raw in self.messages:
-                by_topic.setdefault(raw.topic, []).append(raw)
-            self._by_topic = by_topic
-        return self._by_topic.get(topic, [])
+    @property
+    def namespace_prefix(self) -> str:
+        """What the recorded node's topics start with: ``""`` for an old file
+        (``pose``), ``"/"`` at the root (``/pose``), ``"/feeder1/"``.  Taken
+        from the pose topic (the one with most messages if several)."""
+        candidates = [c for c in self.channels.values()
+                      if c.topic.lstrip("/") == POSE or c.topic.endswith("/" + POSE)]
+        if not candidates:
+            return ""
+        best = max(candidates, key=lambda c: self.counts.get(c.id, 0))
+        return best.topic[:-len(POSE)]
+
+    def topic_name(self, name: str) -> str | None:
+        """The stored name of topic ``name`` (stored, absolute or relative to
+        the recorded node), or None if the file has no such topic."""
+        topics = self.topics
+        if name in topics:
+            return name
+        relative = name.lstrip("/")
+        for candidate in (self.namespace_prefix + relative, relative, "/" + relative):
+            if candidate in topics:
+                return candidate
+        matches = [topic for topic in topics if topic.endswith("/" + relative)]
+        return matches[0] if len(matches) == 1 else None
+
+    def relative_name(self, topic: str) -> str:
+        """A stored name relative to the recorded node (``/feeder1/pose`` -> ``pose``)."""
+        prefix = self.namespace_prefix
+        return topic[len(prefix):] if prefix and topic.startswith(prefix) else topic.lstrip("/")
+
+    def count(self, topic: str) -> int:
+        """Messages on ``topic`` (0 if the file has no such topic)."""
+        stored = self.topic_name(topic)
+        return sum(n for cid, n in self.counts.items()
+                   if cid in self.channels and self.channels[cid].topic == stored) if stored else 0
+
+    @property
+    def message_count(self) -> int:
+        """Messages in the file (the readable part of an unfinished one)."""
+        return sum(self.counts.values())
 
     def type_name(self, topic: str) -> str:
         """The message type name of ``topic`` (its schema name)."""
-        channel = self.topics.get(topic)
-        if channel is None:
+        stored = self.topic_name(topic)
+        if stored is None:
             raise RecordingError(f"{self.path}: no topic {topic!r}")
-        return channel.type_name
+        return self.topics[stored].type_name
 
     def message_type(self, topic: str) -> type:
         """The generated ROS 2 message class of ``topic`` (to publish or subscribe to it)."""
         return message_class(self.type_name(topic))
 
+    # -- messages, streamed ------------------------------------------------------
+
+    def iter_chunks(self, topics: Iterable[str] | None = None) -> Iterator[list[RawMessage]]:
+        """The messages of ``topics`` (default: all), a list per chunk, in file
+        order; only one chunk is in memory at a time, and a chunk whose
+        message indexes show none of ``topics`` is not even decompressed.  A
+        topic the file does not have is simply not there."""
+        wanted = self._wanted(topics)
+        if not wanted:
+            return
+        with _open(self.path) as stream:
+            exact = ExactReads(stream)
+            pending: Any = None  # the last chunk, opened once the indexes after it are known
+            present: set[int] = set()
+            for opcode, record in until_damaged(data_records(exact, self.file_size)):
+                if opcode == Opcode.MESSAGE_INDEX:
+                    present.add(record)
+                    continue
+                if pending is not None and (not present or not present.isdisjoint(wanted)):
+                    block = self._open_chunk(pending, wanted, exact.position)
+                    if block:
+                        yield block
+                pending = None
+                if opcode == Opcode.CHUNK:
+                    pending, present = record, set()
+                elif opcode == Opcode.MESSAGE and record.channel_id in wanted:
+                    yield [RawMessage(wanted[record.channel_id], record.log_time, bytes(record.data))]
+                elif opcode == DAMAGED:
+                    self._damaged(exact.position, record)
+                    return
+                elif opcode == Opcode.DATA_END:
+                    return
+
+    def _open_chunk(self, chunk: Any, wanted: dict[int, str], position: int) -> list[RawMessage]:
+        """The wanted messages of a chunk; damage inside it as :meth:`_damaged`."""
+        try:
+            return chunk_messages(chunk_data(chunk), wanted, RawMessage)
+        except Exception as error:  # noqa: BLE001 - a bad CRC, zstd error, garbage inside
+            self._damaged(position, error)
+            return []
+
+    def _damaged(self, position: int, error: BaseException) -> None:
+        """Damage while reading messages: the end of an unfinished file (its
+        scan stopped at the same place), an error in a finished one."""
+        if not self.complete:
+            return
+        raise RecordingError(f"{self.path} is damaged near byte {position} "
+                             f"({type(error).__name__}: {' '.join(str(error).split())})")
+
+    def _wanted(self, topics: Iterable[str] | None) -> dict[int, str]:
+        """channel id -> stored topic of the channels to read."""
+        if topics is None:
+            return {cid: channel.topic for cid, channel in self.channels.items()}
+        stored = {self.topic_name(topic) for topic in topics} - {None}
+        return {cid: channel.topic for cid, channel in self.channels.items() if channel.topic in stored}
+
+    def iter_messages(self, topics: Iterable[str] | None = None) -> Iterator[RawMessage]:
+        """The messages of ``topics`` (default: all), one by one in file order, streamed."""
+        for block in self.iter_chunks(topics):
+            yield from block
+
+    def iter_decoded(self, topic: str) -> Iterator[tuple[int, Any]]:
+        """(log time [ns], message) of every message on ``topic``, streamed."""
+        for raw in self.iter_messages([topic]):
+            yield raw.log_time, self.decode(raw)
+
     def decode(self, raw: RawMessage) -> Any:
         """Deserialize one message (a rosbags dataclass: same fields as the ROS class)."""
         return cdr.deserialize(raw.data, self.type_name(raw.topic))
 
+    @property
+    def messages(self) -> list[RawMessage]:
+        """Every message, in file order: the whole file in memory (short files
+        and tests; the tools stream with :meth:`iter_chunks`)."""
+        return list(self.iter_messages())
+
+    def messages_on(self, topic: str) -> list[RawMessage]:
+        """The messages of one topic, in file order (a list: that topic in memory)."""
+        return list(self.iter_messages([topic]))
+
     def decoded(self, topic: str) -> list[tuple[int, Any]]:
-        """(log time [ns], message) of every message on ``topic``."""
-        return [(raw.log_time, self.decode(raw)) for raw in self.messages_on(topic)]
+        """(log time [ns], message) of every message on ``topic`` (a list)."""
+        return list(self.iter_decoded(topic))
 
-    # -- times and notes -------------------------------------------------------------
-
-    @property
-    def start_ns(self) -> int:
-        """The earliest log time [ns] (0 without messages)."""
-        return min((m.log_time for m in self.messages), default=0)
-
-    @property
-    def end_ns(self) -> int:
-        """The latest log time [ns] (0 without messages)."""
-        return max((m.log_time for m in self.messages), default=0)
+    # -- notes -------------------------------------------------------------------------
 
     @property
     def dropped(self) -> int | None:
@@ -125,16 +256,23 @@ class Recording:
         except (KeyError, ValueError):
             return None
 
+    def refuse_dropped(self, what: str) -> None:
+        """RecordingError (one line, with the count) if the recorder dropped
+        messages: then no summary or re-simulation of the file can be right."""
+        if self.dropped:
+            raise RecordingError(f"{self.path}: {self.dropped} messages were dropped while recording; "
+                                 f"the file cannot be {what}")
+
     def recovery_note(self) -> str | None:
         """The one line that says what was recovered from an unfinished file."""
         if self.complete:
             return None
-        return (f"recovered {len(self.messages)} messages up to t = {ns_to_seconds(self.end_ns):.6f} s; "
+        return (f"recovered {self.message_count} messages up to t = {ns_to_seconds(self.end_ns):.6f} s; "
                 f"the file has no footer (writer killed?)")
 
     def is_friction_sim(self) -> bool:
         """Whether the file is a friction_sim recording (its metadata record and a pose topic)."""
-        return METADATA_NAME in self.metadata and "pose" in self.topics
+        return METADATA_NAME in self.metadata and self.topic_name(POSE) is not None
 
     def info_lines(self) -> list[str]:
         """A ``ros2 bag info``-like summary."""
@@ -143,14 +281,14 @@ class Recording:
             f"Profile:    {self.profile}   library: {self.library}",
             f"Time:       {ns_to_seconds(self.start_ns):.6f} .. {ns_to_seconds(self.end_ns):.6f} s "
             f"(simulation time)",
-            f"Messages:   {len(self.messages)}",
+            f"Messages:   {self.message_count}",
         ]
         if self.dropped:
-            lines.append(f"Dropped:    {self.dropped} messages (the recorder fell behind)")
+            lines.append(f"Dropped:    {self.dropped} messages while recording")
         width = max((len(t) for t in self.topics), default=0)
         for number, (topic, channel) in enumerate(self.topics.items()):
             label = "Topics:" if number == 0 else ""
-            lines.append(f"{label:<12}{topic:<{width}}  {channel.type_name:<38} {len(self.messages_on(topic))}")
+            lines.append(f"{label:<12}{topic:<{width}}  {channel.type_name:<38} {self.counts.get(channel.id, 0)}")
         meta = self.metadata.get(METADATA_NAME, {})
         if meta:
             lines.append("Parameters: " + ", ".join(f"{k} = {v}" for k, v in meta.items() if k != "format"))
@@ -158,16 +296,12 @@ class Recording:
 
     # -- filling it in ------------------------------------------------------------
 
-    def add(self, record: Any) -> None:
-        """Take one record read from the file (others than these are ignored)."""
+    def take(self, record: Any) -> None:
+        """Take one descriptive record (schema, channel, metadata, statistics, header)."""
         from mcap.records import Channel as McapChannel
-        from mcap.records import Message, Metadata, Schema, Statistics
+        from mcap.records import Header, Metadata, Schema, Statistics
 
-        if isinstance(record, Message):
-            channel = self.channels.get(record.channel_id)
-            if channel is not None:
-                self.messages.append(RawMessage(channel.topic, record.log_time, bytes(record.data)))
-        elif isinstance(record, Schema):
+        if isinstance(record, Schema):
             self.schemas.setdefault(record.id, (record.name, record.encoding, bytes(record.data)))
         elif isinstance(record, McapChannel) and record.id not in self.channels:
             schema = self.schemas.get(record.schema_id, ("", "", b""))
@@ -177,10 +311,21 @@ class Recording:
             self.metadata[record.name] = dict(record.metadata)
         elif isinstance(record, Statistics):
             self.statistics = record
+        elif isinstance(record, Header):
+            self.profile, self.library = record.profile, record.library
+
+    def add_counts(self, counts: dict[int, int], first: int | None, last: int | None) -> None:
+        """Add the messages of one chunk (or one message) to the counts and the time range."""
+        had = bool(self.counts)
+        for cid, n in counts.items():
+            self.counts[cid] = self.counts.get(cid, 0) + n
+        if first is not None and last is not None:
+            self.start_ns = first if not had else min(self.start_ns, first)
+            self.end_ns = last if not had else max(self.end_ns, last)
 
 
 def read_recording(path: str | Path, *, require_friction_sim: bool = True) -> Recording:
-    """Read a recording as far as it holds complete records.
+    """Describe a recording (its messages are read later, streamed).
 
     Raises :class:`RecordingError` for a missing file, a file that is not
     MCAP, and (with ``require_friction_sim``) an MCAP file that has no
@@ -190,9 +335,12 @@ def read_recording(path: str | Path, *, require_friction_sim: bool = True) -> Re
     with _open(path) as stream:
         if stream.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
             raise RecordingError(f"not an MCAP file: {path}")
-        stream.seek(0)
-        recording = Recording(path, file_size=path.stat().st_size)
-        _read_records(stream, recording)
+        size = path.stat().st_size
+        recording = _from_summary(stream, path, size)
+        if recording is None:
+            recording = Recording(path, file_size=size)
+            stream.seek(0)
+            _scan(stream, recording)
     if require_friction_sim and not recording.is_friction_sim():
         missing = "no friction_sim metadata record" if METADATA_NAME not in recording.metadata else "no pose topic"
         raise RecordingError(f"not a friction_sim recording ({missing}): {path}")
@@ -211,73 +359,59 @@ def _open(path: Path) -> IO[bytes]:
         raise RecordingError(f"cannot read {path}: {error.strerror or error}") from None
 
 
-class _Truncated(EOFError):
-    """A read came back shorter than asked: the file ends inside a record."""
-
-
-class _ExactReads:
-    """A file for StreamReader that counts the bytes read and raises
-    :class:`_Truncated` on a short read (StreamReader returns short reads
-    silently).  Deliberately not an io.RawIOBase, which StreamReader would
-    wrap in a buffer, hiding the position."""
-
-    def __init__(self, raw: IO[bytes]) -> None:
-        self._raw = raw
-        self.position = 0
-
-    def read(self, n: int = -1) -> bytes:
-        """``n`` bytes (all with -1); _Truncated if the file has fewer."""
-        data = self._raw.read(n)
-        self.position += len(data)
-        if n >= 0 and len(data) < n:
-            raise _Truncated(f"wanted {n} bytes at {self.position - len(data)}, the file has {len(data)}")
-        return data
-
-
-def _read_records(stream: IO[bytes], recording: Recording) -> None:
-    """Fill ``recording`` from ``stream`` up to the end of the last complete record.
-
-    StreamReader yields a record only once it is read whole (a chunk: read,
-    CRC-checked and decompressed), so the position at each yield is the end
-    of what can be kept.  Damage of any kind ends the reading: a short read,
-    struct.error in a cut header, EndOfFile, a bad CRC (a ValueError), a zstd
-    error, a garbage length, a bad closing magic.
-    """
-    exact = _ExactReads(stream)
-    end = 0
+def _from_summary(stream: IO[bytes], path: Path, size: int) -> Recording | None:
+    """A finished file described from its summary; None if it has none (or a damaged one)."""
     try:
-        for records in _records(exact, recording):
-            for record in records:
-                recording.add(record)
-            end = exact.position
-        recording.complete = True
-        end = exact.position
-    except Exception:  # noqa: BLE001 - damage ends what can be recovered (see the docstring)
-        end = max(end, len(MCAP_MAGIC))
-    recording.truncated_bytes = recording.file_size - end
+        summary = read_summary(stream, size)
+    except Exception:  # noqa: BLE001 - a damaged summary: the scan reads what the data holds
+        return None
+    if summary is None or summary.statistics is None:
+        return None
+    recording = Recording(path, file_size=size, complete=True)
+    for record in [summary.header, *summary.schemas, *summary.channels, *summary.metadata]:
+        recording.take(record)
+    stats = summary.statistics
+    recording.statistics = stats
+    recording.chunks = stats.chunk_count
+    recording.counts = {cid: n for cid, n in stats.channel_message_counts.items() if n}
+    if stats.message_count:
+        recording.start_ns, recording.end_ns = stats.message_start_time, stats.message_end_time
+    return recording
 
 
-def _records(stream: _ExactReads, recording: Recording) -> Iterator[list[Any]]:
-    """For each record of the file, in file order, the records to keep: those
-    inside a chunk, a data section's record, the summary's metadata and
-    statistics (not its repeated schemas, channels and indexes).  Sets the
-    header fields and counts chunks."""
-    from mcap.records import Chunk, DataEnd, Header, Metadata, Statistics
-    from mcap.stream_reader import StreamReader, breakup_chunk
+def _scan(stream: IO[bytes], recording: Recording) -> None:
+    """Describe ``recording`` from its data, up to the end of the last complete record.
 
-    reader = StreamReader(stream, emit_chunks=True,  # type: ignore[arg-type]  # any object with read()
-                          record_size_limit=max(recording.file_size, 1024))
+    A record is taken only once it is read whole (a chunk: read, CRC-checked
+    and decompressed), so the position after each is the end of what can be
+    kept.  Damage of any kind ends the reading: a short read, a cut header,
+    a bad CRC, a zstd error, a garbage length, a bad closing magic.
+    """
+    exact = ExactReads(stream)
+    end = 0
     in_summary = False
-    for record in reader.records:
-        if isinstance(record, Header):
-            recording.profile, recording.library = record.profile, record.library
-            yield []
-        elif isinstance(record, Chunk):
-            yield breakup_chunk(record, validate_crc=True)
+    for opcode, record in until_damaged(data_records(exact, recording.file_size)):
+        if opcode == DAMAGED:
+            break
+        if opcode == Opcode.CHUNK:
+            try:
+                counts, first, last, others = chunk_counts(chunk_data(record))
+            except Exception:  # noqa: BLE001 - a damaged chunk ends what can be recovered
+                break
+            for other in others:
+                recording.take(other)
+            recording.add_counts(counts, first, last)
             recording.chunks += 1
-        else:
-            in_summary = in_summary or isinstance(record, DataEnd)
-            yield [record] if not in_summary or isinstance(record, (Metadata, Statistics)) else []
+        elif opcode == Opcode.MESSAGE and not in_summary:
+            recording.add_counts({record.channel_id: 1}, record.log_time, record.log_time)
+        elif opcode != Opcode.MESSAGE_INDEX:
+            in_summary = in_summary or opcode == Opcode.DATA_END
+            if not in_summary or opcode in (Opcode.METADATA, Opcode.STATISTICS):
+                recording.take(record)
+        end = exact.position
+    else:
+        recording.complete = True  # data_records ends only after the footer and the closing magic
+    recording.truncated_bytes = recording.file_size - max(end, len(MCAP_MAGIC))
 
 
 def _size(n: float) -> str:
@@ -289,4 +423,4 @@ def _size(n: float) -> str:
     return f"{n} B"
 
 
-__all__ = ["MCAP_MAGIC", "Channel", "RawMessage", "Recording", "read_recording"]
+__all__ = ["MCAP_MAGIC", "POSE", "Channel", "RawMessage", "Recording", "read_recording"]

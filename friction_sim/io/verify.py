@@ -6,6 +6,12 @@
 through :func:`friction_sim.core.commands.apply`, the one gate) and compares
 it with every recorded pose and velocity sample; it passes when both differ
 by at most 1e-9 relative to the largest recorded |x| and |v|.
+
+The file is streamed: one pass reads the commands (few), a second the
+samples chunk by chunk, re-simulating as it goes and keeping only the
+largest differences, so memory stays bounded whatever the length.  A file
+whose recorder dropped messages is refused (RecordingError with the count):
+a re-simulation cannot tell a lost command from a wrong one.
 """
 
 from __future__ import annotations
@@ -32,7 +38,7 @@ from friction_sim.io.messages import (
 )
 from friction_sim.io.reader import Recording
 from friction_sim.io.recorder import INPUT_FIELDS, METADATA_NAME, PLANT_FIELDS
-from friction_sim.io.series import FloatArray, IntArray, state_series
+from friction_sim.io.series import POSITION, VELOCITY, FloatArray, IntArray, state_blocks
 
 DEFAULT_TOLERANCE = 1e-9
 
@@ -85,7 +91,7 @@ def initial_parameters(recording: Recording) -> dict[str, Any]:
     """The parameters at start: the first ParameterEvent's new_parameters on
     ``parameters``, else the plant and input fields of the ``friction_sim``
     metadata record."""
-    for raw in recording.messages_on(PARAMETERS):
+    for raw in recording.iter_messages([PARAMETERS]):
         new, _ = parameter_event_values(recording.decode(raw))
         if new:
             return new
@@ -103,42 +109,47 @@ def recorded_commands(recording: Recording) -> list[Command]:
     time (ties in file order): the command topics (target_speed included,
     which changes no slider) and every ParameterEvent on ``parameters`` after
     the initial one that changes a plant or input field."""
-    order = {id(raw): i for i, raw in enumerate(recording.messages)}
+    stored = {topic: recording.topic_name(topic) for topic in COMMAND_TOPICS}
+    topics = {name: topic for topic, name in stored.items() if name is not None}
     found: list[tuple[int, int, Command]] = []
     initial_seen = False
-    for topic in COMMAND_TOPICS:
-        for raw in recording.messages_on(topic):
-            msg = recording.decode(raw)
-            if topic == PARAMETERS and not initial_seen and parameter_event_values(msg)[0]:
-                initial_seen = True
-                continue
-            command = command_from_message(topic, msg, ns_to_seconds(raw.log_time))
-            if command.values:
-                found.append((raw.log_time, order[id(raw)], command))
+    for order, raw in enumerate(recording.iter_messages(COMMAND_TOPICS)):
+        topic = topics[raw.topic]
+        msg = recording.decode(raw)
+        if topic == PARAMETERS and not initial_seen and parameter_event_values(msg)[0]:
+            initial_seen = True
+            continue
+        command = command_from_message(topic, msg, ns_to_seconds(raw.log_time))
+        if command.values:
+            found.append((raw.log_time, order, command))
     return [command for _, _, command in sorted(found, key=lambda item: item[:2])]
 
 
 def verify(recording: Recording, tolerance: float = DEFAULT_TOLERANCE) -> VerifyResult:
     """Re-simulate the recording with the exact core and compare it with the
-    recorded pose and velocity samples (see :class:`VerifyResult`)."""
+    recorded pose and velocity samples (see :class:`VerifyResult`), chunk by
+    chunk.  RecordingError if the recorder dropped messages."""
+    recording.refuse_dropped("verified")
     values = initial_parameters(recording)
     slider = _initial_slider(recording, values)
     commands = [command for command in recorded_commands(recording) if command.for_slider]
-    pose_ns, pose = state_series(recording, "pose", lambda m: (m.pose.position.x,), 1)
-    vel_ns, vel = state_series(recording, "velocity", lambda m: (m.twist.linear.x,), 1)
-    times_ns = np.unique(np.concatenate([pose_ns, vel_ns]))
-    x_sim, v_sim, problems = _resimulate(slider, commands, times_ns, sample_times(times_ns, _log_rate(recording,
-                                                                                                      values)))
-    dx, dx_t = _largest_difference(times_ns, x_sim, pose_ns, pose[:, 0])
-    dv, dv_t = _largest_difference(times_ns, v_sim, vel_ns, vel[:, 0])
-    x_scale = float(np.max(np.abs(pose[:, 0]))) if pose.size else 0.0
-    v_scale = float(np.max(np.abs(vel[:, 0]))) if vel.size else 0.0
-    if recording.dropped:
-        problems.append(f"the recorder dropped {recording.dropped} messages")
+    replay = _Replay(slider, commands, _log_rate(recording, values))
+    x, v = _Largest(), _Largest()
+    samples = 0
+    for block in state_blocks(recording, {"pose": POSITION, "velocity": VELOCITY}):
+        (pose_ns, pose), (vel_ns, vel) = block["pose"], block["velocity"]
+        times_ns = replay.in_order(np.unique(np.concatenate([pose_ns, vel_ns])))
+        if times_ns.size == 0:
+            continue
+        x_sim, v_sim = replay.states(times_ns)
+        x.add(times_ns, x_sim, pose_ns, pose[:, 0])
+        v.add(times_ns, v_sim, vel_ns, vel[:, 0])
+        samples += int(pose_ns.size)
+    replay.finish()
     return VerifyResult(
-        samples=int(pose_ns.size), commands=len(commands), max_dx=dx, max_dv=dv, x_scale=x_scale, v_scale=v_scale,
-        rel_dx=_relative(dx, x_scale), rel_dv=_relative(dv, v_scale), worst_dx_t=dx_t, worst_dv_t=dv_t,
-        tolerance=tolerance, problems=tuple(problems),
+        samples=samples, commands=len(commands), max_dx=x.difference, max_dv=v.difference, x_scale=x.scale,
+        v_scale=v.scale, rel_dx=_relative(x.difference, x.scale), rel_dv=_relative(v.difference, v.scale),
+        worst_dx_t=x.t, worst_dv_t=v.t, tolerance=tolerance, problems=tuple(replay.problems),
     )
 
 
@@ -156,27 +167,83 @@ def _initial_slider(recording: Recording, values: dict[str, Any]) -> Slider:
         raise RecordingError(f"{recording.path}: recorded initial parameters are invalid: {error}") from None
 
 
-def _resimulate(slider: Slider, commands: list[Command], times_ns: IntArray,
-                times: FloatArray) -> tuple[FloatArray, FloatArray, list[str]]:
-    """(x, v) of ``slider`` at ``times`` with ``commands`` applied at their
-    times (a sample at a command's time is taken before it, as the node logs
-    it), and the commands that could not be applied.  Commands recorded at
-    one instant were one batch in the node: they take effect together."""
-    x_sim = np.empty(times_ns.size)
-    v_sim = np.empty(times_ns.size)
-    problems: list[str] = []
-    first = 0
-    for t_ns, batch in groupby(commands, key=lambda command: seconds_to_ns(command.t)):
-        last = int(np.searchsorted(times_ns, t_ns, side="right"))
-        if last > first:
-            trajectory = slider.sample(np.maximum(times[first:last], slider.t))
-            x_sim[first:last], v_sim[first:last] = trajectory.x, trajectory.v
+class _Replay:
+    """The exact re-simulation, fed the recorded sample times in ascending
+    blocks.  A sample at a command's time is taken before it, as the node
+    logs it, so a batch of commands is applied once a later sample comes
+    (or at the end); commands recorded at one instant were one batch in the
+    node: they take effect together."""
+
+    def __init__(self, slider: Slider, commands: list[Command], log_rate: float | None) -> None:
+        self.slider = slider
+        self.log_rate = log_rate
+        self.batches = [(t_ns, list(batch)) for t_ns, batch in
+                        groupby(commands, key=lambda command: seconds_to_ns(command.t))]
+        self.next = 0
+        self.last_ns = -1
+        self.problems: list[str] = []
+
+    def in_order(self, times_ns: IntArray) -> IntArray:
+        """``times_ns`` from the last time sampled on (a sample recorded out of
+        order cannot be re-simulated: it is left out and said once)."""
+        late = times_ns < self.last_ns
+        if late.any():
+            if not any(p.startswith("samples out of time order") for p in self.problems):
+                self.problems.append(f"samples out of time order (t = {ns_to_seconds(int(times_ns[late][0])):.9f} s "
+                                     f"after {ns_to_seconds(self.last_ns):.9f} s) were not compared")
+            times_ns = times_ns[~late]
+        return times_ns
+
+    def states(self, times_ns: IntArray) -> tuple[FloatArray, FloatArray]:
+        """(x, v) at ``times_ns`` (ascending, from the last time sampled on)."""
+        times = sample_times(times_ns, self.log_rate)
+        x_sim = np.empty(times_ns.size)
+        v_sim = np.empty(times_ns.size)
+        first = 0
+        while first < times_ns.size and self.next < len(self.batches):
+            t_ns, batch = self.batches[self.next]
+            last = int(np.searchsorted(times_ns, t_ns, side="right"))
+            if last == times_ns.size:
+                break  # a later block may still hold samples at or before this batch
+            self._sample(times, first, last, x_sim, v_sim)
             first = last
-        _apply_batch(slider, list(batch), problems)
-    if first < times_ns.size:
-        trajectory = slider.sample(np.maximum(times[first:], slider.t))
-        x_sim[first:], v_sim[first:] = trajectory.x, trajectory.v
-    return x_sim, v_sim, problems
+            _apply_batch(self.slider, batch, self.problems)
+            self.next += 1
+        self._sample(times, first, times_ns.size, x_sim, v_sim)
+        self.last_ns = int(times_ns[-1])
+        return x_sim, v_sim
+
+    def _sample(self, times: FloatArray, first: int, last: int, x_sim: FloatArray, v_sim: FloatArray) -> None:
+        if last > first:
+            trajectory = self.slider.sample(np.maximum(times[first:last], self.slider.t))
+            x_sim[first:last], v_sim[first:last] = trajectory.x, trajectory.v
+
+    def finish(self) -> None:
+        """Apply the commands after the last sample (to report those that cannot be)."""
+        for _, batch in self.batches[self.next:]:
+            _apply_batch(self.slider, batch, self.problems)
+        self.next = len(self.batches)
+
+
+class _Largest:
+    """The largest |sim - rec| so far (the first time it occurs) and the largest |rec|."""
+
+    def __init__(self) -> None:
+        self.difference = 0.0
+        self.t = 0.0
+        self.scale = 0.0
+
+    def add(self, sim_ns: IntArray, sim: FloatArray, rec_ns: IntArray, rec: FloatArray) -> None:
+        """Compare the recorded samples ``rec`` at ``rec_ns`` with ``sim`` at ``sim_ns``."""
+        inside = np.isin(rec_ns, sim_ns)  # samples left out as out of order are not compared
+        rec_ns, rec = rec_ns[inside], rec[inside]
+        if rec_ns.size == 0:
+            return
+        diff = np.abs(sim[np.searchsorted(sim_ns, rec_ns)] - rec)
+        worst = int(np.argmax(diff))
+        if diff[worst] > self.difference:
+            self.difference, self.t = float(diff[worst]), ns_to_seconds(int(rec_ns[worst]))
+        self.scale = max(self.scale, float(np.max(np.abs(rec))))
 
 
 def _apply_batch(slider: Slider, batch: list[Command], problems: list[str]) -> None:
@@ -217,16 +284,6 @@ def sample_times(times_ns: IntArray, log_rate: float | None) -> FloatArray:
     grid: FloatArray = np.rint(times_ns * (log_rate / NS_PER_S)) / log_rate
     on_grid = np.rint(grid * NS_PER_S).astype(np.int64) == times_ns
     return np.where(on_grid, grid, seconds)
-
-
-def _largest_difference(sim_ns: IntArray, sim: FloatArray, rec_ns: IntArray,
-                        rec: FloatArray) -> tuple[float, float]:
-    """(largest |sim - rec| at the recorded times, the time [s] where it is)."""
-    if rec_ns.size == 0:
-        return 0.0, 0.0
-    diff = np.abs(sim[np.searchsorted(sim_ns, rec_ns)] - rec)
-    worst = int(np.argmax(diff))
-    return float(diff[worst]), ns_to_seconds(int(rec_ns[worst]))
 
 
 def _relative(difference: float, scale: float) -> float:
