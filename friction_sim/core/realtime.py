@@ -124,6 +124,11 @@ class SimClock:
         """Simulation time [s] at wall time ``wall_ns`` (a whole number of ns)."""
         return self.now_ns(wall_ns) / NS_PER_S
 
+    def hold(self, wall_ns: int) -> None:
+        """Let ``wall_ns`` of wall time pass without simulation time (the caller
+        waited for something, a recorder say): simulation time does not jump."""
+        self._wall0 += max(0, int(wall_ns))
+
     def set_rate(self, rate: float, wall_ns: int) -> None:
         """Change the real-time factor from ``wall_ns`` on."""
         rate = require_positive("real_time_factor", rate)

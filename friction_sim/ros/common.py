@@ -19,6 +19,7 @@ undeclared) warned about and counted like every other refusal.
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 import sys
 import threading
@@ -27,6 +28,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import rclpy
+import rclpy.logging
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.callback_groups import CallbackGroup
 from rclpy.clock import Clock, ClockType
@@ -343,6 +345,7 @@ def run_node(
     if refused is not None:
         return refused
     rclpy.init(args=argv)
+    bridge_python_logging()
     nodes: list[Node] = []
     executor = SingleThreadedExecutor()
     code = EXIT_OK
@@ -379,6 +382,32 @@ def run_node(
         executor.shutdown(timeout_sec=0.0)
         rclpy.try_shutdown()
     return code or max((int(getattr(node, "exit_code", EXIT_OK)) for node in nodes), default=EXIT_OK)
+
+
+class RosLogHandler(logging.Handler):
+    """Python logging records (the io layer logs with :mod:`logging`: a failed
+    recording, say) as ROS log lines, with the ROS format, severity filter and
+    console output the nodes' own lines have."""
+
+    _SEVERITIES = ((logging.ERROR, "error"), (logging.WARNING, "warning"), (logging.INFO, "info"))
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            logger = rclpy.logging.get_logger(record.name)
+            severity = next((name for level, name in self._SEVERITIES if record.levelno >= level), "debug")
+            getattr(logger, severity)(self.format(record))
+        except Exception:  # noqa: BLE001 - logging must never raise into the code that logs
+            self.handleError(record)
+
+
+def bridge_python_logging(name: str = "friction_sim") -> None:
+    """Route the ``name`` logger hierarchy into ROS logging (once per process):
+    one line per record, instead of Python's bare last-resort line as well."""
+    logger = logging.getLogger(name)
+    if not any(isinstance(handler, RosLogHandler) for handler in logger.handlers):
+        logger.addHandler(RosLogHandler())
+        logger.setLevel(logging.INFO)
+        logger.propagate = False
 
 
 def _own_arguments(prog: str, argv: list[str], help_text: str) -> int | None:

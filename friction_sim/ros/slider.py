@@ -73,6 +73,7 @@ from friction_sim.io.messages import (
 from friction_sim.io.sinks import Sink, deliver_tick
 from friction_sim.ros.common import (
     EXIT_FAULT,
+    EXIT_RECORDING_FAILED,
     FaultSignal,
     NameWatch,
     PolledGroup,
@@ -122,7 +123,9 @@ class SliderNode(Node):
         self.exit_code = 0
         #: Consumers of the run (the recorder, a live view, a test's probe).
         self.sinks: list[Sink] = []
-        self.recorder = _open_recorder(values)
+        self.recorder = _open_recorder(values, self.get_namespace())
+        self._recorder_waited_ns = 0
+        self._recorder_waited_reported = 0.0
         if self.recorder is not None:
             self.sinks.append(self.recorder)
             self.recorder.on_parameters(_recorded(values), 0.0, changed=False)
@@ -151,11 +154,16 @@ class SliderNode(Node):
         if self._ticker.is_alive() and threading.current_thread() is not self._ticker:
             self._ticker.join(timeout=2.0)
         if self.recorder is not None:
-            stats = self.recorder.finish()
-            note = (f"recording finished: {stats.path} ({stats.messages} messages, "
-                    f"{stats.last_ns / 1e9 if stats.last_ns else 0.0:.3f} s simulated, {stats.dropped} dropped)")
+            stats = self.recorder.finish()  # never raises: a failure is in stats.error
+            simulated = f"{stats.last_ns / 1e9 if stats.last_ns else 0.0:.3f} s simulated"
+            if stats.error:
+                self.exit_code = EXIT_RECORDING_FAILED
+                note = f"{stats.error} ({stats.messages} messages in the file, {simulated})"
+            else:
+                note = f"recording finished: {stats.path} ({stats.messages} messages, {simulated}, " \
+                       f"{stats.dropped} dropped)"
             if self.context.ok():
-                self.get_logger().info(note)
+                (self.get_logger().error if stats.error else self.get_logger().info)(note)
             else:  # after Ctrl-C the context (and /rosout) is gone already
                 print(f"[slider] {note}", file=sys.stderr)
         for sink in self.sinks:
@@ -268,6 +276,7 @@ class SliderNode(Node):
                 return
             self._take_commands()
             self._on_tick()
+            self._hold_for_recorder()
 
     def _fail(self, error: BaseException) -> None:
         """The run cannot go on: log why and report ERROR on diagnostics (once),
@@ -296,15 +305,43 @@ class SliderNode(Node):
             self._mean_pub.publish(mean_velocity_message(period, self._frame_id))
         deliver_tick(self.sinks, tick, self._frame_id)
 
+    def _hold_for_recorder(self) -> None:
+        """The recorder makes a producer wait rather than drop a message; the
+        wall time the tick waited passes without simulation time (no jump;
+        the achieved real-time factor in diagnostics shows it, and the next
+        tick counts as late)."""
+        if self.recorder is None:
+            return
+        waited = round(self.recorder.wait_seconds * 1e9)
+        if waited > self._recorder_waited_ns:
+            with self._lock:
+                self._rt.clock.hold(waited - self._recorder_waited_ns)
+            self._recorder_waited_ns = waited
+
     def _on_diagnostics(self) -> None:
         with self._lock:
             report = self._rt.diagnostics(wall_ns())
+        recording = self._recording_report()
+        report.update(recording)
         status = DiagnosticStatus(name="slider", hardware_id=self.get_fully_qualified_name())
         status.level, status.message = _health(report, self.fault, self.names.problem)
         status.values = key_values(report)
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = self.get_clock().now().to_msg()
         self._diag_pub.publish(msg)
+
+    def _recording_report(self) -> dict[str, Any]:
+        """The recorder's part of diagnostics: its error (the run goes on
+        unrecorded), messages dropped, and how long it held the simulation back."""
+        recorder = self.recorder
+        if recorder is None:
+            return {}
+        waited = recorder.wait_seconds
+        report = {"recording": str(recorder.path), "recording_error": recorder.error or "",
+                  "recording_dropped": recorder.dropped, "recording_waited_s": waited,
+                  "recording_waited_in_interval_s": waited - self._recorder_waited_reported}
+        self._recorder_waited_reported = waited
+        return report
 
     # -- parameters ---------------------------------------------------------------
 
@@ -344,14 +381,16 @@ def _unused(msg: Any) -> None:
     """The callback of a polled subscription: never called (the tick thread takes its messages)."""
 
 
-def _open_recorder(values: dict[str, Any]) -> Any:
+def _open_recorder(values: dict[str, Any], namespace: str) -> Any:
     """A Recorder for ``log_path`` (None when it is empty), with the run's
-    parameters as the file's metadata."""
+    parameters as the file's metadata, the node's namespace (topics are
+    stored fully qualified, as rosbag2 does) and waiting rather than dropping
+    when the writer falls behind (the tick thread then holds simulation time)."""
     if not values["log_path"]:
         return None
     from friction_sim.io.recorder import Recorder
 
-    return Recorder(values["log_path"], metadata=_recorded(values))
+    return Recorder(values["log_path"], metadata=_recorded(values), namespace=namespace, block_when_full=True)
 
 
 def _recorded(values: dict[str, Any]) -> dict[str, Any]:
@@ -371,7 +410,12 @@ def _health(report: dict[str, Any], fault: str = "", name_problem: str = "") -> 
     name is taken twice."""
     if fault:
         return DiagnosticStatus.ERROR, fault
+    if report.get("recording_error"):
+        return DiagnosticStatus.ERROR, report["recording_error"]
     problems = [name_problem] if name_problem else []
+    if report.get("recording_waited_in_interval_s", 0.0) > 0.0:
+        problems.append(f"the recorder held the simulation back {report['recording_waited_in_interval_s']:.3f} s "
+                        f"(achieved real-time factor {report['achieved_real_time_factor']:.3g})")
     if report["tick_rate"] < 0.8 * report["publish_rate"]:
         problems.append(f"tick rate {report['tick_rate']:.0f} Hz < 80% of {report['publish_rate']:g} Hz")
     if report["late_ticks"]:

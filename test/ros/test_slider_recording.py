@@ -1,0 +1,118 @@
+"""The slider node and its recorder, over real ROS: the simulation waits for a
+writer that falls behind (no message dropped, no jump in simulation time), a
+recording that fails is reported (log, diagnostics ERROR) while the run goes
+on, and shutdown then says so in one line with exit code 4; topics are stored
+in the node's namespace."""
+
+from __future__ import annotations
+
+import itertools
+import os
+import resource
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseStamped
+from rclpy.parameter import Parameter
+
+from friction_sim.ros.common import EXIT_RECORDING_FAILED
+from friction_sim.ros.slider import SliderNode
+
+from ros_harness import Probe, diagnostics_values, kill_if_running, namespace, stamp_ns
+
+BIN = Path(sys.executable).parent
+FILE_LIMIT = 400_000  # bytes: the recording hits it after a few simulated seconds
+
+
+def level(msg: DiagnosticArray) -> int:
+    value = msg.status[0].level
+    return value[0] if isinstance(value, bytes) else int(value)
+
+
+def test_the_simulation_waits_for_a_slow_recorder_without_a_jump_in_time(ros: None, tmp_path: Path) -> None:
+    ns = namespace()
+    node = SliderNode(namespace=ns, parameter_overrides=[Parameter("log_path", value=str(tmp_path / "run.mcap"))])
+    recorder = node.recorder
+    assert recorder is not None and recorder.namespace == ns
+    recorder._capacity = 300  # noqa: SLF001 - a small queue, and a writer slower than the simulation:
+    write = recorder._writer.write  # noqa: SLF001
+
+    def slow(batch: Any) -> None:
+        time.sleep(0.3)
+        write(batch)
+
+    recorder._writer.write = slow  # noqa: SLF001
+    probe = Probe(ns, node, outputs={"pose": PoseStamped, "diagnostics": DiagnosticArray})
+    try:
+        probe.wait_for_connection(topic="pose")
+        start = len(probe.received["pose"])
+        probe.spin_for(4.0)
+        assert recorder.waits > 0 and recorder.wait_seconds > 1.0, "the tick waited for the writer"
+        stamps = [stamp_ns(m) for m in probe.received["pose"][start:]]
+        gaps = [(b - a) / 1e9 for a, b in itertools.pairwise(stamps)]
+        assert max(gaps) < 0.05, f"simulation time never jumps over a wait (largest step {max(gaps):.3f} s)"
+        reports = [diagnostics_values(m) for m in probe.received["diagnostics"][1:]]
+        assert reports and all(float(r["achieved_real_time_factor"]) < 0.8 for r in reports[-2:]), reports
+        assert any(level(m) == 1 and "held the simulation back" in m.status[0].message
+                   for m in probe.received["diagnostics"])
+    finally:
+        recorder._writer.write = write  # noqa: SLF001
+        probe.close()
+        node.destroy_node()
+    stats = recorder.stats
+    assert stats.error is None and stats.dropped == 0 and node.exit_code == 0
+    assert {f"{ns}/pose", f"{ns}/velocity", f"{ns}/friction_force"} <= set(stats.per_topic)
+
+
+def _limit_file_size() -> None:  # runs in the child before exec
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails with EFBIG instead of killing
+    resource.setrlimit(resource.RLIMIT_FSIZE, (FILE_LIMIT, FILE_LIMIT))
+
+
+def test_a_failed_recording_is_reported_the_run_goes_on_and_exit_code_is_4(ros: None, tmp_path: Path) -> None:
+    ns = namespace()
+    path = tmp_path / "run.mcap"
+    process = subprocess.Popen(
+        [str(BIN / "slider"), "--ros-args", "-r", f"__ns:={ns}", "-p", f"log_path:={path}",
+         "-p", "real_time_factor:=10.0"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=dict(os.environ),
+        preexec_fn=_limit_file_size)
+    probe = Probe(ns, outputs={"pose": PoseStamped, "diagnostics": DiagnosticArray})
+    try:
+        probe.wait_for_connection(timeout=20.0)
+
+        def failed() -> bool:
+            return any(level(m) == 2 for m in probe.received["diagnostics"])
+
+        assert probe.spin_until(failed, 60.0), "diagnostics report the failed recording"
+        error = next(m for m in probe.received["diagnostics"] if level(m) == 2)
+        assert "recording failed" in error.status[0].message and "File too large" in error.status[0].message
+        assert diagnostics_values(error)["recording_error"] == error.status[0].message
+        poses = len(probe.received["pose"])
+        assert probe.spin_until(lambda: len(probe.received["pose"]) > poses + 500, 10.0), "the run goes on"
+        process.send_signal(signal.SIGINT)
+        _out, err = process.communicate(timeout=20)
+    finally:
+        kill_if_running(process)
+        probe.close()
+    assert process.returncode == EXIT_RECORDING_FAILED, err
+    assert "Traceback" not in err
+    lines = [line for line in err.splitlines() if "recording failed" in line]
+    assert len(lines) == 2, err  # once when it failed, once at shutdown with what the file holds
+    assert "messages in the file" in lines[1]
+    assert 0 < path.stat().st_size <= FILE_LIMIT
+
+
+@pytest.mark.parametrize("log_path", ["/dev/full", "{tmp}/no/such/folder/run.mcap", "{tmp}/"])
+def test_a_recording_that_cannot_start_is_one_line_and_exit_code_2(ros: None, tmp_path: Path, log_path: str) -> None:
+    value = log_path.format(tmp=tmp_path)
+    done = subprocess.run([str(BIN / "slider"), "--ros-args", "-r", f"__ns:={namespace()}", "-p",
+                           f"log_path:={value}"], capture_output=True, text=True, timeout=30)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.strip().count("\n") == 0 and "log_path" in done.stderr and "Traceback" not in done.stderr
