@@ -65,11 +65,12 @@ def varied_schedule() -> list[Command]:
 def copy_recording(source: Path, target: Path, *, chunk_size: int = 4 * 1024 * 1024,
                    topic: Callable[[str], str] = lambda name: name,
                    keep: Callable[[str, int], bool] = lambda name, log_time: True,
-                   metadata: dict[str, dict[str, str]] | None = None) -> Path:
+                   metadata: dict[str, dict[str, str]] | None = None, without: tuple[str, ...] = ()) -> Path:
     """Copy a recording record by record with mcap alone (no friction_sim
     reader): chunks of ``chunk_size`` bytes, topics renamed by ``topic``,
     only the messages ``keep(topic, log time)`` accepts, metadata records
-    replaced or added by ``metadata``.  Serialized messages are copied as
+    replaced or added by ``metadata``, those named in ``without`` left out.
+    Serialized messages are copied as
     they are."""
     from mcap.reader import make_reader
     from mcap.writer import CompressionType, Writer
@@ -83,7 +84,8 @@ def copy_recording(source: Path, target: Path, *, chunk_size: int = 4 * 1024 * 1
         writer.start(profile=header.profile, library=header.library)
         records = {record.name: dict(record.metadata) for record in reader.iter_metadata()}
         for name, data in {**records, **(metadata or {})}.items():
-            writer.add_metadata(name, data)
+            if name not in without:
+                writer.add_metadata(name, data)
         schemas = {sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in summary.schemas.items()}
         channels = {cid: writer.register_channel(topic(c.topic), c.message_encoding, schemas[c.schema_id],
                                                  dict(c.metadata)) for cid, c in summary.channels.items()}

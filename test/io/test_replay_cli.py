@@ -25,7 +25,7 @@ def test_csv_has_one_file_per_topic_with_every_field(real_recording: Path, tmp_p
     assert run(replay_args(real_recording, csv=tmp_path / "csv")) == 0
     assert f"wrote {len(recording.topics)} CSV files" in capsys.readouterr().out
     files = {path.stem: path for path in (tmp_path / "csv").glob("*.csv")}
-    assert set(files) == set(recording.topics)
+    assert set(files) == {recording.relative_name(topic) for topic in recording.topics}
     with files["pose"].open() as stream:
         rows = list(csv.DictReader(stream))
     poses = recording.decoded("pose")

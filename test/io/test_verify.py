@@ -43,7 +43,7 @@ def test_verify_fails_on_a_tampered_copy(real_recording: Path, tmp_path: Path,
     worst_t, _worst = max(poses, key=lambda item: abs(item[1].pose.position.x))
 
     def nudge(topic: str, t: int, msg: Any) -> Any:
-        if topic == "pose" and t == worst_t:
+        if topic.lstrip("/") == "pose" and t == worst_t:
             msg.pose.position.x *= 1.0 + 1e-6
         return msg
 
@@ -69,7 +69,7 @@ def test_verify_fails_when_a_command_is_missing(real_recording: Path, tmp_path: 
 
     dropped = times[max(range(len(times) - 1), key=travel)]  # the command that mattered most
     copy = rewrite(real_recording, tmp_path / "lost.mcap",
-                   lambda topic, t, msg: None if topic == "drive_force" and t == dropped else msg)
+                   lambda topic, t, msg: None if topic.lstrip("/") == "drive_force" and t == dropped else msg)
     result = verify(read_recording(copy))
     assert not result.passed and result.worst_dx_t >= dropped / 1e9
     assert run(replay_args(copy, verify=True)) == 1
