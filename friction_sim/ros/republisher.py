@@ -1,17 +1,22 @@
 """Republishing a recording on its topics with its timing, like ``ros2 bag play``.
 
 The recorded messages are published as recorded (serialized CDR: rclpy
-publishers take the bytes as they are), so nothing is decoded here.
+publishers take the bytes as they are), so nothing is decoded here.  The
+file is streamed chunk by chunk (:meth:`Recording.iter_chunks`) and merged
+into log-time order with a buffer of about one chunk, so memory stays
+bounded whatever the recording's length.
 """
 
 from __future__ import annotations
 
 import gc
+import heapq
+import itertools
 import math
 import threading
 import time
 import uuid
-from collections.abc import Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, TextIO
 
@@ -61,8 +66,11 @@ def publish(
 ) -> PublishResult:
     """Republish the recorded messages (as recorded, serialized) on their
     topics, the recorded log times scaled by 1/``rate``; with ``loop`` start
-    over until ``stop`` is set or Ctrl-C.  Topic names are the recorded
-    (relative) names, resolved in ``namespace``.  With
+    over until ``stop`` is set or Ctrl-C.  Topics keep their stored names
+    (fully qualified, as rosbag2 stores them; an old file's relative names
+    resolve in ``/``); with ``namespace`` they move there, relative to the
+    recorded node (``/feeder1/pose`` recorded, ``/replay`` given:
+    ``/replay/pose``).  With
     ``wait_for_subscribers`` it first waits (up to ``wait_timeout`` s) until
     every publisher has that many subscriptions, then waits ``delay`` s
     (discovery may need a moment to match both ends).  Progress goes to
@@ -72,8 +80,6 @@ def publish(
     if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0.0):
         raise ParameterError("rate", rate, "must be a finite factor > 0")
     selected = select_topics(recording, topics)
-    wanted = set(selected)
-    messages = sorted((m for m in recording.messages if m.topic in wanted), key=lambda m: m.log_time)
     own_context = not rclpy.ok()
     if own_context:
         rclpy.init()
@@ -81,11 +87,11 @@ def publish(
     try:
         node = rclpy.create_node(node_name or f"friction_sim_replay_{uuid.uuid4().hex[:8]}",
                                  namespace=namespace or "/")
-        publishers = _publishers(node, recording, selected)
+        publishers = _publishers(node, recording, selected, moved=bool(namespace))
         _wait_for_subscribers(publishers, wait_for_subscribers, wait_timeout, stop)
         if delay > 0.0:
             time.sleep(delay)
-        return _play(messages, publishers, rate, loop, progress, stop)
+        return _play(recording, selected, publishers, rate, loop, progress, stop)
     finally:
         if node is not None:
             node.destroy_node()
@@ -93,9 +99,13 @@ def publish(
             rclpy.try_shutdown()
 
 
-def _publishers(node: Node, recording: Recording, topics: list[str]) -> dict[str, Any]:
-    """A publisher per topic, of its recorded type and QoS."""
-    return {topic: node.create_publisher(recording.message_type(topic), topic, qos(recording.topics[topic]))
+def _publishers(node: Node, recording: Recording, topics: list[str], moved: bool) -> dict[str, Any]:
+    """A publisher per stored topic, of its recorded type and QoS: on the stored
+    name, or (``moved``) on the name relative to the recorded node, which the
+    node resolves in its namespace."""
+    return {topic: node.create_publisher(recording.message_type(topic),
+                                         recording.relative_name(topic) if moved else topic,
+                                         qos(recording.topics[topic]))
             for topic in topics}
 
 
@@ -111,20 +121,40 @@ def _wait_for_subscribers(publishers: dict[str, Any], count: int, timeout: float
         time.sleep(0.01)
 
 
-def _play(messages: list[RawMessage], publishers: dict[str, Any], rate: float, loop: bool,
+def in_time_order(chunks: Iterable[list[RawMessage]]) -> Iterator[RawMessage]:
+    """The messages of ``chunks`` (file order) in log-time order, ties in file
+    order.  A message is let out once a later chunk starts after it, so only
+    about one chunk is held at a time (chunks overlap in time only at their
+    edges: the recorder writes in time order)."""
+    pending: list[tuple[int, int, RawMessage]] = []
+    order = itertools.count()
+    for block in chunks:
+        if not block:
+            continue
+        start = min(raw.log_time for raw in block)
+        while pending and pending[0][0] <= start:
+            yield heapq.heappop(pending)[2]
+        for raw in block:
+            heapq.heappush(pending, (raw.log_time, next(order), raw))
+    while pending:
+        yield heapq.heappop(pending)[2]
+
+
+def _play(recording: Recording, topics: list[str], publishers: dict[str, Any], rate: float, loop: bool,
           progress: TextIO | None, stop: threading.Event | None) -> PublishResult:
-    """Publish ``messages`` once, or in a loop until stopped."""
+    """Publish the messages of ``topics`` once, or in a loop until stopped."""
     result = PublishResult()
-    if not messages:
-        return result
-    bar = _Progress(progress, ns_to_seconds(messages[-1].log_time - messages[0].log_time), rate)
+    bar = _Progress(progress, ns_to_seconds(recording.end_ns - recording.start_ns), rate)
     # A full garbage collection of a large heap can stall this thread for
     # ~100 ms; leave the objects that exist now out of collections while
     # playing, so the recorded timing holds.
     gc.freeze()
     try:
         while True:
-            _play_once(messages, publishers, rate, result, bar, stop)
+            sent = result.messages
+            _play_once(in_time_order(recording.iter_chunks(topics)), publishers, rate, result, bar, stop)
+            if result.messages == sent:
+                break  # nothing to publish
             result.loops += 1
             if not loop or (stop is not None and stop.is_set()):
                 break
@@ -132,19 +162,22 @@ def _play(messages: list[RawMessage], publishers: dict[str, Any], rate: float, l
         result.interrupted = True
     finally:
         gc.unfreeze()
-    bar.close(result)
+    if result.messages:
+        bar.close(result)
     return result
 
 
-def _play_once(messages: list[RawMessage], publishers: dict[str, Any], rate: float, result: PublishResult,
+def _play_once(messages: Iterator[RawMessage], publishers: dict[str, Any], rate: float, result: PublishResult,
                bar: _Progress, stop: threading.Event | None) -> None:
     """Publish every message at its recorded time (scaled by 1/rate) after the start."""
-    first = messages[0].log_time
+    first: int | None = None
     start = time.monotonic() + 0.01
     for raw in messages:
         if stop is not None and stop.is_set():
             result.interrupted = True
             return
+        if first is None:
+            first = raw.log_time
         target = start + (raw.log_time - first) / NS_PER_S / rate
         _sleep_until(target)
         publishers[raw.topic].publish(raw.data)
@@ -199,4 +232,4 @@ class _Progress:
         self.stream.flush()
 
 
-__all__ = ["PublishResult", "publish", "qos"]
+__all__ = ["PublishResult", "in_time_order", "publish", "qos"]

@@ -94,3 +94,69 @@ def test_publish_loops_at_a_faster_rate_and_reports_progress(ros: None, tmp_path
     assert "replay:" in progress.getvalue() and "x5 " in progress.getvalue()
     with pytest.raises(RecordingError, match="no topic warp"):
         publish(recording, topics=["warp"])
+
+
+def test_publish_moves_a_namespaced_recording_and_streams_it(ros: None, tmp_path: Path,
+                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    """A recording made in /feeder1 (topics stored /feeder1/pose, as rosbag2 stores them)
+    replays on its stored names, or moved into another namespace; and it is streamed:
+    the whole-file list of messages is never asked for."""
+    from friction_sim.core.params import Inputs, SliderParams
+    from friction_sim.core.slider import Slider
+    from friction_sim.io.reader import Recording
+    from friction_sim.io.recorder import Recorder, recording_metadata
+
+    path = tmp_path / "feeder1.mcap"
+    slider = Slider(SliderParams(), Inputs())
+    states = []
+    for k in range(1, 41):
+        slider.advance_to(k / 100)
+        states.append(slider.state())
+    with Recorder(path, recording_metadata(SliderParams(), Inputs(), log_rate=100.0), namespace="/feeder1") as rec:
+        rec.on_states(states, "slideway")
+    recording = read_recording(path)
+    assert "/feeder1/pose" in recording.topics
+    monkeypatch.setattr(Recording, "messages", property(lambda self: pytest.fail("read the whole file")))
+    target = f"/replay_{uuid.uuid4().hex[:8]}"
+    listener = rclpy.create_node("listener", namespace="/")
+    received: dict[str, list[Any]] = {f"{target}/pose": [], "/feeder1/pose": []}
+    for topic, log in received.items():
+        listener.create_subscription(recording.message_type("pose"), topic, log.append, 100)
+    executor = SingleThreadedExecutor()
+    executor.add_node(listener)
+    try:
+        for namespace in (target, ""):
+            player = threading.Thread(target=lambda ns=namespace: publish(
+                recording, topics=["pose"], namespace=ns, wait_for_subscribers=1, wait_timeout=10.0, delay=0.3))
+            player.start()
+            deadline = time.monotonic() + 15.0
+            expected = f"{namespace or '/feeder1'}/pose"
+            while len(received[expected]) < 40 and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.01)
+            player.join(timeout=10.0)
+    finally:
+        executor.shutdown(timeout_sec=0.0)
+        listener.destroy_node()
+    assert len(received[f"{target}/pose"]) == 40 and len(received["/feeder1/pose"]) == 40
+    assert [m.pose.position.x for m in received[f"{target}/pose"]] == [s.x for s in states]
+
+
+def test_in_time_order_merges_chunks_with_about_one_chunk_held() -> None:
+    from friction_sim.io.reader import RawMessage
+    from friction_sim.ros.republisher import in_time_order
+
+    chunks = [[RawMessage("a", t, b"") for t in (0, 2, 1, 5)], [RawMessage("b", t, b"") for t in (4, 6, 5)],
+              [RawMessage("a", t, b"") for t in (7, 9, 8)]]
+    consumed: list[int] = []
+
+    def feed() -> Any:
+        for k, chunk in enumerate(chunks):
+            consumed.append(k)
+            yield chunk
+
+    merged = in_time_order(feed())
+    first = [next(merged) for _ in range(3)]
+    assert [m.log_time for m in first] == [0, 1, 2] and consumed == [0, 1], "out before the third chunk is read"
+    rest = list(merged)
+    assert [m.log_time for m in first + rest] == [0, 1, 2, 4, 5, 5, 6, 7, 8, 9]
+    assert [m.topic for m in first + rest if m.log_time == 5] == ["a", "b"], "ties keep file order"
