@@ -96,6 +96,67 @@ def minute(folder: Path, seconds: float) -> None:
               f"rel dx {result.rel_dx:.1e}, rel dv {result.rel_dv:.1e})")
 
 
+# -- (r) reading a long recording: memory and rate (item 13) ------------------------------------
+
+_READ_CHILD = r"""
+import resource, sys, time
+from pathlib import Path
+task, path = sys.argv[1], Path(sys.argv[2])
+started = time.perf_counter()
+if task == "verify":
+    from friction_sim.io.reader import read_recording
+    from friction_sim.io.verify import verify
+    recording = read_recording(path)
+    note = "passed" if verify(recording).passed else "FAILED"
+    messages = recording.message_count
+elif task == "report":
+    from friction_sim.experiment.report import build_report, run_data_from_recording
+    from friction_sim.io.reader import read_recording
+    note = f"{len(build_report(run_data_from_recording(path)))} rows"
+    messages = read_recording(path).message_count
+elif task == "stream":
+    from friction_sim.io.reader import read_recording
+    messages = sum(len(block) for block in read_recording(path).iter_chunks())
+    note = "every message, chunk by chunk"
+else:  # baseline: mcap's own reader, message by message in file order
+    from mcap.reader import make_reader
+    with path.open("rb") as stream:
+        messages = sum(1 for _ in make_reader(stream).iter_messages(log_time_order=False))
+    note = "mcap make_reader().iter_messages()"
+wall = time.perf_counter() - started
+print(messages, wall, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024, note)
+"""
+
+
+def reading(folder: Path, seconds: float) -> None:
+    """(r) verify, report and plain reading of a recording of ``seconds`` simulated
+    seconds at 1 kHz, each in a child process: peak RSS (the child's own
+    ru_maxrss) and messages read per second of wall time; baseline: mcap's
+    own reader in the same run."""
+    import subprocess
+
+    from friction_sim.core.commands import Command
+
+    path = folder / "long.mcap"
+    schedule = [Command(seconds * k / 4, "drive_force", {"drive_force": 0.7 + 0.05 * k}) for k in (1, 2, 3)]
+    started = time.perf_counter()
+    stats = record_offline(path, schedule=schedule, duration=seconds, log_rate=1000.0)
+    print(f"(r) a {seconds:g} s recording: {stats.messages} messages, {path.stat().st_size / 1e6:.0f} MB, "
+          f"made in {time.perf_counter() - started:.0f} s")
+    rates = {}
+    for task in ("mcap", "stream", "verify", "report"):
+        done = subprocess.run([sys.executable, "-c", _READ_CHILD, task, str(path)], capture_output=True, text=True,
+                              check=False)
+        if done.returncode != 0:
+            print(f"    {task}: failed: {done.stderr.strip().splitlines()[-1:]}")
+            continue
+        messages, wall, peak, note = done.stdout.split(maxsplit=3)
+        rates[task] = int(messages) / float(wall)
+        ratio = f", {rates[task] / rates['mcap']:.2f}x mcap's rate" if "mcap" in rates and task != "mcap" else ""
+        print(f"    {task:>6}: {float(wall):6.1f} s, peak RSS {int(peak) / 2**20:5.0f} MiB, "
+              f"{rates[task]:,.0f} messages/s{ratio} ({note.strip()})")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="10 s instead of a minute")
@@ -104,6 +165,7 @@ def main() -> int:
         tick_thread_costs(Path(folder), 2000 if args.quick else 5000)
         print("(c) file size at 1 kHz:")
         minute(Path(folder), 10.0 if args.quick else 60.0)
+        reading(Path(folder), 300.0 if args.quick else 3600.0)
     return 0
 
 
