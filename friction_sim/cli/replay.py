@@ -1,9 +1,11 @@
 """``friction-sim replay FILE``: verify, republish, export or plot a recording.
 
 Without an action it describes the recording (``ros2 bag info``-like).
+Every action streams the file (memory bounded whatever its length).
 Exit codes: 0 ok, 1 when ``--verify`` finds a difference; a file that
-cannot be used raises :class:`~friction_sim.errors.RecordingError` (the
-CLI prints it as one line and exits 2).
+cannot be used, and ``--verify`` of a file whose recorder dropped messages,
+raise :class:`~friction_sim.errors.RecordingError` (the CLI prints it as
+one line and exits 2).
 """
 
 from __future__ import annotations
@@ -24,7 +26,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("file", type=Path, help="the recording (.mcap)")
     parser.add_argument("--verify", action="store_true",
                         help="re-simulate from the recorded parameters and commands and compare with the "
-                             "recorded states (exit 1 if they differ by more than --tolerance)")
+                             "recorded states (exit 1 if they differ by more than --tolerance; a file whose "
+                             "recorder dropped messages is refused)")
     parser.add_argument("--tolerance", type=float, default=DEFAULT_TOLERANCE,
                         help=f"relative tolerance of --verify ({DEFAULT_TOLERANCE:g})")
     parser.add_argument("--publish", action="store_true", help="republish the messages on their topics")
