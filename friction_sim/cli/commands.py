@@ -58,10 +58,10 @@ def _print_json(payload: dict[str, Any]) -> None:
 
 
 def _save(figure: Any, path: Path) -> None:
-    """Save a figure, creating its folder, and say where."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(path, dpi=120)
-    print(f"wrote {path}")
+    """Save a figure (at the package's one resolution), creating its folder, and say where."""
+    from friction_sim.cli.figures import save_figure
+
+    print(f"wrote {save_figure(figure, path)}")
 
 
 # -- umap ---------------------------------------------------------------------

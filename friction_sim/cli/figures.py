@@ -7,12 +7,16 @@ so the core and the nodes never pay for it.
   acceleration, velocity and displacement, with the points A, B, C.
 * :func:`report_figure` is an experiment report's picture: target and
   measured mean speed, Pa, Fd and f against time.
+
+Every picture is written by :func:`save_figure`, at :data:`FIGURE_DPI`.
+Labels use mathtext (``$\\mu R$``), never spelled-out Greek.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -26,6 +30,19 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 
+#: The resolution of every saved figure [dots per inch]: print quality, and
+#: fine hatching and thin lines stay legible when zoomed.
+FIGURE_DPI = 150
+
+
+def save_figure(figure: Figure, path: Path) -> Path:
+    """Write ``figure`` to ``path`` (its format from the suffix) at
+    :data:`FIGURE_DPI`, creating the folder; return the path."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path, dpi=FIGURE_DPI)
+    return path
+
+
 def _pyplot_free_figure(**kwargs: object) -> Figure:
     """A Figure not registered with pyplot (no GUI backend, no global state)."""
     from matplotlib.figure import Figure
@@ -34,54 +51,71 @@ def _pyplot_free_figure(**kwargs: object) -> Figure:
 
 
 def u_map_figure(umap: UMap) -> Figure:
-    """U as filled contours over phi = Fd/FfN (x) and a = Pa/Q (y), the
-    no-motion region hatched and its boundary phi = 1 - a drawn."""
+    """U as coloured cells and contours over phi = Fd/FfN (x) and a = Pa/Q (y),
+    the no-motion region hatched and its boundary phi = 1 - a drawn.  Each grid
+    value fills the cell around it, out to the edges of the domain [0, 1]^2,
+    so the map covers the whole axes."""
     fig = _pyplot_free_figure(figsize=(7.0, 5.6), layout="constrained")
     ax = fig.add_subplot()
-    phi, a = np.meshgrid(umap.phi, umap.amplitude_ratio)
     u = np.where(np.isfinite(umap.u), umap.u, np.nan)
-    shading = ax.pcolormesh(phi, a, u, shading="gouraud", cmap="viridis")
+    phi_edges, a_edges = _cell_edges(umap.phi), _cell_edges(umap.amplitude_ratio)
+    cells = ax.pcolormesh(phi_edges, a_edges, u, shading="flat", cmap="viridis", rasterized=True)
+    phi, a = np.meshgrid(umap.phi, umap.amplitude_ratio)
     steps = np.array([0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5])
     levels = steps[steps < np.nanmax(u)]
     lines = ax.contour(phi, a, u, levels=levels, colors="white", linewidths=0.7)
     ax.clabel(lines, fmt="%g", fontsize=7)
     boundary = np.linspace(0.0, 1.0, 200)
     ax.fill_between(boundary, 0.0, 1.0 - boundary, facecolor="none", hatch="//",
-                    edgecolor="0.4", linewidth=0.0, label="no motion (U = 0)")
-    ax.plot(boundary, 1.0 - boundary, color="red", linewidth=1.5, label="boundary Fd/FfN = 1 - Pa/Q")
-    ax.set_xlim(0.0, 1.0)
-    ax.set_ylim(0.0, 1.0)
-    ax.set_xlabel("Fd / FfN  (phi = Fd / (mu m g))")
-    ax.set_ylabel("Pa / Q  (a = Pa / (m g))")
-    ax.set_title("Nondimensional mean speed U = V f / (g mu)")
+                    edgecolor="0.4", linewidth=0.0, label="no motion ($U = 0$)")
+    ax.plot(boundary, 1.0 - boundary, color="red", linewidth=1.5, label=r"boundary $\varphi = 1 - a$")
+    ax.set_xlim(phi_edges[0], phi_edges[-1])
+    ax.set_ylim(a_edges[0], a_edges[-1])
+    ax.set_xlabel(r"$F_d / F_{fN}$   ($\varphi = F_d / (\mu m g)$)")
+    ax.set_ylabel(r"$P_a / Q$   ($a = P_a / (m g)$)")
+    ax.set_title(r"Nondimensional mean speed $U = V f / (g \mu)$")
     ax.legend(loc="lower left", fontsize=8)
-    fig.colorbar(shading, ax=ax, label="U")
+    fig.colorbar(cells, ax=ax, label="$U$")
     return fig
 
 
+def _cell_edges(centres: np.ndarray) -> np.ndarray:
+    """Edges of the cells around sorted grid values: midway between neighbours,
+    and the outer cells reach the domain [0, 1] (or the values, if beyond it)."""
+    centres = np.asarray(centres, float)
+    middle = 0.5 * (centres[1:] + centres[:-1])
+    return np.concatenate(([min(0.0, centres[0])], middle, [max(1.0, centres[-1])]))
+
+
 def trace_figure(result: SimulationResult) -> Figure:
-    """The paper's Fig. 2 from a sampled simulation (``sample_rate`` set)."""
+    """The paper's Fig. 2 from a sampled simulation (``sample_rate`` set).
+
+    The force panel's legend sits above the panel, clear of every curve; the
+    velocity panel keeps headroom so the labels of A, B and C stay inside it."""
     traj = result.trajectory
     if traj is None:
         raise ValueError("trace_figure needs a SimulationResult with a sampled trajectory")
     t_ms = traj.t * 1e3
-    drive = result.inputs.tangential_force
+    # Magnitudes along the slip: with Ft < 0 everything mirrors.
+    drive = abs(result.inputs.tangential_force)
+    drive_label = r"$F_d$ (drive force)" if result.inputs.tangential_force >= 0.0 else r"$|F_d|$ (drive force)"
     limit = result.params.mu * traj.normal_force
     friction_magnitude = np.abs(traj.friction_force)
     slipping = traj.mode != 0
 
-    fig = _pyplot_free_figure(figsize=(8.0, 9.0), layout="constrained")
+    fig = _pyplot_free_figure(figsize=(8.0, 9.5), layout="constrained")
     axes = fig.subplots(4, 1, sharex=True)
     ax = axes[0]
-    ax.plot(t_ms, np.full_like(t_ms, drive), color="black", label="Fd")
-    ax.plot(t_ms, limit, color="tab:blue", linestyle="--", label="mu R")
-    ax.plot(t_ms, friction_magnitude, color="tab:red", label="|Ff| (friction force)")
+    ax.plot(t_ms, limit, color="tab:blue", linestyle="--", label=r"$\mu R$ (friction limit)")
+    ax.plot(t_ms, friction_magnitude, color="tab:red", linewidth=2.2, label=r"$|F_f|$ (friction force)")
+    ax.plot(t_ms, np.full_like(t_ms, drive), color="black", linewidth=1.0, label=drive_label)
     ax.fill_between(t_ms, drive, friction_magnitude, where=slipping & (drive >= friction_magnitude),
                     facecolor="none", hatch="///", edgecolor="tab:green", label="impulse accelerating")
     ax.fill_between(t_ms, drive, friction_magnitude, where=slipping & (drive < friction_magnitude),
                     facecolor="none", hatch="\\\\\\", edgecolor="tab:orange", label="impulse decelerating")
     ax.set_ylabel("force [N]")
-    ax.legend(loc="upper right", fontsize=7, ncol=2)
+    ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.02, 1.0, 0.1), mode="expand", borderaxespad=0.0,
+              ncol=3, fontsize=8, frameon=False)
     for axis, values, label in (
         (axes[1], traj.acceleration, "acceleration [m/s²]"),
         (axes[2], traj.v * 1e3, "velocity [mm/s]"),
@@ -89,43 +123,57 @@ def trace_figure(result: SimulationResult) -> Figure:
     ):
         axis.plot(t_ms, values, color="black", linewidth=1.0)
         axis.set_ylabel(label)
+    for axis in axes:
         axis.grid(alpha=0.3)
+    axes[2].set_ymargin(0.18)  # room above B's label and below A's and C's
     axes[-1].set_xlabel("time [ms]")
     _mark_points(axes, result)
     p, i = result.params, result.inputs
     fig.suptitle(
-        f"Pa = {i.excitation_amplitude:g} N, Fd = {i.drive_force:g} N, f = {i.excitation_frequency:g} Hz, "
-        f"mu = {p.mu:g}, g = {p.gravity:g} m/s², m = {p.mass:g} kg"
+        f"$P_a$ = {i.excitation_amplitude:g} N, $F_d$ = {i.drive_force:g} N, $f$ = {i.excitation_frequency:g} Hz, "
+        f"$\\mu$ = {p.mu:g}, $g$ = {p.gravity:g} m/s², $m$ = {p.mass:g} kg"
     )
     return fig
 
 
 def _mark_points(axes: np.ndarray, result: SimulationResult) -> None:
-    """Mark A (slip starts), B (peak velocity: Ft = mu R again, at the mirror
-    phase pi - theta_A) and C (stick) on the velocity axis."""
+    """Mark A (slip starts), B (fastest: mu R rises back through |Ft|) and C
+    (stick) on the velocity axis, with a thin line through every panel."""
     traj = result.trajectory
     assert traj is not None
-    omega = 2.0 * math.pi * result.inputs.excitation_frequency
     end = traj.t[-1]
-    points: list[tuple[str, float]] = []
-    for event in result.events:
-        if event.t > end:
-            break
+    events = [event for event in result.events if event.t <= end]
+    stops = [event.t for event in events if event.kind is EventKind.STICK]
+    points: list[tuple[str, float]] = [("C", t) for t in stops]
+    for event in events:
         if event.kind is EventKind.SLIP_START:
-            points.append(("A", event.t))
-            theta_a = math.asin(math.sin(event.phase))
-            t_b = event.t + (math.pi - 2.0 * theta_a) / omega
-            if t_b <= end:
-                points.append(("B", t_b))
-        elif event.kind is EventKind.STICK:
-            points.append(("C", event.t))
+            stop = next((t for t in stops if t > event.t), end)
+            points += [("A", event.t)] + [("B", t) for t in _fastest(result, event.t, event.phase, stop)]
     speed_axis = axes[2]
-    for label, t in points:
+    for label, t in sorted(points, key=lambda point: point[1]):
         v = float(np.interp(t, traj.t, traj.v)) * 1e3
         speed_axis.plot(t * 1e3, v, "o", color="tab:purple", markersize=5)
-        speed_axis.annotate(label, (t * 1e3, v), textcoords="offset points", xytext=(4, 6), fontsize=9)
+        # Labels clear of the curve: A left of the point (the curve leaves it to the right),
+        # B on the outside of the peak, C right of the point.
+        offset = {"A": (-11, 6), "B": (4, 6 if v >= 0.0 else -15), "C": (4, 6)}[label]
+        speed_axis.annotate(label, (t * 1e3, v), textcoords="offset points", xytext=offset, fontsize=9)
         for axis in axes:
             axis.axvline(t * 1e3, color="0.75", linewidth=0.6, zorder=0)
+
+
+def _fastest(result: SimulationResult, t_start: float, phase_start: float, end: float) -> list[float]:
+    """Times after a slip start (at ``phase_start``) before ``end`` at which mu R rises
+    back through |Ft|: the speed peaks there (B), at the phase pi - asin(e) with
+    e = (m g + Fz - |Ft|/mu)/Pa (R = m g + Fz - Pa sin(phase))."""
+    p, i = result.params, result.inputs
+    if i.excitation_amplitude <= 0.0:
+        return []
+    e = (p.weight + i.external_force_z - abs(i.tangential_force) / p.mu) / i.excitation_amplitude
+    if not -1.0 <= e <= 1.0:
+        return []
+    omega = 2.0 * math.pi * i.excitation_frequency
+    first = t_start + ((math.pi - math.asin(e) - phase_start) % (2.0 * math.pi)) / omega
+    return list(np.arange(first, end, 2.0 * math.pi / omega))
 
 
 def report_figure(data: RunData, rows: Sequence[SegmentRow]) -> Figure:

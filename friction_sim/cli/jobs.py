@@ -73,14 +73,14 @@ def report_recording(recording: Path, folder: Path | None = None, *, stream: Tex
 
 def write_report(data: RunData, folder: Path, stem: str) -> tuple[list[SegmentRow], Path, Path]:
     """Write <stem>.md and <stem>.png into ``folder``; return rows and paths."""
-    from friction_sim.cli.figures import report_figure
+    from friction_sim.cli.figures import report_figure, save_figure
 
     rows = build_report(data)
     folder.mkdir(parents=True, exist_ok=True)
     markdown = folder / f"{stem}.md"
     markdown.write_text(report_markdown(data, rows, f"{stem}.png"))
     picture = folder / f"{stem}.png"
-    report_figure(data, rows).savefig(picture, dpi=110)
+    save_figure(report_figure(data, rows), picture)
     return rows, markdown, picture
 
 

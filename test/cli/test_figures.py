@@ -1,0 +1,185 @@
+"""The figures as a reader sees them: drawn with Agg and measured in display
+coordinates (legend against curves, labels against their axes, the U map
+against its axes), their text read back, and the saved files' resolution."""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import QuadMesh
+from matplotlib.figure import Figure
+from matplotlib.text import Text
+from PIL import Image
+
+from friction_sim.cli.figures import FIGURE_DPI, save_figure, trace_figure, u_map_figure
+from friction_sim.cli.jobs import write_report
+from friction_sim.core.commands import Command
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.simulation import SimulationResult, simulate
+from friction_sim.core.urelation import u_grid
+from friction_sim.experiment.report import RunData
+
+#: Drive force and amplitude (m = 1 kg, mu = 0.1, g = 10 m/s^2): the paper's
+#: case, backwards, a short slip, slipping all the time, and standing still.
+CASES = {
+    "paper": (0.7, 5.0),
+    "backwards": (-0.7, 5.0),
+    "short slip": (0.05, 9.9),
+    "slips always": (1.2, 5.0),
+    "never moves": (0.3, 5.0),
+}
+
+
+def trace_of(drive: float, amplitude: float, periods: float = 2.5) -> SimulationResult:
+    inputs = Inputs(drive_force=drive, excitation_amplitude=amplitude)
+    f = inputs.excitation_frequency
+    return simulate(SliderParams(), inputs, periods / f, sample_rate=2000.0 * f)
+
+
+def drawn(figure: Figure) -> Any:
+    """Draw ``figure`` with Agg (as savefig does) and return the renderer."""
+    canvas = FigureCanvasAgg(figure)
+    canvas.draw()
+    return canvas.get_renderer()
+
+
+def display_points(line: Any) -> np.ndarray:
+    return np.asarray(line.get_transform().transform(np.column_stack(line.get_data())))
+
+
+@pytest.fixture(scope="module", params=list(CASES), ids=list(CASES))
+def fig2(request: pytest.FixtureRequest) -> tuple[SimulationResult, Figure, Any]:
+    result = trace_of(*CASES[request.param])
+    figure = trace_figure(result)
+    return result, figure, drawn(figure)
+
+
+def test_the_legend_leaves_every_force_curve_visible(fig2: tuple[SimulationResult, Figure, Any]) -> None:
+    _, figure, renderer = fig2
+    force = figure.axes[0]
+    legend = force.get_legend().get_window_extent(renderer)
+    limit = next(line for line in force.get_lines() if "R" in line.get_label())
+    peak = display_points(limit)[np.argmax(limit.get_ydata())]
+    assert not legend.contains(*peak), f"the legend covers the mu R peak at {peak}"
+    for line in force.get_lines():
+        covered = legend.count_contains(display_points(line))
+        assert covered == 0, f"the legend covers {covered} points of {line.get_label()!r}"
+    assert figure.bbox.contains(legend.x0, legend.y0) and figure.bbox.contains(legend.x1, legend.y1)
+
+
+def test_point_labels_sit_inside_the_velocity_axes(fig2: tuple[SimulationResult, Figure, Any]) -> None:
+    _, figure, renderer = fig2
+    speed = figure.axes[2]
+    frame = speed.get_window_extent(renderer)
+    labels = [text for text in speed.texts if text.get_text() in "ABC"]
+    for text in labels:
+        box = text.get_window_extent(renderer)
+        assert frame.x0 <= box.x0 and box.x1 <= frame.x1 and frame.y0 <= box.y0 and box.y1 <= frame.y1, \
+            f"label {text.get_text()} at {box.bounds} leaves the axes {frame.bounds}"
+
+
+def test_the_paper_case_marks_every_a_b_and_c() -> None:
+    figure = trace_figure(trace_of(*CASES["paper"]))
+    labels = sorted(text.get_text() for text in figure.axes[2].texts)
+    assert labels == ["A"] * 3 + ["B"] * 3 + ["C"] * 2  # 2.5 periods: the third slip is cut off
+
+
+@pytest.mark.parametrize("case", ["paper", "backwards", "short slip", "slips always"])
+def test_b_marks_the_fastest_instant_of_each_period(case: str) -> None:
+    result = trace_of(*CASES[case], periods=3.0)
+    figure = trace_figure(result)
+    traj = result.trajectory
+    assert traj is not None
+    marks = [text.xy for text in figure.axes[2].texts if text.get_text() == "B"]
+    assert len(marks) == 3, "one B per period"
+    for t_ms, _ in marks:
+        t = t_ms * 1e-3
+        after = int(np.searchsorted(traj.t, t, side="right"))
+        before = after - 1
+        way = np.sign(traj.v[after])
+        assert traj.mode[before] != 0 and traj.mode[after] != 0, f"B at {t} s is not in a slip"
+        # The speed peaks: the acceleration along the slip changes sign from + to - at B.
+        assert way * traj.acceleration[before] > 0.0 > way * traj.acceleration[after], f"B at {t} s is no peak"
+
+
+def figure_text(figure: Figure) -> list[str]:
+    return [text.get_text() for text in figure.findobj(Text) if text.get_text()]
+
+
+def spelled_out_greek(texts: list[str]) -> list[str]:
+    """Texts with mu or phi written out (not the mathtext commands \\mu, \\varphi)."""
+    return [text for text in texts if re.search(r"(?<!\\)\b(mu|phi)\b", text)]
+
+
+def report_data() -> RunData:
+    params, inputs = SliderParams(), Inputs()
+    return RunData(
+        params=params, inputs=inputs, duration=2.0, name="steps",
+        schedule=[Command(1.0, "excitation_amplitude", {"excitation_amplitude": 6.0})],
+        mean_velocity=[(0.02 * k, 2e-4 if k < 50 else 4e-4) for k in range(1, 100)],
+    )
+
+
+def test_no_label_spells_out_greek_letters(tmp_path: Path) -> None:
+    trace_texts = figure_text(trace_figure(trace_of(*CASES["paper"])))
+    umap_texts = figure_text(u_map_figure(u_grid(11)))
+    assert any(r"\mu" in text for text in trace_texts) and any(r"\mu" in text for text in umap_texts)
+    assert any(r"\varphi" in text for text in umap_texts)
+    from friction_sim.cli.figures import report_figure
+    from friction_sim.experiment.report import build_report
+
+    data = report_data()
+    report_texts = figure_text(report_figure(data, build_report(data)))
+    for texts in (trace_texts, umap_texts, report_texts):
+        assert spelled_out_greek(texts) == []
+
+
+def test_the_u_map_cells_cover_the_whole_axes() -> None:
+    figure = u_map_figure(u_grid(11))  # coarse: a missing half cell would be a wide strip
+    ax = figure.axes[0]
+    mesh = next(artist for artist in ax.collections if isinstance(artist, QuadMesh))
+    corners = mesh.get_coordinates()
+    assert (corners[..., 0].min(), corners[..., 0].max()) == ax.get_xlim() == (0.0, 1.0)
+    assert (corners[..., 1].min(), corners[..., 1].max()) == ax.get_ylim() == (0.0, 1.0)
+    # And as drawn (at the saved resolution): the pixels just inside the frame are map, not background.
+    figure.set_dpi(FIGURE_DPI)
+    box = ax.get_window_extent(drawn(figure))
+    pixels = np.asarray(figure.canvas.buffer_rgba())[..., :3].astype(int)
+    height = pixels.shape[0]
+    left, right = math.ceil(box.x0) + 2, math.floor(box.x1) - 3
+    top, bottom = height - math.floor(box.y1) + 2, height - math.ceil(box.y0) - 3
+    edges = {"left": pixels[top:bottom, left], "right": pixels[top:bottom, right],
+             "top": pixels[top, left:right], "bottom": pixels[bottom, left:right]}
+    for side, strip in edges.items():
+        white = np.all(strip >= 250, axis=-1)
+        assert not white.any(), f"{white.sum()} background pixels along the {side} edge of the map"
+
+
+def saved_dpi(path: Path) -> tuple[float, float]:
+    dpi = Image.open(path).info.get("dpi", (0.0, 0.0))
+    return float(dpi[0]), float(dpi[1])
+
+
+def test_every_figure_is_saved_at_150_dpi_or_more(tmp_path: Path) -> None:
+    assert FIGURE_DPI >= 150
+    figure = trace_figure(trace_of(*CASES["paper"]))
+    path = save_figure(figure, tmp_path / "deeper" / "fig2.png")
+    width, height = figure.get_size_inches()
+    assert Image.open(path).size == (round(width * FIGURE_DPI), round(height * FIGURE_DPI))
+    _, _, picture = write_report(report_data(), tmp_path / "report", "steps")
+    for saved in (path, picture):  # PNG keeps pixels per metre: 150 dpi reads back as 150.01
+        assert min(saved_dpi(saved)) == pytest.approx(FIGURE_DPI, abs=0.05)
+
+
+def test_only_save_figure_writes_pictures_in_the_cli_modules_here() -> None:
+    """The modules of this test's scope save through save_figure (one resolution)."""
+    package = Path(__file__).resolve().parents[2] / "friction_sim" / "cli"
+    for name in ("commands.py", "jobs.py", "main.py"):
+        assert "savefig(" not in (package / name).read_text(), f"{name} calls savefig itself"
+    assert (package / "figures.py").read_text().count("savefig(") == 1
