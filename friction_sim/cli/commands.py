@@ -10,30 +10,94 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from friction_sim.core import spec
 from friction_sim.core.params import Inputs, SliderParams, check_contact
-from friction_sim.errors import FrictionSimError
+from friction_sim.errors import FrictionSimError, ParameterError
 
 MAX_GRID = 2001
 MAX_SAMPLES = 10_000_000
+#: ``simulate`` covers at most this many excitation periods (about a minute
+#: of wall time at ~130,000 periods/s); more is a typo, not a question.
+MAX_PERIODS = 10_000_000
+#: ``trace`` draws at most this many periods (2,000 samples each).
+MAX_TRACE_PERIODS = 100.0
 #: The settings ``--mass --mu --gravity --drive-force --amplitude --frequency``
 #: set: the plant and the inputs the slider takes as parameters.
 PLANT_OPTIONS = tuple(setting for setting in (*spec.PLANT.values(), *spec.INPUTS.values())
                       if setting.name in spec.SLIDER_NODE)
 
+# The command line's own numbers, declared like the model's settings and
+# checked by the same Setting.check (cross-field rules stay in the core).
+# phi has no physical bound, but past |phi| = 1 + a nothing changes (the slider
+# slips all the time), so a bound far beyond that only catches typos.
+PHI = spec.Setting("phi", 0.7, "-", "drive ratio phi = Fd/(mu m g)", -1e6, 1e6)
+# a < 1 is exclusive (the core's u_map says so); a Setting bound is inclusive.
+AMPLITUDE_RATIO = spec.Setting("amplitude_ratio", 0.5, "-", "amplitude ratio a = Pa/(m g)", 0.0, None,
+                               rule="a < 1 (Pa < m g: the slider must not lift off)", flag="--ratio")
+GRID = spec.Setting("grid", 101, "points", "map on N x N points of (phi, a) in (0, 1)", 2, MAX_GRID)
+PERIODS = spec.Setting("periods", 2.5, "periods", "excitation periods shown", 1.0, MAX_TRACE_PERIODS)
+DURATION = spec.Setting("duration", 2.0, "s", "simulated time", None, None,
+                        rule=f"> 0, at least one excitation period after --settle, at most {MAX_PERIODS:.0e} periods")
+SETTLE = spec.Setting("settle", 0.0, "s", "time left out before the mean is taken", 0.0, None,
+                      rule="< --duration")
+SAMPLE_RATE = spec.Setting("sample_rate", 10_000.0, "Hz", "samples per second in --csv", 1e-3, 1e9,
+                           rule=f"at most {MAX_SAMPLES:.0e} samples")
+
+
+class _NonFinite(float):
+    """A NaN or inf that takes Setting.check's full path: its fast path lets inf
+    through a bound left open (``low <= inf <= +inf``)."""
+
+
+def flag_type(setting: spec.Setting) -> Callable[[str], Any]:
+    """An argparse ``type`` that parses a flag's text and checks it with
+    ``setting.check``: NaN, inf and out-of-range values are usage errors
+    (one line naming the flag, the value and the limit; exit code 2)."""
+
+    def parse(text: str) -> Any:
+        try:
+            value = setting.kind(text)
+        except ValueError:
+            value = text  # not a number: check() says what it must be
+        if isinstance(value, float) and not math.isfinite(value):
+            value = _NonFinite(value)
+        try:
+            return setting.check(value)
+        except ParameterError as error:
+            raise argparse.ArgumentTypeError(str(error)) from None
+
+    parse.__name__ = setting.name
+    return parse
+
+
+def add_flag(parser: Any, setting: spec.Setting, default: Any = None) -> None:
+    """Add ``setting`` as the option ``setting.option`` (dest: its name), parsed
+    by :func:`flag_type`; the help gives its meaning, unit, range and default."""
+    unit = f" [{setting.unit}]" if setting.unit and setting.unit != "-" else ""
+    limits = "; ".join(part for part in (setting.range_text(), setting.rule) if part)
+    shown = "" if default is None else f"; default {default:g}"
+    parser.add_argument(setting.option, dest=setting.name, type=flag_type(setting), default=default,
+                        metavar=setting.option.lstrip("-").replace("-", "_").upper(),
+                        help=f"{setting.description}{unit}" + (f" ({limits}{shown})" if limits or shown else ""))
+    parser.set_defaults(flags={**(parser.get_default("flags") or {}), setting.name: setting.option})
+
+
+def flag_of(args: argparse.Namespace, name: str) -> str | None:
+    """The option that set the value ``name`` (``amplitude_ratio`` -> ``--ratio``), if a flag did."""
+    flags: dict[str, str] = getattr(args, "flags", None) or {}
+    return flags.get(name)
+
 
 def add_plant_options(parser: argparse.ArgumentParser) -> None:
-    """The model's parameters and inputs as options (flag, default, unit and
-    meaning from :mod:`friction_sim.core.spec`); defaults are the paper's Fig. 2 case."""
+    """The model's parameters and inputs as options (flag, default, unit, range
+    and meaning from :mod:`friction_sim.core.spec`); defaults are the paper's Fig. 2 case."""
     group = parser.add_argument_group("plant (defaults: the paper's Fig. 2 case)")
     for setting in PLANT_OPTIONS:
-        unit = f" [{setting.unit}]" if setting.unit and setting.unit != "-" else ""
-        group.add_argument(setting.option, dest=setting.name, type=setting.kind, default=setting.default,
-                           metavar=setting.option.lstrip("-").replace("-", "_").upper(),
-                           help=f"{setting.description}{unit} ({setting.default})")
+        add_flag(group, setting, setting.default)
 
 
 def plant(args: argparse.Namespace) -> tuple[SliderParams, Inputs]:
@@ -73,8 +137,6 @@ def umap(args: argparse.Namespace) -> int:
         return _umap_point(args)
     if args.csv is None and args.png is None:
         raise FrictionSimError("umap --grid needs --csv FILE and/or --png FILE")
-    if not 2 <= args.grid <= MAX_GRID:
-        raise FrictionSimError(f"--grid {args.grid} rejected: must be in [2, {MAX_GRID}]")
     from friction_sim.core import urelation
 
     grid = urelation.u_grid(args.grid)
@@ -93,18 +155,19 @@ def _umap_point(args: argparse.Namespace) -> int:
     """U(phi, a) and where the slip starts and how long it lasts."""
     from friction_sim.core import urelation
 
-    if args.phi is None or args.ratio is None:
+    phi, ratio = args.phi, args.amplitude_ratio
+    if phi is None or ratio is None:
         raise FrictionSimError("umap needs --phi and --ratio for one point, or --grid N for the map")
-    u = urelation.u_map(args.phi, args.ratio)
+    u = urelation.u_map(phi, ratio)
     if not args.json:
-        print(f"U({args.phi:g}, {args.ratio:g}) = {u!r}")
+        print(f"U({phi:g}, {ratio:g}) = {u!r}")
         return 0
     _print_json({
-        "phi": args.phi, "amplitude_ratio": args.ratio, "U": u,
-        "moves": urelation.moves(args.phi, args.ratio),
-        "motion_boundary_ratio": urelation.motion_boundary(args.phi),
-        "slip_start_phase": urelation.slip_start_phase(args.phi, args.ratio),
-        "slip_phase_length": urelation.stop_phase_advance(args.phi, args.ratio),
+        "phi": phi, "amplitude_ratio": ratio, "U": u,
+        "moves": urelation.moves(phi, ratio),
+        "motion_boundary_ratio": urelation.motion_boundary(phi),
+        "slip_start_phase": urelation.slip_start_phase(phi, ratio),
+        "slip_phase_length": urelation.stop_phase_advance(phi, ratio),
     })
     return 0
 
@@ -129,10 +192,15 @@ def simulate(args: argparse.Namespace) -> int:
     from friction_sim.core.simulation import simulate as run
 
     params, inputs = plant(args)
+    f = inputs.excitation_frequency
+    if args.duration * f > MAX_PERIODS:
+        raise ParameterError("duration", args.duration, f"must be at most {MAX_PERIODS:.0e} excitation periods "
+                                                        f"({MAX_PERIODS / f:g} s at f = {f:g} Hz)")
     sample_rate = args.sample_rate if args.csv is not None else None
     if sample_rate is not None and sample_rate * args.duration > MAX_SAMPLES:
-        raise FrictionSimError(f"--sample-rate {sample_rate:g} x --duration {args.duration:g} rejected: "
-                               f"at most {MAX_SAMPLES:.0e} samples")
+        raise ParameterError("sample_rate", sample_rate, f"must be at most {MAX_SAMPLES / args.duration:g} Hz "
+                                                         f"with --duration {args.duration:g} s "
+                                                         f"(at most {MAX_SAMPLES:.0e} samples)")
     result = run(params, inputs, args.duration, settle=args.settle, sample_rate=sample_rate)
     if args.csv is not None:
         from friction_sim.io.export import write_trajectory_csv
@@ -218,6 +286,8 @@ def replay(args: argparse.Namespace) -> int:
 
 
 __all__ = [
-    "MAX_GRID", "MAX_SAMPLES", "PLANT_OPTIONS", "add_plant_options", "controller", "experiment", "feeder",
-    "plant", "replay", "report", "ros_args", "simulate", "slider", "trace", "umap",
+    "AMPLITUDE_RATIO", "DURATION", "GRID", "MAX_GRID", "MAX_PERIODS", "MAX_SAMPLES", "MAX_TRACE_PERIODS",
+    "PERIODS", "PHI", "PLANT_OPTIONS", "SAMPLE_RATE", "SETTLE",
+    "add_flag", "add_plant_options", "controller", "experiment", "feeder", "flag_of", "flag_type", "plant",
+    "replay", "report", "ros_args", "simulate", "slider", "trace", "umap",
 ]

@@ -23,20 +23,42 @@ module only parses and dispatches: each subcommand is a function of
 from __future__ import annotations
 
 import argparse
+import math
+import re
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import NoReturn, TypeAlias
+from typing import Any, NoReturn, TypeAlias
 
 from friction_sim.cli import commands
-from friction_sim.errors import FrictionSimError
+from friction_sim.errors import FrictionSimError, ParameterError
 
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
 
 
+#: A negative number as a value of an option: -7, -0.7, -.5, -1e-3, -inf (and -nan, refused later).
+_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)
+
+
+def _finite_float(text: str) -> float:
+    """``type=float`` on every parser here: a number, and a finite one (flags
+    declared by a Setting are checked further, by :func:`commands.flag_type`)."""
+    value = float(text)
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r} rejected: must be a finite number")
+    return value
+
+
 class _OneLineParser(argparse.ArgumentParser):
-    """argparse, but a usage error is one line on stderr and exit code 2."""
+    """argparse, but a usage error is one line on stderr and exit code 2, and
+    ``type=float`` refuses NaN and inf."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.register("type", float, _finite_float)
+        # argparse (before 3.13) takes "-1e-3" or "-inf" for an option, not a value.
+        self._negative_number_matcher = _NEGATIVE_NUMBER
 
     def error(self, message: str) -> NoReturn:
         """Exit with the usage error on one line."""
@@ -61,9 +83,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _add_umap(sub: Subcommands) -> None:
     umap = sub.add_parser("umap", help="the nondimensional mean speed U(phi, a): one point or the map")
-    umap.add_argument("--phi", type=float, help="drive ratio phi = Fd/(mu m g)")
-    umap.add_argument("--ratio", type=float, help="amplitude ratio a = Pa/(m g)")
-    umap.add_argument("--grid", type=int, help=f"map on N x N points of (phi, a) in (0, 1), N <= {commands.MAX_GRID}")
+    for setting in (commands.PHI, commands.AMPLITUDE_RATIO, commands.GRID):
+        commands.add_flag(umap, setting)
     umap.add_argument("--csv", type=Path, help="write the map as CSV (phi, amplitude_ratio, U)")
     umap.add_argument("--png", type=Path, help="draw the map like the paper's Fig. 3")
     umap.add_argument("--json", action="store_true", help="print one JSON object")
@@ -73,7 +94,7 @@ def _add_umap(sub: Subcommands) -> None:
 def _add_trace(sub: Subcommands) -> None:
     trace = sub.add_parser("trace", help="draw the paper's Fig. 2 (forces, a, v, x with A, B, C)")
     trace.add_argument("--png", type=Path, required=True, help="output picture")
-    trace.add_argument("--periods", type=float, default=2.5, help="excitation periods shown (2.5)")
+    commands.add_flag(trace, commands.PERIODS, commands.PERIODS.default)
     commands.add_plant_options(trace)
     trace.set_defaults(handler=commands.trace)
 
@@ -81,12 +102,10 @@ def _add_trace(sub: Subcommands) -> None:
 def _add_simulate(sub: Subcommands) -> None:
     simulate = sub.add_parser("simulate", help="simulate exactly and report the mean velocity and U")
     commands.add_plant_options(simulate)
-    simulate.add_argument("--duration", type=float, default=2.0, help="simulated time [s] (2.0)")
-    simulate.add_argument("--settle", type=float, default=0.0,
-                          help="time [s] left out before the mean is taken (0.0)")
+    for setting in (commands.DURATION, commands.SETTLE):
+        commands.add_flag(simulate, setting, setting.default)
     simulate.add_argument("--csv", type=Path, help="write the sampled trajectory and the events")
-    simulate.add_argument("--sample-rate", type=float, default=10_000.0,
-                          help="samples per second in --csv (10000)")
+    commands.add_flag(simulate, commands.SAMPLE_RATE, commands.SAMPLE_RATE.default)
     simulate.add_argument("--json", action="store_true", help="print one JSON object")
     simulate.set_defaults(handler=commands.simulate)
 
@@ -149,12 +168,15 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _dispatch(args: argparse.Namespace) -> int:
-    """Run the subcommand; a user's error is one line on stderr and exit code 2."""
+    """Run the subcommand; a user's error is one line on stderr and exit code 2.
+    A rejected value that came from a flag names the flag, as argparse would."""
     handler: Callable[[argparse.Namespace], int] = args.handler
     try:
         return handler(args)
     except FrictionSimError as error:
-        print(f"friction-sim {args.command}: error: {error}", file=sys.stderr)
+        flag = commands.flag_of(args, error.field) if isinstance(error, ParameterError) else None
+        where = f"argument {flag}: " if flag else ""
+        print(f"friction-sim {args.command}: error: {where}{error}", file=sys.stderr)
     except OSError as error:
         print(f"friction-sim {args.command}: error: {error.strerror or error}: "
               f"{error.filename or ''}".rstrip(": "), file=sys.stderr)

@@ -13,14 +13,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from friction_sim.cli.main import build_parser, main
 from friction_sim.core.urelation import dimensional_speed, u_map
 
 SCRIPT = Path(sys.executable).parent / "friction-sim"
 
 
-def run(*args: str) -> subprocess.CompletedProcess[str]:
+def run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
     command = [str(SCRIPT)] if SCRIPT.exists() else [sys.executable, "-m", "friction_sim.cli.main"]
-    return subprocess.run([*command, *args], capture_output=True, text=True, timeout=120)
+    return subprocess.run([*command, *args], capture_output=True, text=True, timeout=120, cwd=cwd)
 
 
 def test_console_script_is_installed() -> None:
@@ -48,7 +49,8 @@ def test_umap_grid_writes_csv_and_png(tmp_path: Path) -> None:
     u = np.array([float(r["U"]) for r in rows])
     assert np.all((phi > 0) & (phi < 1) & (a > 0) & (a < 1))
     np.testing.assert_array_equal(u, u_map(phi, a))
-    assert np.all(u[phi <= 1 - a] == 0.0) and np.all(u[phi > 1 - a + 1e-12] > 0.0)
+    # On the boundary phi = 1 - a (to rounding) U is 0 or a few ulp of the exact inputs; never negative.
+    assert np.all(u[phi < 1 - a - 1e-12] == 0.0) and np.all(u[phi > 1 - a + 1e-12] > 0.0) and np.all(u >= 0.0)
     assert (tmp_path / "u.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
@@ -96,16 +98,76 @@ def test_simulate_csv_has_uniform_samples_and_events(tmp_path: Path) -> None:
         (("simulate", "--frequency", "0"), ("excitation_frequency", "0.0")),
         (("simulate", "--duration", "0.001"), ("duration", "0.001")),
         (("simulate", "--mass", "heavy"), ("--mass", "heavy")),
-        (("umap", "--phi", "0.5", "--ratio", "1.5"), ("amplitude_ratio", "1.5")),
+        (("umap", "--phi", "0.5", "--ratio", "1.5"), ("--ratio", "amplitude_ratio", "1.5", "[0, 1)")),
+        (("umap", "--phi", "0.5", "--ratio", "1"), ("--ratio", "amplitude_ratio", "1.0", "[0, 1)")),
         (("umap",), ("--phi", "--grid")),
         (("nosuchcommand",), ("nosuchcommand",)),
+        # NaN, inf and absurd values, refused while parsing, flag, value and limit named
+        (("umap", "--phi", "nan", "--ratio", "0.5"), ("--phi", "nan", "finite")),
+        (("umap", "--phi", "inf", "--ratio", "0.5"), ("--phi", "inf", "finite")),
+        (("umap", "--phi", "-inf", "--ratio", "0.5"), ("--phi", "-inf", "finite")),
+        (("umap", "--phi", "1e300", "--ratio", "0.5"), ("--phi", "1e+300", "[-1e+06, 1e+06]")),
+        (("umap", "--phi", "0.7", "--ratio", "nan"), ("--ratio", "nan", "finite")),
+        (("umap", "--grid", "100000", "--png", "u.png"), ("--grid", "100000", "[2, 2001]")),
+        (("umap", "--grid", "1e3", "--png", "u.png"), ("--grid", "'1e3'", "integer")),
+        (("trace", "--png", "f.png", "--periods", "1e6"), ("--periods", "1000000.0", "[1, 100]")),
+        (("trace", "--png", "f.png", "--periods", "nan"), ("--periods", "nan", "finite")),
+        (("simulate", "--duration", "1e9"), ("--duration", "1000000000.0", "1e+07 excitation periods")),
+        (("simulate", "--duration", "inf"), ("--duration", "inf", "finite")),
+        (("simulate", "--settle", "5"), ("--settle", "5.0", "duration")),
+        (("simulate", "--frequency", "inf"), ("--frequency", "excitation_frequency", "inf", "20000")),
+        (("simulate", "--csv", "x.csv", "--sample-rate", "1e12"), ("--sample-rate", "1000000000000.0", "1e+09")),
+        (("replay", "x.mcap", "--delay", "inf"), ("--delay", "inf", "finite")),
+        (("replay", "x.mcap", "--rate", "nan"), ("--rate", "nan", "finite")),
     ],
 )
-def test_errors_are_one_line_and_exit_2(args: tuple[str, ...], words: tuple[str, ...]) -> None:
-    done = run(*args)
+def test_errors_are_one_line_and_exit_2(args: tuple[str, ...], words: tuple[str, ...], tmp_path: Path) -> None:
+    done = run(*args, cwd=tmp_path)
     assert done.returncode == 2
     assert "Traceback" not in done.stderr
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1, done.stderr
     for word in words:
         assert word in lines[0]
+
+
+def numeric_flags() -> list[tuple[str, str]]:
+    """(subcommand, option) for every option of every subcommand that takes a number."""
+    found = []
+    parser = build_parser()
+    subcommands = next(a for a in parser._actions if a.choices and a.dest == "command")  # noqa: SLF001 - argparse lists no options publicly
+    assert isinstance(subcommands.choices, dict)
+    for name, sub in subcommands.choices.items():
+        for action in sub._actions:  # noqa: SLF001 - as above
+            if action.option_strings and action.type is not None and action.type not in (Path, str):
+                found.append((name, action.option_strings[-1]))
+    return found
+
+
+def test_the_walk_finds_the_numeric_flags() -> None:
+    flags = set(numeric_flags())
+    assert {("umap", "--phi"), ("umap", "--ratio"), ("umap", "--grid"), ("trace", "--periods"),
+            ("trace", "--mass"), ("simulate", "--duration"), ("simulate", "--sample-rate"),
+            ("replay", "--delay")} <= flags
+
+
+@pytest.mark.parametrize(("command", "flag"), numeric_flags())
+@pytest.mark.parametrize("value", ["nan", "inf", "-inf", "1e999"])
+def test_every_numeric_flag_refuses_non_finite_values(command: str, flag: str, value: str,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    """Refused while parsing, before anything runs: exit 2, one line with flag and value."""
+    with pytest.raises(SystemExit) as exit_:
+        main([command, flag, value])
+    assert exit_.value.code == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1, lines
+    line = lines[0]
+    assert flag in line and (value in line or (value == "1e999" and "inf" in line)), line
+    assert "finite" in line or "integer" in line, line  # the limit: a finite number, or an integer
+
+
+def test_help_gives_each_flag_its_range() -> None:
+    done = run("umap", "--help")
+    assert done.returncode == 0
+    text = " ".join(done.stdout.split())
+    assert "-1e+06 … 1e+06" in text and "2 … 2001" in text and "a < 1" in text
