@@ -307,8 +307,9 @@ class RealtimeSlider:
         return Outcome(command)
 
     def refuse(self, command: Command, why: str, wall_ns: int) -> Outcome:
-        """Count a command that was refused before it reached the core."""
-        return self._refuse(command.at(self._advance(wall_ns)), why)
+        """Count a command that was refused before it reached the core (also
+        after a fault: the refusal is still counted, at the time reached)."""
+        return self._refuse(command.at(self.now(wall_ns) if self.fault else self._advance(wall_ns)), why)
 
     def _refuse(self, command: Command, why: str) -> Outcome:
         self.rejected += 1

@@ -126,6 +126,8 @@ def test_a_simulation_fault_stops_the_node_in_process_and_parameter_sets_still_a
     assert errors and "math domain error" in errors[-1].status[0].message
     successful, reason = probe.set_parameter(f"{node.get_namespace()}/slider", "drive_force", 0.9)
     assert not successful and "math domain error" in reason
+    successful, reason = probe.set_parameter(f"{node.get_namespace()}/slider", "mass", math.nan)
+    assert not successful and "mass" in reason and "nan" in reason  # rclpy's own answer
 
 
 FAULTY_SLIDER = f"""
