@@ -22,6 +22,7 @@ import argparse
 import logging
 import math
 import sys
+import textwrap
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -54,6 +55,8 @@ EXIT_CODES = (
     f"parameter; {EXIT_FAULT} the simulation could not go on (reason logged); {EXIT_RECORDING_FAILED} ran "
     "to the end but its recording failed (reason logged; the part written is readable)"
 )
+#: Line width of --help.
+HELP_WIDTH = 100
 #: At most one warning about refused input per this many seconds (and node).
 WARN_INTERVAL = 1.0
 
@@ -306,7 +309,10 @@ def node_help(description: str, settings: Mapping[str, Setting], subscriptions: 
     """The ``--help`` text of a node after its usage line: what it does, its
     parameters with default, unit, range and meaning (from the one vocabulary),
     its topics (name, type, meaning) and its exit codes."""
-    lines = [description.strip(), "",
+    def wrapped(text: str, indent: str = "") -> list[str]:
+        return textwrap.wrap(text, width=HELP_WIDTH, initial_indent=indent, subsequent_indent=indent)
+
+    lines = [*wrapped(description.strip()), "",
              "parameters (--ros-args -p NAME:=VALUE or --params-file FILE; ros2 param set at run time):"]
     for setting in settings.values():
         unit = f" {setting.unit}" if setting.unit not in ("", "-") else ""
@@ -314,13 +320,13 @@ def node_help(description: str, settings: Mapping[str, Setting], subscriptions: 
         limits = "; ".join(part for part in (setting.range_text(), setting.rule) if part)
         meaning = setting.description + ("; start-up only" if setting.start_only else "")
         lines.append(f"  {setting.name} = {default}{unit}")
-        lines.append(f"      {meaning}" + (f" [{limits}]" if limits else ""))
+        lines += wrapped(meaning + (f" [{limits}]" if limits else ""), "      ")
     for title, topics in (("subscriptions", subscriptions), ("publications", publications)):
         lines += ["", f"{title} (names relative: --ros-args -r __ns:=/NAMESPACE moves them):"]
         for topic, kind, meaning in topics:
             lines.append(f"  {topic} ({kind})")
-            lines.append(f"      {meaning}")
-    lines += ["", EXIT_CODES]
+            lines += wrapped(meaning, "      ")
+    lines += ["", *wrapped(EXIT_CODES)]
     return "\n".join(lines)
 
 
