@@ -152,24 +152,55 @@ def umap(args: argparse.Namespace) -> int:
 
 
 def _umap_point(args: argparse.Namespace) -> int:
-    """U(phi, a) and where the slip starts and how long it lasts."""
+    """U(phi, a) and what the slider does there: never moves, sticks and slips
+    once a period (where the slip starts and how long it lasts), or slips all the time."""
     from friction_sim.core import urelation
 
     phi, ratio = args.phi, args.amplitude_ratio
     if phi is None or ratio is None:
         raise FrictionSimError("umap needs --phi and --ratio for one point, or --grid N for the map")
-    u = urelation.u_map(phi, ratio)
-    if not args.json:
-        print(f"U({phi:g}, {ratio:g}) = {u!r}")
+    u = urelation.u_map(phi, ratio) + 0.0  # + 0.0: no '-0.0' where a backward drive stands still
+    motion, why = motion_regime(phi, ratio)
+    periodic = motion == STICK_SLIP
+    start = urelation.slip_start_phase(phi, ratio) if periodic else None
+    length = urelation.stop_phase_advance(phi, ratio) if periodic else None
+    if args.json:
+        _print_json({
+            "phi": phi, "amplitude_ratio": ratio, "U": u, "motion": motion,
+            "moves": urelation.moves(phi, ratio), "motion_boundary_ratio": urelation.motion_boundary(phi),
+            "slip_start_phase": start, "slip_phase_length": length,
+        })
         return 0
-    _print_json({
-        "phi": phi, "amplitude_ratio": ratio, "U": u,
-        "moves": urelation.moves(phi, ratio),
-        "motion_boundary_ratio": urelation.motion_boundary(phi),
-        "slip_start_phase": urelation.slip_start_phase(phi, ratio),
-        "slip_phase_length": urelation.stop_phase_advance(phi, ratio),
-    })
+    print(f"U({phi:g}, {ratio:g}) = {u!r}")
+    print(f"{motion}: {why}")
     return 0
+
+
+NEVER_MOVES, STICK_SLIP, SLIPS_ALWAYS = "never moves", "sticks and slips once a period", "slips all the time"
+
+
+def motion_regime(phi: float, ratio: float) -> tuple[str, str]:
+    """What a slider started at rest at phase 0 does at (phi, a), and why, in words.
+
+    |phi| <= 1 - a: mu R never drops below |Fd|, it never moves.  1 - a < |phi| < 1:
+    one slip per period (points A to C).  |phi| >= 1: |Fd| is at least the mean
+    friction mu m g, it slips from the start and never sticks again (its speed
+    grows without bound for |phi| > 1; at |phi| = 1 it only touches zero once a period).
+    """
+    size, way = abs(phi), "" if phi >= 0.0 else ", backwards (along -x)"
+    if size <= 1.0 - ratio:
+        return NEVER_MOVES, (f"phi <= 1 - a: the friction limit mu R never drops below |Fd| "
+                             f"(motion needs a > {max(1.0 - size, 0.0):g})")
+    if size < 1.0:
+        from friction_sim.core import urelation
+
+        start, length = urelation.slip_start_phase(size, ratio), urelation.stop_phase_advance(size, ratio)
+        return STICK_SLIP, f"the slip starts at phase {start:.6g} rad (A) and lasts {length:.6g} rad (to C){way}"
+    if size == 1.0:
+        return SLIPS_ALWAYS, f"|phi| = 1: never sticks; its speed only touches zero once a period{way}"
+    every = " (|Fd| > mu R at every phase)" if size > 1.0 + ratio else ""
+    return SLIPS_ALWAYS, (f"|phi| > 1: |Fd| exceeds the mean friction mu m g{every}, so it never sticks "
+                          f"and speeds up without bound{way}")
 
 
 # -- trace and simulate -----------------------------------------------------------
@@ -287,7 +318,7 @@ def replay(args: argparse.Namespace) -> int:
 
 __all__ = [
     "AMPLITUDE_RATIO", "DURATION", "GRID", "MAX_GRID", "MAX_PERIODS", "MAX_SAMPLES", "MAX_TRACE_PERIODS",
-    "PERIODS", "PHI", "PLANT_OPTIONS", "SAMPLE_RATE", "SETTLE",
-    "add_flag", "add_plant_options", "controller", "experiment", "feeder", "flag_of", "flag_type", "plant",
-    "replay", "report", "ros_args", "simulate", "slider", "trace", "umap",
+    "NEVER_MOVES", "PERIODS", "PHI", "PLANT_OPTIONS", "SAMPLE_RATE", "SETTLE", "SLIPS_ALWAYS", "STICK_SLIP",
+    "add_flag", "add_plant_options", "controller", "experiment", "feeder", "flag_of", "flag_type", "motion_regime",
+    "plant", "replay", "report", "ros_args", "simulate", "slider", "trace", "umap",
 ]

@@ -13,7 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from friction_sim.cli.commands import NEVER_MOVES, SLIPS_ALWAYS, STICK_SLIP, motion_regime
 from friction_sim.cli.main import build_parser, main
+from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.simulation import simulate
 from friction_sim.core.urelation import dimensional_speed, u_map
 
 SCRIPT = Path(sys.executable).parent / "friction-sim"
@@ -164,6 +167,57 @@ def test_every_numeric_flag_refuses_non_finite_values(command: str, flag: str, v
     line = lines[0]
     assert flag in line and (value in line or (value == "1e999" and "inf" in line)), line
     assert "finite" in line or "integer" in line, line  # the limit: a finite number, or an integer
+
+
+@pytest.mark.parametrize(
+    ("phi", "ratio", "motion"),
+    [(0.7, 0.5, STICK_SLIP), (-0.7, 0.5, STICK_SLIP), (0.2, 0.5, NEVER_MOVES), (0.5, 0.5, NEVER_MOVES),
+     (0.0, 0.9, NEVER_MOVES), (1.0, 0.5, SLIPS_ALWAYS), (1.2, 0.5, SLIPS_ALWAYS), (1.2, 0.1, SLIPS_ALWAYS),
+     (-3.0, 0.5, SLIPS_ALWAYS), (0.99, 0.0, NEVER_MOVES), (1.01, 0.0, SLIPS_ALWAYS)],
+)
+def test_the_motion_words_are_what_the_exact_simulation_does(phi: float, ratio: float, motion: str) -> None:
+    """A slider of m = 1 kg, mu = 0.1, g = 10 m/s^2 at Fd = phi N and Pa = 10 a N, from rest."""
+    assert motion_regime(phi, ratio)[0] == motion
+    result = simulate(SliderParams(), Inputs(drive_force=phi, excitation_amplitude=10.0 * ratio), 0.2)
+    slips, sticks = result.event_counts["slip_start"], result.event_counts["stick"]
+    if motion == NEVER_MOVES:
+        assert slips == 0 and result.mean_velocity == 0.0
+    elif motion == STICK_SLIP:
+        assert slips == 10 and sticks == 10  # one slip in each of the 10 periods
+    else:
+        assert slips == 1 and sticks == 0  # slips from the start and never sticks
+        assert math.copysign(1.0, result.mean_velocity) == math.copysign(1.0, phi)
+
+
+@pytest.mark.parametrize(
+    ("phi", "ratio", "words", "absent"),
+    [
+        ("0.7", "0.5", ("sticks and slips once a period", "0.643501 rad (A)", "2.87995 rad"), ("backwards",)),
+        ("-0.7", "0.5", ("sticks and slips once a period", "backwards"), ()),
+        ("0.2", "0.5", ("never moves", "a > 0.8"), ("phase",)),
+        ("1.2", "0.5", ("slips all the time", "speeds up without bound"), ("phase", "rad")),
+        ("1.6", "0.5", ("slips all the time", "at every phase"), ("rad",)),
+    ],
+)
+def test_umap_point_says_what_the_slider_does(phi: str, ratio: str, words: tuple[str, ...],
+                                              absent: tuple[str, ...]) -> None:
+    done = run("umap", "--phi", phi, "--ratio", ratio)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    assert lines[0] == f"U({float(phi):g}, {float(ratio):g}) = {u_map(float(phi), float(ratio))!r}"
+    for word in words:
+        assert word in lines[1]
+    for word in absent:
+        assert word not in lines[1]
+
+
+@pytest.mark.parametrize(("phi", "motion"), [("0.2", NEVER_MOVES), ("1.2", SLIPS_ALWAYS), ("1.0", SLIPS_ALWAYS)])
+def test_umap_json_gives_no_slip_phase_where_there_is_no_periodic_slip(phi: str, motion: str) -> None:
+    done = run("umap", "--phi", phi, "--ratio", "0.5", "--json")
+    assert done.returncode == 0, done.stderr
+    point = json.loads(done.stdout)
+    assert point["motion"] == motion
+    assert point["slip_start_phase"] is None and point["slip_phase_length"] is None
 
 
 def test_help_gives_each_flag_its_range() -> None:
