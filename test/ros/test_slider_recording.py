@@ -44,7 +44,7 @@ def test_the_simulation_waits_for_a_slow_recorder_without_a_jump_in_time(ros: No
     write = recorder._writer.write  # noqa: SLF001
 
     def slow(batch: Any) -> None:
-        time.sleep(0.3)
+        time.sleep(0.6)
         write(batch)
 
     recorder._writer.write = slow  # noqa: SLF001
@@ -52,11 +52,13 @@ def test_the_simulation_waits_for_a_slow_recorder_without_a_jump_in_time(ros: No
     try:
         probe.wait_for_connection(topic="pose")
         start = len(probe.received["pose"])
-        probe.spin_for(4.0)
-        assert recorder.waits > 0 and recorder.wait_seconds > 1.0, "the tick waited for the writer"
+        probe.spin_for(5.0)
+        assert recorder.waits > 0 and recorder.wait_seconds > 2.0, "the tick waited for the writer"
         stamps = [stamp_ns(m) for m in probe.received["pose"][start:]]
         gaps = [(b - a) / 1e9 for a, b in itertools.pairwise(stamps)]
-        assert max(gaps) < 0.05, f"simulation time never jumps over a wait (largest step {max(gaps):.3f} s)"
+        # Each wait lasts up to 0.6 s; a loaded machine may stall the tick thread ~0.1 s on its own,
+        # which simulation time does follow (a late tick), so the bound lies between the two.
+        assert max(gaps) < 0.3, f"simulation time never jumps over a wait (largest step {max(gaps):.3f} s)"
         reports = [diagnostics_values(m) for m in probe.received["diagnostics"][1:]]
         assert reports and all(float(r["achieved_real_time_factor"]) < 0.8 for r in reports[-2:]), reports
         assert any(level(m) == 1 and "held the simulation back" in m.status[0].message
