@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import sys
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -49,8 +50,9 @@ class Setting:
 
     def __post_init__(self) -> None:
         # The bounds as floats (+-inf when open), for the fast path of check().
-        object.__setattr__(self, "_low", -math.inf if self.low is None else float(self.low))
-        object.__setattr__(self, "_high", math.inf if self.high is None else float(self.high))
+        # Open bounds are the largest finite floats, so the fast path below never lets +-inf through.
+        object.__setattr__(self, "_low", -sys.float_info.max if self.low is None else float(self.low))
+        object.__setattr__(self, "_high", sys.float_info.max if self.high is None else float(self.high))
 
     @property
     def kind(self) -> type:

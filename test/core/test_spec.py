@@ -81,3 +81,12 @@ def test_the_command_table_names_fields_the_plant_has() -> None:
     with pytest.raises(ParameterError, match="unknown field"):
         Command(0.0, "drive_force", {"mass": 1.0})
     assert Command(0.0, PARAMETERS, {"mass": 2.0, "drive_force": 0.1}).plant == {"mass": 2.0}
+
+
+@pytest.mark.parametrize("value", [math.inf, -math.inf, math.nan])
+def test_an_open_bound_lets_no_non_finite_value_through(value: float) -> None:
+    """A setting with no bound on one side still refuses +-inf and NaN (the
+    in-range fast path compares against the bounds)."""
+    open_setting = spec.Setting("open", 0.0, "m", "an unbounded float")
+    with pytest.raises(ParameterError, match="open"):
+        open_setting.check(value)
