@@ -52,13 +52,21 @@ _IDL_TO_MSG = {
 def message_type_name(msg_class: type) -> str:
     """``pkg/msg/Type`` of a message class: a generated ROS 2 class (named
     after its module) or a rosbags dataclass (which carries ``__msgtype__``)."""
-    declared = getattr(msg_class, "__msgtype__", None)
-    if isinstance(declared, str):
-        return declared
-    package = msg_class.__module__.split(".", 1)[0]
-    return f"{package}/msg/{msg_class.__name__}"
+    name = _type_names.get(msg_class)
+    if name is None:
+        declared = getattr(msg_class, "__msgtype__", None)
+        if isinstance(declared, str):
+            name = declared
+        else:
+            name = f"{msg_class.__module__.split('.', 1)[0]}/msg/{msg_class.__name__}"
+        _type_names[msg_class] = name
+    return name
 
 
+_type_names: dict[type, str] = {}  # a class's type name, looked up once (per message written)
+
+
+@cache
 def normalized(type_name: str) -> str:
     """``pkg/msg/Type`` for ``pkg/msg/Type`` or ``pkg/Type``; RecordingError otherwise."""
     match = _TYPE_NAME.match(type_name)
