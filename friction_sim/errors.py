@@ -33,6 +33,18 @@ class RecordingError(FrictionSimError):
     """A recording cannot be written or read (missing, not MCAP, not ours)."""
 
 
+class RecordingPathError(RecordingError):
+    """A recording cannot be written where ``field`` (e.g. ``log_path``) says:
+    a directory, a missing folder, no permission, a full disk.  ``reason``
+    is the OS's reason (``[Errno 28] No space left on device``) or the rule."""
+
+    def __init__(self, field: str, value: str, reason: str) -> None:
+        self.field = field
+        self.value = value
+        self.reason = reason
+        super().__init__(f"{field} = {_quote(value)} rejected: {reason}")
+
+
 def _quote(value: Any) -> str:
     """Format a rejected value unambiguously (repr: 0.1 stays 0.1, nan, inf, 'text')."""
     return repr(value)

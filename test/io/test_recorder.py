@@ -1,6 +1,7 @@
 """Recording: every record round-trips through the file, the MCAP layout
-rosbag2 and Foxglove expect, data on disk within the flush interval, the
-non-blocking queue, and the log grid whatever the tick times."""
+rosbag2 and Foxglove expect (fully qualified topic names), data on disk
+within the flush interval, the queue (waiting, or dropping and counting),
+and the log grid whatever the tick times."""
 
 from __future__ import annotations
 
@@ -22,11 +23,11 @@ from friction_sim.core.commands import Command, Outcome
 from friction_sim.core.events import Event, EventKind, Mode, SliderState
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.realtime import PeriodSummary, RealtimeSlider
-from friction_sim.errors import RecordingError
+from friction_sim.errors import ParameterError, RecordingPathError
 from friction_sim.io import messages as M
 from friction_sim.io.offline import record_offline
 from friction_sim.io.reader import read_recording
-from friction_sim.io.recorder import METADATA_NAME, Recorder
+from friction_sim.io.recorder import METADATA_NAME, Recorder, qualified_topic
 from friction_sim.io.sinks import deliver_tick
 from friction_sim.io.typesupport import message_definition, message_type_name, share_directory, type_hash
 
@@ -77,6 +78,7 @@ def test_every_message_type_round_trips_through_the_file(tmp_path: Path) -> None
         msg = M.command_message(outcome.command, "rail") if outcome.accepted else M.rejection_message(outcome)
         expected.append((topic, M.seconds_to_ns(outcome.t), msg))
     expected.append(("notes", 42, String(data="hello")))
+    expected = [("/" + topic, t, msg) for topic, t, msg in expected]  # stored fully qualified, as rosbag2 does
 
     recording = read_recording(path)
     assert recording.complete and recording.profile == "ros2"
@@ -85,8 +87,28 @@ def test_every_message_type_round_trips_through_the_file(tmp_path: Path) -> None
     for (topic, _, msg), (_, _, want) in zip(got, expected):
         # Decoded with rosbags: the same type (by name) and the same field values as the message written.
         assert message_type_name(type(msg)) == message_type_name(type(want)) and plain(msg) == plain(want), topic
-    assert recording.topics["parameters"].type_name == "rcl_interfaces/msg/ParameterEvent"
-    assert recording.topics["rejected_commands"].type_name == "diagnostic_msgs/msg/DiagnosticStatus"
+    assert recording.topics["/parameters"].type_name == "rcl_interfaces/msg/ParameterEvent"
+    assert recording.topics["/rejected_commands"].type_name == "diagnostic_msgs/msg/DiagnosticStatus"
+
+
+def test_topics_are_stored_fully_qualified_in_the_namespace(tmp_path: Path) -> None:
+    from std_msgs.msg import String
+
+    path = tmp_path / "ns.mcap"
+    with Recorder(path, metadata={"mass": 1.0}, namespace="/feeder1") as recorder:
+        recorder.on_states([STATE], "slideway")
+        recorder.on_event(every_record()["event"])
+        recorder.write("/tf_note", String(data="absolute names stay"), 5)
+    with path.open("rb") as stream:
+        summary = make_reader(stream).get_summary()
+    assert summary is not None
+    assert sorted(channel.topic for channel in summary.channels.values()) == [
+        "/feeder1/events", "/feeder1/friction_force", "/feeder1/pose", "/feeder1/velocity", "/tf_note"]
+    assert set(recorder.stats.per_topic) == {channel.topic for channel in summary.channels.values()}
+    assert qualified_topic("/", "pose") == "/pose" and qualified_topic("/a/b/", "pose") == "/a/b/pose"
+    with pytest.raises(ParameterError, match="namespace = 'feeder1' rejected"):
+        Recorder(tmp_path / "bad.mcap", namespace="feeder1")
+    assert not (tmp_path / "bad.mcap").exists()
 
 
 def test_file_layout_is_what_rosbag2s_mcap_plugin_writes(tmp_path: Path) -> None:
@@ -132,7 +154,7 @@ def test_file_layout_is_what_rosbag2s_mcap_plugin_writes(tmp_path: Path) -> None
     assert bag["duration"]["nanoseconds"] == stats.last_ns - stats.first_ns == 1_000_000_000
     assert bag["relative_file_paths"] == [path.name] and bag["files"][0]["message_count"] == stats.messages
     counts = {topic["topic_metadata"]["name"]: topic["message_count"] for topic in bag["topics_with_message_count"]}
-    assert counts == stats.per_topic
+    assert counts == stats.per_topic and "/pose" in counts
     for topic in bag["topics_with_message_count"]:
         meta = topic["topic_metadata"]
         assert meta["serialization_format"] == "cdr"
@@ -181,48 +203,88 @@ def test_written_data_is_readable_within_the_flush_interval_while_recording(tmp_
 
 
 class StalledRecorder(Recorder):
-    """A recorder whose writer thread is stuck (a slow disk)."""
+    """A recorder whose writer thread is stuck (a slow disk) until ``gate`` opens."""
 
-    gate = threading.Event()
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self.gate = threading.Event()
+        super().__init__(*args, **kwargs)
 
-    def _handle(self, item: Any) -> None:
+    def _write_batch(self, batch: Any) -> None:
         self.gate.wait(10.0)
-        super()._handle(item)
+        super()._write_batch(batch)
 
 
-def test_a_full_queue_drops_and_counts_without_blocking_the_caller(tmp_path: Path) -> None:
+def states(n: int) -> list[SliderState]:
+    return [dataclasses.replace(STATE, t=k * 1e-3) for k in range(n)]
+
+
+def test_a_full_queue_drops_and_counts_without_blocking_a_caller_that_does_not_wait(tmp_path: Path) -> None:
     path = tmp_path / "stalled.mcap"
-    recorder = StalledRecorder(path, metadata={"mass": 1.0}, queue_size=10)
+    recorder = StalledRecorder(path, metadata={"mass": 1.0}, queue_size=10, block_when_full=False)
     slowest, accepted = 0.0, 0
-    for k in range(100):
+    for state in states(100):
         started = time.perf_counter()
         before = recorder.dropped
-        recorder.on_states([dataclasses.replace(STATE, t=k * 1e-3)], "slideway")
+        recorder.on_states([state], "slideway")
         accepted += recorder.dropped == before
         slowest = max(slowest, time.perf_counter() - started)
     # A blocked call would wait for the stalled writer (10 s); 0.5 s leaves room for a loaded machine.
-    assert slowest < 0.5, f"write() never waits for the writer (slowest call {slowest:.3f} s)"
-    assert accepted in (10, 11) and recorder.dropped == 100 - accepted
-    StalledRecorder.gate.set()
+    assert slowest < 0.5, f"on_states never waits for the writer (slowest call {slowest:.3f} s)"
+    # 3 states (9 messages) fit in the queue, one more if the writer took the first before it stalled.
+    assert accepted in (3, 4) and recorder.dropped == 3 * (100 - accepted), "drops count messages"
+    assert recorder.waits == 0
+    recorder.gate.set()
     stats = recorder.finish()
-    assert stats.dropped == 100 - accepted and stats.per_topic["pose"] == accepted
-    recording = read_recording(path)
-    assert recording.dropped == 100 - accepted
+    assert stats.dropped == 3 * (100 - accepted) and stats.per_topic["/pose"] == accepted and stats.error is None
+    recording = read_recording(path, require_friction_sim=False)
+    assert recording.dropped == 3 * (100 - accepted), "the file says how many messages it lacks"
     assert len(recording.messages_on("pose")) == accepted
     before = recorder.dropped
     recorder.on_states([STATE], "slideway")
-    assert recorder.dropped == before + 1, "after finish nothing is written"
+    assert recorder.dropped == before + 3, "after finish nothing is written, and that is counted"
+
+
+def test_a_producer_that_waits_loses_nothing_and_resumes_when_the_writer_moves(tmp_path: Path) -> None:
+    path = tmp_path / "waits.mcap"
+    recorder = StalledRecorder(path, metadata={"mass": 1.0}, queue_size=10)  # waiting is the default
+    done = threading.Event()
+    returned_at: list[float] = []
+
+    def produce() -> None:
+        for state in states(50):
+            recorder.on_states([state], "slideway")
+        returned_at.append(time.monotonic())
+        done.set()
+
+    producer = threading.Thread(target=produce)
+    producer.start()
+    assert not done.wait(0.5), "the producer waits while the writer is stuck"
+    assert recorder.dropped == 0 and recorder.waits >= 1
+    opened = time.monotonic()
+    recorder.gate.set()
+    assert done.wait(10.0), "the producer goes on once the writer moves"
+    producer.join()
+    stats = recorder.finish()
+    assert stats.dropped == 0 and stats.unrecorded == 0 and stats.error is None
+    assert stats.per_topic["/pose"] == 50 and stats.waits >= 1
+    # The wait lasted about as long as the writer was stuck: it ended when the writer moved.
+    assert 0.4 < stats.waited < returned_at[0] - opened + 0.6
+    recording = read_recording(path, require_friction_sim=False)
+    assert recording.dropped == 0 and len(recording.messages_on("pose")) == 50
 
 
 def test_finish_is_idempotent_and_unwritable_paths_are_one_line_errors(tmp_path: Path) -> None:
     recorder = Recorder(tmp_path / "a.mcap")
     first = recorder.finish()
     assert recorder.finish() is first and recorder.finished
-    for bad in (tmp_path / "missing" / "run.mcap", tmp_path):
-        with pytest.raises(RecordingError) as error:
+    for bad, reason in ((tmp_path / "missing" / "run.mcap", "[Errno 2] No such file or directory"),
+                        (tmp_path, "names a directory, not a file")):
+        with pytest.raises(RecordingPathError) as error:
             Recorder(bad)
         message = str(error.value)
-        assert message.startswith("cannot write recording") and "\n" not in message
+        assert message.startswith(f"log_path = '{bad}' rejected: ") and reason in message and "\n" not in message
+        chained = error.value.__cause__ or (None if error.value.__suppress_context__ else error.value.__context__)
+        assert chained is None, "nothing chained: a traceback would show it"
 
 
 def test_a_bad_message_is_dropped_without_ending_the_recording(tmp_path: Path) -> None:

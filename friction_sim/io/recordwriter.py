@@ -1,0 +1,238 @@
+"""The recorder's writer thread side: sink records -> ROS 2 messages -> the MCAP file.
+
+:class:`RecordWriter` takes the records a :class:`~friction_sim.io.recorder.Recorder`
+queued (states, events, period means, commands, parameters, messages,
+metadata) and writes them to a :class:`~friction_sim.io.bagfile.BagFile`
+in order.  The state topics (pose, velocity, friction_force) and
+mean_velocity are fixed-layout messages: consecutive states are written
+many at a time, as rows of numbers in the bytes rosbags serialized for a
+template (:func:`~friction_sim.io.cdr.fixed_layouts`, checked against
+rosbags); everything else is built by :mod:`friction_sim.io.messages` and
+serialized one message at a time.  Topics are stored fully qualified in the
+node's namespace, as rosbag2 names them.
+
+A record no message can hold (a topic reused with another type, a time no
+ROS stamp holds, a value of no parameter type) is dropped, counted in
+:attr:`RecordWriter.bad` and warned about once per kind; an ``OSError``
+(the disk) is raised to the caller, which ends the recording.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from friction_sim.core.commands import Outcome
+from friction_sim.core.events import Mode, SliderState
+from friction_sim.core.realtime import PeriodSummary
+from friction_sim.io.bagfile import MAX_STAMP_NS, BagFile, RowGroup
+from friction_sim.io.cdr import FixedLayout, fixed_layouts
+from friction_sim.io.messages import (
+    STATE_TOPICS,
+    command_message,
+    event_message,
+    fill_state_messages,
+    mean_velocity_message,
+    parameters_message,
+    rejection_message,
+    seconds_to_ns,
+    state_messages,
+)
+from friction_sim.io.typesupport import message_type_name
+
+_log = logging.getLogger("friction_sim.io.recorder")
+
+Item = tuple[Any, ...]
+#: States encoded per numpy pass (bounds how long the writer holds the GIL at once).
+ROWS_PER_PASS = 2048
+
+
+def qualified_topic(namespace: str, topic: str) -> str:
+    """``topic`` as rosbag2 names it: absolute names stay, relative ones are
+    resolved in ``namespace`` (``pose`` in ``/`` is ``/pose``, in ``/feeder1``
+    it is ``/feeder1/pose``)."""
+    if topic.startswith("/"):
+        return topic
+    return f"{namespace.rstrip('/')}/{topic}"
+
+
+class RecordWriter:
+    """Writes queued sink records to ``file`` (see the module docstring); one thread only."""
+
+    def __init__(self, file: BagFile, namespace: str, path: Path) -> None:
+        self.file = file
+        self.namespace = namespace
+        self.path = path
+        #: Messages dropped because no message could hold their record.
+        self.bad = 0
+        self._warned: set[tuple[str, str]] = set()
+        self._topics: dict[str, str] = {}
+        self._state_groups: dict[str, RowGroup | None] = {}
+        self._period_layouts: dict[str, FixedLayout | None] = {}
+        self._templates: tuple[Any, Any, Any] | None = None  # pose, twist, wrench: the one-at-a-time path
+
+    def write(self, batch: Sequence[Item]) -> None:
+        """Write the records of ``batch``.  The states of consecutive ticks
+        (of one frame) go together, before those ticks' events and period
+        means; any other record (a command, parameters, a message, metadata)
+        keeps its place: everything queued before it is written before it.
+        Each topic stays in time order."""
+        states: list[SliderState] = []
+        frame_id = ""
+        later: list[Item] = []  # events and periods of the ticks whose states are in ``states``
+        for item in batch:
+            kind = item[0]
+            if kind == "states" and states and item[2] != frame_id:
+                self._write_run(states, frame_id, later)
+                states, later = [], []
+            if kind == "states":
+                states.extend(item[1])
+                frame_id = item[2]
+            elif kind in ("event", "period"):
+                later.append(item)
+            else:
+                self._write_run(states, frame_id, later)
+                states, later = [], []
+                self._write_safely(item)
+        self._write_run(states, frame_id, later)
+
+    def _write_run(self, states: list[SliderState], frame_id: str, later: list[Item]) -> None:
+        if states:
+            self._write_states(states, frame_id)
+        for item in later:
+            self._write_safely(item)
+
+    def topic(self, topic: str) -> str:
+        """The fully qualified name of ``topic`` (cached)."""
+        name = self._topics.get(topic)
+        if name is None:
+            name = self._topics[topic] = qualified_topic(self.namespace, topic)
+        return name
+
+    # -- states and periods, many at a time ---------------------------------------------
+
+    def _write_states(self, states: Sequence[SliderState], frame_id: str) -> None:
+        """Write states as pose, velocity and friction_force: many at a time
+        when the three messages are fixed-layout (they are), else one by one."""
+        group = self._state_group(frame_id)
+        for first in range(0, len(states), ROWS_PER_PASS):
+            part = states[first:first + ROWS_PER_PASS]
+            if group is None:
+                for state in part:
+                    self._write_safely(("state", state, frame_id))
+                continue
+            try:
+                table = np.array([(s.t, s.x, s.v, s.friction_force, s.normal_force) for s in part], dtype=np.float64)
+                ns = np.rint(table[:, 0] * 1e9)  # = seconds_to_ns(t): round half to even, as round()
+                ok = (ns >= 0.0) & (ns <= MAX_STAMP_NS)  # False for NaN too
+                if not ok.all():
+                    self._count_bad(3 * int((~ok).sum()), "state", "a state time no ROS stamp holds")
+                    ns, table = ns[ok], table[ok]
+                self.file.add_rows(group, ns.astype(np.int64), table[:, 1:])
+            except OSError:
+                raise
+            except Exception as error:  # noqa: BLE001 - bad records must not end the recording
+                self._count_bad(3 * len(part), "state", f"{type(error).__name__}: {_one_line(error)}")
+
+    def _state_group(self, frame_id: str) -> RowGroup | None:
+        """The fixed layouts of a state's three messages in ``frame_id`` (cached)."""
+        if frame_id not in self._state_groups:
+            def make(ns: int, values: Sequence[float]) -> Sequence[Any]:
+                x, v, friction, normal = values
+                return state_messages(SliderState(ns / 1e9, x, v, 0.0, friction, normal, 0.0, Mode.STUCK), frame_id)
+
+            topics = [self.topic(topic) for topic in STATE_TOPICS]
+            self._state_groups[frame_id] = self.file.row_group(topics, make, 4)
+        return self._state_groups[frame_id]
+
+    def _write_period(self, period: PeriodSummary, frame_id: str) -> None:
+        """Write a period's mean velocity (from its fixed layout when it has one)."""
+        if frame_id not in self._period_layouts:
+            layouts = fixed_layouts(lambda ns, values: [mean_velocity_message(
+                PeriodSummary(n=0, t=ns / 1e9, mean_velocity=values[0], window_periods=1, stick_fraction=0.0),
+                frame_id)], 1)
+            self._period_layouts[frame_id] = layouts[0] if layouts else None
+        layout = self._period_layouts[frame_id]
+        ns = seconds_to_ns(period.t)
+        topic = self.topic("mean_velocity")
+        if layout is not None and 0 <= ns <= MAX_STAMP_NS:
+            self.file.add_serialized(topic, layout.type_name, layout.encode_one(ns, (period.mean_velocity,)), ns)
+        else:
+            self._add(topic, mean_velocity_message(period, frame_id), ns)
+
+    # -- one record at a time --------------------------------------------------------
+
+    def _write_safely(self, item: Item) -> None:
+        """Write one record; a bad one is dropped and counted, an OSError raised."""
+        try:
+            self._write_one(item)
+        except OSError:
+            raise
+        except Exception as error:  # noqa: BLE001 - one bad record must not end the recording
+            self._count_bad(3 if item[0] == "state" else 1, str(item[1])[:40] if item[0] == "msg" else item[0],
+                            f"{type(error).__name__}: {_one_line(error)}")
+
+    def _write_one(self, item: Item) -> None:
+        """Build the messages of one queued record and write them."""
+        kind = item[0]
+        if kind == "msg":
+            self._add(self.topic(item[1]), item[2], item[3])
+        elif kind == "metadata":
+            self.file.add_metadata(item[1], item[2])
+        elif kind == "period":
+            self._write_period(item[1], item[2])
+        elif kind == "state":
+            self._add_state(item[1], item[2])
+        else:
+            for topic, msg, log_time_ns in _messages(item):
+                self._add(self.topic(topic), msg, log_time_ns)
+
+    def _add_state(self, state: SliderState, frame_id: str) -> None:
+        """Write a state one message at a time (messages reused: serialized at once)."""
+        if self._templates is None:
+            self._templates = state_messages(state, frame_id)
+        else:
+            fill_state_messages(state, frame_id, *self._templates)
+        ns = seconds_to_ns(state.t)
+        for topic, msg in zip(STATE_TOPICS, self._templates):
+            self._add(self.topic(topic), msg, ns)
+
+    def _add(self, topic: str, msg: Any, log_time_ns: int) -> None:
+        """Write one message; a log time no ROS stamp holds is dropped and counted."""
+        if not self.file.add(topic, msg, log_time_ns):
+            self._count_bad(1, message_type_name(type(msg)), f"log time {log_time_ns} ns is outside ROS time")
+
+    def _count_bad(self, messages: int, what: str, why: str) -> None:
+        """Count ``messages`` dropped because no message could hold them (warn once per kind)."""
+        self.bad += messages
+        if (what, why) not in self._warned:
+            self._warned.add((what, why))
+            _log.warning("recording %s: dropped a %s record: %s", self.path, what, why)
+
+
+def _messages(item: Item) -> list[tuple[str, Any, int]]:
+    """(topic, message, log time [ns]) of a queued sink record."""
+    kind = item[0]
+    if kind == "event":
+        return [("events", event_message(item[1]), seconds_to_ns(item[1].t))]
+    if kind == "command":
+        outcome: Outcome = item[1]
+        if outcome.accepted:
+            return [(outcome.name, command_message(outcome.command, item[2]), seconds_to_ns(outcome.t))]
+        return [("rejected_commands", rejection_message(outcome), seconds_to_ns(outcome.t))]
+    if kind == "parameters":
+        return [("parameters", parameters_message(item[1], item[2], changed=item[3]), seconds_to_ns(item[2]))]
+    raise ValueError(f"unknown record kind {kind!r}")
+
+
+def _one_line(error: BaseException) -> str:
+    """An error as one line of text."""
+    text = str(error) or type(error).__name__
+    return " ".join(text.split())
+
+
+__all__ = ["ROWS_PER_PASS", "RecordWriter", "qualified_topic"]
