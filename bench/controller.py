@@ -1,10 +1,23 @@
-"""Benchmark of the mean-speed controller (issue 4): the five acceptance cases
-in closed loop over real topics, slider and controller in this process, real
-time.  Prints settling time (excitation periods), overshoot and steady error
-per step, and draws target, measured mean speed and Pa against time for all
-five cases into one PNG.  Prints figures only; nothing passes or fails here.
+"""Benchmark of the mean-speed controller.
 
-Run: make bench   (or .venv/bin/python bench/controller.py [--png out/controller.png])
+* acceptance (issue 4): the five acceptance cases in closed loop over real
+  topics, slider and controller in this process, real time.  Prints settling
+  time (excitation periods), overshoot and steady error per step, and draws
+  target, measured mean speed and Pa against time for all five cases into
+  one PNG.
+* flood (issue 10): the ``controller`` console script in its own process,
+  regulating without a plant; its CPU share (from /proc) over windows of a
+  few seconds, idle and then under a flood of 10,000 drive_force commands per
+  second, half of them NaN or inf, from a third process
+  (test/ros/test_controller_flood.py): medians of both and their ratio, and
+  how many excitation_amplitude messages it published per second.  A process
+  that subscribes and never takes a message is measured alongside: what
+  receiving the flood costs any node (DDS), the floor of the controller's.
+
+Prints figures only; nothing passes or fails here.  On a shared machine the
+CPU figures are noisy: compare the ratio, and rerun.
+
+Run: make bench   (or .venv/bin/python bench/controller.py [--part flood] [--png out/controller.png])
 """
 
 from __future__ import annotations
@@ -12,7 +25,11 @@ from __future__ import annotations
 import argparse
 import os
 import random
+import statistics
+import subprocess
 import sys
+import time
+import uuid
 from pathlib import Path
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -20,11 +37,128 @@ os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(1, 100)))
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.executors import SingleThreadedExecutor
+from std_msgs.msg import Float64
 
 from friction_sim.experiment.acceptance import acceptance_scenarios, judge
 from friction_sim.experiment.report import command_label
 from friction_sim.experiment.runner import ExperimentResult, run_experiment
 from friction_sim.experiment.scenario import Scenario
+
+BIN = Path(sys.executable).parent
+FLOODER = Path(__file__).resolve().parents[1] / "test" / "ros" / "test_controller_flood.py"
+CLK_TCK = os.sysconf("SC_CLK_TCK")
+
+
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time of process ``pid`` so far [s]."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / CLK_TCK
+
+
+class Watcher:
+    """Counts the controller's excitation_amplitude messages and keeps its last diagnostics."""
+
+    def __init__(self, namespace: str) -> None:
+        self.node = rclpy.create_node("bench_watcher", namespace=namespace)
+        self.amplitudes = 0
+        self.status: dict[str, str] = {}
+        self.node.create_subscription(Float64, "excitation_amplitude", self._on_amplitude, 100)
+        self.node.create_subscription(DiagnosticArray, "diagnostics", self._on_diagnostics, 10)
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+
+    def _on_amplitude(self, msg: Float64) -> None:
+        self.amplitudes += 1
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            if status.name == "controller":
+                self.status = {kv.key: kv.value for kv in status.values} | {"level": str(status.level[0])}
+
+    def spin_for(self, seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=0.05)
+
+
+#: A process that only subscribes to drive_force and never takes a message:
+#: what receiving the flood costs any node (DDS), whatever it does with it.
+BARE_SUBSCRIBER = """
+import sys, time, rclpy
+from std_msgs.msg import Float64
+rclpy.init()
+node = rclpy.create_node("bench_bare", namespace=sys.argv[1])
+node.create_subscription(Float64, "drive_force", lambda msg: None, 10)
+while True:
+    time.sleep(1.0)
+"""
+
+
+def windows(watcher: Watcher, pids: dict[str, int], count: int, seconds: float) -> dict[str, list[float]]:
+    """CPU share of each process and the controller's amplitude messages per
+    second (key ``amplitudes``) over ``count`` windows."""
+    figures: dict[str, list[float]] = {name: [] for name in [*pids, "amplitudes"]}
+    for _ in range(count):
+        cpu = {name: cpu_seconds(pid) for name, pid in pids.items()}
+        sent, start = watcher.amplitudes, time.monotonic()
+        watcher.spin_for(seconds)
+        elapsed = time.monotonic() - start
+        for name, pid in pids.items():
+            figures[name].append((cpu_seconds(pid) - cpu[name]) / elapsed)
+        figures["amplitudes"].append((watcher.amplitudes - sent) / elapsed)
+    return figures
+
+
+def flood_bench(rate: int, count: int, seconds: float) -> None:
+    ns = f"/bench_{uuid.uuid4().hex[:8]}"
+    node = subprocess.Popen([str(BIN / "controller"), "--ros-args", "-r", f"__ns:={ns}", "-p", "plant_node:=''",
+                             "-p", "target_speed:=0.0003"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True)
+    bare = subprocess.Popen([sys.executable, "-c", BARE_SUBSCRIBER, ns])
+    watcher = Watcher(ns)
+    flooder = None
+    pids = {"controller": node.pid, "bare subscriber": bare.pid}
+    try:
+        deadline = time.monotonic() + 20.0
+        while watcher.amplitudes == 0 and time.monotonic() < deadline:
+            watcher.spin_for(0.1)
+        watcher.spin_for(1.0)
+        idle = windows(watcher, pids, count, seconds)
+        env = {**os.environ, "PYTHONPATH": str(FLOODER.parents[1])}
+        flooder = subprocess.Popen([sys.executable, str(FLOODER), ns, str(rate), str(count * seconds + 1.5)],
+                                   stdout=subprocess.PIPE, text=True, env=env)
+        assert flooder.stdout is not None
+        flooder.stdout.readline()  # "flooding"
+        watcher.spin_for(1.0)
+        flooded = windows(watcher, pids, count, seconds)
+        sent = int(flooder.communicate(timeout=60)[0].split()[-1])
+        watcher.spin_for(2.5)  # the next diagnostics
+    finally:
+        for process in (flooder, bare):
+            if process is not None and process.poll() is None:
+                process.kill()
+                process.communicate()
+        node.terminate()
+        node.communicate(timeout=15)
+        watcher.executor.shutdown(timeout_sec=0.0)
+        watcher.node.destroy_node()
+    print(f"flood: {count} windows of {seconds:g} s each, idle then under {rate} drive_force/s "
+          f"(half NaN/inf; {sent} sent)")
+    for name in pids:
+        idle_cpu, flood_cpu = statistics.median(idle[name]), statistics.median(flooded[name])
+        ratio = f"{flood_cpu / idle_cpu:.1f}" if idle_cpu > 0 else "n/a (idle below the 10 ms resolution of /proc)"
+        print(f"    {name} CPU share, median (min-max): idle {idle_cpu:.1%} ({min(idle[name]):.1%}-"
+              f"{max(idle[name]):.1%}), flood {flood_cpu:.1%} ({min(flooded[name]):.1%}-{max(flooded[name]):.1%}); "
+              f"ratio flood/idle {ratio}")
+    print(f"    controller excitation_amplitude messages/s, median: idle {statistics.median(idle['amplitudes']):.0f}, "
+          f"flood {statistics.median(flooded['amplitudes']):.0f}")
+    keys = ("commands_accepted", "commands_rejected", "commands_coalesced", "command_batches", "last_rejection",
+            "drive_force")
+    print("    controller diagnostics after the flood: "
+          + ", ".join(f"{k} {watcher.status[k]}" for k in keys if k in watcher.status))
+    print("    (the bare subscriber never takes a message: its share is what receiving the flood costs any node)")
 
 
 def draw(runs: list[tuple[Scenario, ExperimentResult]], path: Path) -> None:
@@ -66,14 +200,20 @@ def draw(runs: list[tuple[Scenario, ExperimentResult]], path: Path) -> None:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description="controller acceptance benchmark")
+    parser = argparse.ArgumentParser(description="controller benchmark: acceptance cases and a command flood")
     parser.add_argument("--png", type=Path, default=Path("out/controller.png"))
+    parser.add_argument("--part", choices=("all", "acceptance", "flood"), default="all")
+    parser.add_argument("--flood-rate", type=int, default=10_000, help="commands per second")
+    parser.add_argument("--windows", type=int, default=5, help="measurement windows, idle and flooded each")
+    parser.add_argument("--window", type=float, default=2.0, help="seconds per window")
     args = parser.parse_args()
     print(f"bench/controller.py  (ROS_DOMAIN_ID {os.environ['ROS_DOMAIN_ID']}, localhost only, real time)")
     rclpy.init()
     runs = []
     try:
-        for case in acceptance_scenarios():
+        if args.part in ("all", "flood"):
+            flood_bench(args.flood_rate, args.windows, args.window)
+        for case in acceptance_scenarios() if args.part in ("all", "acceptance") else ():
             result = run_experiment(case.spec())
             runs.append((case, result))
             print(f"{case.name}: {case.description}")
@@ -85,8 +225,9 @@ def main() -> int:
                       + f"; steady error {m.steady_error:.1e}  [{'met' if verdict.met else 'MISSED'}]")
     finally:
         rclpy.try_shutdown()
-    draw(runs, args.png)
-    print(f"picture: {args.png}")
+    if runs:
+        draw(runs, args.png)
+        print(f"picture: {args.png}")
     return 0
 
 

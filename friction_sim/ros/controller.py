@@ -12,6 +12,21 @@ mean_velocity sample and on every change of target, drive force or
 frequency; ``diagnostics`` (DiagnosticArray, status name ``controller``) at
 1 Hz and whenever the target becomes unreachable or reachable again.
 
+Commands are taken in batches: while the node is quiet, a command wakes it at
+once; after each batch the command topics are polled every
+``COMMAND_HOLD_OFF`` (20 ms) until they are quiet again, the latest valid
+value per topic wins, and a batch is applied (drive force and frequency
+before the target) and answered with one excitation_amplitude message.  So
+a flood of commands costs one small batch per 20 ms, not an executor wake-up
+and a control decision per message.  Refused commands, parameter values
+(rclpy's own checks included) and mean_velocity samples (not finite, or
+faster than any plant in force can creep: see :mod:`friction_sim.core.control`)
+are counted in diagnostics with the latest reason and warned about at most
+once a second (the others cost a clock read).  An unexpected error in a
+callback is logged once, reported as ERROR on diagnostics, and the input
+that caused it is refused (the law's state is left as it was); the node
+goes on.
+
 With ``plant_node`` set (default ``slider``) the controller reads mass, mu,
 gravity and mean_window_periods from that node's parameters at start-up
 through the parameter services; if the node does not answer within 5 s it
@@ -27,15 +42,17 @@ effect.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import functools
 import time
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, TypeVar
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TwistStamped
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.callback_groups import CallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -48,9 +65,24 @@ from friction_sim.core.control import ControllerConfig, ControlOutput, MeanSpeed
 from friction_sim.core.params import SliderParams
 from friction_sim.errors import ParameterError
 from friction_sim.io.messages import command_from_message, key_values, message_class, ns_to_seconds, stamp_ns
-from friction_sim.ros.common import declare_settings, run_node, wall_ns
+from friction_sim.ros.common import (
+    NameWatch,
+    ThrottledWarning,
+    declare_settings,
+    node_help,
+    run_node,
+    take_all,
+    wall_ns,
+    watch_parameter_refusals,
+)
 
+_T = TypeVar("_T")
 QOS_DEPTH = 10
+#: After a batch of commands, the command topics are polled this often [s]
+#: until they are quiet; then a command wakes the node at once again.
+COMMAND_HOLD_OFF = 0.02
+#: The order a batch is applied in: the plant's inputs, then the target checked against them.
+COMMAND_ORDER = ("drive_force", "excitation_frequency", "target_speed")
 PLANT_TIMEOUT = 5.0
 DISCOVERY_SETTLE = 0.5
 MODEL = tuple(spec.PLANT)
@@ -58,6 +90,36 @@ MODEL = tuple(spec.PLANT)
 PARAMETERS = spec.CONTROLLER_NODE
 #: Parameters that make up the ControllerConfig.
 CONFIG = {*MODEL, "integral_gain", "max_amplitude_ratio", "settle_margin", "mean_window_periods"}
+PUBLICATIONS = (
+    ("excitation_amplitude", "std_msgs/msg/Float64",
+     "data = Pa [N] for the plant, after each mean_velocity sample and each batch of commands"),
+    ("diagnostics", "diagnostic_msgs/msg/DiagnosticArray",
+     "status 'controller', 1 Hz and when the target becomes (un)reachable or an internal error occurs"),
+)
+
+
+class CommandGate(CallbackGroup):
+    """The group of the command subscriptions: while :attr:`open`, a waiting
+    command wakes the executor; while shut, the executor leaves the messages
+    to the node, which takes them itself (rclpy leaves an entity whose group
+    cannot execute out of its wait set, so a shut gate costs nothing)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.open = True
+        self._busy = False
+
+    def can_execute(self, entity: object) -> bool:
+        return self.open and not self._busy
+
+    def beginning_execution(self, entity: object) -> bool:
+        if not self.open or self._busy:
+            return False
+        self._busy = True
+        return True
+
+    def ending_execution(self, entity: object) -> None:
+        self._busy = False
 
 
 class ControllerNode(Node):
@@ -70,24 +132,49 @@ class ControllerNode(Node):
             _config(values), drive_force=values["drive_force"], frequency=values["excitation_frequency"],
             target_speed=values["target_speed"],
         )
+        #: Commands on topics applied and superseded within a batch; refused commands and parameter values.
         self.accepted = 0
+        self.coalesced = 0
         self.rejected = 0
         self.last_rejection = ""
+        self.command_batches = 0
+        #: mean_velocity samples judged (while regulating) and refused.
+        self.samples_accepted = 0
+        self.samples_rejected = 0
+        self.last_sample_rejection = ""
+        self._refused_before_interval = 0
+        #: Unexpected errors in callbacks (each refused its input; the first of each kind is logged).
+        self.internal_errors = 0
+        self.last_internal_error = ""
+        self._reported_errors: set[str] = set()
         self.model_source = "own parameters"
         self._last_published: float | None = None
         self._warned_unreachable = False
         self._warned_runaway = False
         self.output_listeners: list[Callable[[ControlOutput], None]] = []
+        self._warn = ThrottledWarning(self.get_logger())
         self._amplitude_pub = self.create_publisher(Float64, "excitation_amplitude", QOS_DEPTH)
         self._diag_pub = self.create_publisher(DiagnosticArray, "diagnostics", QOS_DEPTH)
-        for entry in consumed_by(CONTROLLER):  # target_speed, drive_force, excitation_frequency
-            self.create_subscription(message_class(entry.message_type), entry.name,
-                                     functools.partial(self._on_command, entry.name), QOS_DEPTH)
-        self.create_subscription(TwistStamped, "mean_velocity", self._on_mean_velocity, QOS_DEPTH)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(1.0, self._publish_diagnostics, clock=steady)
-        self.add_on_set_parameters_callback(self._set_parameters)
-        self.add_post_set_parameters_callback(self._parameters_set)
+        self._gate = CommandGate()
+        self._pending: dict[str, float] = {}
+        self._commands = [  # target_speed, drive_force, excitation_frequency
+            (entry.name, self.create_subscription(
+                message_class(entry.message_type), entry.name,
+                self._guarded(f"{entry.name} callback", functools.partial(self._on_command, entry.name)),
+                QOS_DEPTH, callback_group=self._gate))
+            for entry in consumed_by(CONTROLLER)
+        ]
+        self._hold_off = self.create_timer(COMMAND_HOLD_OFF, self._guarded("command polling", self._poll_commands),
+                                           clock=steady)
+        self._hold_off.cancel()
+        self.create_subscription(TwistStamped, "mean_velocity",
+                                 self._guarded("mean_velocity callback", self._on_mean_velocity), QOS_DEPTH)
+        self.names = NameWatch(self)
+        self.create_timer(1.0, self._guarded("diagnostics", self._publish_diagnostics), clock=steady)
+        watch_parameter_refusals(self, PARAMETERS, self._parameter_refused)
+        self.add_on_set_parameters_callback(self._set_parameters_guarded)
+        self.add_post_set_parameters_callback(self._guarded("parameter update", self._parameters_set))
         self.ready = False
         self.active: bool = values["active"]
         self._plant_settled = not values["plant_node"]
@@ -96,11 +183,17 @@ class ControllerNode(Node):
             self._plant = AsyncParameterClient(self, values["plant_node"])
             self._plant_future: Any = None
         self._matched_at: float | None = None
-        self._startup_timer = self.create_timer(0.05, self._start_up, clock=steady)
+        self._startup_timer = self.create_timer(0.05, self._guarded("start-up", self._start_up), clock=steady)
 
     @property
     def control(self) -> MeanSpeedController:
         return self._control
+
+    @property
+    def polling(self) -> bool:
+        """True while the command topics are polled every hold-off (after a
+        batch); False while the node is quiet and a command wakes it at once."""
+        return not self._gate.open or not self._hold_off.is_canceled()
 
     # -- start-up: the plant's parameters ---------------------------------------
 
@@ -160,39 +253,132 @@ class ControllerNode(Node):
     # -- commands -----------------------------------------------------------------
 
     def _on_command(self, name: str, msg: Any) -> None:
-        """A command on one of the topics the controller consumes: each sets one
-        input of the control law (a target makes a standing-by controller active)."""
-        command = command_from_message(name, msg, 0.0)
-        (field, value), = command.values.items()
-        setters = {"target_speed": self._control.set_target, "drive_force": self._control.set_drive_force,
-                   "excitation_frequency": self._control.set_frequency}
-        if self._apply(name, value, setters[field]) and field == "target_speed" and not self.active:
-            self.active = True
+        """The first command after a quiet spell: take it and whatever else
+        waits, apply the batch, and shut the gate for a hold-off."""
+        self._intake(name, msg)
+        self._take_waiting()
+        self._gate.open = False
+        self._hold_off.reset()
+        self._apply_batch()
+
+    def _poll_commands(self) -> None:
+        """Every hold-off while the gate is shut: apply what came meanwhile, or
+        open the gate again if nothing did."""
+        if self._take_waiting():
+            self._apply_batch()
+        else:
+            self._hold_off.cancel()
+            self._gate.open = True  # a message arriving from now on wakes the executor
+
+    def _take_waiting(self) -> int:
+        """Take every command waiting on the command topics (at most the queue
+        depth each: the subscriptions keep the latest QOS_DEPTH); how many."""
+        taken = 0
+        for name, subscription in self._commands:
+            for msg in take_all(subscription, QOS_DEPTH):
+                self._intake(name, msg)
+                taken += 1
+        return taken
+
+    def _intake(self, name: str, msg: Any) -> None:
+        """Check one command's value against its range (cheap) and keep it as
+        the topic's latest valid value, or refuse it."""
+        try:
+            command = command_from_message(name, msg, 0.0)
+            (field, value), = command.values.items()
+            value = float(PARAMETERS[field].check(value))
+        except ParameterError as error:
+            self._refuse(str(error))
+            return
+        if name in self._pending:
+            self.coalesced += 1
+        self._pending[name] = value
+
+    def _apply_batch(self) -> None:
+        """Apply the latest valid value of each topic, the plant's inputs
+        before the target (checked against them); then answer once."""
+        if not self._pending:
+            return
+        pending, self._pending = self._pending, {}
+        self.command_batches += 1
+        setters: dict[str, Callable[[float], ControlOutput]] = {
+            "drive_force": lambda v: self._control.set_drive_force(v),
+            "excitation_frequency": lambda v: self._control.set_frequency(v),
+            "target_speed": lambda v: self._control.set_target(v),
+        }
+        applied = False
+        for name in COMMAND_ORDER:
+            if name not in pending:
+                continue
+            try:
+                setters[name](pending[name])
+            except ParameterError as error:
+                self._refuse(str(error))
+                continue
+            self.accepted += 1
+            applied = True
+            if name == "target_speed":
+                self.active = True  # a target makes a standing-by controller active
+        if applied:
             self._publish(self._control.output)
 
-    def _on_mean_velocity(self, msg: TwistStamped) -> None:
-        t = ns_to_seconds(stamp_ns(msg.header.stamp))
-        if not (self.ready and self.active):
-            self._control.clock.observe(t, wall_ns())  # learn the plant's pace while standing by
-            return
-        self._apply("mean_velocity", msg.twist.linear.x,
-                    lambda v: self._control.on_mean_velocity(v, t, wall_ns()), always_publish=True)
+    def _refuse(self, reason: str) -> None:
+        self.rejected += 1
+        self.last_rejection = reason
+        self._warn(f"{reason}; last valid value kept")
 
-    def _apply(self, topic: str, value: float, change: Callable[[float], ControlOutput],
-               always_publish: bool = False) -> bool:
-        before = self._control.output
+    def _parameter_refused(self, name: str, value: Any, why: str) -> None:
+        """rclpy refused a parameter value before our callbacks (range, type,
+        read-only, undeclared): counted like any refusal (common has warned)."""
+        self.rejected += 1
+        self.last_rejection = f"parameter {why}"
+
+    def _on_mean_velocity(self, msg: TwistStamped) -> None:
+        t, now = ns_to_seconds(stamp_ns(msg.header.stamp)), wall_ns()
+        if not (self.ready and self.active):
+            self._control.clock.observe(t, now)  # learn the plant's pace while standing by
+            return
         try:
-            output = change(value)
+            output = self._control.on_mean_velocity(msg.twist.linear.x, t, now)
         except ParameterError as error:
-            self.rejected += 1
-            self.last_rejection = str(error)
-            self.get_logger().warning(f"{topic}: {error}; last valid value kept", throttle_duration_sec=1.0)
-            return False
-        if topic != "mean_velocity":
-            self.accepted += 1
-        if always_publish or output.amplitude != before.amplitude or topic != "mean_velocity":
-            self._publish(output)
-        return True
+            self.samples_rejected += 1
+            self.last_sample_rejection = str(error)
+            self._warn(f"{error}; sample ignored")
+            return
+        self.samples_accepted += 1
+        self._publish(output)
+
+    # -- unexpected errors ------------------------------------------------------------
+
+    def _guarded(self, where: str, callback: Callable[..., _T]) -> Callable[..., _T | None]:
+        """``callback`` for the executor: an unexpected error in it is reported
+        (:meth:`_internal_error`) instead of ending the node's spin."""
+
+        def run(*args: Any) -> _T | None:
+            try:
+                return callback(*args)
+            except Exception as error:  # noqa: BLE001 - the node must outlive a bug, and say so
+                self._internal_error(where, error)
+                return None
+
+        return run
+
+    def _internal_error(self, where: str, error: BaseException) -> None:
+        """Count it, keep the reason for diagnostics (ERROR from now on), log
+        each distinct error once.  The law's state is as before the input (each change
+        of it is a transaction), so the input is refused and the node goes on."""
+        reason = f"{where}: {type(error).__name__}: {error}".splitlines()[0]
+        self.internal_errors += 1
+        self.last_internal_error = reason
+        kind = f"{type(error).__name__}: {error}"  # the same bug, whichever callback met it
+        if kind in self._reported_errors:
+            return
+        self._reported_errors.add(kind)
+        self.get_logger().error(f"internal error in {reason}; the input was refused and the controller goes on "
+                                "with its last valid state (diagnostics ERROR)")
+        if where != "diagnostics":
+            with contextlib.suppress(Exception):  # it is logged already
+                self._publish_diagnostics()
 
     # -- publishing ---------------------------------------------------------------
 
@@ -223,15 +409,29 @@ class ControllerNode(Node):
         self._warned_unreachable, self._warned_runaway = output.unreachable, output.runaway
 
     def _publish_diagnostics(self) -> None:
+        """The controller's status on ``diagnostics``, stamped by the node's
+        clock (wall time, or /clock under use_sim_time) as the slider's is."""
         out = self._control.output
         status = DiagnosticStatus(name="controller", hardware_id=self.get_fully_qualified_name())
-        problems = [text for flag, text in ((out.unreachable, "target unreachable"),
-                                            (out.saturated and not out.unreachable, "saturated"),
-                                            (out.runaway, "phi >= 1: no control over the speed"),
-                                            (not self.ready, "waiting for the plant's parameters"),
-                                            (self.ready and not self.active, "standing by for a target")) if flag]
-        status.level = DiagnosticStatus.WARN if problems else DiagnosticStatus.OK
-        status.message = "; ".join(problems) if problems else "regulating"
+        refused = self.rejected + self.samples_rejected
+        refused_now, self._refused_before_interval = refused - self._refused_before_interval, refused
+        problems = [text for flag, text in (
+            (bool(self.names.problem), self.names.problem),
+            (out.unreachable, "target unreachable"),
+            (out.saturated and not out.unreachable, "saturated"),
+            (out.runaway, "phi >= 1: no control over the speed"),
+            (not self.ready, "waiting for the plant's parameters"),
+            (self.ready and not self.active, "standing by for a target"),
+            (refused_now > 0, f"{refused_now} inputs refused ({self._latest_refusal()})"),
+        ) if flag]
+        if self.internal_errors:
+            status.level = DiagnosticStatus.ERROR
+            status.message = "; ".join([f"{self.internal_errors} internal errors, the last in "
+                                        f"{self.last_internal_error} (input refused, controller goes on)",
+                                        *problems])
+        else:
+            status.level = DiagnosticStatus.WARN if problems else DiagnosticStatus.OK
+            status.message = "; ".join(problems) if problems else "regulating"
         values = {
             "target_speed": out.target_speed, "measured_mean_speed": self._control.measured_speed,
             "u_target": out.u_target, "phi": out.phi, "feedforward_ratio": out.feedforward_ratio,
@@ -239,15 +439,31 @@ class ControllerNode(Node):
             "integral": out.integral, "saturated": out.saturated, "unreachable": out.unreachable,
             "runaway": out.runaway, "drive_force": self._control.drive_force,
             "excitation_frequency": self._control.frequency, "model_source": self.model_source,
-            "commands_accepted": self.accepted, "commands_rejected": self.rejected,
+            "commands_accepted": self.accepted, "commands_coalesced": self.coalesced,
+            "commands_rejected": self.rejected, "command_batches": self.command_batches,
             "last_rejection": self.last_rejection,
+            "samples_accepted": self.samples_accepted, "samples_rejected": self.samples_rejected,
+            "last_sample_rejection": self.last_sample_rejection, "sample_limit": self._control.sample_limit,
+            "internal_errors": self.internal_errors, "last_internal_error": self.last_internal_error,
         }
         status.values = key_values(values)
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = self.get_clock().now().to_msg()
         self._diag_pub.publish(msg)
 
+    def _latest_refusal(self) -> str:
+        return self.last_sample_rejection if self.samples_rejected and not self.rejected else \
+            self.last_rejection or self.last_sample_rejection
+
     # -- parameters ---------------------------------------------------------------
+
+    def _set_parameters_guarded(self, changes: list[Parameter]) -> SetParametersResult:
+        """:meth:`_set_parameters`; an unexpected error in it refuses the set."""
+        try:
+            return self._set_parameters(changes)
+        except Exception as error:  # noqa: BLE001 - answer the caller, report, go on
+            self._internal_error("parameter set", error)
+            return SetParametersResult(successful=False, reason=f"internal error: {self.last_internal_error}")
 
     def _set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         """Cross-field rules, checked on a copy of the controller as it is now
@@ -268,6 +484,7 @@ class ControllerNode(Node):
         except ParameterError as error:
             self.rejected += 1
             self.last_rejection = str(error)
+            self.get_logger().warning(f"parameter {error}; value kept")  # one per set: a service call each
             return SetParametersResult(successful=False, reason=str(error))
         self._control = candidate
         if "active" in values or "target_speed" in values:
@@ -293,9 +510,20 @@ def _named(name: str, value: Any) -> Any:
     return ParameterMsg(name=name, value=value)
 
 
+def help_text() -> str:
+    """What ``controller --help`` prints after the usage line."""
+    subscriptions = [(entry.name, entry.message_type, entry.description) for entry in consumed_by(CONTROLLER)]
+    subscriptions.append(("mean_velocity", "geometry_msgs/msg/TwistStamped",
+                          "the slider's mean speed [m/s] per window (refused if no plant in force could creep "
+                          "that fast)"))
+    return node_help("The mean-speed controller: publishes the excitation amplitude Pa that makes the slider "
+                     "creep at target_speed (exact U-relation feedforward, integral action on the measured "
+                     "mean speed).", PARAMETERS, subscriptions, PUBLICATIONS)
+
+
 def main(args: Sequence[str] | None = None) -> int:
-    """``ros2 run friction_sim controller [--ros-args ...]``."""
-    return run_node(ControllerNode, args, prog="controller")
+    """``ros2 run friction_sim controller [--help] [--ros-args ...]``."""
+    return run_node(ControllerNode, args, prog="controller", help_text=help_text())
 
 
 if __name__ == "__main__":

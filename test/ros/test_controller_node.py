@@ -40,6 +40,7 @@ def test_controller_reads_the_plant_and_reports_diagnostics(ros: None) -> None:
         assert controller.control.config.model == SliderParams(mass=2.0)
         assert controller.get_parameter("mass").value == 2.0
         probe.send("target_speed", -1e-4)  # wrong sign: rejected
+        assert probe.spin_until(lambda: controller.rejected == 1, 15.0)
         probe.send("target_speed", float("nan"))
         assert probe.spin_until(lambda: controller.rejected == 2, 15.0)
         assert controller.control.target_speed == 0.0002

@@ -1,0 +1,156 @@
+"""The controller node under a flood of drive_force commands, half of them NaN or inf.
+
+This module is also the flooder: ``PYTHONPATH=test python
+test/ros/test_controller_flood.py NAMESPACE RATE SECONDS`` publishes the flood
+from its own process, says "flooding" when it begins and prints how many
+messages it sent (bench/controller.py runs it the same way).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path
+
+from rclpy.parameter import Parameter
+from std_msgs.msg import Float64
+
+from friction_sim.ros.controller import COMMAND_HOLD_OFF, ControllerNode
+
+from ros_harness import Probe, kill_if_running
+
+#: The value of the last message of every flood (valid).
+LAST = 0.75
+
+
+def flood_value(n: int) -> float:
+    """The n-th value of the flood: valid, NaN, valid, +-inf, ...  The valid
+    ones vary (0.7 N + up to 9.9 mN), so each is a real change of the plant
+    for a controller that takes them all."""
+    kind = n % 4
+    if kind == 1:
+        return math.nan
+    if kind == 3:
+        return math.inf if n % 8 == 3 else -math.inf
+    return 0.7 + 1e-4 * (n % 100)
+
+
+def flood(namespace: str, rate: int, seconds: float, announce: bool = False) -> int:
+    """Publish drive_force at ``rate`` messages per second for ``seconds``
+    once a reader has matched, then :data:`LAST`; return how many were sent.
+    With ``announce``, print a line when the flood begins."""
+    import rclpy
+    from std_msgs.msg import Float64
+
+    rclpy.init()
+    node = rclpy.create_node("controller_flooder", namespace=namespace)
+    publisher = node.create_publisher(Float64, "drive_force", 10)
+    deadline = time.monotonic() + 15.0
+    while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    time.sleep(0.3)  # the reader matches our writer a moment after we match it
+    if announce:
+        print("flooding", flush=True)
+    start, sent, msg = time.monotonic(), 0, Float64()
+    while (now := time.monotonic()) - start < seconds:
+        while sent < int((now - start) * rate):
+            msg.data = flood_value(sent)
+            publisher.publish(msg)
+            sent += 1
+        time.sleep(0.001)
+    msg.data = LAST
+    publisher.publish(msg)
+    time.sleep(0.2)
+    node.destroy_node()
+    rclpy.shutdown()
+    return sent + 1
+
+
+
+
+# -- the tests ------------------------------------------------------------------------
+
+FLOOD_RATE = 10_000
+FLOOD_SECONDS = 3.0
+TEST_DIR = Path(__file__).resolve().parents[1]
+
+
+def start_flood(namespace: str, rate: int, seconds: float) -> subprocess.Popen[str]:
+    """This module as the flooder, in its own process; returns once the flood has begun."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(TEST_DIR), os.environ.get("PYTHONPATH")]))}
+    flooder = subprocess.Popen([sys.executable, __file__, namespace, str(rate), str(seconds)],
+                               stdout=subprocess.PIPE, text=True, env=env)
+    assert flooder.stdout is not None
+    assert flooder.stdout.readline().strip() == "flooding"
+    return flooder
+
+
+def test_a_flood_of_half_invalid_commands_is_taken_in_batches(ros: None) -> None:
+    """10,000 drive_force commands a second, half NaN or inf: the controller
+    used to decide and publish once per message it could take (about 1,350
+    excitation_amplitude messages a second, a core busy).  Now it takes them
+    in batches, at most one per hold-off, and answers each batch once; every
+    refusal is counted, and the last valid value is the one in force."""
+    ns = f"/c{uuid.uuid4().hex[:8]}"
+    controller = ControllerNode(namespace=ns, parameter_overrides=[
+        Parameter("plant_node", value=""), Parameter("target_speed", value=3e-4)])
+    probe = Probe(ns, controller, outputs={"excitation_amplitude": Float64})
+    flooder = None
+    try:
+        assert probe.spin_until(lambda: controller.ready and bool(probe.received["excitation_amplitude"]), 20.0)
+        flooder = start_flood(ns, FLOOD_RATE, FLOOD_SECONDS)
+        answers, started = len(probe.received["excitation_amplitude"]), time.monotonic()
+        assert probe.spin_until(lambda: flooder is not None and flooder.poll() is not None, FLOOD_SECONDS + 30.0)
+        elapsed = time.monotonic() - started
+        sent = int(flooder.communicate(timeout=10)[0].split()[-1])
+        assert probe.spin_until(lambda: controller.control.drive_force == LAST, 5.0), "the last valid value holds"
+        probe.spin_for(0.2)
+        assert sent > 0.5 * FLOOD_RATE * FLOOD_SECONDS
+        most = elapsed / COMMAND_HOLD_OFF + 10  # one batch per hold-off at most, plus the quiet-time wake-ups
+        assert len(probe.received["excitation_amplitude"]) - answers <= most, "one answer per batch"
+        assert controller.command_batches <= most  # (none before the flood: the target came as a parameter)
+        assert controller.rejected > 100 and controller.accepted + controller.coalesced > 100, "both kinds, all through"
+        assert "drive_force" in controller.last_rejection
+        assert any(word in controller.last_rejection for word in ("nan", "inf"))
+        taken = controller.accepted + controller.coalesced + controller.rejected
+        assert taken >= controller.command_batches, "every message taken was judged"
+        assert all(math.isfinite(m.data) for m in probe.received["excitation_amplitude"])
+        assert probe.spin_until(lambda: not controller.polling, 2.0), "quiet again: commands wake the node at once"
+    finally:
+        if flooder is not None:
+            kill_if_running(flooder)
+        probe.close()
+        controller.destroy_node()
+
+
+def test_a_lone_command_is_taken_at_once_and_the_polling_stops(ros: None) -> None:
+    ns = f"/c{uuid.uuid4().hex[:8]}"
+    controller = ControllerNode(namespace=ns, parameter_overrides=[Parameter("plant_node", value="")])
+    probe = Probe(ns, controller, outputs={"excitation_amplitude": Float64})
+    try:
+        assert probe.spin_until(lambda: controller.ready and bool(probe.received["excitation_amplitude"]), 20.0)
+        assert probe.spin_until(lambda: all(probe.publishers[t].get_subscription_count() for t in
+                                            ("drive_force", "target_speed")), 10.0)
+        probe.spin_for(0.3)  # the controller's readers match our writers a moment later
+        for value, batches in ((0.8, 1), (0.9, 2)):
+            probe.send("drive_force", value)
+            assert probe.spin_until(lambda v=value: controller.control.drive_force == v, 5.0)  # type: ignore[misc]
+            assert controller.command_batches == batches
+            assert controller.polling, "after a batch, the topics are polled for a hold-off"
+            assert probe.spin_until(lambda: not controller.polling, 2.0), "and then no more"
+        # Two topics in one batch: the drive force is applied before the target checked against it.
+        probe.send("target_speed", -2e-4)
+        probe.send("drive_force", -0.7)
+        assert probe.spin_until(lambda: controller.control.target_speed == -2e-4, 5.0), controller.last_rejection
+        assert controller.rejected == 0
+    finally:
+        probe.close()
+        controller.destroy_node()
+
+
+if __name__ == "__main__":
+    print(flood(sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), announce=True))
