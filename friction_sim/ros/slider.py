@@ -158,7 +158,9 @@ class SliderNode(Node):
             simulated = f"{stats.last_ns / 1e9 if stats.last_ns else 0.0:.3f} s simulated"
             if stats.error:
                 self.exit_code = EXIT_RECORDING_FAILED
-                note = f"{stats.error} ({stats.messages} messages in the file, {simulated})"
+                what = stats.error.split("; ")[0]  # the recorder's one line, without "the run goes on"
+                note = f"{what}; the {stats.messages} messages written ({simulated}) are readable; " \
+                       f"exit code {EXIT_RECORDING_FAILED}"
             else:
                 note = f"recording finished: {stats.path} ({stats.messages} messages, {simulated}, " \
                        f"{stats.dropped} dropped)"

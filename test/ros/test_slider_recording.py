@@ -107,7 +107,8 @@ def test_a_failed_recording_is_reported_the_run_goes_on_and_exit_code_is_4(ros: 
     assert "Traceback" not in err
     lines = [line for line in err.splitlines() if "recording failed" in line]
     assert len(lines) == 2, err  # once when it failed, once at shutdown with what the file holds
-    assert "messages in the file" in lines[1]
+    assert "messages written" in lines[1] and "are readable" in lines[1]
+    assert f"exit code {EXIT_RECORDING_FAILED}" in lines[1]
     assert 0 < path.stat().st_size <= FILE_LIMIT
 
 
