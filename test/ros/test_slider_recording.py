@@ -110,6 +110,9 @@ def test_a_failed_recording_is_reported_the_run_goes_on_and_exit_code_is_4(ros: 
     assert "messages written" in lines[1] and "are readable" in lines[1]
     assert f"exit code {EXIT_RECORDING_FAILED}" in lines[1]
     assert 0 < path.stat().st_size <= FILE_LIMIT
+    verify = subprocess.run([str(BIN / "friction-sim"), "replay", str(path), "--verify"], capture_output=True,
+                            text=True, timeout=120)
+    assert verify.returncode == 0 and "reproducible" in verify.stdout, verify.stdout + verify.stderr
 
 
 @pytest.mark.parametrize("log_path", ["/dev/full", "{tmp}/no/such/folder/run.mcap", "{tmp}/"])
