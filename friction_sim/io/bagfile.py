@@ -270,16 +270,18 @@ class BagFile:
             indexes.append(entries)
             position += _MESSAGE_INDEX.size + len(entries)
         chunk_start = self.position
-        self._write(chunk + b"".join(indexes))
-        self._chunk_indexes.append(ChunkIndex(
-            message_start_time=start, message_end_time=end, chunk_start_offset=chunk_start, chunk_length=len(chunk),
-            message_index_offsets=offsets, message_index_length=position - chunk_start - len(chunk),
-            compression="zstd", compressed_size=len(compressed), uncompressed_size=len(data)))
+        self._write(chunk)
+        # The chunk is in the file (a reader recovers it even if its indexes fail to follow): count it.
         topics = {channel: topic for topic, (channel, _) in self.channels.items()}
         for channel, content in self._in_chunk.items():
             self.stats.count(topics[channel], content.count, content.first, content.last)
         self._chunk = bytearray()
         self._in_chunk = {}
+        self._write(b"".join(indexes))
+        self._chunk_indexes.append(ChunkIndex(
+            message_start_time=start, message_end_time=end, chunk_start_offset=chunk_start, chunk_length=len(chunk),
+            message_index_offsets=offsets, message_index_length=position - chunk_start - len(chunk),
+            compression="zstd", compressed_size=len(compressed), uncompressed_size=len(data)))
 
     def _maybe_end_chunk(self) -> None:
         if len(self._chunk) > self._chunk_size:

@@ -230,8 +230,8 @@ def test_a_full_queue_drops_and_counts_without_blocking_a_caller_that_does_not_w
         slowest = max(slowest, time.perf_counter() - started)
     # A blocked call would wait for the stalled writer (10 s); 0.5 s leaves room for a loaded machine.
     assert slowest < 0.5, f"on_states never waits for the writer (slowest call {slowest:.3f} s)"
-    # 3 states (9 messages) fit in the queue, one more if the writer took the first before it stalled.
-    assert accepted in (3, 4) and recorder.dropped == 3 * (100 - accepted), "drops count messages"
+    # 3 states (9 messages) fit in the queue, and up to 3 more if the writer took them before it stalled.
+    assert 3 <= accepted <= 6 and recorder.dropped == 3 * (100 - accepted), "drops count messages"
     assert recorder.waits == 0
     recorder.gate.set()
     stats = recorder.finish()
