@@ -13,12 +13,13 @@ import gc
 import heapq
 import itertools
 import math
+import queue
 import threading
 import time
 import uuid
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any, TextIO
+from typing import Any, NamedTuple, TextIO
 
 import rclpy
 import yaml
@@ -29,6 +30,9 @@ from friction_sim.errors import ParameterError
 from friction_sim.io.export import select_topics
 from friction_sim.io.messages import NS_PER_S, ns_to_seconds
 from friction_sim.io.reader import Channel, RawMessage, Recording
+
+#: Messages read ahead of the one being published (a few chunks' worth at most).
+PREFETCH = 20_000
 
 
 @dataclass
@@ -140,6 +144,50 @@ def in_time_order(chunks: Iterable[list[RawMessage]]) -> Iterator[RawMessage]:
         yield heapq.heappop(pending)[2]
 
 
+class _Failed(NamedTuple):
+    error: BaseException
+
+
+def prefetched(messages: Iterator[RawMessage], size: int = PREFETCH) -> Iterator[RawMessage]:
+    """``messages``, read ahead by a thread into a queue of ``size``: reading
+    and decompressing the next chunk happens while this thread sleeps until
+    the next publish, not in its way.  An error of the reader is raised here."""
+    ahead: queue.Queue[RawMessage | _Failed | None] = queue.Queue(maxsize=size)
+    done = threading.Event()
+
+    def read() -> None:
+        item: RawMessage | _Failed | None
+        try:
+            for item in messages:
+                while not done.is_set():
+                    try:
+                        ahead.put(item, timeout=0.1)
+                        break
+                    except queue.Full:
+                        continue
+                if done.is_set():
+                    return
+            item = None
+        except BaseException as error:  # noqa: BLE001 - handed to the consumer
+            item = _Failed(error)
+        while not done.is_set():
+            try:
+                ahead.put(item, timeout=0.1)
+                return
+            except queue.Full:
+                continue
+
+    reader = threading.Thread(target=read, name="replay_reader", daemon=True)
+    reader.start()
+    try:
+        while (item := ahead.get()) is not None:
+            if isinstance(item, _Failed):
+                raise item.error
+            yield item
+    finally:
+        done.set()
+
+
 def _play(recording: Recording, topics: list[str], publishers: dict[str, Any], rate: float, loop: bool,
           progress: TextIO | None, stop: threading.Event | None) -> PublishResult:
     """Publish the messages of ``topics`` once, or in a loop until stopped."""
@@ -152,7 +200,8 @@ def _play(recording: Recording, topics: list[str], publishers: dict[str, Any], r
     try:
         while True:
             sent = result.messages
-            _play_once(in_time_order(recording.iter_chunks(topics)), publishers, rate, result, bar, stop)
+            _play_once(prefetched(in_time_order(recording.iter_chunks(topics))), publishers, rate, result, bar,
+                       stop)
             if result.messages == sent:
                 break  # nothing to publish
             result.loops += 1
@@ -169,15 +218,17 @@ def _play(recording: Recording, topics: list[str], publishers: dict[str, Any], r
 
 def _play_once(messages: Iterator[RawMessage], publishers: dict[str, Any], rate: float, result: PublishResult,
                bar: _Progress, stop: threading.Event | None) -> None:
-    """Publish every message at its recorded time (scaled by 1/rate) after the start."""
-    first: int | None = None
+    """Publish every message at its recorded time (scaled by 1/rate) after the
+    start (taken once the first message is at hand)."""
+    head = next(messages, None)
+    if head is None:
+        return
+    first = head.log_time
     start = time.monotonic() + 0.01
-    for raw in messages:
+    for raw in itertools.chain([head], messages):
         if stop is not None and stop.is_set():
             result.interrupted = True
             return
-        if first is None:
-            first = raw.log_time
         target = start + (raw.log_time - first) / NS_PER_S / rate
         _sleep_until(target)
         publishers[raw.topic].publish(raw.data)

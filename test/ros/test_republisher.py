@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import itertools
 import threading
 import time
 import uuid
@@ -160,3 +161,31 @@ def test_in_time_order_merges_chunks_with_about_one_chunk_held() -> None:
     rest = list(merged)
     assert [m.log_time for m in first + rest] == [0, 1, 2, 4, 5, 5, 6, 7, 8, 9]
     assert [m.topic for m in first + rest if m.log_time == 5] == ["a", "b"], "ties keep file order"
+
+
+def test_prefetched_reads_ahead_passes_errors_on_and_stops_with_its_consumer() -> None:
+    from friction_sim.ros.republisher import prefetched
+
+    def failing() -> Any:
+        yield from range(3)
+        raise OSError("[Errno 5] Input/output error")
+
+    got: list[Any] = []
+    with pytest.raises(OSError, match="Input/output"):
+        for item in prefetched(failing()):
+            got.append(item)
+    assert got == [0, 1, 2]
+    produced: list[int] = []
+
+    def endless() -> Any:
+        for k in itertools.count():
+            produced.append(k)
+            yield k
+
+    ahead = prefetched(endless(), size=5)
+    assert next(ahead) == 0
+    ahead.close()  # the consumer is done (a stop, Ctrl-C): the reader thread stops too
+    time.sleep(0.5)
+    count = len(produced)
+    time.sleep(0.5)
+    assert len(produced) == count < 20, "bounded read-ahead, and no reading after the end"
