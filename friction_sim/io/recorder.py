@@ -174,6 +174,7 @@ class Recorder:
         self._not_full = threading.Condition(self._lock)
         self._items: deque[tuple[Item, int]] = deque()  # (record, messages it makes)
         self._pending = 0  # messages queued
+        self._taken = 0  # messages the writer took from the queue
         self._stopping = False
         self._failed = False
         self._finished = False
@@ -255,7 +256,7 @@ class Recorder:
 
     def add_metadata(self, name: str, data: Mapping[str, Any]) -> bool:
         """Queue an MCAP metadata record (values written as text)."""
-        return self._put(("metadata", name, {str(k): value_text(v) for k, v in data.items()}), 1)
+        return self._put(("metadata", name, {str(k): value_text(v) for k, v in data.items()}), 0)
 
     # -- state ----------------------------------------------------------------------
 
@@ -284,6 +285,11 @@ class Recorder:
     def failed(self) -> bool:
         """Whether the recording stopped on an error (:attr:`error` says which)."""
         return self._failed
+
+    @property
+    def writer_alive(self) -> bool:
+        """Whether the writer thread runs (it ends after finish or a failure)."""
+        return self._thread.is_alive()
 
     @property
     def finished(self) -> bool:
@@ -325,11 +331,12 @@ class Recorder:
         started = time.monotonic_ns()
         self._waits += 1
         try:
-            while self._pending and self._pending + size > self._capacity:
+            while True:
                 if self._failed or self._stopping or not self._thread.is_alive():
                     return False
+                if not (self._pending and self._pending + size > self._capacity):
+                    return True
                 self._not_full.wait(0.1)  # woken by the writer's progress; the timeout only re-checks it lives
-            return True
         finally:
             self._wait_ns += time.monotonic_ns() - started
 
@@ -349,6 +356,13 @@ class Recorder:
                 self._not_full.notify_all()
             _open_recorders.discard(self)
             self._thread.join()
+            with self._lock:  # left in the queue by a writer that ended early: counted, not lost silently
+                if self._failed:
+                    self._unrecorded += self._pending
+                else:
+                    self._dropped += self._pending
+                self._items.clear()
+                self._pending = 0
             self._finished = True
             self._update_stats()
             return self.stats
@@ -390,6 +404,7 @@ class Recorder:
                         break
                     self._not_empty.wait(timeout)
                 batch = [item for item, _ in self._items]
+                self._taken += self._pending
                 self._items.clear()
                 self._pending = 0
                 self._not_full.notify_all()
@@ -431,7 +446,8 @@ class Recorder:
         with self._lock:
             self.error = stats.error = message
             self._failed = True
-            self._unrecorded += self._pending
+            # Queued, or taken but not in the file: a batch half written, the chunk that was being built.
+            self._unrecorded += self._pending + self._taken - stats.messages - self._writer.bad
             self._items.clear()
             self._pending = 0
             self._not_full.notify_all()

@@ -220,8 +220,8 @@ def test_a_disk_that_fills_wakes_a_waiting_producer_and_later_puts_are_counted_n
     match = FAILED.match(recorder.error or "")
     assert match and match.group(1) == str(errno.ENOSPC) and match.group(2) == "No space left on device", recorder.error
     written = int(match.group(4))
-    assert 0 < written and recorder.dropped == 0
-    assert written + recorder.unrecorded <= 120_000 <= written + recorder.unrecorded + 300 * 3, "every message counted"
+    assert written > 0 and recorder.dropped == 0
+    assert written + recorder.unrecorded == 120_000, "every message is in the file or counted"
     before = recorder.unrecorded
     started = time.perf_counter()
     recorder.on_states(states(50_000, 1000), "slideway")
@@ -274,10 +274,11 @@ class GoneRecorder(Recorder):
 
 def test_a_producer_never_waits_for_a_writer_thread_that_is_gone(tmp_path: Path) -> None:
     recorder = GoneRecorder(tmp_path / "gone.mcap", metadata={"mass": 1.0}, queue_size=9)
-    recorder._thread.join(5.0)
+    while recorder.writer_alive:
+        time.sleep(0.01)
     started = time.perf_counter()
     for state in states(0, 10):
         recorder.on_states([state], "slideway")
     assert time.perf_counter() - started < 2.0, "not stuck on a full queue nobody empties"
     assert recorder.dropped == 3 * 7, "3 states fit in the queue; the rest is counted"
-    assert recorder.finish().dropped == 21
+    assert recorder.finish().dropped == 30, "and the 3 states no writer took are counted at finish"
