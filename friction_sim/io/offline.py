@@ -28,7 +28,7 @@ def record_offline(
     path: str | os.PathLike[str], params: SliderParams | None = None, inputs: Inputs | None = None,
     schedule: Sequence[Command] = (), duration: float = 1.0, log_rate: float = 1000.0, *,
     frame_id: str = "slideway", mean_window_periods: int = 1, tick_rate: float | None = None,
-    metadata: Mapping[str, Any] | None = None,
+    metadata: Mapping[str, Any] | None = None, recorder_options: Mapping[str, Any] | None = None,
 ) -> RecordingStats:
     """Run the exact core for ``duration`` s of simulation time without a
     clock and record what the slider node records.
@@ -39,7 +39,9 @@ def record_offline(
     order; each is recorded accepted or refused.  States are logged on the
     grid ``k / log_rate``; the mean velocity comes from the core's period
     marks through :class:`RealtimeSlider`, ticked at ``tick_rate`` (default
-    ``log_rate``), exactly as in the node.
+    ``log_rate``), exactly as in the node.  ``recorder_options`` go to the
+    :class:`~friction_sim.io.recorder.Recorder` (e.g. ``chunk_size``); it
+    waits for the writer, so nothing is dropped.
     """
     params = params if params is not None else SliderParams()
     inputs = inputs if inputs is not None else Inputs()
@@ -51,8 +53,9 @@ def record_offline(
     extra = dict(metadata or {})
     extra.setdefault("recorded_by", "record_offline")
     extra.setdefault("mean_window_periods", mean_window_periods)
+    options = {"block_when_full": True, "setting": "path", **(recorder_options or {})}
     with Recorder(path, recording_metadata(params, inputs, log_rate=log_rate, frame_id=frame_id, **extra),
-                  block_when_full=True) as recorder:
+                  **options) as recorder:
         recorder.on_parameters({**plant_parameters(params, inputs), "log_rate": float(log_rate),
                                 "frame_id": frame_id, "mean_window_periods": mean_window_periods}, 0.0, changed=False)
         _run(rt, recorder, batches, seconds_to_ns(duration), rate, frame_id)
