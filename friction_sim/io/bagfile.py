@@ -255,7 +255,7 @@ class BagFile:
         """End the open chunk and write it (if it holds a message)."""
         if not self._in_chunk:
             return
-        data = bytes(self._chunk)
+        data = self._chunk  # compressed and checksummed in place, not copied
         compressed = self._zstd.compress(data)
         start = min(c.first for c in self._in_chunk.values())
         end = max(c.last for c in self._in_chunk.values())

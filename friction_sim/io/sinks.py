@@ -4,7 +4,10 @@ The slider node (and the offline recorder) hand everything that happens to a
 list of sinks: the exact state samples, the events, the period means, every
 command with its outcome, and the parameters.  The MCAP recorder is one sink;
 a live view is another.  A sink must be cheap to call (the tick thread calls
-it): queue the work, do it elsewhere.
+it): queue the work, do it elsewhere.  A sink that must not lose anything
+may make the caller wait when it falls behind (the recorder does, for as
+long as its writer makes progress, and says how long in
+:attr:`~friction_sim.io.recorder.Recorder.wait_seconds`).
 """
 
 from __future__ import annotations
