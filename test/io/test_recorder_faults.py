@@ -282,3 +282,25 @@ def test_a_producer_never_waits_for_a_writer_thread_that_is_gone(tmp_path: Path)
     assert time.perf_counter() - started < 2.0, "not stuck on a full queue nobody empties"
     assert recorder.dropped == 3 * 7, "3 states fit in the queue; the rest is counted"
     assert recorder.finish().dropped == 30, "and the 3 states no writer took are counted at finish"
+
+
+def test_a_disk_that_fills_at_finish_is_reported_by_finish_not_raised(tmp_path: Path) -> None:
+    path = tmp_path / "late.mcap"
+
+    probe = Recorder(tmp_path / "probe.mcap", metadata={"mass": 1.0})
+    start = (tmp_path / "probe.mcap").stat().st_size  # the header and the metadata, written at once
+    probe.finish()
+
+    class LateRecorder(FillingRecorder):
+        room = start + 10  # what is written at start fits, the first chunk does not
+
+    recorder = LateRecorder(path, metadata={"mass": 1.0}, flush_interval=3600.0)  # nothing written before finish
+    recorder.on_states(states(0, 10), "slideway")
+    assert recorder.error is None
+    stats = recorder.finish()
+    assert stats.error == recorder.error and stats.error is not None
+    match = FAILED.match(stats.error)
+    assert match and match.group(4) == "0" and match.group(5) is None, stats.error
+    assert stats.unrecorded == 30 and stats.messages == 0
+    recording = read_recording(path, require_friction_sim=False)
+    assert recording.message_count == 0 and not recording.complete and "mass" in recording.metadata["friction_sim"]
