@@ -6,9 +6,10 @@
   target, measured mean speed and Pa against time for all five cases into
   one PNG.
 * flood (issue 10): the ``controller`` console script in its own process,
-  regulating without a plant; its CPU share (from /proc) over windows of a
-  few seconds, idle and then under a flood of 10,000 drive_force commands per
-  second, half of them NaN or inf, from a third process
+  regulating (this process sends it mean_velocity samples at 50 Hz, as a
+  slider at 50 Hz would); its CPU share (from /proc) over windows of a few
+  seconds, regulating only ("idle") and then under a flood of 10,000
+  drive_force commands per second, half of them NaN or inf, from a third process
   (test/ros/test_controller_flood.py): medians of both and their ratio, and
   how many excitation_amplitude messages it published per second.  A process
   that subscribes and never takes a message is measured alongside: what
@@ -38,6 +39,7 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import TwistStamped
 from rclpy.executors import SingleThreadedExecutor
 from std_msgs.msg import Float64
 
@@ -49,6 +51,7 @@ from friction_sim.experiment.scenario import Scenario
 BIN = Path(sys.executable).parent
 FLOODER = Path(__file__).resolve().parents[1] / "test" / "ros" / "test_controller_flood.py"
 CLK_TCK = os.sysconf("SC_CLK_TCK")
+TARGET = 3e-4  # m/s
 
 
 def cpu_seconds(pid: int) -> float:
@@ -58,7 +61,9 @@ def cpu_seconds(pid: int) -> float:
 
 
 class Watcher:
-    """Counts the controller's excitation_amplitude messages and keeps its last diagnostics."""
+    """The controller's plant, as far as the controller can tell: mean_velocity
+    samples at the target speed, one per 20 ms (50 Hz) with real-time stamps.
+    Counts its excitation_amplitude messages and keeps its last diagnostics."""
 
     def __init__(self, namespace: str) -> None:
         self.node = rclpy.create_node("bench_watcher", namespace=namespace)
@@ -66,8 +71,16 @@ class Watcher:
         self.status: dict[str, str] = {}
         self.node.create_subscription(Float64, "excitation_amplitude", self._on_amplitude, 100)
         self.node.create_subscription(DiagnosticArray, "diagnostics", self._on_diagnostics, 10)
+        self._samples = self.node.create_publisher(TwistStamped, "mean_velocity", 10)
+        self._sample = TwistStamped()
+        self._sample.twist.linear.x = TARGET
+        self.node.create_timer(0.02, self._publish_sample)
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(self.node)
+
+    def _publish_sample(self) -> None:
+        self._sample.header.stamp.sec, self._sample.header.stamp.nanosec = divmod(time.monotonic_ns(), 10**9)
+        self._samples.publish(self._sample)
 
     def _on_amplitude(self, msg: Float64) -> None:
         self.amplitudes += 1
@@ -114,7 +127,7 @@ def windows(watcher: Watcher, pids: dict[str, int], count: int, seconds: float) 
 def flood_bench(rate: int, count: int, seconds: float) -> None:
     ns = f"/bench_{uuid.uuid4().hex[:8]}"
     node = subprocess.Popen([str(BIN / "controller"), "--ros-args", "-r", f"__ns:={ns}", "-p", "plant_node:=''",
-                             "-p", "target_speed:=0.0003"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                             "-p", f"target_speed:={TARGET}"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             text=True)
     bare = subprocess.Popen([sys.executable, "-c", BARE_SUBSCRIBER, ns])
     watcher = Watcher(ns)
@@ -144,8 +157,8 @@ def flood_bench(rate: int, count: int, seconds: float) -> None:
         node.communicate(timeout=15)
         watcher.executor.shutdown(timeout_sec=0.0)
         watcher.node.destroy_node()
-    print(f"flood: {count} windows of {seconds:g} s each, idle then under {rate} drive_force/s "
-          f"(half NaN/inf; {sent} sent)")
+    print(f"flood: {count} windows of {seconds:g} s each, idle (regulating on 50 samples/s) then also under "
+          f"{rate} drive_force/s (half NaN/inf; {sent} sent)")
     for name in pids:
         idle_cpu, flood_cpu = statistics.median(idle[name]), statistics.median(flooded[name])
         ratio = f"{flood_cpu / idle_cpu:.1f}" if idle_cpu > 0 else "n/a (idle below the 10 ms resolution of /proc)"
@@ -154,8 +167,7 @@ def flood_bench(rate: int, count: int, seconds: float) -> None:
               f"ratio flood/idle {ratio}")
     print(f"    controller excitation_amplitude messages/s, median: idle {statistics.median(idle['amplitudes']):.0f}, "
           f"flood {statistics.median(flooded['amplitudes']):.0f}")
-    keys = ("commands_accepted", "commands_rejected", "commands_coalesced", "command_batches", "last_rejection",
-            "drive_force")
+    keys = ("commands_accepted", "commands_rejected", "command_batches", "last_rejection", "drive_force")
     print("    controller diagnostics after the flood: "
           + ", ".join(f"{k} {watcher.status[k]}" for k in keys if k in watcher.status))
     print("    (the bare subscriber never takes a message: its share is what receiving the flood costs any node)")

@@ -63,10 +63,11 @@ import itertools
 import math
 import numbers
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 from friction_sim.core import spec
 from friction_sim.core.params import SliderParams
@@ -78,6 +79,8 @@ from friction_sim.errors import ParameterError
 #: factor of a million in scale, and r can neither overflow nor reach 0 (from
 #: which a multiplicative step would never bring it back).
 RATIO_LIMITS = (1e-6, 1e6)
+#: The inputs the law follows, by name.
+_INPUTS = {setting.name: setting for setting in (spec.TARGET_SPEED, spec.DRIVE_FORCE, spec.EXCITATION_FREQUENCY)}
 #: A mean-velocity sample is refused beyond this many times |Fd|/(m f).
 SPEED_LIMIT_FACTOR = 2.0
 #: Samples past the mean window after a change of the plant before the limit
@@ -220,35 +223,61 @@ class MeanSpeedController:
 
     def set_target(self, speed: float) -> ControlOutput:
         """A new target mean speed [m/s]; it must agree in sign with the drive force."""
-        speed = float(spec.TARGET_SPEED.check(speed))
-        against = self._drive_force == 0.0 or math.copysign(1.0, speed) != math.copysign(1.0, self._drive_force)
-        if speed != 0.0 and against:
-            raise ParameterError(
-                "target_speed", speed,
-                f"must have the sign of drive_force = {self._drive_force!r} N (the slider only creeps that way)",
-            )
-        with self._transaction():
-            self._target = speed
-            self._last_clean = None
-            return self._update()
+        return self._set_one("target_speed", speed)
 
     def set_drive_force(self, force: float) -> ControlOutput:
-        force = float(spec.DRIVE_FORCE.check(force))
-        with self._transaction():
-            self._drive_force = force
-            if self._target != 0.0 and math.copysign(1.0, self._target) != math.copysign(1.0, force):
-                self._target = 0.0  # the old target now points the wrong way
-            self._last_clean = None
-            self._plant_changed()
-            return self._update()
+        """A new drive force [N]; a target of the other sign becomes 0."""
+        return self._set_one("drive_force", force)
 
     def set_frequency(self, frequency: float) -> ControlOutput:
-        frequency = float(spec.EXCITATION_FREQUENCY.check(frequency))
+        """A new excitation frequency [Hz]."""
+        return self._set_one("excitation_frequency", frequency)
+
+    def take(self, changes: Sequence[tuple[str, Any]]) -> list[ParameterError | None]:
+        """Several input changes at one instant (``target_speed``,
+        ``drive_force``, ``excitation_frequency``), in order: each is judged
+        against the state the ones before it left and taken or refused on its
+        own; the law then decides once.  Returns, per change, None or the
+        refusal (naming field, value and limit)."""
+        verdicts: list[ParameterError | None] = []
         with self._transaction():
-            self._frequency = frequency
-            self._last_clean = None
-            self._plant_changed()
-            return self._update()
+            for name, value in changes:
+                try:
+                    self._set_input(name, value)
+                except ParameterError as error:
+                    verdicts.append(error)
+                    continue
+                verdicts.append(None)
+            if any(verdict is None for verdict in verdicts):
+                self._last_clean = None
+                self._plant_changed()
+                self._update()
+        return verdicts
+
+    def _set_one(self, name: str, value: Any) -> ControlOutput:
+        (verdict,) = self.take([(name, value)])
+        if verdict is not None:
+            raise verdict
+        return self.output
+
+    def _set_input(self, name: str, value: Any) -> None:
+        """One input change, checked against the state in force (no decision yet)."""
+        if name not in _INPUTS:
+            raise ParameterError(name, value, f"unknown input; known: {', '.join(_INPUTS)}")
+        number = float(_INPUTS[name].check(value))
+        if name == "target_speed":
+            force = self._drive_force
+            if number != 0.0 and (force == 0.0 or math.copysign(1.0, number) != math.copysign(1.0, force)):
+                raise ParameterError(
+                    "target_speed", number,
+                    f"must have the sign of drive_force = {force!r} N (the slider only creeps that way)")
+            self._target = number
+        elif name == "drive_force":
+            self._drive_force = number
+            if self._target != 0.0 and math.copysign(1.0, self._target) != math.copysign(1.0, number):
+                self._target = 0.0  # the old target now points the wrong way
+        else:
+            self._frequency = number
 
     def on_mean_velocity(self, speed: float, stamp: float, wall_ns: int) -> ControlOutput:
         """A measured mean speed [m/s] over the plant's last window, stamped with

@@ -14,15 +14,18 @@ frequency; ``diagnostics`` (DiagnosticArray, status name ``controller``) at
 
 Commands are taken in batches: while the node is quiet, a command wakes it at
 once; after each batch the command topics are polled every
-``COMMAND_HOLD_OFF`` (20 ms) until they are quiet again, the latest valid
-value per topic wins, and a batch is applied (drive force and frequency
-before the target) and answered with one excitation_amplitude message.  So
-a flood of commands costs one small batch per 20 ms, not an executor wake-up
-and a control decision per message.  Refused commands, parameter values
-(rclpy's own checks included) and mean_velocity samples (not finite, or
-faster than any plant in force can creep: see :mod:`friction_sim.core.control`)
-are counted in diagnostics with the latest reason and warned about at most
-once a second (the others cost a clock read).  An unexpected error in a
+``COMMAND_HOLD_OFF`` (20 ms) until they are quiet again.  The commands of a
+batch are judged one by one in the order they arrived, each against the
+state the ones before it left, and the law then decides once: one
+excitation_amplitude message answers the batch.  So a flood of commands
+costs one small batch per 20 ms (at most the queue depth, 10, per topic),
+not an executor wake-up and a control decision per message.  Refused
+commands, parameter values (rclpy's own checks included) and mean_velocity
+samples (not finite, or faster than any plant in force can creep: see
+:mod:`friction_sim.core.control`) are counted in diagnostics
+(``commands_rejected``, all of them; ``samples_rejected``, the samples among
+them) with the latest reason, and warned about at most once a second (the
+others cost a clock read).  An unexpected error in a
 callback is logged once, reported as ERROR on diagnostics, and the input
 that caused it is refused (the law's state is left as it was); the node
 goes on.
@@ -71,7 +74,6 @@ from friction_sim.ros.common import (
     declare_settings,
     node_help,
     run_node,
-    take_all,
     wall_ns,
     watch_parameter_refusals,
 )
@@ -81,8 +83,7 @@ QOS_DEPTH = 10
 #: After a batch of commands, the command topics are polled this often [s]
 #: until they are quiet; then a command wakes the node at once again.
 COMMAND_HOLD_OFF = 0.02
-#: The order a batch is applied in: the plant's inputs, then the target checked against them.
-COMMAND_ORDER = ("drive_force", "excitation_frequency", "target_speed")
+
 PLANT_TIMEOUT = 5.0
 DISCOVERY_SETTLE = 0.5
 MODEL = tuple(spec.PLANT)
@@ -132,9 +133,8 @@ class ControllerNode(Node):
             _config(values), drive_force=values["drive_force"], frequency=values["excitation_frequency"],
             target_speed=values["target_speed"],
         )
-        #: Commands on topics applied and superseded within a batch; refused commands and parameter values.
+        #: Commands on topics taken; inputs refused (commands, parameter values, samples).
         self.accepted = 0
-        self.coalesced = 0
         self.rejected = 0
         self.last_rejection = ""
         self.command_batches = 0
@@ -157,11 +157,12 @@ class ControllerNode(Node):
         self._diag_pub = self.create_publisher(DiagnosticArray, "diagnostics", QOS_DEPTH)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._gate = CommandGate()
-        self._pending: dict[str, float] = {}
         self._commands = [  # target_speed, drive_force, excitation_frequency
             (entry.name, self.create_subscription(
                 message_class(entry.message_type), entry.name,
-                self._guarded(f"{entry.name} callback", functools.partial(self._on_command, entry.name)),
+                # rclpy passes the message info to a callback of two parameters (it inspects the
+                # signature); its annotation names only the one-parameter kind.
+                self._command_callback(entry.name),  # type: ignore[arg-type]
                 QOS_DEPTH, callback_group=self._gate))
             for entry in consumed_by(CONTROLLER)
         ]
@@ -252,80 +253,78 @@ class ControllerNode(Node):
 
     # -- commands -----------------------------------------------------------------
 
-    def _on_command(self, name: str, msg: Any) -> None:
+    def _command_callback(self, name: str) -> Callable[[Any, Any], None]:
+        """The executor's callback for command topic ``name`` (two parameters:
+        rclpy then passes the message info too, with the arrival time)."""
+        guarded = self._guarded(f"{name} callback", functools.partial(self._on_command, name))
+
+        def on_command(msg: Any, info: Any) -> None:
+            guarded(msg, info)
+
+        return on_command
+
+    def _on_command(self, name: str, msg: Any, info: Any) -> None:
         """The first command after a quiet spell: take it and whatever else
-        waits, apply the batch, and shut the gate for a hold-off."""
-        self._intake(name, msg)
-        self._take_waiting()
+        waits, apply them as one batch in the order they came, and shut the
+        gate for a hold-off."""
+        waiting = [(_arrival(info), name, msg), *self._take_waiting()]
+        waiting.sort(key=lambda item: item[0])
         self._gate.open = False
         self._hold_off.reset()
-        self._apply_batch()
+        self._apply_batch([(topic, message) for _, topic, message in waiting])
 
     def _poll_commands(self) -> None:
         """Every hold-off while the gate is shut: apply what came meanwhile, or
         open the gate again if nothing did."""
-        if self._take_waiting():
-            self._apply_batch()
+        waiting = sorted(self._take_waiting(), key=lambda item: item[0])
+        if waiting:
+            self._apply_batch([(topic, message) for _, topic, message in waiting])
         else:
             self._hold_off.cancel()
             self._gate.open = True  # a message arriving from now on wakes the executor
 
-    def _take_waiting(self) -> int:
-        """Take every command waiting on the command topics (at most the queue
-        depth each: the subscriptions keep the latest QOS_DEPTH); how many."""
-        taken = 0
+    def _take_waiting(self) -> list[tuple[int, str, Any]]:
+        """Every command waiting on the command topics (at most the queue depth
+        each: the subscriptions keep the latest QOS_DEPTH) as (arrival, topic,
+        message).  (common.take_all drops the message info with the arrival time.)"""
+        waiting = []
         for name, subscription in self._commands:
-            for msg in take_all(subscription, QOS_DEPTH):
-                self._intake(name, msg)
-                taken += 1
-        return taken
+            handle = subscription.handle
+            for _ in range(QOS_DEPTH):
+                with handle:
+                    taken = handle.take_message(subscription.msg_type, subscription.raw)
+                if taken is None:
+                    break
+                waiting.append((_arrival(taken[1]), name, taken[0]))
+        return waiting
 
-    def _intake(self, name: str, msg: Any) -> None:
-        """Check one command's value against its range (cheap) and keep it as
-        the topic's latest valid value, or refuse it."""
-        try:
+    def _apply_batch(self, batch: list[tuple[str, Any]]) -> None:
+        """The commands of a batch in order, each judged against the state the
+        ones before it left (as if they came one by one); the law decides once
+        and the batch is answered with one excitation_amplitude message."""
+        self.command_batches += 1
+        changes = []
+        for name, msg in batch:
             command = command_from_message(name, msg, 0.0)
             (field, value), = command.values.items()
-            value = float(PARAMETERS[field].check(value))
-        except ParameterError as error:
-            self._refuse(str(error))
-            return
-        if name in self._pending:
-            self.coalesced += 1
-        self._pending[name] = value
-
-    def _apply_batch(self) -> None:
-        """Apply the latest valid value of each topic, the plant's inputs
-        before the target (checked against them); then answer once."""
-        if not self._pending:
-            return
-        pending, self._pending = self._pending, {}
-        self.command_batches += 1
-        setters: dict[str, Callable[[float], ControlOutput]] = {
-            "drive_force": lambda v: self._control.set_drive_force(v),
-            "excitation_frequency": lambda v: self._control.set_frequency(v),
-            "target_speed": lambda v: self._control.set_target(v),
-        }
-        applied = False
-        for name in COMMAND_ORDER:
-            if name not in pending:
-                continue
-            try:
-                setters[name](pending[name])
-            except ParameterError as error:
-                self._refuse(str(error))
+            changes.append((field, value))
+        accepted = False
+        for (field, _), verdict in zip(changes, self._control.take(changes)):
+            if verdict is not None:
+                self._refuse(str(verdict))
                 continue
             self.accepted += 1
-            applied = True
-            if name == "target_speed":
+            accepted = True
+            if field == "target_speed":
                 self.active = True  # a target makes a standing-by controller active
-        if applied:
+        if accepted:
             self._publish(self._control.output)
 
-    def _refuse(self, reason: str) -> None:
+    def _refuse(self, reason: str, consequence: str = "last valid value kept") -> None:
+        """Count a refused input (a command, or a sample), keep the reason, warn (throttled)."""
         self.rejected += 1
         self.last_rejection = reason
-        self._warn(f"{reason}; last valid value kept")
+        self._warn(f"{reason}; {consequence}")
 
     def _parameter_refused(self, name: str, value: Any, why: str) -> None:
         """rclpy refused a parameter value before our callbacks (range, type,
@@ -343,7 +342,7 @@ class ControllerNode(Node):
         except ParameterError as error:
             self.samples_rejected += 1
             self.last_sample_rejection = str(error)
-            self._warn(f"{error}; sample ignored")
+            self._refuse(str(error), "sample ignored")
             return
         self.samples_accepted += 1
         self._publish(output)
@@ -413,8 +412,7 @@ class ControllerNode(Node):
         clock (wall time, or /clock under use_sim_time) as the slider's is."""
         out = self._control.output
         status = DiagnosticStatus(name="controller", hardware_id=self.get_fully_qualified_name())
-        refused = self.rejected + self.samples_rejected
-        refused_now, self._refused_before_interval = refused - self._refused_before_interval, refused
+        refused_now, self._refused_before_interval = self.rejected - self._refused_before_interval, self.rejected
         problems = [text for flag, text in (
             (bool(self.names.problem), self.names.problem),
             (out.unreachable, "target unreachable"),
@@ -422,7 +420,7 @@ class ControllerNode(Node):
             (out.runaway, "phi >= 1: no control over the speed"),
             (not self.ready, "waiting for the plant's parameters"),
             (self.ready and not self.active, "standing by for a target"),
-            (refused_now > 0, f"{refused_now} inputs refused ({self._latest_refusal()})"),
+            (refused_now > 0, f"{refused_now} inputs refused ({self.last_rejection})"),
         ) if flag]
         if self.internal_errors:
             status.level = DiagnosticStatus.ERROR
@@ -439,8 +437,8 @@ class ControllerNode(Node):
             "integral": out.integral, "saturated": out.saturated, "unreachable": out.unreachable,
             "runaway": out.runaway, "drive_force": self._control.drive_force,
             "excitation_frequency": self._control.frequency, "model_source": self.model_source,
-            "commands_accepted": self.accepted, "commands_coalesced": self.coalesced,
-            "commands_rejected": self.rejected, "command_batches": self.command_batches,
+            "commands_accepted": self.accepted, "commands_rejected": self.rejected,
+            "command_batches": self.command_batches,
             "last_rejection": self.last_rejection,
             "samples_accepted": self.samples_accepted, "samples_rejected": self.samples_rejected,
             "last_sample_rejection": self.last_sample_rejection, "sample_limit": self._control.sample_limit,
@@ -450,10 +448,6 @@ class ControllerNode(Node):
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = self.get_clock().now().to_msg()
         self._diag_pub.publish(msg)
-
-    def _latest_refusal(self) -> str:
-        return self.last_sample_rejection if self.samples_rejected and not self.rejected else \
-            self.last_rejection or self.last_sample_rejection
 
     # -- parameters ---------------------------------------------------------------
 
@@ -493,6 +487,11 @@ class ControllerNode(Node):
 
     def _parameters_set(self, changes: list[Parameter]) -> None:
         self._publish(self._control.output)
+
+
+def _arrival(info: Any) -> int:
+    """When a message arrived (ns), from rclpy's message info."""
+    return int(info.get("received_timestamp") or 0) if isinstance(info, dict) else 0
 
 
 def _config(values: dict[str, Any]) -> ControllerConfig:

@@ -160,3 +160,27 @@ def test_a_plant_at_half_speed_is_not_judged_at_full_speed_before_its_pace_is_kn
     paced.note_change(start)
     assert not paced.add(period * 3 + 0.018, start + 36 * ms, period, 1, 0.25)
     assert paced.add(period * 3 + 0.040, start + 80 * ms, period, 1, 0.25)
+
+
+def test_inputs_of_one_instant_are_judged_in_order_and_decided_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A batch of commands (the node takes them so under a flood): each is
+    judged against the state the ones before it left, as if they came one by
+    one, and the law decides once for all of them."""
+    controller = MeanSpeedController(ControllerConfig(), drive_force=0.7, frequency=50.0, target_speed=2e-4)
+    decisions = []
+    decide = vars(MeanSpeedController)["_decide"]  # the one decision of the law
+
+    def counted(self: MeanSpeedController) -> object:
+        decisions.append(1)
+        return decide(self)
+
+    monkeypatch.setattr(MeanSpeedController, "_decide", counted)
+    verdicts = controller.take([("target_speed", -2e-4), ("drive_force", -0.7), ("excitation_frequency", math.nan),
+                                ("target_speed", -3e-4), ("excitation_frequency", 60.0)])
+    assert [v is None for v in verdicts] == [False, True, False, True, True]
+    assert "sign of drive_force = 0.7" in str(verdicts[0]) and "excitation_frequency = nan" in str(verdicts[2])
+    assert len(decisions) == 1
+    monkeypatch.undo()
+    same = MeanSpeedController(ControllerConfig(), drive_force=-0.7, frequency=60.0, target_speed=-3e-4)
+    assert controller.output == same.output
+    assert controller.take([("target_speed", math.inf)])[0] is not None and controller.output == same.output
