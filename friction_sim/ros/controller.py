@@ -8,9 +8,10 @@ Subscriptions: ``target_speed`` (std_msgs/Float64, m/s), ``mean_velocity``
 ``excitation_frequency`` (std_msgs/Float64, the same commands the slider
 takes, so the model follows the plant's inputs).
 Publications: ``excitation_amplitude`` (std_msgs/Float64, Pa in N) after each
-mean_velocity sample and on every change of target, drive force or
-frequency; ``diagnostics`` (DiagnosticArray, status name ``controller``) at
-1 Hz and whenever the target becomes unreachable or reachable again.
+mean_velocity sample taken and after each batch of commands that changed
+something; ``diagnostics`` (DiagnosticArray, status name ``controller``,
+stamped by the node's clock like the slider's) at 1 Hz and whenever the
+target becomes unreachable or reachable again or an internal error occurs.
 
 Commands are taken in batches: while the node is quiet, a command wakes it at
 once; after each batch the command topics are polled every
@@ -25,10 +26,9 @@ samples (not finite, or faster than any plant in force can creep: see
 :mod:`friction_sim.core.control`) are counted in diagnostics
 (``commands_rejected``, all of them; ``samples_rejected``, the samples among
 them) with the latest reason, and warned about at most once a second (the
-others cost a clock read).  An unexpected error in a
-callback is logged once, reported as ERROR on diagnostics, and the input
-that caused it is refused (the law's state is left as it was); the node
-goes on.
+others cost a clock read).  An unexpected error in a callback is logged
+once, reported as ERROR on diagnostics, and the input that caused it is
+refused (the law's state is left as it was); the node goes on.
 
 With ``plant_node`` set (default ``slider``) the controller reads mass, mu,
 gravity and mean_window_periods from that node's parameters at start-up
