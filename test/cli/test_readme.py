@@ -20,6 +20,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from friction_sim.core.commands import COMMANDS
 from friction_sim.core.spec import CONTROLLER_NODE, SLIDER_NODE
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -97,13 +98,22 @@ def test_ros2_command_matches_the_real_interface(command: str) -> None:
             if word == "--params-file":
                 assert words[i + 1].endswith("config/slider.yaml") and (ROOT / "config/slider.yaml").is_file()
     elif words[:3] == ["ros2", "topic", "pub"]:
-        topic, type_name, payload = [w for w in words[3:] if not w.startswith("--")][:3]
+        options = {w: words[i + 1] for i, w in enumerate(words) if w in ("-w", "--wait-matching-subscriptions")}
+        positional = [w for i, w in enumerate(words[3:], 3) if not w.startswith("-") and words[i - 1] != "-w"]
+        topic, type_name, payload = positional[:3]
         assert TOPIC_TYPES[topic] == type_name
         _fill(_message(type_name)(), yaml.safe_load(payload))
+        if "--once" in words:  # --once publishes as soon as ONE subscriber matches: wait for every consumer
+            consumers = COMMANDS[topic.lstrip("/")].consumers
+            assert options and int(next(iter(options.values()))) == len(consumers), \
+                f"{topic} is taken by {consumers}: publish once with -w {len(consumers)}"
     elif words[:3] == ["ros2", "topic", "echo"]:
         assert words[3] in TOPIC_TYPES
     elif words[:3] == ["ros2", "param", "set"]:
         node, name, value = words[3:6]
         assert isinstance(yaml.safe_load(value), NODES[node][name].kind)
+    elif words[0] == "rosdep":
+        assert words[:2] == ["rosdep", "install"] and words[words.index("--from-paths") + 1] == "src"
+        assert {"--ignore-src", "-y"} <= set(words)
     else:
         assert words[0] in ("colcon", "source"), f"unchecked command: {command}"
