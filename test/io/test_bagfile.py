@@ -150,3 +150,20 @@ def test_breakup_chunk_sees_the_same_messages(tmp_path: Path) -> None:
         if isinstance(record, Chunk):
             count += sum(isinstance(r, Message) for r in breakup_chunk(record, validate_crc=True))
     assert count == stats.messages
+
+
+def test_rosbags_opens_it_as_a_rosbag2_bag(tmp_path: Path) -> None:
+    """A second, independent reader of MCAP and of rosbag2's metadata."""
+    from rosbags.rosbag2 import Reader
+
+    from friction_sim.io.cdr import deserialize
+
+    path, stats = recorded(tmp_path, 4096)
+    with Reader(path) as bag:
+        assert bag.message_count == stats.messages
+        assert {c.topic: c.msgcount for c in bag.connections} == stats.per_topic
+        poses = [(c, t, data) for c, t, data in bag.messages() if c.topic == "/pose"]
+    assert len(poses) == stats.per_topic["/pose"] and poses[0][0].msgtype == "geometry_msgs/msg/PoseStamped"
+    assert [t for _, t, _ in poses] == [round(k * 1e6) for k in range(len(poses))]
+    last = deserialize(poses[-1][2], "geometry_msgs/msg/PoseStamped")
+    assert (last.header.stamp.sec, last.header.stamp.nanosec) == (1, 500_000_000) and last.header.frame_id == "slideway"
