@@ -45,6 +45,17 @@ class RecordingPathError(RecordingError):
         super().__init__(f"{field} = {_quote(value)} rejected: {reason}")
 
 
+class SimulationFault(FrictionSimError):
+    """The exact core failed while advancing under inputs it had taken, or its
+    state stopped being finite: the run cannot go on.  The message says when
+    and why, on one line."""
+
+
+class NodeFault(FrictionSimError):
+    """A node cannot go on; it has logged why (one line).  The node's ``main``
+    ends with exit code 3 (``friction_sim.ros.common.EXIT_FAULT``)."""
+
+
 def _quote(value: Any) -> str:
     """Format a rejected value unambiguously (repr: 0.1 stays 0.1, nan, inf, 'text')."""
     return repr(value)

@@ -38,19 +38,13 @@ from friction_sim.core.events import CycleMark, Event, SliderState
 from friction_sim.core.params import Inputs, SliderParams, check_load, require_positive
 from friction_sim.core.slider import Slider
 from friction_sim.core.urelation import Prediction, predict
-from friction_sim.errors import FrictionSimError, ParameterError
+from friction_sim.errors import ParameterError, SimulationFault
 
 NS_PER_S = 1_000_000_000
 _PHYSICS = {**spec.PLANT, **spec.INPUTS}
 #: Period marks the core keeps; more than this many periods in one tick are
 #: summarised only from the last ones (only at absurd real-time factors).
 _MARK_BACKLOG = 4096
-
-
-class SimulationFault(FrictionSimError):
-    """The exact core failed while advancing under inputs it had taken, or its
-    state stopped being finite: the run cannot go on.  The message says when
-    and why, on one line."""
 
 
 class _Checkpoint:

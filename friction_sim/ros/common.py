@@ -42,7 +42,7 @@ from rclpy.subscription import Subscription
 from rclpy.utilities import remove_ros_args
 
 from friction_sim.core.spec import Setting
-from friction_sim.errors import FrictionSimError
+from friction_sim.errors import FrictionSimError, NodeFault
 
 RCLError = _rclpy.RCLError
 #: Exit codes of the node executables (``slider``, ``controller``, ``friction-sim feeder``).
@@ -59,11 +59,6 @@ EXIT_CODES = (
 HELP_WIDTH = 100
 #: At most one warning about refused input per this many seconds (and node).
 WARN_INTERVAL = 1.0
-
-
-class NodeFault(FrictionSimError):
-    """A node cannot go on; it has logged why (one line).  :func:`run_node`
-    ends with :data:`EXIT_FAULT`."""
 
 
 class FaultSignal:

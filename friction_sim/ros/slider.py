@@ -60,7 +60,8 @@ from friction_sim.core import spec
 from friction_sim.core.commands import PARAMETERS as PARAMETER_COMMAND
 from friction_sim.core.commands import PHYSICS_FIELDS, SLIDER, Command, Outcome, consumed_by
 from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.realtime import RealtimeSlider, SimulationFault
+from friction_sim.core.realtime import RealtimeSlider
+from friction_sim.errors import SimulationFault
 from friction_sim.io.messages import (
     command_from_message,
     fill_state_messages,

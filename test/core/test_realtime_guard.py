@@ -12,8 +12,9 @@ import pytest
 from friction_sim.core.commands import PARAMETERS, Command
 from friction_sim.core.events import SliderState
 from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.realtime import RealtimeSlider, SimulationFault
+from friction_sim.core.realtime import RealtimeSlider
 from friction_sim.core.slider import Slider
+from friction_sim.errors import SimulationFault
 
 NS = 1_000_000_000
 POISON = 0.8123  # a drive force the patched core fails on

@@ -27,7 +27,8 @@ from friction_sim.core import spec
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.slider import Slider
 from friction_sim.core.urelation import u_map
-from friction_sim.ros.common import EXIT_FAULT, NodeFault
+from friction_sim.errors import NodeFault
+from friction_sim.ros.common import EXIT_FAULT
 from friction_sim.ros.slider import SliderNode
 
 from ros_harness import CommandLog, Probe, diagnostics_values, kill_if_running, namespace, stamp_ns
