@@ -14,11 +14,18 @@ import argparse
 import sys
 from pathlib import Path
 
+from friction_sim.cli.commands import add_flag
+from friction_sim.core import spec
 from friction_sim.errors import RecordingError
 from friction_sim.io.reader import Recording, read_recording
 from friction_sim.io.verify import DEFAULT_TOLERANCE, verify
 
 EXIT_OK, EXIT_MISMATCH, EXIT_ERROR = 0, 1, 2
+
+#: The numeric options, checked like every other setting (NaN, inf and absurd values are usage errors).
+TOLERANCE = spec.Setting("tolerance", DEFAULT_TOLERANCE, "-", "relative tolerance of --verify", 1e-16, 1e-2)
+RATE = spec.Setting("rate", 1.0, "-", "playback rate factor for --publish", 1e-3, 1e3)
+DELAY = spec.Setting("delay", 0.0, "s", "with --publish: seconds to wait before playing", 0.0, 3600.0)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -28,14 +35,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="re-simulate from the recorded parameters and commands and compare with the "
                              "recorded states (exit 1 if they differ by more than --tolerance; a file whose "
                              "recorder dropped messages is refused)")
-    parser.add_argument("--tolerance", type=float, default=DEFAULT_TOLERANCE,
-                        help=f"relative tolerance of --verify ({DEFAULT_TOLERANCE:g})")
+    add_flag(parser, TOLERANCE, TOLERANCE.default)
     parser.add_argument("--publish", action="store_true", help="republish the messages on their topics")
-    parser.add_argument("--rate", type=float, default=1.0, help="playback rate factor for --publish (1.0)")
+    add_flag(parser, RATE, RATE.default)
     parser.add_argument("--loop", action="store_true", help="with --publish: start over at the end")
     parser.add_argument("--topics", nargs="+", metavar="TOPIC", help="with --publish/--csv: only these topics")
     parser.add_argument("--namespace", default="", help="with --publish: namespace of the published topics")
-    parser.add_argument("--delay", type=float, default=0.0, help="with --publish: seconds to wait before playing")
+    add_flag(parser, DELAY, DELAY.default)
     parser.add_argument("--csv", type=Path, metavar="DIR", help="write one CSV per topic into DIR")
     parser.add_argument("--plot", type=Path, metavar="PNG",
                         help="draw position, velocity, friction force and R with the commands marked")
@@ -81,12 +87,12 @@ def _csv(recording: Recording, directory: Path, topics: list[str] | None) -> Non
 
 def _plot(recording: Recording, path: Path) -> None:
     """Draw the figure to ``path`` and say so."""
+    from friction_sim.cli.figures import save_figure
     from friction_sim.cli.recording_figure import plot
 
     figure = plot(recording)
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        figure.savefig(path, dpi=120)
+        save_figure(figure, path)
     except OSError as error:
         raise RecordingError(f"cannot write {path}: {error.strerror or error}") from None
     print(f"wrote {path}")

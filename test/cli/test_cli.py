@@ -122,6 +122,9 @@ def test_simulate_csv_has_uniform_samples_and_events(tmp_path: Path) -> None:
         (("simulate", "--csv", "x.csv", "--sample-rate", "1e12"), ("--sample-rate", "1000000000000.0", "1e+09")),
         (("replay", "x.mcap", "--delay", "inf"), ("--delay", "inf", "finite")),
         (("replay", "x.mcap", "--rate", "nan"), ("--rate", "nan", "finite")),
+        (("replay", "x.mcap", "--publish", "--delay", "1e300"), ("--delay", "1e+300", "3600")),
+        (("replay", "x.mcap", "--verify", "--tolerance", "1e300"), ("--tolerance", "1e+300", "0.01")),
+        (("replay", "x.mcap", "--publish", "--rate", "1e-300"), ("--rate", "1e-300", "0.001")),
     ],
 )
 def test_errors_are_one_line_and_exit_2(args: tuple[str, ...], words: tuple[str, ...], tmp_path: Path) -> None:
