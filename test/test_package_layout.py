@@ -130,6 +130,7 @@ ROSDEP_KEYS = {
     'numpy': {'python3-numpy'},
     'pyyaml': {'python3-yaml'},
     'mcap': {'mcap-ros2-support'},
+    'zstandard': {'mcap-ros2-support'},  # mcap's own dependency: the same pip key brings it
     'rosbags': {'python3-rosbags-pip'},
     'matplotlib': {'python3-matplotlib'},
 }
