@@ -220,7 +220,7 @@ class _Attached:
         _set_parameters(driver, executor, "slider", _plant_values(spec))
         if spec.controller:
             _set_parameters(driver, executor, "controller", _controller_values(spec))
-        self.recorder = _attached_recorder(spec)
+        self.recorder = _attached_recorder(spec, driver.get_namespace())
         for topic in self.RECORDED:
             driver.create_subscription(message_class(TOPIC_TYPES[topic]), topic, self._keeper(topic), 100)
 
@@ -262,13 +262,15 @@ class _Attached:
             self.recorder.finish()
 
 
-def _attached_recorder(spec: ExperimentSpec) -> Any:
-    """The recorder of an attached run (None: not recording)."""
+def _attached_recorder(spec: ExperimentSpec, namespace: str) -> Any:
+    """The recorder of an attached run (None: not recording); topics are stored
+    fully qualified, in the namespace of the nodes it follows."""
     if not spec.log_path:
         return None
     from friction_sim.io.recorder import Recorder
 
-    return Recorder(spec.log_path, metadata={**_plant_values(spec), "recorded_by": "experiment --attach"})
+    return Recorder(spec.log_path, metadata={**_plant_values(spec), "recorded_by": "experiment --attach"},
+                    namespace=namespace)
 
 
 def _set_parameters(driver: Any, executor: Any, node: str, values: dict[str, Any]) -> None:

@@ -130,4 +130,6 @@ def test_attach_drives_nodes_running_in_another_process(tmp_path: Path) -> None:
         assert row.achieved == pytest.approx(row.target, rel=1e-6, abs=1e-12)
     assert job.rows[-1].achieved == pytest.approx(0.0002, rel=0.01)
     assert 0.0 < job.rows[0].stick_fraction < 1.0
-    assert read_recording(job.recording).complete
+    recording = read_recording(job.recording)
+    assert recording.complete
+    assert f"{namespace}/pose" in recording.topics  # fully qualified, as rosbag2 names them
