@@ -49,7 +49,7 @@ from friction_sim.experiment.runner import ExperimentResult, run_experiment
 from friction_sim.experiment.scenario import Scenario
 
 BIN = Path(sys.executable).parent
-FLOODER = Path(__file__).resolve().parents[1] / "test" / "ros" / "test_controller_flood.py"
+FLOODER = Path(__file__).resolve().parents[1] / "test" / "ros_harness.py"
 CLK_TCK = os.sysconf("SC_CLK_TCK")
 TARGET = 3e-4  # m/s
 
@@ -139,9 +139,8 @@ def flood_bench(rate: int, count: int, seconds: float) -> None:
             watcher.spin_for(0.1)
         watcher.spin_for(1.0)
         idle = windows(watcher, pids, count, seconds)
-        env = {**os.environ, "PYTHONPATH": str(FLOODER.parents[1])}
-        flooder = subprocess.Popen([sys.executable, str(FLOODER), ns, str(rate), str(count * seconds + 1.5)],
-                                   stdout=subprocess.PIPE, text=True, env=env)
+        flooder = subprocess.Popen([sys.executable, str(FLOODER), ns, str(rate), str(count * seconds + 1.5), "mixed",
+                                    "last"], stdout=subprocess.PIPE, text=True)
         assert flooder.stdout is not None
         flooder.stdout.readline()  # "flooding"
         watcher.spin_for(1.0)

@@ -159,7 +159,7 @@ def flood(listener: Listener, pid: int, rate: int, seconds: float, kind: str) ->
     flooder = subprocess.Popen([sys.executable, str(HARNESS), NAMESPACE, str(rate), str(seconds), kind],
                                stdout=subprocess.PIPE, text=True)
     listener.spin_for(seconds + 1.0)
-    sent = int(flooder.communicate(timeout=30)[0])
+    sent = int(flooder.communicate(timeout=30)[0].split()[-1])
     rss_during = rss_mib(pid)
     stamps = np.array([stamp_ns(m) for _, m in listener.log["pose"]], dtype=np.int64) / 1e9
     reports = [{kv.key: kv.value for kv in m.status[0].values} for _, m in listener.log["diagnostics"]]

@@ -10,6 +10,7 @@ import time
 import uuid
 from collections import defaultdict
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -158,26 +159,55 @@ def kill_if_running(process: subprocess.Popen[str]) -> None:
         process.communicate()
 
 
+#: This file: run as a script, it is the flooder (see :func:`flood`).
+HARNESS = Path(__file__).resolve()
 #: An invalid flood cycles through these drive forces: half NaN or inf, half finite but out of range.
 INVALID = (math.nan, math.inf, 1e308, -5e6, math.nan, -math.inf, 2e6, -1e300)
+#: The value of the last message of a flood with a final valid command.
+LAST = 0.75
 
 
-def flood(namespace: str, rate: int, seconds: float, kind: str = "valid") -> int:
-    """Publish drive_force commands at ``rate`` per second (run in its own process):
-    valid ones (0.7 ... 0.71 N), or ``invalid`` ones (:data:`INVALID`)."""
+def flood_value(kind: str, n: int) -> float:
+    """The n-th drive force of a flood of ``kind``: "valid" (0.7 ... 0.71 N, each
+    a real change), "invalid" (:data:`INVALID`), or "mixed" (valid, NaN, valid,
+    +-inf, ...: half of them invalid)."""
+    valid = 0.7 + 1e-4 * (n % 100)
+    if kind == "valid":
+        return valid
+    if kind == "invalid":
+        return INVALID[n % len(INVALID)]
+    if n % 4 == 1:
+        return math.nan
+    if n % 4 == 3:
+        return math.inf if n % 8 == 3 else -math.inf
+    return valid
+
+
+def flood(namespace: str, rate: int, seconds: float, kind: str = "valid", last: bool = False) -> int:
+    """Publish drive_force commands of ``kind`` (:func:`flood_value`) at ``rate``
+    per second once a reader has matched (run in its own process); print
+    "flooding" when the flood begins.  With ``last``, end with one valid
+    command, :data:`LAST`.  Returns how many were sent."""
     rclpy.init()
     node = rclpy.create_node("flooder", namespace=namespace)
     publisher = node.create_publisher(Float64, "drive_force", 10)
-    deadline = time.monotonic() + 10.0
+    deadline = time.monotonic() + 15.0
     while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
         time.sleep(0.01)
+    time.sleep(0.3)  # the reader matches our writer a moment after we match it
+    print("flooding", flush=True)
     start, sent, msg = time.monotonic(), 0, Float64()
     while (now := time.monotonic()) - start < seconds:
         while sent < int((now - start) * rate):
-            msg.data = 0.7 + 1e-4 * (sent % 100) if kind == "valid" else INVALID[sent % len(INVALID)]
+            msg.data = flood_value(kind, sent)
             publisher.publish(msg)
             sent += 1
         time.sleep(0.001)
+    if last:
+        msg.data = LAST
+        publisher.publish(msg)
+        sent += 1
+        time.sleep(0.2)
     node.destroy_node()
     rclpy.shutdown()
     return sent
@@ -186,4 +216,5 @@ def flood(namespace: str, rate: int, seconds: float, kind: str = "valid") -> int
 if __name__ == "__main__":
     import sys
 
-    print(flood(sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), *sys.argv[4:5]))
+    # python test/ros_harness.py NAMESPACE RATE SECONDS [KIND [last]]
+    print(flood(sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), *sys.argv[4:5], last=sys.argv[5:6] == ["last"]))

@@ -133,17 +133,23 @@ class PolledGroup(CallbackGroup):
 
 
 def take_all(subscription: Subscription, limit: int) -> list[object]:
-    """Take up to ``limit`` waiting messages from ``subscription``, oldest first
-    (rclpy's executor takes messages with the same call)."""
-    messages = []
+    """Take up to ``limit`` waiting messages from ``subscription``, oldest first."""
+    return [message for message, _ in take_with_info(subscription, limit)]
+
+
+def take_with_info(subscription: Subscription, limit: int) -> list[tuple[Any, dict[str, Any]]]:
+    """Up to ``limit`` waiting (message, message info) pairs, oldest first
+    (rclpy's executor takes messages with the same call; the info holds the
+    arrival time, ``received_timestamp`` in ns)."""
+    taken_all = []
     handle = subscription.handle
     for _ in range(limit):
         with handle:
             taken = handle.take_message(subscription.msg_type, subscription.raw)
         if taken is None:
             break
-        messages.append(taken[0])
-    return messages
+        taken_all.append((taken[0], taken[1]))
+    return taken_all
 
 
 def descriptor(setting: Setting) -> ParameterDescriptor:

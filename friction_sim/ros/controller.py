@@ -74,6 +74,7 @@ from friction_sim.ros.common import (
     declare_settings,
     node_help,
     run_node,
+    take_with_info,
     wall_ns,
     watch_parameter_refusals,
 )
@@ -286,17 +287,9 @@ class ControllerNode(Node):
     def _take_waiting(self) -> list[tuple[int, str, Any]]:
         """Every command waiting on the command topics (at most the queue depth
         each: the subscriptions keep the latest QOS_DEPTH) as (arrival, topic,
-        message).  (common.take_all drops the message info with the arrival time.)"""
-        waiting = []
-        for name, subscription in self._commands:
-            handle = subscription.handle
-            for _ in range(QOS_DEPTH):
-                with handle:
-                    taken = handle.take_message(subscription.msg_type, subscription.raw)
-                if taken is None:
-                    break
-                waiting.append((_arrival(taken[1]), name, taken[0]))
-        return waiting
+        message)."""
+        return [(_arrival(info), name, message) for name, subscription in self._commands
+                for message, info in take_with_info(subscription, QOS_DEPTH)]
 
     def _apply_batch(self, batch: list[tuple[str, Any]]) -> None:
         """The commands of a batch in order, each judged against the state the

@@ -1,9 +1,8 @@
 """The controller node under a flood of drive_force commands, half of them NaN or inf.
 
-This module is also the flooder: ``PYTHONPATH=test python
-test/ros/test_controller_flood.py NAMESPACE RATE SECONDS`` publishes the flood
-from its own process, says "flooding" when it begins and prints how many
-messages it sent (bench/controller.py runs it the same way).
+The flood comes from the tests' one flooder (``test/ros_harness.py NAMESPACE
+RATE SECONDS mixed last``) in its own process; bench/controller.py runs it
+the same way.
 """
 
 from __future__ import annotations
@@ -21,56 +20,7 @@ from std_msgs.msg import Float64
 
 from friction_sim.ros.controller import COMMAND_HOLD_OFF, ControllerNode
 
-from ros_harness import Probe, kill_if_running
-
-#: The value of the last message of every flood (valid).
-LAST = 0.75
-
-
-def flood_value(n: int) -> float:
-    """The n-th value of the flood: valid, NaN, valid, +-inf, ...  The valid
-    ones vary (0.7 N + up to 9.9 mN), so each is a real change of the plant
-    for a controller that takes them all."""
-    kind = n % 4
-    if kind == 1:
-        return math.nan
-    if kind == 3:
-        return math.inf if n % 8 == 3 else -math.inf
-    return 0.7 + 1e-4 * (n % 100)
-
-
-def flood(namespace: str, rate: int, seconds: float, announce: bool = False) -> int:
-    """Publish drive_force at ``rate`` messages per second for ``seconds``
-    once a reader has matched, then :data:`LAST`; return how many were sent.
-    With ``announce``, print a line when the flood begins."""
-    import rclpy
-    from std_msgs.msg import Float64
-
-    rclpy.init()
-    node = rclpy.create_node("controller_flooder", namespace=namespace)
-    publisher = node.create_publisher(Float64, "drive_force", 10)
-    deadline = time.monotonic() + 15.0
-    while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
-        time.sleep(0.01)
-    time.sleep(0.3)  # the reader matches our writer a moment after we match it
-    if announce:
-        print("flooding", flush=True)
-    start, sent, msg = time.monotonic(), 0, Float64()
-    while (now := time.monotonic()) - start < seconds:
-        while sent < int((now - start) * rate):
-            msg.data = flood_value(sent)
-            publisher.publish(msg)
-            sent += 1
-        time.sleep(0.001)
-    msg.data = LAST
-    publisher.publish(msg)
-    time.sleep(0.2)
-    node.destroy_node()
-    rclpy.shutdown()
-    return sent + 1
-
-
-
+from ros_harness import HARNESS, LAST, Probe, kill_if_running
 
 # -- the tests ------------------------------------------------------------------------
 
@@ -82,7 +32,7 @@ TEST_DIR = Path(__file__).resolve().parents[1]
 def start_flood(namespace: str, rate: int, seconds: float) -> subprocess.Popen[str]:
     """This module as the flooder, in its own process; returns once the flood has begun."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(TEST_DIR), os.environ.get("PYTHONPATH")]))}
-    flooder = subprocess.Popen([sys.executable, __file__, namespace, str(rate), str(seconds)],
+    flooder = subprocess.Popen([sys.executable, str(HARNESS), namespace, str(rate), str(seconds), "mixed", "last"],
                                stdout=subprocess.PIPE, text=True, env=env)
     assert flooder.stdout is not None
     assert flooder.stdout.readline().strip() == "flooding"
@@ -151,7 +101,3 @@ def test_a_lone_command_is_taken_at_once_and_the_polling_stops(ros: None) -> Non
     finally:
         probe.close()
         controller.destroy_node()
-
-
-if __name__ == "__main__":
-    print(flood(sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), announce=True))

@@ -28,6 +28,7 @@ from friction_sim.core.urelation import predict
 from friction_sim.ros.slider import SliderNode
 
 from ros_harness import (
+    HARNESS,
     CommandLog,
     Probe,
     diagnostics_values,
@@ -335,10 +336,10 @@ def test_a_flood_of_commands_does_not_stall_publishing(ros: None, kind: str) -> 
         probe.spin_for(1.5)
         rss_before = rss_kib(node.pid)
         start = len(probe.received["diagnostics"])
-        flooder = subprocess.Popen([sys.executable, str(Path(__file__).resolve().parents[1] / "ros_harness.py"), ns,
-                                    "10000", "4.0", kind], stdout=subprocess.PIPE, text=True)
+        flooder = subprocess.Popen([sys.executable, str(HARNESS), ns, "10000", "4.0", kind],
+                                   stdout=subprocess.PIPE, text=True)
         probe.spin_until(lambda: flooder.poll() is not None, 30.0)
-        sent = int(flooder.communicate(timeout=10)[0])
+        sent = int(flooder.communicate(timeout=10)[0].split()[-1])
         probe.spin_for(1.2)
         reports = [diagnostics_values(m) for m in probe.received["diagnostics"][start:]]
         rates = [float(r["tick_rate"]) for r in reports]
