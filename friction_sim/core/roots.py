@@ -60,6 +60,8 @@ def next_slip_start(phase: float, b0: float, b1: float, *, closing: bool = False
     if ratio < -1.0:  # the window covers every phase; only rounding kept us here
         return (TWO_PI, phase) if closing else (0.0, phase)
     start = math.asin(ratio) % TWO_PI
+    if start >= TWO_PI:  # -tiny % 2*pi rounds to 2*pi: the start is at phase 0
+        start = 0.0
     delta = (start - phase) % TWO_PI
     if closing:
         return (delta, start) if delta > 0.0 else (TWO_PI, start)
@@ -107,6 +109,8 @@ def slip_stop_delay(w0: float, b0: float, b1: float, phase0: float, omega: float
         if w0 == 0.0:
             return 0.0
         hi = (w0 + (b1 / omega) * (1.0 + math.cos(phase0))) / -b0
+        if not hi * omega <= TWO_PI * _LONGEST_SLIP:  # (also when hi overflows to inf)
+            return NEVER
         return _falling_root(w0, b0, b1, phase0, omega, 0.0, hi)
     return _stop_with_turning_points(w0, b0, b1, phase0, omega)
 
@@ -135,10 +139,10 @@ def _stop_with_turning_points(w0: float, b0: float, b1: float, phase0: float, om
     if w_min > 0.0:
         if b0 >= 0.0:  # the minima only grow: never back to rest
             return NEVER
-        periods = math.ceil(w_min / (-b0 * period))
-        if periods > _LONGEST_SLIP:
+        estimate = w_min / (-b0 * period)
+        if not estimate <= _LONGEST_SLIP:  # (also when it overflows to inf)
             return NEVER
-        hi += max(1, periods) * period
+        hi += max(1, math.ceil(estimate)) * period
         for _ in range(8):  # rounding guard: the formula's period may be one short
             if _speed(w0, g0, k, cos0, sin0, omega, hi) <= 0.0:
                 break

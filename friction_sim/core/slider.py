@@ -64,6 +64,12 @@ from friction_sim.errors import ParameterError
 
 #: Slip stops kept per slider (one per phase a slip from rest starts at).
 _CACHE_LIMIT = 256
+#: The latest time [s] a slider runs to (2**53 s, 285 million years, far beyond
+#: the end of ROS 2 time at 2**31 s) and the largest |x0| [m]: together with the
+#: ranges of core/spec.py they keep every state finite (the fastest accepted
+#: slider, at 2e12 m/s^2, covers 1e44 m by then).
+MAX_TIME = 2.0**53
+MAX_POSITION = 1e100
 
 
 # --------------------------------------------------------------------------
@@ -188,6 +194,8 @@ def _reduce_phase(theta: float, cycles: int) -> tuple[float, int]:
     """Split a phase counted from period ``cycles`` into [0, 2*pi) and whole periods."""
     whole = math.floor(theta / TWO_PI)
     phase = theta - whole * TWO_PI
+    if phase < 0.0:  # theta/2*pi rounded up (a large theta, where whole*2*pi is coarse)
+        phase, whole = phase + TWO_PI, whole - 1
     if phase >= TWO_PI:  # rounding at the very end of a period
         phase, whole = 0.0, whole + 1
     return phase, cycles + whole
@@ -239,6 +247,8 @@ class Slider:
         self._inputs = inputs if inputs is not None else Inputs()
         check_contact(self._params, self._inputs)
         self._t = require_finite("t0", t0)
+        if abs(self._t) > MAX_TIME:
+            raise ParameterError("t0", self._t, f"must be within +-{MAX_TIME:g} s")
         phase, _ = _reduce_phase(require_finite("phase0", phase0), 0)  # -1e-300 % 2pi == 2pi
         if event_log_size is not None and not (isinstance(event_log_size, int) and event_log_size >= 0):
             raise ParameterError("event_log_size", event_log_size, "must be an integer >= 0 or None")
@@ -251,6 +261,8 @@ class Slider:
         self._marks: deque[CycleMark] | None = None
         self._next_mark_n, self._next_mark_t, self._next_mark_s = 1, NEVER, NEVER
         x0 = require_finite("x0", x0)
+        if abs(x0) > MAX_POSITION:
+            raise ParameterError("x0", x0, f"must be within +-{MAX_POSITION:g} m")
         if cycle_log_size != 0:
             self._marks = deque(maxlen=cycle_log_size)
             if phase == 0.0:
@@ -323,8 +335,9 @@ class Slider:
         """Advance exactly to time ``t``; return the events that happened since the
         previous call (a slip that an input change starts at once belongs to
         the next call), up to and including ``t``."""
-        if not (t >= self._t and math.isfinite(t)):
-            raise ParameterError("t", t, f"must be finite and >= the current time {self._t!r} s")
+        if not (self._t <= t <= MAX_TIME):
+            raise ParameterError("t", t, f"must be finite, >= the current time {self._t!r} s "
+                                         f"and <= {MAX_TIME:g} s")
         happened: list[Event] = []
         while True:
             if self._next_mark_s <= self._next_s:  # by phase: a mark and an event may round to one t
@@ -529,4 +542,5 @@ class Slider:
         return event
 
 
-__all__ = ["CycleMark", "Event", "EventKind", "Mode", "Slider", "SliderState", "Trajectory"]
+__all__ = ["MAX_POSITION", "MAX_TIME", "CycleMark", "Event", "EventKind", "Mode", "Slider", "SliderState",
+           "Trajectory"]
