@@ -6,7 +6,12 @@ Measures, in one run on this machine:
       scipy solve_ivp-with-events reference at rtol 1e-10 on the same
       schedule (ratio, and the largest difference of x and v);
   (b) the wall time of a 101 x 101 U map;
-  (c) how well simulated mean speeds match the exact U (relative error).
+  (c) how well simulated mean speeds match the exact U (relative error);
+  (d) the long-run phase error: after a million periods of the paper's case
+      started at t0 in {0, 1e6, 2e9} s, the largest error of a slip start
+      against its exact time t0 + (n + theta_A/(2 pi))/f, in units in the last
+      place of t, and of the displacement per period against the exact D
+      (both exact values from mpmath, see test/reference.py).
 Timings are medians of repeated runs; the machine is shared and noisy, so the
 ratio measured in the same run is the figure to trust.  Prints figures only:
 a benchmark never passes or fails on timing.
@@ -21,6 +26,7 @@ import os
 import statistics
 import sys
 import time
+from pathlib import Path
 
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
@@ -32,7 +38,8 @@ from friction_sim.core.simulation import random_schedule, run_schedule, simulate
 from friction_sim.core.slider import Slider
 from friction_sim.core.urelation import dimensional_speed, u_grid, u_map
 
-from reference import ReferenceInputs, reference_solution
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "test"))  # the test-only reference
+from reference import ReferenceInputs, paper_case_slip, reference_solution, ulps_from_exact
 
 PARAMS = SliderParams()
 FREQUENCY = 50.0
@@ -167,6 +174,27 @@ def mean_speed_accuracy(quick: bool) -> None:
           f"largest relative error {worst:.2e}   (target <= 1e-9)")
 
 
+def long_run_phase_error(quick: bool) -> None:
+    from friction_sim.core.events import EventKind
+
+    periods = 100_000 if quick else 1_000_000
+    fraction, _, travel = paper_case_slip()
+    print(f"(d) long-run phase error, paper's case, {periods:,} periods from t0 "
+          "(slip starts vs exact t0 + (n + theta_A/(2 pi))/f; x at the n-th start vs n*D):")
+    for t0 in (0.0, 1e6, 2e9):
+        slider = Slider(t0=t0, event_log_size=0)
+        started = time.perf_counter()
+        starts = [(e.t, e.x) for e in slider.advance_to(t0 + periods / FREQUENCY) if e.kind is EventKind.SLIP_START]
+        elapsed = time.perf_counter() - started
+        t, x = np.array(starts).T
+        n = np.arange(t.size, dtype=float)
+        ulps = ulps_from_exact(t, t0, FREQUENCY, n, fraction)
+        drift = np.max(np.abs(x[1:] - n[1:] * travel) / (n[1:] * travel))
+        print(f"    t0 = {t0:5g} s: {t.size:,} slip starts (expected {periods:,}); largest error "
+              f"{ulps.max():.2f} ulp of t ({np.max(ulps * np.spacing(t)):.1e} s), last {ulps[-1]:.2f} ulp; "
+              f"displacement per period exact to {drift:.1e} (target: a few ulp, 1e-12)  [{elapsed:.1f} s]")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller runs (for a smoke test)")
@@ -176,6 +204,7 @@ def main() -> int:
     throughput(args.quick, moving=False)
     map_time()
     mean_speed_accuracy(args.quick)
+    long_run_phase_error(args.quick)
     return 0
 
 

@@ -77,6 +77,8 @@ __all__ = [
     'brute_force_mean_velocity',
     'high_precision_u',
     'high_precision_slip',
+    'paper_case_slip',
+    'ulps_from_exact',
 ]
 
 _TWO_PI: float = 2.0 * math.pi
@@ -777,3 +779,56 @@ def high_precision_u(phi: float, a: float, dps: int = 80) -> float:
         if phi_ > 1:
             return sign * math.inf
         return sign * float(high_precision_slip(abs(phi), a, dps)[2])
+
+
+def paper_case_slip(mass: float = 1.0, mu: float = 0.1, gravity: float = 10.0, drive_force: float = 0.7,
+                    excitation_amplitude: float = 5.0, excitation_frequency: float = 50.0,
+                    ) -> tuple[tuple[float, float], float, float]:
+    """``(theta_A/(2*pi) as a double-double (hi, lo), theta_A, D [m])`` of the
+    periodic slip of a plant (default: the paper's Fig. 2 case), from the exact
+    values of its floats: the slip of period n starts at t0 + (n + theta_A/(2*pi))/f
+    and every period moves the slider by D."""
+    import mpmath
+
+    with mpmath.workdps(80):
+        mu_, m, g = mpmath.mpf(mu), mpmath.mpf(mass), mpmath.mpf(gravity)
+        fd, pa, f = mpmath.mpf(drive_force), mpmath.mpf(excitation_amplitude), mpmath.mpf(excitation_frequency)
+        theta, _, u = high_precision_slip(fd / (mu_ * m * g), pa / (m * g))
+        travel = u * g * mu_ / f**2  # U = V*f/(g*mu), V = D*f
+        fraction = theta / (2 * mpmath.pi)
+        return (float(fraction), float(fraction - float(fraction))), float(theta), float(travel)
+
+
+def _split(a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    c = 134217729.0 * a  # 2**27 + 1 (Veltkamp)
+    hi = c - (c - a)
+    return hi, a - hi
+
+
+def _two_product(a: float, b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(a*b rounded, its exact error) elementwise (Dekker)."""
+    p = a * b
+    ah, al = _split(np.full_like(b, a))
+    bh, bl = _split(b)
+    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
+
+
+def ulps_from_exact(times: ArrayLike, t0: float, frequency: float, cycles: ArrayLike,
+                    fraction: tuple[float, float]) -> NDArray[np.float64]:
+    """|t - exact| / ulp(t) for float times t whose exact values are
+    t0 + (cycles + fraction)/frequency, ``fraction`` a double-double (hi, lo).
+
+    Computed without rounding that matters: t - t0 is exact (t0 == 0, or t in
+    [t0, 2*t0]: Sterbenz's lemma; checked), frequency*(t - t0) is split exactly
+    (Dekker's product), and its difference from the integer ``cycles`` is exact
+    again, so an error of a fraction of an ulp reads as such.
+    """
+    t = np.asarray(times, dtype=float)
+    n = np.asarray(cycles, dtype=float)
+    d = t - t0
+    if not (np.all(d + t0 == t) and np.all(d >= 0.0)):
+        raise ValueError('times must lie in [t0, 2*t0] (or t0 == 0) for t - t0 to be exact')
+    p, p_err = _two_product(frequency, d)
+    off = ((p - n) - fraction[0]) + (p_err - fraction[1])
+    result: NDArray[np.float64] = np.abs(off / frequency) / np.spacing(t)
+    return result

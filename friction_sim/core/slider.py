@@ -417,11 +417,6 @@ class Slider:
         """When (after the anchor) the total phase reaches 2*pi*cycles + phase."""
         return (cycles - self._origin_cycles) / self._frequency + (phase - self._origin_phase) / self._plant.omega
 
-    def _time(self, s: float, floor: float) -> float:
-        """Absolute time of anchor offset ``s``, never before ``floor``."""
-        t = self._origin + s
-        return t if t >= floor else floor
-
     def _rebase(self, params: SliderParams, inputs: Inputs) -> None:
         """Start a new segment at the current time from the current state."""
         seg = self._seg
@@ -458,10 +453,15 @@ class Slider:
         start_cycles = cycles + 1 if wraps else cycles
         self._next_start = (start_phase, direction, start_cycles)
         if delta == 0.0 or delta == NEVER:
-            self._next_s = s + delta
-        else:
-            self._next_s = max(s, self._offset(start_cycles, start_phase))
-        self._next_t = self._time(self._next_s, t)
+            next_s = s + delta
+        else:  # self._offset, inlined (once per period)
+            next_s = ((start_cycles - self._origin_cycles) / self._frequency
+                      + (start_phase - self._origin_phase) / plant.omega)
+            if next_s < s:
+                next_s = s
+        self._next_s = next_s
+        next_t = self._origin + next_s  # self._time, inlined
+        self._next_t = next_t if next_t >= t else t
 
     def _start_slip(
         self, t: float, s: float, x: float, xl: float, w: float, phase: float, cycles: int, direction: int
@@ -480,8 +480,9 @@ class Slider:
             entry = self._slip_stop(seg, w, phase, direction)
         delay, seg.stop = entry
         # The stop is timed from the slip's own (anchored) start: no sum of increments.
-        self._next_s = s + delay
-        self._next_t = self._time(self._next_s, t)
+        self._next_s = next_s = s + delay
+        next_t = self._origin + next_s  # self._time, inlined
+        self._next_t = next_t if next_t >= t else t
 
     @staticmethod
     def _slip_stop(seg: _Segment, w: float, phase: float, direction: int) -> tuple[float, Any]:
@@ -502,7 +503,10 @@ class Slider:
             return self._log(event)
         assert seg.stop is not None  # an endless slip has no event
         travel, theta = seg.stop
-        x, xl = _two_sum(seg.x0, seg.xl + travel)
+        x0, part = seg.x0, seg.xl + travel
+        x = x0 + part  # _two_sum, inlined (once per slip)
+        bb = x - x0
+        xl = (x0 - (x - bb)) + (part - bb)
         phase, cycles = _reduce_phase(theta, seg.cycles)
         plant = self._plant
         direction = plant.direction

@@ -11,73 +11,43 @@ t0 + (n + theta_A/(2*pi))/f with theta_A = asin((mu*m*g - Fd)/(mu*Pa)), and
 the displacement per period D comes from the textbook closed form evaluated
 in mpmath (test/reference.py).  The error of a float time t against that
 exact value is computed without rounding (t - t0 is exact by Sterbenz's
-lemma, f*(t - t0) is split exactly with Dekker's product), so an error of
-a fraction of an ulp is measured as such.
+lemma, f*(t - t0) is split exactly with Dekker's product; see
+reference.ulps_from_exact), so an error of a fraction of an ulp is measured
+as such.
 """
 
 from __future__ import annotations
 
 import math
 
-import mpmath
 import numpy as np
 import pytest
 from numpy.typing import NDArray
 
 from friction_sim.core.events import EventKind
-from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.slider import Slider
 
-from reference import high_precision_slip
+from reference import paper_case_slip, ulps_from_exact
 
-#: The requirement's run length, at the requirement's latest start; the runs
-#: from 0 and 1e6 s are shorter to keep the suite quick (bench/physics.py
-#: prints the error after a million periods from each start).
-LONG_RUNS = [(2e9, 1_000_000), (1e6, 200_000), (0.0, 200_000)]
+#: (t0, periods, with period marks): the requirement's run length at the
+#: requirement's latest start; shorter runs from the other starts and with the
+#: marks (one more object per period) keep the suite quick.  bench/physics.py
+#: prints the error after a million periods from each start.
+LONG_RUNS = [(2e9, 1_000_000, False), (2e9, 100_000, True), (1e6, 100_000, True), (0.0, 100_000, True)]
 CHUNKS = 10
 #: "a few ulp": the anchored time is t_a + k/f + (phase - phase_a)/omega,
 #: three roundings of at most half an ulp of t each (measured: <= 1 ulp).
 MAX_ULPS = 2.0
 
 
-def _split(a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    c = 134217729.0 * a  # 2**27 + 1 (Veltkamp)
-    hi = c - (c - a)
-    return hi, a - hi
-
-
-def _two_product(a: float, b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(a*b rounded, its exact error) elementwise (Dekker)."""
-    p = a * b
-    ah, al = _split(np.full_like(b, a))
-    bh, bl = _split(b)
-    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
-
-
-def error_in_ulps(times: NDArray[np.float64], t0: float, f: float, cycles: NDArray[np.float64],
-                  fraction: tuple[float, float]) -> NDArray[np.float64]:
-    """|t - exact| / ulp(t), where exact = t0 + (cycles + fraction)/f and
-    ``fraction`` is a double-double (hi, lo) in [0, 1)."""
-    d = times - t0
-    assert np.all(d + t0 == times) and np.all(d >= 0.0)  # exact: t0 == 0, or t in [t0, 2*t0]
-    p, p_err = _two_product(f, d)
-    off = ((p - cycles) - fraction[0]) + (p_err - fraction[1])  # p - n exact (Sterbenz), off ~ 0
-    return np.abs(off / f) / np.spacing(times)
-
-
-def _double_double(value: mpmath.mpf) -> tuple[float, float]:
-    hi = float(value)
-    return hi, float(value - hi)
-
-
-def run_long(t0: float, periods: int) -> dict[str, NDArray[np.float64]]:
+def run_long(t0: float, periods: int, marks: bool) -> dict[str, NDArray[np.float64]]:
     """``periods`` periods of the paper's case from t0, in big advance_to steps:
     slip starts (t, x, phase), sticks (t) and period marks (t, x, n)."""
-    slider = Slider(t0=t0, event_log_size=0, cycle_log_size=periods // CHUNKS + 2)
+    slider = Slider(t0=t0, event_log_size=0, cycle_log_size=periods // CHUNKS + 2 if marks else 0)
     f = slider.inputs.excitation_frequency
     starts: list[tuple[float, float, float]] = []
     sticks: list[float] = []
-    marks: list[tuple[float, float, int]] = []
+    kept: list[tuple[float, float, int]] = []
     last_mark = -1
     for chunk in range(1, CHUNKS + 1):
         for event in slider.advance_to(t0 + chunk * (periods // CHUNKS) / f):
@@ -87,39 +57,26 @@ def run_long(t0: float, periods: int) -> dict[str, NDArray[np.float64]]:
                 sticks.append(event.t)
             else:
                 raise AssertionError(f"unexpected {event}")
-        new = slider.cycle_marks_after(last_mark)
-        assert new and new[0].n == last_mark + 1  # the mark log never overflowed
-        marks.extend((m.t, m.x, m.n) for m in new)
-        last_mark = new[-1].n
+        if marks:
+            new = slider.cycle_marks_after(last_mark)
+            assert new and new[0].n == last_mark + 1  # the mark log never overflowed
+            kept.extend((m.t, m.x, m.n) for m in new)
+            last_mark = new[-1].n
     start = np.array(starts)
-    mark = np.array(marks)
+    mark = np.array(kept).reshape(-1, 3)
     return {"start_t": start[:, 0], "start_x": start[:, 1], "start_phase": start[:, 2],
             "stick_t": np.array(sticks), "mark_t": mark[:, 0], "mark_x": mark[:, 1], "mark_n": mark[:, 2]}
 
 
-def exact_paper_case() -> tuple[tuple[float, float], float, float]:
-    """(theta_A/(2*pi) as a double-double, theta_A, D [m]) of the paper's case,
-    from the exact values of its floats."""
-    params, inputs = SliderParams(), Inputs()
-    with mpmath.workdps(80):
-        mu, m, g = mpmath.mpf(params.mu), mpmath.mpf(params.mass), mpmath.mpf(params.gravity)
-        fd, pa, f = (mpmath.mpf(inputs.drive_force), mpmath.mpf(inputs.excitation_amplitude),
-                     mpmath.mpf(inputs.excitation_frequency))
-        phi, a = fd / (mu * m * g), pa / (m * g)
-        theta, _, u = high_precision_slip(phi, a)
-        travel = u * g * mu / f**2  # U = V*f/(g*mu), V = D*f
-        return _double_double(theta / (2 * mpmath.pi)), float(theta), float(travel)
-
-
 @pytest.fixture(scope="module")
 def exact() -> tuple[tuple[float, float], float, float]:
-    return exact_paper_case()
+    return paper_case_slip()
 
 
-@pytest.mark.parametrize(("t0", "periods"), LONG_RUNS)
-def test_long_runs_start_every_slip_within_ulps_and_move_exactly(t0, periods, exact) -> None:
+@pytest.mark.parametrize(("t0", "periods", "marks"), LONG_RUNS)
+def test_long_runs_start_every_slip_within_ulps_and_move_exactly(t0, periods, marks, exact) -> None:
     fraction, theta_a, travel = exact
-    run = run_long(t0, periods)
+    run = run_long(t0, periods, marks)
     n = np.arange(periods, dtype=float)
 
     # No slip lost, none added: one slip start and one stick per period, in order.
@@ -128,12 +85,13 @@ def test_long_runs_start_every_slip_within_ulps_and_move_exactly(t0, periods, ex
     assert np.all(np.abs(run["start_phase"] - theta_a) <= 4e-16)
 
     # Every slip starts within a few ulp of t of its exact time, the last as well as the first.
-    ulps = error_in_ulps(run["start_t"], t0, 50.0, n, fraction)
+    ulps = ulps_from_exact(run["start_t"], t0, 50.0, n, fraction)
     assert ulps.max() <= MAX_ULPS, (int(ulps.argmax()), float(ulps.max()))
     # Every period starts (phase 2*pi*n) within a few ulp of t0 + n/f.
-    assert np.array_equal(run["mark_n"], np.arange(periods + 1))
-    mark_ulps = error_in_ulps(run["mark_t"], t0, 50.0, run["mark_n"], (0.0, 0.0))
-    assert mark_ulps.max() <= MAX_ULPS, (int(mark_ulps.argmax()), float(mark_ulps.max()))
+    assert np.array_equal(run["mark_n"], np.arange(periods + 1) if marks else [])
+    if marks:
+        mark_ulps = ulps_from_exact(run["mark_t"], t0, 50.0, run["mark_n"], (0.0, 0.0))
+        assert mark_ulps.max() <= MAX_ULPS, (int(mark_ulps.argmax()), float(mark_ulps.max()))
 
     # Displacement per period: x at the n-th slip start is n*D, exact to 1e-12 of
     # the distance for every n (the mean over any run from the start), and each
@@ -150,8 +108,8 @@ def test_the_ulp_measure_sees_one_ulp() -> None:
     """The error measure itself: a time one ulp off reads as one ulp."""
     t0, f = 2e9, 50.0
     exact_t = np.array([t0 + 1000.0 / f])  # 2e9 + 20 is a float: exact
-    assert error_in_ulps(exact_t, t0, f, np.array([1000.0]), (0.0, 0.0))[0] == 0.0
+    assert ulps_from_exact(exact_t, t0, f, np.array([1000.0]), (0.0, 0.0))[0] == 0.0
     off = np.nextafter(exact_t, np.inf)
-    assert error_in_ulps(off, t0, f, np.array([1000.0]), (0.0, 0.0))[0] == pytest.approx(1.0, rel=1e-12)
+    assert ulps_from_exact(off, t0, f, np.array([1000.0]), (0.0, 0.0))[0] == pytest.approx(1.0, rel=1e-12)
     small = np.array([0.02 * 3])  # t0 = 0: 3 periods, 0.06 is not exact in binary
-    assert error_in_ulps(small, 0.0, f, np.array([3.0]), (0.0, 0.0))[0] <= 0.5
+    assert ulps_from_exact(small, 0.0, f, np.array([3.0]), (0.0, 0.0))[0] <= 0.5
