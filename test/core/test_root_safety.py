@@ -132,7 +132,10 @@ def test_any_accepted_run_stays_finite(params: SliderParams, data: st.DataObject
         if change:
             before = (slider.params, slider.inputs, slider.state())
             try:
-                if params_change:
+                if params_change and data.draw(st.booleans()):  # plant and inputs at once
+                    new_params = data.draw(params_st)
+                    slider.set_plant(new_params, data.draw(inputs_for(new_params)))
+                elif params_change:
                     slider.set_params(data.draw(params_st))
                 else:
                     slider.set_inputs(data.draw(inputs_for(slider.params)))
