@@ -454,14 +454,11 @@ class RealtimeSlider:
         sim_now = self.clock.now(wall_ns)
         tick_rate = stats.ticks / wall if wall > 0 else 0.0
         achieved_rtf = (sim_now - stats.interval_sim_start) / wall if wall > 0 else 0.0
-        params, inputs = self.slider.params, self.slider.inputs
+        inputs = self.slider.inputs
         try:
             prediction = self.prediction()
         except Exception:  # noqa: BLE001 - diagnostics must answer whatever the inputs: nan = no prediction
             prediction = Prediction(math.nan, math.nan, math.nan, math.nan)
-        # The groups the prediction is made of: with an external force, the effective ones
-        # (urelation.predict): phi = (Fd + Fx)/(mu (m g + Fz)), a = Pa/(m g + Fz).
-        load = params.weight + inputs.external_force_z
         report = {
             "sim_time": sim_now,
             "real_time_factor": self.clock.rate,
@@ -479,8 +476,9 @@ class RealtimeSlider:
             "excitation_frequency": inputs.excitation_frequency,
             "external_force_x": inputs.external_force_x,
             "external_force_z": inputs.external_force_z,
-            "phi": inputs.tangential_force / (params.mu * load),
-            "amplitude_ratio": inputs.excitation_amplitude / load,
+            # the groups the prediction is made of: with an external force, the effective ones
+            "phi": prediction.effective_phi,
+            "amplitude_ratio": prediction.effective_amplitude_ratio,
             "predicted_U": prediction.u,
             "predicted_mean_velocity": prediction.mean_velocity,
             "stick_fraction": self.last_period.stick_fraction if self.last_period else math.nan,
