@@ -229,6 +229,26 @@ class FuzzClient:
     def publish(self, topic: str, msg: Any) -> None:
         self.publishers[topic].publish(msg)
 
+    def flood(self, messages: Sequence[tuple[str, Any]], repeat: int) -> None:
+        """Publish ``messages`` ``repeat`` times back to back, through writers
+        of their own that are gone afterwards: what the node's queues dropped
+        is then lost for good, rather than repaired by DDS up to a heartbeat
+        period (3 s) later, after the node was judged to have handled the burst."""
+        deep = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
+        writers = {topic: self.node.create_publisher(self.kinds[topic], topic, deep) for topic, _ in messages}
+        try:
+            matched = self.spin_until(lambda: all(w.get_subscription_count() > 0 for w in writers.values()),
+                                      ANSWER_TIMEOUT)
+            assert matched, f"{self.target} never matched the burst's writers"
+            self.spin_for(0.3)  # the node's readers need a moment to know them too
+            for _ in range(repeat):
+                for topic, msg in messages:
+                    writers[topic].publish(msg)
+            self.spin_for(0.2)
+        finally:
+            for writer in writers.values():
+                self.node.destroy_publisher(writer)
+
     def _answer(self, future: Any, what: str) -> Any:
         if not self.spin_until(future.done, ANSWER_TIMEOUT):
             self.when_silent()

@@ -290,9 +290,7 @@ class SliderRig(Rig):
         for m in step.messages:
             for field, value in _fields(m.topic, dict(m.values)).items():
                 sent.setdefault(field, set()).add(value)
-        for _ in range(step.repeat):
-            for topic, msg in messages:
-                self.client.publish(topic, msg)
+        self.client.flood(messages, step.repeat)
         total = len(messages) * step.repeat
         self.model.rejected.add(0, total)
         self.ticked()
@@ -448,9 +446,7 @@ class ControllerRig(Rig):
                 stamp = values.pop("header.stamp") or (1, 0)
                 values["header.stamp.sec"], values["header.stamp.nanosec"] = stamp
             messages.append((m.topic, self.client.message(m.topic, values)))
-        for _ in range(step.repeat):
-            for topic, msg in messages:
-                self.client.publish(topic, msg)
+        self.client.flood(messages, step.repeat)
         self.handled()
         # What got through a full queue is unknown: take the inputs in force from the diagnostics.
         values = self.quiet_diagnostics()
