@@ -40,3 +40,11 @@ def ros() -> Iterator[None]:
     rclpy.init()
     yield
     rclpy.try_shutdown()
+
+
+@pytest.fixture
+def failing_core(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The core takes drive_force ``helpers.POISON`` half-way, then raises."""
+    from helpers import fail_on_poison
+
+    fail_on_poison(monkeypatch)

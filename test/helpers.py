@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import signal
 from collections.abc import Iterator
+from typing import Any
 
 from friction_sim.core.commands import Command
 
@@ -63,3 +64,23 @@ def grouped(schedule: list[Command]) -> list[Command]:
     for command in sorted(schedule, key=lambda c: c.t):
         merged.setdefault(command.t, {}).update(command.values)
     return [Command(t, "parameters", values) for t, values in merged.items()]
+
+
+#: A drive force the core made to fail by :func:`fail_on_poison` takes half-way, then fails on.
+POISON = 0.8123
+
+
+def fail_on_poison(monkeypatch: Any) -> None:
+    """Make ``Slider.set_plant`` really take drive_force :data:`POISON`, then
+    raise, as a root finder overflowing half-way through a new segment did:
+    only a full restore undoes it."""
+    from friction_sim.core.slider import Slider
+
+    real = Slider.set_plant
+
+    def set_plant(self: Any, params: Any, inputs: Any, changed: Any = None) -> None:
+        real(self, params, inputs, changed)
+        if inputs.drive_force == POISON:
+            raise OverflowError("cannot convert float infinity to integer")
+
+    monkeypatch.setattr(Slider, "set_plant", set_plant)

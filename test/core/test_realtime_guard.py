@@ -16,26 +16,14 @@ from friction_sim.core.realtime import RealtimeSlider
 from friction_sim.core.slider import Slider
 from friction_sim.errors import SimulationFault
 
+from helpers import POISON
+
 NS = 1_000_000_000
-POISON = 0.8123  # a drive force the patched core fails on
 
 
 def realtime(**kwargs: Any) -> RealtimeSlider:
     return RealtimeSlider(SliderParams(), Inputs(), wall_ns=0, **kwargs)
 
-
-@pytest.fixture
-def failing_core(monkeypatch: pytest.MonkeyPatch) -> None:
-    """set_plant really takes the new state, then raises, as a root finder
-    failing half-way through a new segment would: only a full restore undoes it."""
-    real = Slider.set_plant
-
-    def set_plant(self: Slider, params: SliderParams, inputs: Inputs, changed: Any = None) -> None:
-        real(self, params, inputs, changed)
-        if inputs.drive_force == POISON:
-            raise OverflowError("cannot convert float infinity to integer")
-
-    monkeypatch.setattr(Slider, "set_plant", set_plant)
 
 
 def reference_states(times_ns: list[int]) -> list[SliderState]:

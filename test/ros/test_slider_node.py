@@ -10,7 +10,6 @@ import statistics
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +19,6 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
 
-from friction_sim.core.commands import Outcome
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.simulation import run_schedule
 from friction_sim.core.slider import Slider
@@ -29,7 +27,6 @@ from friction_sim.ros.slider import SliderNode
 
 from ros_harness import (
     HARNESS,
-    CommandLog,
     Probe,
     diagnostics_values,
     kill_if_running,
@@ -40,18 +37,6 @@ from ros_harness import (
 
 ROOT = Path(__file__).resolve().parents[2]
 
-
-@pytest.fixture
-def rig(ros: None) -> Iterator[tuple[SliderNode, Probe, list[Outcome]]]:
-    ns = namespace()
-    node = SliderNode(namespace=ns)
-    outcomes: list[Outcome] = []
-    node.sinks.append(CommandLog(outcomes))
-    probe = Probe(ns, node)
-    probe.wait_for_connection()
-    yield node, probe, outcomes
-    probe.close()
-    node.destroy_node()
 
 
 def test_topic_contract_names_types_and_namespace(rig) -> None:  # type: ignore[no-untyped-def]

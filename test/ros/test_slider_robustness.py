@@ -14,7 +14,6 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -24,17 +23,15 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 
 from friction_sim.core import spec
-from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.slider import Slider
 from friction_sim.core.urelation import u_map
 from friction_sim.errors import NodeFault
 from friction_sim.ros.common import EXIT_FAULT
-from friction_sim.ros.slider import SliderNode
 
-from ros_harness import CommandLog, Probe, diagnostics_values, kill_if_running, namespace, stamp_ns
+from helpers import POISON
+from ros_harness import Probe, diagnostics_values, kill_if_running, namespace, stamp_ns
 
 BIN = Path(sys.executable).parent
-POISON = 0.8123  # a drive force the patched core fails on
 
 
 def level(msg: DiagnosticArray) -> int:
@@ -59,31 +56,6 @@ def stop(process: subprocess.Popen[str]) -> tuple[int, str]:
 # -- a command the core fails on -------------------------------------------------
 
 
-@pytest.fixture
-def failing_core(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The core takes drive_force POISON half-way, then raises (as a root finder
-    overflowing on an extreme state did)."""
-    real = Slider.set_plant
-
-    def set_plant(self: Slider, params: SliderParams, inputs: Inputs, changed: Any = None) -> None:
-        real(self, params, inputs, changed)
-        if inputs.drive_force == POISON:
-            raise OverflowError("cannot convert float infinity to integer")
-
-    monkeypatch.setattr(Slider, "set_plant", set_plant)
-
-
-@pytest.fixture
-def rig(ros: None) -> Iterator[tuple[SliderNode, Probe, list[Any]]]:
-    ns = namespace()
-    node = SliderNode(namespace=ns)
-    outcomes: list[Any] = []
-    node.sinks.append(CommandLog(outcomes))
-    probe = Probe(ns, node)
-    probe.wait_for_connection()
-    yield node, probe, outcomes
-    probe.close()
-    node.destroy_node()
 
 
 @pytest.mark.usefixtures("failing_core")
