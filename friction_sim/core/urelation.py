@@ -99,7 +99,7 @@ def _start_sin_cos(
     cos = sqrt(1 - sin^2) = sqrt(e*(2 - e)) with e = 1 - sin = (phi - (1 - a))/a,
     accurate to the last bits even where theta_A is within 1e-6 of pi/2.
     NaN where there is no slip start (e outside (0, 2])."""
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # tiny a: e overflows, no start
         e = _beyond_boundary(phi, a) / a
         cos_a = np.sqrt(e * (2.0 - e))
         return (1.0 - phi) / a, np.where((e > 0.0) & (e <= 2.0), cos_a, np.nan)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import warnings
 from typing import Any
 
 import numpy as np
@@ -23,6 +24,7 @@ from friction_sim.core import spec
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.roots import NEVER, TWO_PI, next_slip_start, slip_stop_delay
 from friction_sim.core.slider import MAX_POSITION, MAX_TIME, Slider
+from friction_sim.core.urelation import predict
 from friction_sim.errors import ParameterError
 
 FUZZ = settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -236,3 +238,18 @@ def test_the_latest_time_keeps_the_fastest_slider_finite_and_later_is_refused() 
             assert refused.field == field
         else:
             raise AssertionError(f"Slider({kwargs}) was accepted")
+
+
+@given(params=params_st, data=st.data())
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@example(params=SliderParams(), data=None).via("issue 10 fuzz: Pa = 1e-300 printed numpy overflow warnings")
+def test_the_prediction_is_quiet_and_sane_over_the_accepted_range(params: SliderParams, data: Any) -> None:
+    """The node computes the U relation's prediction for every accepted input
+    (diagnostics): it must neither print numpy warnings on the node's stderr
+    nor give a negative or NaN speed."""
+    inputs = Inputs(excitation_amplitude=1e-300) if data is None else data.draw(inputs_for(params))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        prediction = predict(params, inputs)
+    assert prediction.u >= 0.0 or math.isinf(prediction.u) or inputs.tangential_force < 0.0
+    assert not math.isnan(prediction.u)
