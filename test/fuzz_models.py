@@ -19,12 +19,12 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from fuzz_strategies import USE_SIM_TIME
-
 from friction_sim.core import spec
 from friction_sim.core.commands import PARAMETERS, Command, apply
 from friction_sim.core.params import Inputs, SliderParams, check_load
 from friction_sim.errors import ParameterError
+
+from fuzz_strategies import USE_SIM_TIME
 
 
 @dataclass

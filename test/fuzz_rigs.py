@@ -21,9 +21,6 @@ from pathlib import Path
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
-from fuzz_harness import BIN, FuzzClient, NodeProcess, diagnostics_after, one_line
-from fuzz_models import ControllerModel, Count, ParameterModel, SliderModel
-from fuzz_strategies import USE_SIM_TIME, Burst, Params, Step, Topic, Wait
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from std_msgs.msg import Float64
 
@@ -32,6 +29,10 @@ from friction_sim.core.commands import COMMANDS, CONTROLLER, SLIDER, consumed_by
 from friction_sim.core.urelation import u_map
 from friction_sim.errors import ParameterError
 from friction_sim.io.messages import message_class
+
+from fuzz_harness import BIN, FuzzClient, NodeProcess, diagnostics_after, one_line
+from fuzz_models import ControllerModel, Count, ParameterModel, SliderModel
+from fuzz_strategies import USE_SIM_TIME, Burst, Params, Step, Topic, Wait
 
 #: Let a message published now reach the node's reader before the next input
 #: (a bound for local delivery on a loaded machine, not a timing assertion).
@@ -480,21 +481,20 @@ class ControllerRig(Rig):
         return newer
 
     def adopt_counts(self, values: dict[str, str]) -> None:
-        super().adopt_counts(values)
         self.model.accepted = int(values["commands_accepted"])
-        samples = int(values.get("samples_rejected", "0"))
+        samples = int(values["samples_rejected"])
+        others = int(values["commands_rejected"]) - samples  # the samples are among commands_rejected
         self.model.samples = Count(samples, samples)
+        self.model.rejected = Count(others, others)
 
     def check_refusals(self, values: dict[str, str]) -> None:
-        """Refused commands, and refused samples (counted apart, or with the commands)."""
+        """Refused inputs: ``commands_rejected`` counts all of them (commands,
+        parameter values, samples), ``samples_rejected`` the samples among them."""
         model, rejected = self.model, int(values["commands_rejected"])
-        if "samples_rejected" in values:
-            samples = int(values["samples_rejected"])
-            assert model.samples.holds(samples), \
-                f"diagnostics count {samples} refused samples; {model.samples.low}..{model.samples.high} were refused"
-            expected = model.rejected
-        else:
-            expected = Count(model.rejected.low + model.samples.low, model.rejected.high + model.samples.high)
+        samples = int(values["samples_rejected"])
+        assert model.samples.holds(samples), \
+            f"diagnostics count {samples} refused samples; {model.samples.low}..{model.samples.high} were refused"
+        expected = Count(model.rejected.low + samples, model.rejected.high + samples)
         assert expected.holds(rejected), \
             f"diagnostics count {rejected} refused inputs; {expected.low}..{expected.high} were refused"
 
