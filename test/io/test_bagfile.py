@@ -12,9 +12,10 @@ import zstandard
 from mcap.reader import make_reader
 from mcap.records import Channel, Chunk, ChunkIndex, Message, MessageIndex, Metadata, MetadataIndex, Schema, Statistics
 from mcap.stream_reader import StreamReader, breakup_chunk
-from recording_helpers import varied_schedule
 
 from friction_sim.io.offline import record_offline
+
+from recording_helpers import varied_schedule
 
 OPCODES = {0x03: Schema, 0x04: Channel, 0x05: Message, 0x06: Chunk, 0x07: MessageIndex, 0x08: ChunkIndex,
            0x0B: Statistics, 0x0C: Metadata, 0x0D: MetadataIndex}

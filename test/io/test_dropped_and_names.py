@@ -9,7 +9,6 @@ import csv
 from pathlib import Path
 
 import pytest
-from recording_helpers import copy_recording, replay_args
 
 from friction_sim.cli.main import main
 from friction_sim.cli.recording_figure import command_marks
@@ -19,6 +18,8 @@ from friction_sim.experiment.report import build_report, run_data_from_recording
 from friction_sim.io.reader import Channel, Recording, read_recording
 from friction_sim.io.recorder import SUMMARY_METADATA_NAME
 from friction_sim.io.verify import verify
+
+from recording_helpers import copy_recording, replay_args
 
 # -- dropped messages ---------------------------------------------------------------------
 

@@ -12,11 +12,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from recording_helpers import plain, replay_args, rewrite, varied_schedule
 
 from friction_sim.cli.replay import run
 from friction_sim.io.offline import record_offline
 from friction_sim.io.reader import read_recording
+
+from recording_helpers import plain, replay_args, rewrite, varied_schedule
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -17,7 +17,6 @@ import numpy as np
 import pytest
 import yaml
 from mcap.reader import make_reader
-from recording_helpers import plain, varied_schedule
 
 from friction_sim.core.commands import Command, Outcome
 from friction_sim.core.events import Event, EventKind, Mode, SliderState
@@ -30,6 +29,8 @@ from friction_sim.io.reader import read_recording
 from friction_sim.io.recorder import METADATA_NAME, Recorder, qualified_topic
 from friction_sim.io.sinks import deliver_tick
 from friction_sim.io.typesupport import message_definition, message_type_name, share_directory, type_hash
+
+from recording_helpers import plain, varied_schedule
 
 STATE = SliderState(t=1.2345678901, x=1.5e-4, v=-2.5e-3, acceleration=0.3, friction_force=-0.95,
                     normal_force=9.5, phase=1.0, mode=Mode.BACKWARD)

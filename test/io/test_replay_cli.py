@@ -8,13 +8,14 @@ import json
 from pathlib import Path
 
 import pytest
-from recording_helpers import replay_args
 
 from friction_sim.cli.main import main
 from friction_sim.cli.recording_figure import command_marks, plot
 from friction_sim.cli.replay import run
 from friction_sim.errors import RecordingError
 from friction_sim.io.reader import read_recording
+
+from recording_helpers import replay_args
 
 # -- export -----------------------------------------------------------------------------
 

@@ -14,7 +14,6 @@ from typing import Any
 
 import numpy as np
 import pytest
-from recording_helpers import copy_recording
 
 from friction_sim.core.commands import Command
 from friction_sim.experiment.report import PICTURE_POINTS, build_report, run_data_from_recording
@@ -22,6 +21,8 @@ from friction_sim.io.offline import record_offline
 from friction_sim.io.reader import read_recording
 from friction_sim.io.series import Thinner
 from friction_sim.io.verify import verify
+
+from recording_helpers import copy_recording
 
 
 @pytest.fixture(scope="module")

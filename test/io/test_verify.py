@@ -7,7 +7,6 @@ from typing import Any
 
 import numpy as np
 import pytest
-from recording_helpers import replay_args, rewrite
 
 from friction_sim.cli.replay import run
 from friction_sim.core.params import Inputs, SliderParams
@@ -15,6 +14,8 @@ from friction_sim.core.simulation import random_schedule
 from friction_sim.io.offline import record_offline
 from friction_sim.io.reader import read_recording
 from friction_sim.io.verify import verify
+
+from recording_helpers import replay_args, rewrite
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -26,6 +26,12 @@ import os
 from collections.abc import Iterator
 
 import pytest
+from hypothesis import HealthCheck, Phase, example, given, settings
+from hypothesis import strategies as st
+
+from friction_sim.core import spec
+from friction_sim.core.commands import CONTROLLER, SLIDER
+
 from fuzz_rigs import ControllerRig, SliderRig, stop_cleanly
 from fuzz_strategies import (
     Burst,
@@ -39,11 +45,6 @@ from fuzz_strategies import (
     topics,
     waits,
 )
-from hypothesis import HealthCheck, Phase, example, given, settings
-from hypothesis import strategies as st
-
-from friction_sim.core import spec
-from friction_sim.core.commands import CONTROLLER, SLIDER
 
 
 def fuzz_settings(examples: int) -> settings:

@@ -15,13 +15,14 @@ import numpy as np
 import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
-from recording_helpers import plain
 
 from friction_sim.core.commands import Command
 from friction_sim.errors import RecordingError
 from friction_sim.io.offline import record_offline
 from friction_sim.io.reader import read_recording
 from friction_sim.ros.republisher import publish
+
+from recording_helpers import plain
 
 
 def test_publish_keeps_the_recorded_timing(ros: None, tmp_path: Path) -> None:
