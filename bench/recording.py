@@ -74,17 +74,22 @@ def node_ticks(wall_seconds: float) -> list[Tick]:
 # -- (w1) baselines ---------------------------------------------------------------------------
 
 
+def _mcap_writer(stream: Any) -> tuple[Any, list[int]]:
+    """mcap's own Writer as the baselines use it (4 MB zstd chunks, every index)
+    and one channel per state topic."""
+    from mcap.writer import CompressionType, IndexType, Writer
+
+    writer = Writer(stream, chunk_size=4 * 1024 * 1024, compression=CompressionType.ZSTD, index_types=IndexType.ALL)
+    writer.start(profile="ros2", library="bench")
+    schema = writer.register_schema("geometry_msgs/msg/PoseStamped", "ros2msg", b"")
+    return writer, [writer.register_channel(topic, "cdr", schema) for topic in STATE_TOPICS]
+
+
 def old_path(folder: Path, ticks: list[Tick]) -> float:
     """States per second through the old writer path: per state, fill the three
     rclpy messages and for each call rosbags' serializer and mcap's add_message."""
-    from mcap.writer import CompressionType, IndexType, Writer
-
     with (folder / "old.mcap").open("wb") as stream:
-        writer = Writer(stream, chunk_size=4 * 1024 * 1024, compression=CompressionType.ZSTD,
-                        index_types=IndexType.ALL)
-        writer.start(profile="ros2", library="bench")
-        schema = writer.register_schema("geometry_msgs/msg/PoseStamped", "ros2msg", b"")
-        channels = [writer.register_channel(topic, "cdr", schema) for topic in STATE_TOPICS]
+        writer, channels = _mcap_writer(stream)
         templates = state_messages(ticks[0].state)
         started = time.perf_counter()
         n = 0
@@ -102,16 +107,10 @@ def old_path(folder: Path, ticks: list[Tick]) -> float:
 def raw_mcap(folder: Path, ticks: list[Tick]) -> float:
     """States per second that mcap's Writer alone takes (3 add_message calls per
     state, bytes serialized beforehand): the floor of any per-message path."""
-    from mcap.writer import CompressionType, IndexType, Writer
-
     data = [cdr.serialize(msg) for msg in state_messages(ticks[0].state)]
     n = sum(len(tick.samples) for tick in ticks)
     with (folder / "raw.mcap").open("wb") as stream:
-        writer = Writer(stream, chunk_size=4 * 1024 * 1024, compression=CompressionType.ZSTD,
-                        index_types=IndexType.ALL)
-        writer.start(profile="ros2", library="bench")
-        schema = writer.register_schema("geometry_msgs/msg/PoseStamped", "ros2msg", b"")
-        channels = [writer.register_channel(topic, "cdr", schema) for topic in STATE_TOPICS]
+        writer, channels = _mcap_writer(stream)
         started = time.perf_counter()
         for k in range(n):
             for channel, payload in zip(channels, data):
