@@ -45,6 +45,12 @@ _PHYSICS = {**spec.PLANT, **spec.INPUTS}
 #: Period marks the core keeps; more than this many periods in one tick are
 #: summarised only from the last ones (only at absurd real-time factors).
 _MARK_BACKLOG = 4096
+#: Log samples one advance takes at most (a few ms of work).  Asked for more
+#: (real_time_factor x log_rate beyond what this machine computes), the
+#: simulation falls behind the wall clock instead, as it does for a slow
+#: recorder: one tick never holds the node for seconds, parameter sets stay
+#: answered, and diagnostics report the achieved real-time factor.
+MAX_SAMPLES_PER_ADVANCE = 1000
 
 
 class _Checkpoint:
@@ -123,6 +129,11 @@ class SimClock:
         waited for something, a recorder say): simulation time does not jump."""
         self._wall0 += max(0, int(wall_ns))
 
+    def fall_behind(self, sim_ns: int, wall_ns: int) -> None:
+        """Make it ``sim_ns`` at ``wall_ns`` (not later than it was): the
+        simulation could not keep up and goes on from there, at the same rate."""
+        self._sim0, self._wall0 = min(sim_ns, self.now_ns(wall_ns)), wall_ns
+
     def set_rate(self, rate: float, wall_ns: int) -> None:
         """Change the real-time factor from ``wall_ns`` on."""
         rate = require_positive("real_time_factor", rate)
@@ -183,6 +194,9 @@ class RealtimeSlider:
         self._last_mark_n = -1
         self.accepted = 0
         self.rejected = 0
+        #: Advances cut short by MAX_SAMPLES_PER_ADVANCE (the simulation fell behind real time).
+        self.behind = 0
+        self._behind_before_interval = 0
         self.last_rejection = ""
         self._rejected_before_interval = 0
         self.stats = TickStats(interval_start_ns=wall_ns)
@@ -387,13 +401,23 @@ class RealtimeSlider:
             self._events.extend(self.slider.advance_to(max(k / self.log_rate, self.slider.t)))
             self._samples.append(self.slider.state())
 
+    def _reachable(self, t: float, wall_ns: int) -> float:
+        """``t``, or the time :data:`MAX_SAMPLES_PER_ADVANCE` log samples ahead
+        if that is sooner; then simulation time is held there (it falls behind)."""
+        if self.log_rate is None or t - self.slider.t <= MAX_SAMPLES_PER_ADVANCE / self.log_rate:
+            return t
+        limit_ns = math.floor((self.slider.t + MAX_SAMPLES_PER_ADVANCE / self.log_rate) * NS_PER_S)
+        self.clock.fall_behind(limit_ns, wall_ns)
+        self.behind += 1
+        return max(limit_ns / NS_PER_S, self.slider.t)
+
     def _advance(self, wall_ns: int) -> float:
         """Advance to the present, keeping the events and log samples on the way
         (a failure of the core is a :class:`SimulationFault`)."""
         if self.fault:
             raise SimulationFault(self.fault)
         try:
-            t = self.now(wall_ns)
+            t = self._reachable(self.now(wall_ns), wall_ns)
             self._log_samples(t)
             self._events.extend(self.slider.advance_to(t))
         except Exception as error:  # noqa: BLE001 - whatever the core raised, the run cannot go on
@@ -470,6 +494,7 @@ class RealtimeSlider:
             "commands_accepted": self.accepted,
             "commands_rejected": self.rejected,
             "commands_rejected_in_interval": self.rejected - self._rejected_before_interval,
+            "ticks_behind_in_interval": self.behind - self._behind_before_interval,
             "last_rejection": self.last_rejection,
             "drive_force": inputs.drive_force,
             "excitation_amplitude": inputs.excitation_amplitude,
@@ -485,6 +510,7 @@ class RealtimeSlider:
             "measured_mean_velocity": self.last_period.mean_velocity if self.last_period else math.nan,
         }
         self._rejected_before_interval = self.rejected
+        self._behind_before_interval = self.behind
         stats.ticks = 0
         stats.late_ticks = 0
         stats.interval_start_ns = wall_ns

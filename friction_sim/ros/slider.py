@@ -419,6 +419,9 @@ def _health(report: dict[str, Any], fault: str = "", name_problem: str = "") -> 
     if report.get("recording_waited_in_interval_s", 0.0) > 0.0:
         problems.append(f"the recorder held the simulation back {report['recording_waited_in_interval_s']:.3f} s "
                         f"(achieved real-time factor {report['achieved_real_time_factor']:.3g})")
+    if report.get("ticks_behind_in_interval", 0):
+        problems.append(f"the simulation cannot keep up with real_time_factor {report['real_time_factor']:g} "
+                        f"while recording (achieved {report['achieved_real_time_factor']:.3g})")
     if report["tick_rate"] < 0.8 * report["publish_rate"]:
         problems.append(f"tick rate {report['tick_rate']:.0f} Hz < 80% of {report['publish_rate']:g} Hz")
     if report["late_ticks"]:

@@ -122,3 +122,33 @@ def test_a_recording_that_cannot_start_is_one_line_and_exit_code_2(ros: None, tm
                            f"log_path:={value}"], capture_output=True, text=True, timeout=30)
     assert done.returncode == 2, done.stderr
     assert done.stderr.strip().count("\n") == 0 and "log_path" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_recording_faster_than_the_machine_computes_keeps_the_node_answering(ros: None, tmp_path: Path) -> None:
+    """real_time_factor 999 at log_rate 1 kHz asks for a million recorded states
+    a second.  Each tick used to take all of them under the node's lock, so ticks
+    grew to seconds and a parameter set waited 15 s and more; now the simulation
+    falls behind real time instead (diagnostics say so), every parameter set is
+    answered at once, and the file lost nothing and verifies."""
+    ns, path = namespace(), tmp_path / "fast.mcap"
+    node = subprocess.Popen([str(BIN / "slider"), "--ros-args", "-r", f"__ns:={ns}", "-p", "excitation_frequency:=10.0",
+                             "-p", f"log_path:={path}"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    probe = Probe(ns, outputs={"diagnostics": DiagnosticArray})
+    try:
+        probe.wait_for_connection(timeout=20.0, topic="diagnostics")
+        assert probe.set_parameter(f"{ns}/slider", "real_time_factor", 999.0)[0]
+        probe.spin_for(2.0)
+        for value in (0.71, 0.72, 0.73):
+            started = time.monotonic()
+            assert probe.set_parameter(f"{ns}/slider", "drive_force", value) == (True, "")
+            assert time.monotonic() - started < 2.0, "a parameter set is answered at once"
+        assert probe.spin_until(lambda: any("cannot keep up" in m.status[0].message
+                                            for m in probe.received["diagnostics"]), 5.0)
+    finally:
+        probe.close()
+        node.send_signal(signal.SIGINT)
+        _, said = node.communicate(timeout=60)
+    assert node.returncode == 0, said
+    done = subprocess.run([str(BIN / "friction-sim"), "replay", str(path), "--verify"], capture_output=True,
+                          text=True, timeout=300, check=False)
+    assert done.returncode == 0 and "reproducible" in done.stdout, done.stdout + done.stderr
