@@ -93,6 +93,9 @@ FORMAT = "friction_sim-recording/1"
 #: The plant and input fields a recording starts from (what ``--verify`` rebuilds).
 PLANT_FIELDS = tuple(spec.PLANT)
 INPUT_FIELDS = tuple(spec.INPUTS)
+#: Messages a command or parameter change may queue beyond the capacity before
+#: it waits (a flood brings at most the subscriptions' depth per topic and tick).
+URGENT_HEADROOM = 4096
 
 
 def plant_parameters(params: SliderParams, inputs: Inputs) -> dict[str, float]:
@@ -237,11 +240,11 @@ class Recorder:
     def on_command(self, outcome: Outcome, frame_id: str) -> None:
         """Queue a handled command: accepted on its own topic, refused on
         ``rejected_commands``, at the simulation time it was handled."""
-        self._put(("command", outcome, frame_id), 1)
+        self._put(("command", outcome, frame_id), 1, urgent=True)
 
     def on_parameters(self, values: Mapping[str, Any], t: float, *, changed: bool) -> None:
         """Queue parameter values on ``parameters`` (new at start, or changed)."""
-        self._put(("parameters", dict(values), t, changed), 1)
+        self._put(("parameters", dict(values), t, changed), 1, urgent=True)
 
     def close(self) -> None:
         """Finish the file (see :meth:`finish`)."""
@@ -296,8 +299,13 @@ class Recorder:
         """Whether :meth:`finish` was called."""
         return self._finished
 
-    def _put(self, item: Item, size: int) -> bool:
-        """Queue ``item`` (``size`` messages); False if it was not queued (counted)."""
+    def _put(self, item: Item, size: int, *, urgent: bool = False) -> bool:
+        """Queue ``item`` (``size`` messages); False if it was not queued (counted).
+
+        An ``urgent`` item (a command, a parameter change: few, and handled on
+        the node's parameter-service thread too) may use :data:`URGENT_HEADROOM`
+        messages beyond the capacity before it waits, so a node whose states
+        keep the queue full still answers a parameter set at once."""
         with self._lock:
             if self._failed:
                 self._unrecorded += size
@@ -305,9 +313,10 @@ class Recorder:
             if self._stopping:
                 self._dropped += size
                 return False
-            if self._pending and self._pending + size > self._capacity:
+            capacity = self._capacity + (URGENT_HEADROOM if urgent else 0)
+            if self._pending and self._pending + size > capacity:
                 if self._block:
-                    if not self._wait_for_room(size):
+                    if not self._wait_for_room(size, capacity):
                         if self._failed:
                             self._unrecorded += size
                         else:
@@ -325,16 +334,16 @@ class Recorder:
             self._not_empty.notify()
             return True
 
-    def _wait_for_room(self, size: int) -> bool:
-        """Wait (lock held) until ``size`` messages fit; False if they never
-        will: the recording failed or is finishing, or the writer is gone."""
+    def _wait_for_room(self, size: int, capacity: int) -> bool:
+        """Wait (lock held) until ``size`` messages fit in ``capacity``; False if
+        they never will: the recording failed or is finishing, or the writer is gone."""
         started = time.monotonic_ns()
         self._waits += 1
         try:
             while True:
                 if self._failed or self._stopping or not self._thread.is_alive():
                     return False
-                if not (self._pending and self._pending + size > self._capacity):
+                if not (self._pending and self._pending + size > capacity):
                     return True
                 self._not_full.wait(0.1)  # woken by the writer's progress; the timeout only re-checks it lives
         finally:

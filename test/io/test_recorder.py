@@ -274,6 +274,21 @@ def test_a_producer_that_waits_loses_nothing_and_resumes_when_the_writer_moves(t
     assert recording.dropped == 0 and len(recording.messages_on("pose")) == 50
 
 
+def test_a_command_never_waits_behind_a_queue_full_of_states(tmp_path: Path) -> None:
+    """States fill the queue and would make their producer wait; a command or
+    parameter change (also sent from the node's parameter-service thread) has
+    headroom beyond the capacity, so a parameter set is answered at once."""
+    recorder = StalledRecorder(tmp_path / "urgent.mcap", metadata={"mass": 1.0}, queue_size=30)
+    recorder.on_states(states(10), "slideway")  # 30 messages: the queue is full
+    started = time.monotonic()
+    recorder.on_command(Outcome(Command(0.001, "drive_force", {"drive_force": 0.8})), "slideway")
+    recorder.on_parameters({"publish_rate": 500.0}, 0.001, changed=True)
+    assert time.monotonic() - started < 0.2 and recorder.waits == 0
+    recorder.gate.set()
+    stats = recorder.finish()
+    assert stats.dropped == 0 and stats.per_topic["/drive_force"] == 1
+
+
 def test_finish_is_idempotent_and_unwritable_paths_are_one_line_errors(tmp_path: Path) -> None:
     recorder = Recorder(tmp_path / "a.mcap")
     first = recorder.finish()
