@@ -101,8 +101,8 @@ class ParameterModel:
 class SliderModel(ParameterModel):
     """The slider node: parameters, and the plant and inputs in force."""
 
-    def __init__(self) -> None:
-        super().__init__(spec.SLIDER_NODE)
+    def __init__(self, overrides: Mapping[str, Any] | None = None) -> None:
+        super().__init__(spec.SLIDER_NODE, overrides)
         self.params = SliderParams()
         self.inputs = Inputs()
         self.rate = float(spec.REAL_TIME_FACTOR.default)  # type: ignore[arg-type]

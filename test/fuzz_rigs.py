@@ -240,8 +240,14 @@ class SliderRig(Rig):
     first_output = "pose"
     model: SliderModel
 
+    def __init__(self, log_dir: Path) -> None:
+        #: The slider records the whole fuzzing run: bad input must never corrupt a recording.
+        self.recording = log_dir / "fuzzed.mcap"
+        super().__init__(log_dir)
+
     def argv(self) -> list[str]:
-        return [str(BIN / "slider"), "--ros-args", "-r", f"__ns:={self.namespace}"]
+        return [str(BIN / "slider"), "--ros-args", "-r", f"__ns:={self.namespace}",
+                "-p", f"log_path:={self.recording}"]
 
     def make_client(self) -> FuzzClient:
         inputs = {entry.name: message_class(entry.message_type) for entry in consumed_by(SLIDER)}
@@ -254,7 +260,7 @@ class SliderRig(Rig):
         self.by_topic: set[str] = set()
         #: Contact forces published after this many had arrived reflect the model.
         self._synced = self.client.counts["friction_force"]
-        return SliderModel()
+        return SliderModel({"log_path": str(self.recording)})
 
     def publishing(self, count: int = 3) -> bool:
         """``count`` more poses arrive within a bound for the publish rate in force."""

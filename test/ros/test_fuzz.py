@@ -23,7 +23,10 @@ from __future__ import annotations
 
 import math
 import os
+import subprocess
+import sys
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, Phase, example, given, settings
@@ -31,6 +34,7 @@ from hypothesis import strategies as st
 
 from friction_sim.core import spec
 from friction_sim.core.commands import CONTROLLER, SLIDER
+from friction_sim.io.reader import read_recording
 
 from fuzz_rigs import ControllerRig, SliderRig, stop_cleanly
 from fuzz_strategies import (
@@ -45,6 +49,8 @@ from fuzz_strategies import (
     topics,
     waits,
 )
+
+BIN = Path(sys.executable).parent
 
 
 def fuzz_settings(examples: int) -> settings:
@@ -140,6 +146,18 @@ def test_slider_keeps_publishing_at_the_edges_of_publish_rate(slider: SliderRig,
 
 def test_slider_ends_cleanly_after_the_fuzzing(slider: SliderRig) -> None:
     stop_cleanly(slider)
+
+
+def test_the_recording_of_the_fuzzed_slider_is_whole_and_verifies(slider: SliderRig) -> None:
+    """Every input above, refused or taken, went into the slider's recording:
+    the file is finished, lost nothing, and re-simulating its accepted commands
+    reproduces every recorded state (``friction-sim replay --verify``)."""
+    assert slider.started and not slider.process.alive(), "the slider ran and has ended (test above)"
+    recording = read_recording(slider.recording)
+    assert recording.complete and recording.dropped == 0
+    done = subprocess.run([str(BIN / "friction-sim"), "replay", str(slider.recording), "--verify"],
+                          capture_output=True, text=True, timeout=300, check=False)
+    assert done.returncode == 0 and "reproducible" in done.stdout, done.stdout + done.stderr
 
 
 # -- the controller ---------------------------------------------------------------------------------
