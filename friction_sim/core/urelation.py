@@ -197,7 +197,7 @@ def u_map(phi: ArrayLike, a: ArrayLike) -> Any:
     u[mag == 1.0] = a_arr[mag == 1.0] / _TWO_PI
     u[mag > 1.0] = np.inf
     u[np.isnan(mag)] = np.nan
-    return _result(np.sign(phi_arr) * u, phi, a)
+    return _result(np.sign(phi_arr) * u + 0.0, phi, a)  # + 0.0: no -0.0 where a backward drive stands still
 
 
 def _check_ratio(a: NDArray[np.float64]) -> None:

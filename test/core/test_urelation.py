@@ -352,3 +352,9 @@ def test_simulate_predicts_with_the_external_force() -> None:
                      1.0, settle=0.1)
     assert (plain.phi, plain.amplitude_ratio) == (0.021 / (0.1 * (3.0 * 0.1)), 0.15 / (3.0 * 0.1))
     assert plain.u_measured == pytest.approx(plain.u_exact, rel=1e-9)
+
+
+def test_a_backward_drive_that_stands_still_gives_plain_zero() -> None:
+    """Not -0.0 (``simulate`` printed ``U exact = -0.0``)."""
+    assert math.copysign(1.0, u_map(-0.5, 0.1)) == 1.0
+    assert not np.signbit(u_map(np.array([-0.5, -0.2]), np.array([0.1, 0.3]))).any()
