@@ -252,8 +252,11 @@ def _invert(
         with np.errstate(divide="ignore", invalid="ignore"):
             step = a - f / slope
         step = np.where(np.isfinite(step) & (step > lo) & (step < hi), step, 0.5 * (lo + hi))
-        step = np.where(f == 0.0, a, step)
-        done = np.abs(step - a) <= 4.0 * np.finfo(float).eps * a
+        eps = np.finfo(float).eps
+        # Converged where U meets the target to rounding level (its rounding noise
+        # would otherwise keep Newton stepping to and fro), or the step is that small.
+        step = np.where(np.abs(f) <= 4.0 * eps * target, a, step)
+        done = np.abs(step - a) <= 4.0 * eps * a
         a = step
         if np.all(done):
             break

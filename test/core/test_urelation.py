@@ -10,6 +10,7 @@ mu*g/omega**2) per period, hence U = V*f/(g*mu) = D/(4*pi**2).
 import math
 import time
 from fractions import Fraction
+from typing import Any
 
 import numpy as np
 import pytest
@@ -358,3 +359,24 @@ def test_a_backward_drive_that_stands_still_gives_plain_zero() -> None:
     """Not -0.0 (``simulate`` printed ``U exact = -0.0``)."""
     assert math.copysign(1.0, u_map(-0.5, 0.1)) == 1.0
     assert not np.signbit(u_map(np.array([-0.5, -0.2]), np.array([0.1, 0.3]))).any()
+
+
+@pytest.mark.parametrize(("u", "phi"), [(0.015, 0.7), (0.03, 0.7), (0.001, 0.35), (0.1, 0.9)])
+def test_the_inverse_converges_in_a_handful_of_newton_steps(u: float, phi: float,
+                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    """The controller inverts once per change of its inputs, inside the loop:
+    U's rounding noise once kept Newton stepping to and fro for 35 evaluations
+    (30-50 ms, a period's delay at 100 Hz in acceptance case 5)."""
+    import friction_sim.core.urelation as relation
+
+    calls = []
+    real = relation._u_and_slope  # noqa: SLF001 - counting the evaluations
+
+    def counted(phi_: Any, a_: Any) -> Any:
+        calls.append(1)
+        return real(phi_, a_)
+
+    monkeypatch.setattr(relation, "_u_and_slope", counted)
+    a = amplitude_ratio_for(u, phi)
+    assert u_map(phi, a) == pytest.approx(u, rel=1e-13)
+    assert len(calls) <= 12
