@@ -60,6 +60,7 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import functools
 import logging
 import os
 import threading
@@ -77,8 +78,9 @@ from friction_sim.core.events import Event, SliderState
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.realtime import PeriodSummary
 from friction_sim.errors import ParameterError, RecordingPathError
+from friction_sim.io import cdr
 from friction_sim.io.bagfile import BagFile, RecordingStats
-from friction_sim.io.messages import value_text
+from friction_sim.io.messages import TOPIC_TYPES, message_class, value_text
 from friction_sim.io.recordwriter import Item, RecordWriter, qualified_topic
 from friction_sim.io.typesupport import DEFAULT_QOS
 
@@ -191,6 +193,7 @@ class Recorder:
         self._file = self._start(qos_profiles if qos_profiles is not None else DEFAULT_QOS, chunk_size,
                                  metadata_name, metadata)
         self._writer = RecordWriter(self._file, namespace, self.path)
+        _prepare_encoders()
         self._thread = threading.Thread(target=self._run, name="mcap_writer", daemon=True)
         self._thread.start()
         _open_recorders.add(self)
@@ -502,6 +505,16 @@ def _library() -> str:
             return "unknown"
 
     return f"friction_sim/{known('friction_sim')}; mcap-python/{known('mcap')}"
+
+
+@functools.cache
+def _prepare_encoders() -> None:
+    """Encode one message of every recorded type once per process, before a
+    run starts: the first encoding of a type builds its rosbags encoder (about
+    0.1 s with the GIL held), which in the middle of a run stalled the node's
+    tick and the controller at the user's first command."""
+    for type_name in sorted(set(TOPIC_TYPES.values())):
+        cdr.serialize(message_class(type_name)())
 
 
 def _one_line(error: BaseException) -> str:
