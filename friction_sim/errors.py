@@ -56,6 +56,17 @@ class NodeFault(FrictionSimError):
     ends with exit code 3 (``friction_sim.ros.common.EXIT_FAULT``)."""
 
 
+def one_line(error: BaseException, *, with_type: bool = False) -> str:
+    """``error`` as one line for a user or a log: its first line, whitespace
+    collapsed (the type's name when it says nothing), ``Type: text`` with
+    ``with_type``."""
+    lines = str(error).strip().splitlines()
+    text = " ".join(lines[0].split()) if lines else ""
+    if with_type:
+        return f"{type(error).__name__}: {text}" if text else type(error).__name__
+    return text or type(error).__name__
+
+
 def _quote(value: Any) -> str:
     """Format a rejected value unambiguously (repr: 0.1 stays 0.1, nan, inf, 'text')."""
     return repr(value)

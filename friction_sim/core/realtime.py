@@ -38,7 +38,7 @@ from friction_sim.core.events import CycleMark, Event, SliderState
 from friction_sim.core.params import Inputs, SliderParams, check_load, require_positive
 from friction_sim.core.slider import Slider
 from friction_sim.core.urelation import Prediction, predict
-from friction_sim.errors import ParameterError, SimulationFault
+from friction_sim.errors import ParameterError, SimulationFault, one_line
 
 NS_PER_S = 1_000_000_000
 _PHYSICS = {**spec.PLANT, **spec.INPUTS}
@@ -90,11 +90,6 @@ def _non_finite(state: SliderState) -> str:
         if not math.isfinite(value):
             return f"{name} = {value!r}"
     return ""
-
-
-def _one_line(error: BaseException) -> str:
-    text = str(error).splitlines()[0] if str(error) else ""
-    return f"{type(error).__name__}: {text}" if text else type(error).__name__
 
 
 class SimClock:
@@ -341,7 +336,7 @@ class RealtimeSlider:
             if math.isnan(slider.next_event_time):
                 problem = problem or "the next event time is nan"
         except Exception as error:  # noqa: BLE001 - any failure of the core refuses the change
-            problem = _one_line(error)
+            problem = one_line(error, with_type=True)
         if problem:
             checkpoint.restore(slider)
             return f"the simulation cannot take this state ({problem}); last valid state kept"
@@ -421,7 +416,7 @@ class RealtimeSlider:
             self._log_samples(t)
             self._events.extend(self.slider.advance_to(t))
         except Exception as error:  # noqa: BLE001 - whatever the core raised, the run cannot go on
-            self._fail(f"advancing failed ({_one_line(error)})")
+            self._fail(f"advancing failed ({one_line(error, with_type=True)})")
         return t
 
     def _fail(self, why: str) -> None:

@@ -77,7 +77,7 @@ from friction_sim.core.commands import Outcome
 from friction_sim.core.events import Event, SliderState
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.realtime import PeriodSummary
-from friction_sim.errors import ParameterError, RecordingPathError
+from friction_sim.errors import ParameterError, RecordingPathError, one_line
 from friction_sim.io import cdr
 from friction_sim.io.bagfile import BagFile, RecordingStats
 from friction_sim.io.messages import TOPIC_TYPES, message_class, value_text
@@ -491,7 +491,7 @@ def _reason(error: BaseException) -> str:
     """An error's reason as one line: ``[Errno 28] No space left on device`` for an OSError."""
     if isinstance(error, OSError) and error.errno is not None:
         return f"[Errno {error.errno}] {error.strerror or os.strerror(error.errno)}"
-    return f"{type(error).__name__}: {_one_line(error)}"
+    return one_line(error, with_type=True)
 
 
 def _library() -> str:
@@ -515,12 +515,6 @@ def _prepare_encoders() -> None:
     tick and the controller at the user's first command."""
     for type_name in sorted(set(TOPIC_TYPES.values())):
         cdr.serialize(message_class(type_name)())
-
-
-def _one_line(error: BaseException) -> str:
-    """An error as one line of text."""
-    text = str(error) or type(error).__name__
-    return " ".join(text.split())
 
 
 __all__ = [

@@ -29,6 +29,7 @@ import numpy as np
 from friction_sim.core.commands import Outcome
 from friction_sim.core.events import Mode, SliderState
 from friction_sim.core.realtime import PeriodSummary
+from friction_sim.errors import one_line
 from friction_sim.io.bagfile import MAX_STAMP_NS, BagFile, RowGroup
 from friction_sim.io.cdr import FixedLayout, fixed_layouts
 from friction_sim.io.messages import (
@@ -136,7 +137,7 @@ class RecordWriter:
             except OSError:
                 raise
             except Exception as error:  # noqa: BLE001 - bad records must not end the recording
-                self._count_bad(3 * len(part), "state", f"{type(error).__name__}: {_one_line(error)}")
+                self._count_bad(3 * len(part), "state", one_line(error, with_type=True))
 
     def _state_group(self, frame_id: str) -> RowGroup | None:
         """The fixed layouts of a state's three messages in ``frame_id`` (cached)."""
@@ -174,7 +175,7 @@ class RecordWriter:
             raise
         except Exception as error:  # noqa: BLE001 - one bad record must not end the recording
             self._count_bad(3 if item[0] == "state" else 1, str(item[1])[:40] if item[0] == "msg" else item[0],
-                            f"{type(error).__name__}: {_one_line(error)}")
+                            one_line(error, with_type=True))
 
     def _write_one(self, item: Item) -> None:
         """Build the messages of one queued record and write them."""
@@ -227,12 +228,6 @@ def _messages(item: Item) -> list[tuple[str, Any, int]]:
     if kind == "parameters":
         return [("parameters", parameters_message(item[1], item[2], changed=item[3]), seconds_to_ns(item[2]))]
     raise ValueError(f"unknown record kind {kind!r}")
-
-
-def _one_line(error: BaseException) -> str:
-    """An error as one line of text."""
-    text = str(error) or type(error).__name__
-    return " ".join(text.split())
 
 
 __all__ = ["ROWS_PER_PASS", "RecordWriter", "qualified_topic"]

@@ -42,7 +42,7 @@ from rclpy.subscription import Subscription
 from rclpy.utilities import remove_ros_args
 
 from friction_sim.core.spec import Setting
-from friction_sim.errors import FrictionSimError, NodeFault
+from friction_sim.errors import FrictionSimError, NodeFault, one_line
 
 RCLError = _rclpy.RCLError
 #: Exit codes of the node executables (``slider``, ``controller``, ``friction-sim feeder``).
@@ -360,7 +360,7 @@ def run_node(
         try:
             made = factory()
         except (FrictionSimError, ParameterException) as error:
-            print(f"{prog}: error: {_one_line(error)}", file=sys.stderr)
+            print(f"{prog}: error: {one_line(error)}", file=sys.stderr)
             return EXIT_BAD_PARAMETER
         nodes = list(made) if isinstance(made, Sequence) else [made]
         for node in nodes:
@@ -374,17 +374,17 @@ def run_node(
         # A signal shut the context down between the executor's ok() check and
         # its next wait set: that is a normal shutdown too.
         if rclpy.ok():
-            print(f"{prog}: error: {_one_line(error)}", file=sys.stderr)
+            print(f"{prog}: error: {one_line(error)}", file=sys.stderr)
             code = EXIT_FAULT
     except Exception as error:  # noqa: BLE001 - one line, never a traceback
-        print(f"{prog}: internal error, stopping: {_one_line(error)}", file=sys.stderr)
+        print(f"{prog}: internal error, stopping: {one_line(error)}", file=sys.stderr)
         code = EXIT_FAULT
     finally:
         for node in nodes:
             try:
                 node.destroy_node()
             except Exception as error:  # noqa: BLE001 - the others must still be destroyed
-                print(f"{prog}: error while stopping {node.get_name()}: {_one_line(error)}", file=sys.stderr)
+                print(f"{prog}: error while stopping {node.get_name()}: {one_line(error)}", file=sys.stderr)
                 code = code or EXIT_FAULT
         executor.shutdown(timeout_sec=0.0)
         rclpy.try_shutdown()
@@ -429,7 +429,3 @@ def _own_arguments(prog: str, argv: list[str], help_text: str) -> int | None:
         return int(stop.code or 0)
     return None
 
-
-def _one_line(error: BaseException) -> str:
-    text = str(error).strip().splitlines()
-    return text[0] if text else type(error).__name__

@@ -66,7 +66,7 @@ from friction_sim.core import spec
 from friction_sim.core.commands import CONTROLLER, consumed_by
 from friction_sim.core.control import ControllerConfig, ControlOutput, MeanSpeedController
 from friction_sim.core.params import SliderParams
-from friction_sim.errors import ParameterError
+from friction_sim.errors import ParameterError, one_line
 from friction_sim.io.messages import command_from_message, key_values, message_class, ns_to_seconds, stamp_ns
 from friction_sim.ros.common import (
     NameWatch,
@@ -359,7 +359,7 @@ class ControllerNode(Node):
         """Count it, keep the reason for diagnostics (ERROR from now on), log
         each distinct error once.  The law's state is as before the input (each change
         of it is a transaction), so the input is refused and the node goes on."""
-        reason = f"{where}: {type(error).__name__}: {error}".splitlines()[0]
+        reason = f"{where}: {one_line(error, with_type=True)}"
         self.internal_errors += 1
         self.last_internal_error = reason
         kind = f"{type(error).__name__}: {error}"  # the same bug, whichever callback met it

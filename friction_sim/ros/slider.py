@@ -61,7 +61,7 @@ from friction_sim.core.commands import PARAMETERS as PARAMETER_COMMAND
 from friction_sim.core.commands import PHYSICS_FIELDS, SLIDER, Command, Outcome, consumed_by
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.realtime import RealtimeSlider
-from friction_sim.errors import SimulationFault
+from friction_sim.errors import SimulationFault, one_line
 from friction_sim.io.messages import (
     command_from_message,
     fill_state_messages,
@@ -285,7 +285,7 @@ class SliderNode(Node):
         """The run cannot go on: log why and report ERROR on diagnostics (once),
         then end the executor (run_node exits with EXIT_FAULT)."""
         reason = str(error) if isinstance(error, SimulationFault) else \
-            f"tick failed: {type(error).__name__}: {error}".splitlines()[0]
+            f"tick failed: {one_line(error, with_type=True)}"
         if not self._fault.claim(reason):
             return
         self.get_logger().error(f"{reason}; stopping (exit code {EXIT_FAULT})")
