@@ -53,36 +53,6 @@ _MARK_BACKLOG = 4096
 MAX_SAMPLES_PER_ADVANCE = 1000
 
 
-class _Checkpoint:
-    """The slider as it was, to put back if taking a change fails.
-
-    The core's attributes are saved by reference (its records are immutable);
-    its dicts are copied (a few entries); of its deques (the event and period
-    logs, thousands of entries) only the last entry is remembered, and on
-    restore whatever was appended after it is popped.  That costs about a
-    microsecond, where copying the logs would cost twenty at every command.
-    """
-
-    __slots__ = ("attributes", "tails")
-
-    def __init__(self, slider: Slider) -> None:
-        self.attributes = dict(vars(slider))
-        self.tails: dict[str, Any] = {}
-        for name, value in self.attributes.items():
-            if isinstance(value, (dict, list, set)):
-                self.attributes[name] = value.copy()
-            elif isinstance(value, deque):
-                self.tails[name] = value[-1] if value else None
-
-    def restore(self, slider: Slider) -> None:
-        for name, tail in self.tails.items():
-            log: deque[Any] = self.attributes[name]
-            while log and log[-1] is not tail:
-                log.pop()
-        vars(slider).clear()
-        vars(slider).update(self.attributes)
-
-
 def _non_finite(state: SliderState) -> str:
     """'' if every number of ``state`` is finite, else the first that is not (``x = inf``)."""
     for name in ("t", "x", "v", "acceleration", "friction_force", "normal_force"):
@@ -329,7 +299,7 @@ class RealtimeSlider:
         slider = self.slider
         if params == slider.params and inputs == slider.inputs:
             return ""
-        checkpoint = _Checkpoint(slider)
+        checkpoint = slider.checkpoint()
         try:
             slider.set_plant(params, inputs)
             problem = _non_finite(slider.state())
@@ -338,7 +308,7 @@ class RealtimeSlider:
         except Exception as error:  # noqa: BLE001 - any failure of the core refuses the change
             problem = one_line(error, with_type=True)
         if problem:
-            checkpoint.restore(slider)
+            slider.restore(checkpoint)
             return f"the simulation cannot take this state ({problem}); last valid state kept"
         return ""
 
