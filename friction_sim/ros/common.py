@@ -41,6 +41,7 @@ from rclpy.parameter import Parameter
 from rclpy.subscription import Subscription
 from rclpy.utilities import remove_ros_args
 
+from friction_sim.core.commands import consumed_by
 from friction_sim.core.spec import Setting
 from friction_sim.errors import FrictionSimError, NodeFault, one_line
 
@@ -305,11 +306,15 @@ class NameWatch:
         return problem
 
 
-def node_help(description: str, settings: Mapping[str, Setting], subscriptions: Sequence[tuple[str, str, str]],
-              publications: Sequence[tuple[str, str, str]]) -> str:
+def node_help(description: str, settings: Mapping[str, Setting], consumer: str,
+              publications: Sequence[tuple[str, str, str]], more_subscriptions: Sequence[tuple[str, str, str]] = ()
+              ) -> str:
     """The ``--help`` text of a node after its usage line: what it does, its
     parameters with default, unit, range and meaning (from the one vocabulary),
-    its topics (name, type, meaning) and its exit codes."""
+    its topics (name, type, meaning: the command topics ``consumer`` takes,
+    from the command table, then ``more_subscriptions``) and its exit codes."""
+    subscriptions = [(entry.name, entry.message_type, entry.description) for entry in consumed_by(consumer)]
+    subscriptions += more_subscriptions
     def wrapped(text: str, indent: str = "") -> list[str]:
         return textwrap.wrap(text, width=HELP_WIDTH, initial_indent=indent, subsequent_indent=indent)
 

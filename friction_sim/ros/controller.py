@@ -504,13 +504,11 @@ def _named(name: str, value: Any) -> Any:
 
 def help_text() -> str:
     """What ``controller --help`` prints after the usage line."""
-    subscriptions = [(entry.name, entry.message_type, entry.description) for entry in consumed_by(CONTROLLER)]
-    subscriptions.append(("mean_velocity", "geometry_msgs/msg/TwistStamped",
-                          "the slider's mean speed [m/s] per window (refused if no plant in force could creep "
-                          "that fast)"))
+    sample = ("mean_velocity", "geometry_msgs/msg/TwistStamped",
+              "the slider's mean speed [m/s] per window (refused if no plant in force could creep that fast)")
     return node_help("The mean-speed controller: publishes the excitation amplitude Pa that makes the slider "
                      "creep at target_speed (exact U-relation feedforward, integral action on the measured "
-                     "mean speed).", PARAMETERS, subscriptions, PUBLICATIONS)
+                     "mean speed).", PARAMETERS, CONTROLLER, PUBLICATIONS, [sample])
 
 
 def main(args: Sequence[str] | None = None) -> int:

@@ -435,10 +435,9 @@ def _health(report: dict[str, Any], fault: str = "", name_problem: str = "") -> 
 
 def help_text() -> str:
     """What ``slider --help`` prints after the usage line."""
-    subscriptions = [(entry.name, entry.message_type, entry.description) for entry in consumed_by(SLIDER)]
     return node_help("The exact stick-slip slider in real time: advances the event-driven core to the "
                      "present at publish_rate and publishes its state; takes commands on topics and "
-                     "parameters.", PARAMETERS, subscriptions, PUBLICATIONS)
+                     "parameters.", PARAMETERS, SLIDER, PUBLICATIONS)
 
 
 def main(args: Sequence[str] | None = None) -> int:
