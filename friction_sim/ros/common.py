@@ -115,22 +115,35 @@ class ThrottledWarning:
 
 
 class PolledGroup(CallbackGroup):
-    """A callback group no executor ever runs: its subscriptions are drained by
-    their owner with :func:`take_all`, at a time of the owner's choosing.
+    """A callback group whose subscriptions their owner drains itself (with
+    :func:`take_all`), at a time of its choosing, while the group is shut;
+    while :attr:`open`, a waiting message wakes the executor, which runs one
+    callback of the group at a time.  rclpy leaves an entity whose group cannot
+    execute out of its wait set, so a shut group costs the executor nothing.
 
-    The slider takes its commands this way at the start of each tick, so a
-    flood of commands costs a bounded amount of work per tick instead of an
-    executor wake-up (and a wait-set rebuild in Python) per message.
+    The slider's group is always shut: it takes its commands at the start of
+    each tick, so a flood costs a bounded amount of work per tick instead of an
+    executor wake-up (and a wait-set rebuild in Python) per message.  The
+    controller opens its group while quiet and shuts it for a hold-off after
+    each batch.
     """
 
+    def __init__(self, *, open: bool = False) -> None:
+        super().__init__()
+        self.open = open
+        self._busy = False
+
     def can_execute(self, entity: object) -> bool:
-        return False
+        return self.open and not self._busy
 
     def beginning_execution(self, entity: object) -> bool:
-        return False
+        if not self.open or self._busy:
+            return False
+        self._busy = True
+        return True
 
     def ending_execution(self, entity: object) -> None:
-        return None
+        self._busy = False
 
 
 def take_all(subscription: Subscription, limit: int) -> list[object]:

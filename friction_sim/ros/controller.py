@@ -55,7 +55,6 @@ from typing import Any, TypeVar
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TwistStamped
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.callback_groups import CallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -70,6 +69,7 @@ from friction_sim.errors import ParameterError, one_line
 from friction_sim.io.messages import command_from_message, key_values, message_class, ns_to_seconds, stamp_ns
 from friction_sim.ros.common import (
     NameWatch,
+    PolledGroup,
     ThrottledWarning,
     declare_settings,
     node_help,
@@ -98,30 +98,6 @@ PUBLICATIONS = (
     ("diagnostics", "diagnostic_msgs/msg/DiagnosticArray",
      "status 'controller', 1 Hz and when the target becomes (un)reachable or an internal error occurs"),
 )
-
-
-class CommandGate(CallbackGroup):
-    """The group of the command subscriptions: while :attr:`open`, a waiting
-    command wakes the executor; while shut, the executor leaves the messages
-    to the node, which takes them itself (rclpy leaves an entity whose group
-    cannot execute out of its wait set, so a shut gate costs nothing)."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.open = True
-        self._busy = False
-
-    def can_execute(self, entity: object) -> bool:
-        return self.open and not self._busy
-
-    def beginning_execution(self, entity: object) -> bool:
-        if not self.open or self._busy:
-            return False
-        self._busy = True
-        return True
-
-    def ending_execution(self, entity: object) -> None:
-        self._busy = False
 
 
 class ControllerNode(Node):
@@ -157,7 +133,7 @@ class ControllerNode(Node):
         self._amplitude_pub = self.create_publisher(Float64, "excitation_amplitude", QOS_DEPTH)
         self._diag_pub = self.create_publisher(DiagnosticArray, "diagnostics", QOS_DEPTH)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self._gate = CommandGate()
+        self._gate = PolledGroup(open=True)
         self._commands = [  # target_speed, drive_force, excitation_frequency
             (entry.name, self.create_subscription(
                 message_class(entry.message_type), entry.name,
