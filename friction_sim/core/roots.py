@@ -192,6 +192,14 @@ def trig_remainders(psi: Any, xp: ModuleType = math) -> tuple[Any, Any, Any]:
     return c1, np.where(small, s2_series, psi - np.sin(psi)), np.where(small, c2_series, 0.5 * p2 - c1)
 
 
+def two_sum(a: Any, b: Any) -> tuple[Any, Any]:
+    """(a + b rounded, its exact rounding error) (Knuth's TwoSum), for floats
+    or numpy arrays alike."""
+    hi = a + b
+    bb = hi - a
+    return hi, (a - (hi - bb)) + (b - bb)
+
+
 def _speed(w0: float, g0: float, k: float, cos0: float, sin0: float, omega: float, tau: float) -> float:
     """w(tau) of a slip segment: w0 + g0*tau + k*(cos0*(1 - cos psi) - sin0*(psi - sin psi))."""
     c1, s2, _ = trig_remainders(omega * tau)

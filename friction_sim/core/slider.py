@@ -59,6 +59,7 @@ from friction_sim.core.roots import (
     next_slip_start,
     slip_stop_delay,
     trig_remainders,
+    two_sum,
 )
 from friction_sim.errors import ParameterError
 
@@ -157,7 +158,7 @@ class _Segment:
         """The position ``tau`` into the segment as a double-double (hi, lo)."""
         if self.direction == 0:
             return self.x0, self.xl
-        return _two_sum(self.x0, self.xl + self.direction * self.speed_and_travel(tau)[1])
+        return two_sum(self.x0, self.xl + self.direction * self.speed_and_travel(tau)[1])
 
     def speed_and_travel(self, tau: Any, xp: ModuleType = math) -> tuple[Any, Any]:
         """Speed w and distance travelled (>= 0, along the slip) ``tau`` into a slip."""
@@ -176,13 +177,6 @@ class _Segment:
         if whole <= 0:
             return 0.0
         return (TWO_PI * whole - self.phase0) / self.omega
-
-
-def _two_sum(a: float, b: float) -> tuple[float, float]:
-    """(a + b rounded, its exact rounding error) (Knuth's TwoSum)."""
-    hi = a + b
-    bb = hi - a
-    return hi, (a - (hi - bb)) + (b - bb)
 
 
 def _changed(old: Any, new: Any) -> set[str]:
@@ -543,7 +537,7 @@ class Slider:
         assert seg.stop is not None  # an endless slip has no event
         travel, theta = seg.stop
         x0, part = seg.x0, seg.xl + travel
-        x = x0 + part  # _two_sum, inlined (once per slip)
+        x = x0 + part  # two_sum, inlined (once per slip)
         bb = x - x0
         xl = (x0 - (x - bb)) + (part - bb)
         phase, cycles = _reduce_phase(theta, seg.cycles)

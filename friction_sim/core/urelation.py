@@ -53,7 +53,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.roots import trig_remainders
+from friction_sim.core.roots import trig_remainders, two_sum
 from friction_sim.errors import ParameterError
 
 _TWO_PI = 2.0 * np.pi
@@ -84,10 +84,8 @@ def _beyond_boundary(phi: NDArray[np.float64], a: NDArray[np.float64]) -> NDArra
     (TwoSum), and the sum minus 1 is exact (Sterbenz) wherever it matters, so
     the distance keeps its full relative precision however small it is.
     """
-    total = phi + a
-    part = total - phi
     with np.errstate(invalid="ignore"):
-        error = (phi - (total - part)) + (a - part)
+        total, error = two_sum(phi, a)
         beyond: NDArray[np.float64] = (total - 1.0) + error
     return np.where(np.isfinite(total), beyond, total - 1.0)  # inf stays inf, NaN NaN
 
