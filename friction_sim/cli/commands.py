@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from friction_sim.core import spec
-from friction_sim.core.params import Inputs, SliderParams, check_contact
+from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.errors import FrictionSimError, ParameterError
 
 MAX_GRID = 2001
@@ -104,7 +104,6 @@ def plant(args: argparse.Namespace) -> tuple[SliderParams, Inputs]:
     """The plant and inputs the plant options give, checked as the slider would."""
     params = SliderParams(**{name: getattr(args, name) for name in spec.PLANT})
     inputs = Inputs(**{s.name: getattr(args, s.name) for s in PLANT_OPTIONS if s.name in spec.INPUTS})
-    check_contact(params, inputs)
     return params, inputs
 
 

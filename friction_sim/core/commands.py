@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from friction_sim.core import spec
-from friction_sim.core.params import Inputs, SliderParams, check_contact
+from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.errors import ParameterError
 
 #: The command that a parameter change (``ros2 param set``) makes: any plant or input field.
@@ -147,14 +147,12 @@ def apply(command: Command, params: SliderParams, inputs: Inputs) -> tuple[Slide
     """The plant and inputs after ``command``, validated as one new state.
 
     Raises :class:`ParameterError` (and nothing changes) if a value is out of
-    its range or the combination would lift the slider off; the error blames
-    the field the command changed.  Fields the plant does not have (a target
+    its range; the error names the field the command changed.  Fields the plant does not have (a target
     speed) leave it as it is.
     """
     plant, changes = command.plant, command.inputs
     new_params = params.replace(**plant) if plant else params
     new_inputs = inputs.replace(**changes) if changes else inputs
-    check_contact(new_params, new_inputs, command.values)
     return new_params, new_inputs
 
 

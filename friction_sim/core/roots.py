@@ -71,21 +71,21 @@ def next_slip_start(phase: float, b0: float, b1: float, *, closing: bool = False
 
 
 def can_ever_slip(params: SliderParams, inputs: Inputs) -> bool:
-    """Whether |Ft| > mu*(m*g + Fz - Pa): the slider can slip at some phase.
+    """Whether |Ft| > mu*(m*g - Fz - Pa): the slider can slip at some phase (Kostek's model).
 
     Decided in exact rational arithmetic on the given binary values, so that a
     slider on the motion boundary phi = 1 - a (up to its last bit) never
     moves, not even by a rounding-sized step.
     """
     excess_f = abs(inputs.tangential_force)
-    least_f = params.weight + inputs.external_force_z - inputs.excitation_amplitude
+    least_f = params.weight - inputs.external_force_z - inputs.excitation_amplitude
     margin = excess_f - params.mu * least_f
     if abs(margin) > 1e-9 * (excess_f + params.mu * abs(least_f)):  # clear either way
         return margin > 0.0
     excess = abs(Fraction(inputs.drive_force) + Fraction(inputs.external_force_x))
     least_load = (
         Fraction(params.mass) * Fraction(params.gravity)
-        + Fraction(inputs.external_force_z) - Fraction(inputs.excitation_amplitude)
+        - Fraction(inputs.external_force_z) - Fraction(inputs.excitation_amplitude)
     )
     return excess > Fraction(params.mu) * least_load
 

@@ -51,7 +51,7 @@ def random_schedule(
         if external:
             commands.append(Command(t, "external_wrench", {
                 "external_force_x": float(rng.uniform(-0.02, 0.02) * weight),
-                "external_force_z": float(rng.uniform(0.0, 0.1) * weight),
+                "external_force_z": float(rng.uniform(-0.1, 0.0) * weight),
             }))
 
 

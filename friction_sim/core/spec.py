@@ -33,7 +33,8 @@ class Setting:
     ``low`` and ``high`` bound a number inclusively (None: unbounded);
     ``rule`` states a cross-field rule in words (checked elsewhere, shown in
     the README); ``start_only`` marks a node parameter read at start-up only;
-    ``flag`` is the CLI option where it differs from ``--name-with-dashes``.
+    ``flag`` is the CLI option where it differs from ``--name-with-dashes``;
+    ``choices`` lists the values a string setting may take (empty: any).
     """
 
     name: str
@@ -45,6 +46,7 @@ class Setting:
     rule: str = ""
     start_only: bool = False
     flag: str | None = None
+    choices: tuple[str, ...] = ()
     _low: float = field(init=False, repr=False, compare=False, default=-math.inf)
     _high: float = field(init=False, repr=False, compare=False, default=math.inf)
 
@@ -77,6 +79,8 @@ class Setting:
         if kind is str:
             if not isinstance(value, str):
                 raise ParameterError(self.name, value, "must be a string")
+            if self.choices and value not in self.choices:
+                raise ParameterError(self.name, value, f"must be one of {', '.join(self.choices)}")
             return value
         if isinstance(value, bool) or not isinstance(value, numbers.Real):
             raise ParameterError(self.name, value, f"must be {'an integer' if kind is int else 'a finite number'}"
@@ -105,6 +109,8 @@ class Setting:
 
     def range_text(self) -> str:
         """The range as the README shows it: ``1e-06 … 1e+06``, or '' if unbounded."""
+        if self.choices:
+            return " \\| ".join(self.choices)
         if self.low is None and self.high is None:
             return ""
         low = "" if self.low is None else _number(self.low)
@@ -127,11 +133,24 @@ def table(*settings: Setting) -> dict[str, Setting]:
 
 # -- the plant -------------------------------------------------------------------
 
-_STAYS_ON = "Pa < m g + Fz must still hold"
-MASS = Setting("mass", 1.0, "kg", "slider mass m", 1e-6, 1e6, rule=_STAYS_ON)
-MU = Setting("mu", 0.1, "-", "Coulomb friction coefficient", 1e-6, 10.0)
-GRAVITY = Setting("gravity", 10.0, "m/s^2", "gravity g", 1e-6, 1e3, rule=_STAYS_ON)
-PLANT = table(MASS, MU, GRAVITY)
+MASS = Setting("mass", 1.0, "kg", "slider mass m", 1e-6, 1e6)
+MU = Setting("mu", 0.1, "-", "kinetic Coulomb friction coefficient mu", 1e-6, 10.0)
+GRAVITY = Setting("gravity", 10.0, "m/s^2", "gravity g", 1e-6, 1e3)
+STATIC_RATIO = Setting("static_ratio", 1.0, "-", "static over kinetic friction mu_s/mu (stuck while |Ft| <= mu_s R)",
+                       1.0, 100.0)
+EXCITATION_ANGLE = Setting(
+    "excitation_angle", 90.0, "deg", "vibration angle beta to the track; tangential amplitude Pt = Pa cot(beta) "
+    "(90: normal only, the paper)", 0.1, 90.0, flag="--angle")
+EXCITATION_PHASE = Setting("excitation_phase", 0.0, "deg", "phase psi of the tangential excitation Pt sin(theta + psi) "
+                           "(0: linear drive; +-90: elliptical)", -180.0, 180.0, flag="--phase")
+TRACK_INCLINATION = Setting("track_inclination", 0.0, "deg", "track slope alpha (> 0: conveying uphill)",
+                            -89.0, 89.0, flag="--inclination")
+RESTITUTION = Setting("restitution", 0.0, "-", "normal restitution e at landing (0: plastic)", 0.0, 0.99)
+LANDING_FRICTION = Setting(
+    "landing_friction", "impulsive", "-", "tangential impulse at landing: impulsive (Coulomb impact, bounded by "
+    "mu times the normal impulse) or none (tangential velocity kept)", choices=("impulsive", "none"))
+PLANT = table(MASS, MU, GRAVITY, STATIC_RATIO, EXCITATION_ANGLE, EXCITATION_PHASE, TRACK_INCLINATION, RESTITUTION,
+              LANDING_FRICTION)
 
 # -- the inputs ------------------------------------------------------------------
 
@@ -139,8 +158,8 @@ MAX_FORCE = 1e6
 DRIVE_FORCE = Setting("drive_force", 0.7, "N", "drive force Fd along +x (negative drives backwards)",
                       -MAX_FORCE, MAX_FORCE)
 EXCITATION_AMPLITUDE = Setting(
-    "excitation_amplitude", 5.0, "N", "excitation amplitude Pa of the normal force", 0.0, MAX_FORCE,
-    rule="Pa < m g + Fz (the slider must not lift off)", flag="--amplitude")
+    "excitation_amplitude", 5.0, "N", "excitation amplitude Pa of the normal force (above m g cos(alpha) the "
+    "slider hops)", 0.0, MAX_FORCE, flag="--amplitude")
 #: The real-time loop simulates at most this many excitation periods per wall
 #: second (f times the real-time factor): each costs the core ~10 us, and a
 #: tick must stay well inside its millisecond.
@@ -150,7 +169,7 @@ EXCITATION_FREQUENCY = Setting(
     1e-3, MAX_PERIODS_PER_SECOND, rule="f x real_time_factor <= 20000 in real time", flag="--frequency")
 EXTERNAL_FORCE_X = Setting("external_force_x", 0.0, "N", "extra tangential force Fx, added to Fd",
                            -MAX_FORCE, MAX_FORCE)
-EXTERNAL_FORCE_Z = Setting("external_force_z", 0.0, "N", "extra normal force Fz; > 0 loads the contact",
+EXTERNAL_FORCE_Z = Setting("external_force_z", 0.0, "N", "extra force Fz along +z, away from the track; > 0 lifts",
                            -MAX_FORCE, MAX_FORCE)
 INPUTS = table(DRIVE_FORCE, EXCITATION_AMPLITUDE, EXCITATION_FREQUENCY, EXTERNAL_FORCE_X, EXTERNAL_FORCE_Z)
 
@@ -171,8 +190,8 @@ LOG_RATE = Setting("log_rate", 1000.0, "Hz", "recorded state samples per simulat
 
 TARGET_SPEED = Setting("target_speed", 0.0002, "m/s", "target mean speed V*", -1e3, 1e3)
 INTEGRAL_GAIN = Setting("integral_gain", 0.4, "-", "first integral step, fraction of the error in U", 0.0, 2.0)
-MAX_AMPLITUDE_RATIO = Setting("max_amplitude_ratio", 0.95, "-", "largest Pa/(m g) applied, < 1 (lift-off)",
-                              1e-3, 0.999)
+MAX_AMPLITUDE_RATIO = Setting("max_amplitude_ratio", 0.95, "-", "largest Pa/(m g) applied (above 1 the slider "
+                              "hops)", 1e-3, 10.0)
 SETTLE_MARGIN = Setting(
     "settle_margin", 0.25, "periods",
     "how far a sample window keeps clear of a change of Pa, on top of the delivery jitter seen", 0.0, 5.0)
@@ -183,16 +202,19 @@ ACTIVE = Setting("active", True, "-", "regulate now; false: stand by (publish no
 # -- the nodes ---------------------------------------------------------------------
 
 SLIDER_NODE = table(
-    MASS, MU, GRAVITY,
+    MASS, MU, GRAVITY, STATIC_RATIO, EXCITATION_ANGLE, EXCITATION_PHASE, TRACK_INCLINATION, RESTITUTION,
+    LANDING_FRICTION,
     DRIVE_FORCE.described("drive force Fd along +x; setting it acts like the topic"),
     EXCITATION_AMPLITUDE, EXCITATION_FREQUENCY,
     PUBLISH_RATE, REAL_TIME_FACTOR, PUBLISH_CLOCK, MEAN_WINDOW_PERIODS, FRAME_ID, LOG_PATH, LOG_RATE,
 )
 CONTROLLER_NODE = table(
-    MASS.described("model: slider mass m (replaced at start-up by plant_node's, if it answers within 5 s)",
-                   rule=""),
-    MU.described("model: Coulomb friction coefficient"),
-    GRAVITY.described("model: gravity g", rule=""),
+    MASS.described("model: slider mass m (the plant's parameters are replaced at start-up by plant_node's, if it "
+                   "answers within 5 s)"),
+    MU.described("model: kinetic Coulomb friction coefficient"),
+    GRAVITY.described("model: gravity g"),
+    *(setting.described("model: " + setting.description) for setting in (
+        STATIC_RATIO, EXCITATION_ANGLE, EXCITATION_PHASE, TRACK_INCLINATION, RESTITUTION, LANDING_FRICTION)),
     EXCITATION_FREQUENCY.described("initial excitation frequency f; then it follows the topic", rule=""),
     DRIVE_FORCE.described("initial drive force Fd; then it follows the topic"),
     TARGET_SPEED, INTEGRAL_GAIN, MAX_AMPLITUDE_RATIO, SETTLE_MARGIN,

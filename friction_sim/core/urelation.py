@@ -331,10 +331,10 @@ class Prediction:
 def predict(params: SliderParams, inputs: Inputs) -> Prediction:
     """The exact periodic mean speed for ``params`` and ``inputs`` (inf when
     the slider accelerates without bound)."""
-    load = params.weight + inputs.external_force_z
-    # (m*g + Fz)/m as g + Fz/m: exactly g without an external force
+    load = params.weight - inputs.external_force_z
+    # (m*g - Fz)/m as g - Fz/m: exactly g without an external force (Fz > 0 lifts)
     phi, ratio, gravity = (inputs.tangential_force / (params.mu * load), inputs.excitation_amplitude / load,
-                           params.gravity + inputs.external_force_z / params.mass)
+                           params.gravity - inputs.external_force_z / params.mass)
     u = u_map(phi, ratio)
     return Prediction(
         phi=inputs.drive_force / (params.mu * params.weight),

@@ -46,7 +46,7 @@ import yaml
 from friction_sim.core import spec as settings
 from friction_sim.core.commands import COMMANDS, Command, apply
 from friction_sim.core.control import ControllerConfig, MeanSpeedController
-from friction_sim.core.params import Inputs, SliderParams, check_contact, check_load
+from friction_sim.core.params import Inputs, SliderParams, check_load
 from friction_sim.errors import FrictionSimError, ParameterError
 from friction_sim.experiment.spec import ExperimentSpec
 from friction_sim.io.paramfile import read_params_file
@@ -236,7 +236,6 @@ class _Parser:
         try:
             params = SliderParams(**{k: v for k, v in values.items() if k in settings.PLANT})
             inputs = Inputs(**{k: v for k, v in values.items() if k in settings.INPUTS})
-            check_contact(params, inputs)
             check_load(inputs.excitation_frequency, rate)
         except ParameterError as error:
             raise self.plant_error(top, error) from error
