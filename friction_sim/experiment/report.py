@@ -374,7 +374,8 @@ class _Keeper:
 
 def _initial_state(initial: dict[str, Any]) -> tuple[SliderParams, Inputs]:
     """The plant and inputs a recording started with (defaults for what it lacks)."""
-    params = SliderParams(**{k: float(initial[k]) for k in settings.PLANT if k in initial})
+    params = SliderParams(**{k: initial[k] if isinstance(initial[k], str) else float(initial[k])
+                             for k in settings.PLANT if k in initial})
     inputs = Inputs(**{k: float(initial[k]) for k in settings.INPUTS if k in initial})
     return params, inputs
 
