@@ -312,11 +312,12 @@ class Prediction:
     """What the U relation predicts for a plant and its present inputs.
 
     ``phi`` and ``amplitude_ratio`` are the paper's groups, Fd/(mu*m*g) and
-    Pa/(m*g).  With an external force the relation still holds with the
-    effective groups (Fd + Fx)/(mu*(m*g + Fz)) and Pa/(m*g + Fz), and an
-    effective gravity (m*g + Fz)/m; ``u`` and ``mean_velocity`` use those, and
-    so must a U measured to be compared with ``u`` (the ``effective_*``
-    fields; equal to the paper's groups without an external force).
+    Pa/(m*g).  With an external force Kostek's relation still holds with the
+    effective groups (Fd + Fx)/(mu*(m*g - Fz)) and Pa/(m*g - Fz) (Fz > 0
+    lifts), and an effective gravity (m*g - Fz)/m; ``u`` and
+    ``mean_velocity`` use those, and so must a U measured to be compared with
+    ``u`` (the ``effective_*`` fields; equal to the paper's groups without an
+    external force).  Beyond Kostek's model the effective gravity is g.
     """
 
     phi: float
@@ -329,9 +330,35 @@ class Prediction:
 
 
 def predict(params: SliderParams, inputs: Inputs) -> Prediction:
-    """The exact periodic mean speed for ``params`` and ``inputs`` (inf when
-    the slider accelerates without bound)."""
+    """The mean speed for ``params`` and ``inputs`` (inf when the slider
+    accelerates without bound): the exact closed form for Kostek's model
+    below lift-off (:func:`kostek_prediction`), else the general mean speed
+    of :func:`friction_sim.core.meanspeed.mean_speed` (a simulation of the
+    exact motion, milliseconds), whose groups are the plain ones (effective
+    gravity g: its U is V*f/(g*mu))."""
+    exact = kostek_prediction(params, inputs)
+    if exact is not None:
+        return exact
+    # meanspeed builds on this module (its closed form), so it is imported here, not at the top.
+    from friction_sim.core.meanspeed import mean_speed
+
+    result = mean_speed(params, inputs)
+    phi = inputs.tangential_force / (params.mu * params.weight)
+    ratio = inputs.excitation_amplitude / params.weight
+    return Prediction(
+        phi=inputs.drive_force / (params.mu * params.weight), amplitude_ratio=ratio, u=result.u,
+        mean_velocity=result.mean_velocity, effective_phi=phi, effective_amplitude_ratio=ratio,
+        effective_gravity=params.gravity,
+    )
+
+
+def kostek_prediction(params: SliderParams, inputs: Inputs) -> Prediction | None:
+    """The exact periodic mean speed of Kostek's model (normal excitation,
+    level track, mu_s = mu) with Pa below the load m*g - Fz; None for any
+    other plant, whose mean speed has no closed form."""
     load = params.weight - inputs.external_force_z
+    if not (params.is_kostek and inputs.excitation_amplitude < load):
+        return None
     # (m*g - Fz)/m as g - Fz/m: exactly g without an external force (Fz > 0 lifts)
     phi, ratio, gravity = (inputs.tangential_force / (params.mu * load), inputs.excitation_amplitude / load,
                            params.gravity - inputs.external_force_z / params.mass)
