@@ -79,9 +79,10 @@ def add_flag(parser: Any, setting: spec.Setting, default: Any = None) -> None:
     by :func:`flag_type`; the help gives its meaning, unit, range and default."""
     unit = f" [{setting.unit}]" if setting.unit and setting.unit != "-" else ""
     limits = "; ".join(part for part in (setting.range_text(), setting.rule) if part)
-    shown = "" if default is None else f"; default {default:g}"
+    shown = "" if default is None else f"; default {default:g}" if not isinstance(default, str) else f"; default {default}"
+    metavar = "{" + ",".join(setting.choices) + "}" if setting.choices else setting.option.lstrip("-").replace("-", "_").upper()
     parser.add_argument(setting.option, dest=setting.name, type=flag_type(setting), default=default,
-                        metavar=setting.option.lstrip("-").replace("-", "_").upper(),
+                        metavar=metavar,
                         help=f"{setting.description}{unit}" + (f" ({limits}{shown})" if limits or shown else ""))
     parser.set_defaults(flags={**(parser.get_default("flags") or {}), setting.name: setting.option})
 
