@@ -57,7 +57,7 @@ def plain(value: Any) -> Any:
 def varied_schedule() -> list[Command]:
     """1.5 s of random commands with external forces, a refused command and a plant change."""
     schedule = random_schedule(np.random.default_rng(7), 1.5, external=True)
-    schedule.append(Command(0.5, "excitation_amplitude", {"excitation_amplitude": 50.0}))  # refused: lift-off
+    schedule.append(Command(0.5, "excitation_amplitude", {"excitation_amplitude": -1.0}))  # refused: Pa < 0
     schedule.append(Command(0.8, "parameters", {"mass": 1.2, "mu": 0.12}))  # a plant change, as ros2 param set
     return schedule
 

@@ -52,13 +52,13 @@ COMMANDS: dict[str, CommandSpec] = {
         CommandSpec("drive_force", ("drive_force",), _FLOAT64, ("data",), (SLIDER, CONTROLLER),
                     "Fd [N] along +x (negative drives backwards)"),
         CommandSpec("excitation_amplitude", ("excitation_amplitude",), _FLOAT64, ("data",), (SLIDER,),
-                    "Pa [N], 0 <= Pa < m g + Fz"),
+                    "Pa [N] >= 0 (above m g cos(alpha) - Fz the slider hops)"),
         CommandSpec("excitation_frequency", ("excitation_frequency",), _FLOAT64, ("data",), (SLIDER, CONTROLLER),
                     "f [Hz] > 0; the phase stays continuous"),
         CommandSpec("external_wrench", ("external_force_x", "external_force_z"), "geometry_msgs/msg/WrenchStamped",
                     ("wrench.force.x", "wrench.force.z"), (SLIDER,),
                     "extra force held until the next message: force.x tangential [N], force.z normal [N] "
-                    "(> 0 loads the contact)"),
+                    "(z up, away from the track: > 0 lifts)"),
         CommandSpec("target_speed", ("target_speed",), _FLOAT64, ("data",), (CONTROLLER,),
                     "target mean speed V* [m/s] of the controller"),
     )
@@ -66,6 +66,8 @@ COMMANDS: dict[str, CommandSpec] = {
 
 #: Fields a ``parameters`` command may carry: the plant's and the inputs'.
 PHYSICS_FIELDS = (*spec.PLANT, *spec.INPUTS)
+#: A command's value: a number, or the text of a string setting (``landing_friction``).
+Value = Any  # float, or str for a string setting: Any so that the many numeric uses need no narrowing
 
 
 def consumed_by(node: str) -> tuple[CommandSpec, ...]:
@@ -85,7 +87,7 @@ class Command:
 
     t: float
     name: str
-    values: Mapping[str, float] = field(default_factory=dict)
+    values: Mapping[str, Value] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         allowed = COMMANDS[self.name].fields if self.name in COMMANDS else None
@@ -98,12 +100,12 @@ class Command:
         object.__setattr__(self, "values", dict(self.values))
 
     @property
-    def plant(self) -> dict[str, float]:
-        """The values that change the plant (mass, mu, gravity)."""
+    def plant(self) -> dict[str, Value]:
+        """The values that change the plant (mass, mu, ..., landing_friction)."""
         return {k: v for k, v in self.values.items() if k in spec.PLANT}
 
     @property
-    def inputs(self) -> dict[str, float]:
+    def inputs(self) -> dict[str, Value]:
         """The values that change the inputs (see :class:`Inputs`)."""
         return {k: v for k, v in self.values.items() if k in spec.INPUTS}
 
@@ -139,7 +141,7 @@ class Outcome:
         return self.command.name
 
     @property
-    def values(self) -> Mapping[str, float]:
+    def values(self) -> Mapping[str, Value]:
         return self.command.values
 
 
@@ -183,13 +185,14 @@ def in_force(commands: Sequence[Command], params: SliderParams, inputs: Inputs, 
     return params, inputs
 
 
-def float_values(values: Mapping[str, Any]) -> dict[str, float]:
-    """The numeric values of ``values`` as floats (for building a Command from
-    parameter values, which may be ints)."""
-    return {k: float(v) for k, v in values.items() if k in PHYSICS_FIELDS}
+def float_values(values: Mapping[str, Any]) -> dict[str, Value]:
+    """The plant and input fields of ``values``, numbers as floats (for
+    building a Command from parameter values, which may be ints); text (a
+    string setting such as ``landing_friction``) stays text."""
+    return {k: v if isinstance(v, str) else float(v) for k, v in values.items() if k in PHYSICS_FIELDS}
 
 
 __all__ = [
-    "COMMANDS", "CONTROLLER", "PARAMETERS", "PHYSICS_FIELDS", "SLIDER", "Command", "CommandSpec", "Outcome",
+    "COMMANDS", "CONTROLLER", "PARAMETERS", "PHYSICS_FIELDS", "SLIDER", "Command", "CommandSpec", "Outcome", "Value",
     "apply", "apply_all", "consumed_by", "float_values", "in_force", "reason",
 ]

@@ -10,9 +10,10 @@ holds everything that is not message conversion:
   are validated once (:mod:`friction_sim.core.params`), and are counted; a
   rejected command leaves the last valid inputs in force.
 * Once per completed excitation period it reports the mean velocity over
-  the last ``mean_window_periods`` whole periods and the stick fraction of
-  the last period, from the core's exact period marks.
-* It keeps the tick statistics the node publishes as diagnostics.
+  the last ``mean_window_periods`` whole periods and the stick and flight
+  fractions of the last period, from the core's exact period marks.
+* It keeps the tick statistics the node publishes as diagnostics, with the
+  lift-offs, landings and time in flight of each diagnostics interval.
 * A change of plant or inputs is taken under a guard: if the core raises
   while taking it, or the state it leaves is not finite, everything is put
   back as it was and the command is refused with the reason.  If advancing
@@ -34,8 +35,8 @@ from typing import Any
 
 from friction_sim.core import spec
 from friction_sim.core.commands import PARAMETERS, Command, Outcome, apply, reason
-from friction_sim.core.events import CycleMark, Event, SliderState
-from friction_sim.core.params import Inputs, SliderParams, check_load, require_positive
+from friction_sim.core.events import CycleMark, Event, EventKind, SliderState
+from friction_sim.core.params import Inputs, SliderParams, check_load, require_positive, throw_number
 from friction_sim.core.slider import Slider
 from friction_sim.core.urelation import Prediction, predict
 from friction_sim.errors import ParameterError, SimulationFault, one_line
@@ -55,7 +56,7 @@ MAX_SAMPLES_PER_ADVANCE = 1000
 
 def _non_finite(state: SliderState) -> str:
     """'' if every number of ``state`` is finite, else the first that is not (``x = inf``)."""
-    for name in ("t", "x", "v", "acceleration", "friction_force", "normal_force"):
+    for name in ("t", "x", "v", "acceleration", "friction_force", "normal_force", "z", "vz"):
         value = getattr(state, name)
         if not math.isfinite(value):
             return f"{name} = {value!r}"
@@ -107,13 +108,16 @@ class SimClock:
 
 @dataclass(frozen=True)
 class PeriodSummary:
-    """Published once per completed excitation period ``n`` (ending at ``t``)."""
+    """Published once per completed excitation period ``n`` (ending at ``t``):
+    the mean velocity over the last ``window_periods`` periods, and the
+    fractions of period ``n`` spent stuck and in flight (off the track)."""
 
     n: int
     t: float
     mean_velocity: float
     window_periods: int
     stick_fraction: float
+    flight_fraction: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -138,6 +142,11 @@ class TickStats:
     last_wall_ns: int | None = None
     interval_start_ns: int | None = None
     interval_sim_start: float = 0.0
+    #: The slider's time [s], its time in flight [s] and lift-off and landing counts at the interval's start.
+    interval_slider_start: float = 0.0
+    interval_flight_start: float = 0.0
+    interval_lift_offs_start: int = 0
+    interval_landings_start: int = 0
 
 
 class RealtimeSlider:
@@ -257,7 +266,8 @@ class RealtimeSlider:
         it (the refusal names the field that was set).
         """
         t = self._advance(wall_ns)
-        physics = {k: float(v) for k, v in values.items() if k in spec.PLANT or k in spec.INPUTS}
+        physics = {k: v if isinstance(v, str) else float(v) for k, v in values.items()
+                   if k in spec.PLANT or k in spec.INPUTS}
         command = Command(t, PARAMETERS, physics)
         try:
             params, inputs = apply(command, self.slider.params, self.slider.inputs)
@@ -411,6 +421,7 @@ class RealtimeSlider:
                 n=mark.n, t=mark.t, mean_velocity=(mark.x - first.x) / span if span > 0 else 0.0,
                 window_periods=mark.n - first.n,
                 stick_fraction=(mark.stuck_time - previous.stuck_time) / duration if duration > 0 else 1.0,
+                flight_fraction=(mark.flight_time - previous.flight_time) / duration if duration > 0 else 0.0,
             ))
         if summaries:
             self.last_period = summaries[-1]
@@ -444,6 +455,8 @@ class RealtimeSlider:
         tick_rate = stats.ticks / wall if wall > 0 else 0.0
         achieved_rtf = (sim_now - stats.interval_sim_start) / wall if wall > 0 else 0.0
         inputs = self.slider.inputs
+        flight_time, lift_offs, landings = self._flight_record()
+        sim_elapsed = self.slider.t - stats.interval_slider_start
         try:
             prediction = self.prediction()
         except Exception:  # noqa: BLE001 - diagnostics must answer whatever the inputs: nan = no prediction
@@ -466,12 +479,20 @@ class RealtimeSlider:
             "excitation_frequency": inputs.excitation_frequency,
             "external_force_x": inputs.external_force_x,
             "external_force_z": inputs.external_force_z,
+            "throw_number": throw_number(self.slider.params, inputs),
             # the groups the prediction is made of: with an external force, the effective ones
             "phi": prediction.effective_phi,
             "amplitude_ratio": prediction.effective_amplitude_ratio,
             "predicted_U": prediction.u,
             "predicted_mean_velocity": prediction.mean_velocity,
             "stick_fraction": self.last_period.stick_fraction if self.last_period else math.nan,
+            "flight_fraction": self.last_period.flight_fraction if self.last_period else math.nan,
+            "flight_fraction_in_interval": ((flight_time - stats.interval_flight_start) / sim_elapsed
+                                            if sim_elapsed > 0 else math.nan),
+            "lift_offs": lift_offs,
+            "landings": landings,
+            "lift_offs_in_interval": lift_offs - stats.interval_lift_offs_start,
+            "landings_in_interval": landings - stats.interval_landings_start,
             "measured_mean_velocity": self.last_period.mean_velocity if self.last_period else math.nan,
         }
         self._rejected_before_interval = self.rejected
@@ -480,4 +501,13 @@ class RealtimeSlider:
         stats.late_ticks = 0
         stats.interval_start_ns = wall_ns
         stats.interval_sim_start = sim_now
+        stats.interval_slider_start = self.slider.t
+        stats.interval_flight_start, stats.interval_lift_offs_start, stats.interval_landings_start = (
+            flight_time, lift_offs, landings)
         return report
+
+    def _flight_record(self) -> tuple[float, int, int]:
+        """(time in flight [s], lift-offs, landings) since the start, up to the slider's time."""
+        counts = self.slider.event_counts
+        flight_time = float(getattr(self.slider, "flight_time", 0.0))  # TEMP until the general core lands
+        return flight_time, counts.get(EventKind.LIFT_OFF, 0), counts.get(EventKind.LANDING, 0)

@@ -21,7 +21,7 @@ if TYPE_CHECKING:  # the offline jobs write CSV without loading the ROS message 
     from friction_sim.io.reader import Recording
 
 TRAJECTORY_COLUMNS = (
-    "t", "kind", "x", "v", "acceleration", "friction_force", "normal_force", "phase", "mode",
+    "t", "kind", "x", "v", "acceleration", "friction_force", "normal_force", "phase", "mode", "z", "vz",
 )
 
 
@@ -39,7 +39,9 @@ def write_umap_csv(umap: UMap, path: Path) -> Path:
 
 def write_trajectory_csv(trajectory: Trajectory, events: list[Event], path: Path) -> Path:
     """The uniform samples (kind ``sample``) and the events (kind = the event's
-    kind, state just after it; v = 0 at every event), merged in time order."""
+    kind, the velocities just after it: v = 0 at slip_start, stick and
+    reversal; z = 0 at every event, vz the rebound at a landing), merged in
+    time order.  z is the height above the track, vz its rate (0 in contact)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     rows: list[tuple[float, int, tuple[str, ...]]] = []
     for k in range(trajectory.t.size):
@@ -48,11 +50,12 @@ def write_trajectory_csv(trajectory: Trajectory, events: list[Event], path: Path
             repr(float(trajectory.v[k])), repr(float(trajectory.acceleration[k])),
             repr(float(trajectory.friction_force[k])), repr(float(trajectory.normal_force[k])),
             repr(float(trajectory.phase[k])), str(int(trajectory.mode[k])),
+            repr(float(trajectory.z[k])), repr(float(trajectory.vz[k])),
         )))
     for event in events:
         rows.append((event.t, 0, (
-            repr(event.t), event.kind.value, repr(event.x), "0.0", "", "", "",
-            repr(event.phase), str(int(event.after)),
+            repr(event.t), event.kind.value, repr(event.x), repr(float(event.v_after)), "", "", "",
+            repr(event.phase), str(int(event.after)), "0.0", repr(float(event.vz_after)),
         )))
     rows.sort(key=lambda row: (row[0], row[1]))
     with path.open("w", newline="") as stream:

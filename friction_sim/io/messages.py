@@ -10,16 +10,18 @@ Topics of a recording (the node's own relative names, without namespace):
 ==========================  ===============================  ==========================================
 topic                       type                             content
 ==========================  ===============================  ==========================================
-``pose``                    geometry_msgs/msg/PoseStamped    pose.position.x = x [m]
-``velocity``                geometry_msgs/msg/TwistStamped   twist.linear.x = v [m/s]
+``pose``                    geometry_msgs/msg/PoseStamped    pose.position.x = x, .z = z [m] (height)
+``velocity``                geometry_msgs/msg/TwistStamped   twist.linear.x = v, .z = vz [m/s]
 ``friction_force``          geometry_msgs/msg/WrenchStamped  force.x = friction force, force.z = R [N]
+                                                             (0 in flight)
 ``mean_velocity``           geometry_msgs/msg/TwistStamped   twist.linear.x = mean v over the window
 ``drive_force``             std_msgs/msg/Float64             accepted command, Fd [N]
 ``excitation_amplitude``    std_msgs/msg/Float64             accepted command, Pa [N]
 ``excitation_frequency``    std_msgs/msg/Float64             accepted command, f [Hz]
 ``target_speed``            std_msgs/msg/Float64             accepted command (controller), V* [m/s]
 ``external_wrench``         geometry_msgs/msg/WrenchStamped  accepted command, force.x, force.z [N]
-``events``                  diagnostic_msgs/msg/DiagnosticStatus  stick/slip events (see below)
+                                                             (force.z > 0 lifts: see below)
+``events``                  diagnostic_msgs/msg/DiagnosticStatus  stick/slip/flight events (see below)
 ``rejected_commands``       diagnostic_msgs/msg/DiagnosticStatus  refused commands, level WARN
 ``parameters``              rcl_interfaces/msg/ParameterEvent     parameters at start (new_parameters)
                                                              and every change (changed_parameters)
@@ -27,6 +29,11 @@ topic                       type                             content
 
 Header stamps and the recording's log times are simulation time, in whole
 nanoseconds (:func:`seconds_to_ns`), the resolution of a ROS time stamp.
+
+The frame is the track's: x along it (+ = conveying), z normal to it, away
+from it.  So ``external_wrench`` force.z (``external_force_z``) > 0 lifts the
+slider; recordings made before that convention (positive pressed the slider
+on the track) carry no marker and are read in it (:mod:`friction_sim.io.reader`).
 """
 
 from __future__ import annotations
@@ -43,7 +50,7 @@ from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rcl_interfaces.msg import Parameter, ParameterEvent, ParameterType, ParameterValue
 
 from friction_sim.core.commands import COMMANDS, PARAMETERS, Command, Outcome, float_values
-from friction_sim.core.events import Event, Mode, SliderState
+from friction_sim.core.events import Event, EventKind, Mode, SliderState
 from friction_sim.core.realtime import NS_PER_S, PeriodSummary
 from friction_sim.errors import RecordingError
 
@@ -120,15 +127,17 @@ def fill_state_messages(
         time_msg(ns, msg.header.stamp)
         msg.header.frame_id = frame_id
     pose.pose.position.x = state.x
+    pose.pose.position.z = state.z
     twist.twist.linear.x = state.v
+    twist.twist.linear.z = state.vz
     wrench.wrench.force.x = state.friction_force
     wrench.wrench.force.z = state.normal_force
 
 
 def state_messages(state: SliderState, frame_id: str = "slideway") -> tuple[PoseStamped, TwistStamped, WrenchStamped]:
-    """(pose, velocity, friction_force): position x, velocity v, and the
-    friction force (force.x) with the normal reaction R (force.z), stamped
-    with the state's simulation time."""
+    """(pose, velocity, friction_force): position x and height z, velocity v
+    and vz, and the friction force (force.x) with the normal reaction R
+    (force.z, 0 in flight), stamped with the state's simulation time."""
     pose, twist, wrench = PoseStamped(), TwistStamped(), WrenchStamped()
     fill_state_messages(state, frame_id, pose, twist, wrench)
     return pose, twist, wrench
@@ -198,12 +207,20 @@ def rejection_message(outcome: Outcome) -> DiagnosticStatus:
 # -- events ---------------------------------------------------------------------
 
 
-def event_message(event: Event) -> DiagnosticStatus:
-    """A stick/slip event as a diagnostic_msgs/DiagnosticStatus.
+#: Event kinds whose message also carries the velocities just before and after
+#: (a landing changes them: an impact; at a lift-off they are continuous).
+FLIGHT_EVENTS = (EventKind.LIFT_OFF, EventKind.LANDING)
 
-    name = the kind (``slip_start``, ``stick``, ``reversal``), message = the
-    transition in words (``stuck -> forward``), values = t, x, phase, before,
-    after (numbers at full precision); level OK.
+
+def event_message(event: Event) -> DiagnosticStatus:
+    """An event of the motion as a diagnostic_msgs/DiagnosticStatus.
+
+    name = the kind (``slip_start``, ``stick``, ``reversal``, ``lift_off``,
+    ``landing``), message = the transition in words (``stuck -> forward``,
+    ``forward -> flight``), values = t, x, phase, before, after (numbers at
+    full precision) and, for lift_off and landing, v_before, v_after,
+    vz_before, vz_after (tangential and normal velocity just before and just
+    after); level OK.
 
     Why DiagnosticStatus rather than a JSON std_msgs/String: in Foxglove's Raw
     Messages panel each field is shown on its own line and the values as a
@@ -214,11 +231,13 @@ def event_message(event: Event) -> DiagnosticStatus:
     The time of the event is the message's log time and the ``t`` value.
     """
     before, after = _mode(event.before), _mode(event.after)
-    return DiagnosticStatus(
-        level=DiagnosticStatus.OK, name=event.kind.value, message=f"{before} -> {after}",
-        values=key_values({"t": float(event.t), "x": float(event.x), "phase": float(event.phase),
-                           "before": before, "after": after}),
-    )
+    values: dict[str, Any] = {"t": float(event.t), "x": float(event.x), "phase": float(event.phase),
+                              "before": before, "after": after}
+    if event.kind in FLIGHT_EVENTS:
+        values.update(v_before=float(event.v_before), v_after=float(event.v_after),
+                      vz_before=float(event.vz_before), vz_after=float(event.vz_after))
+    return DiagnosticStatus(level=DiagnosticStatus.OK, name=event.kind.value, message=f"{before} -> {after}",
+                            values=key_values(values))
 
 
 def _mode(mode: Mode | int) -> str:
@@ -321,8 +340,8 @@ def key_values(values: Mapping[str, Any]) -> list[KeyValue]:
 
 
 __all__ = [
-    "COMMAND_TOPICS", "NS_PER_S", "STATE_TOPICS", "TOPIC_TYPES", "command_from_message", "command_message",
-    "event_message", "fill_state_messages", "mean_velocity_message", "message_class", "ns_to_seconds",
-    "parameter_event_values", "parameter_python_value", "parameter_value", "parameters_message",
+    "COMMAND_TOPICS", "FLIGHT_EVENTS", "NS_PER_S", "STATE_TOPICS", "TOPIC_TYPES", "command_from_message",
+    "command_message", "event_message", "fill_state_messages", "mean_velocity_message", "message_class",
+    "ns_to_seconds", "parameter_event_values", "parameter_python_value", "parameter_value", "parameters_message",
     "rejection_message", "seconds_to_ns", "stamp_ns", "state_messages", "time_msg",
 ]

@@ -22,6 +22,15 @@ relative (``pose``).  Every method that takes a topic takes either the
 stored name or the name relative to the recorded node (``pose``,
 ``events``): :meth:`Recording.topic_name` resolves it.
 
+The ``external_wrench`` convention: a file records in its ``friction_sim``
+metadata record which way ``external_force_z`` points
+(``external_force_z_convention: lifts``, z away from the track).  A file
+without the key was written before, when positive force.z pressed the
+slider on the track; :attr:`Recording.external_force_z_sign` (-1 for such a
+file) turns its commands and parameters into today's convention
+(:func:`friction_sim.io.verify.recorded_commands` and
+:func:`~friction_sim.io.verify.initial_parameters` apply it).
+
 Errors (missing file, not MCAP, not a friction_sim recording, a finished
 file damaged in its middle, a file with dropped messages where the tool
 needs all of them) raise :class:`~friction_sim.errors.RecordingError` with
@@ -51,7 +60,7 @@ from friction_sim.io.chunks import (
     until_damaged,
 )
 from friction_sim.io.messages import message_class, ns_to_seconds
-from friction_sim.io.recorder import METADATA_NAME, SUMMARY_METADATA_NAME
+from friction_sim.io.recorder import CONVENTION_KEY, LIFTS, LOADS, METADATA_NAME, SUMMARY_METADATA_NAME
 
 #: The topic every friction_sim recording has; its namespace is the recording's.
 POSE = "pose"
@@ -245,6 +254,29 @@ class Recording:
         """(log time [ns], message) of every message on ``topic`` (a list)."""
         return list(self.iter_decoded(topic))
 
+    # -- conventions -------------------------------------------------------------------
+
+    @property
+    def external_force_z_convention(self) -> str:
+        """Which way the file's ``external_force_z`` (``external_wrench`` force.z)
+        points: ``lifts`` (away from the track: written since the key exists)
+        or ``loads`` (a file without the key: > 0 pressed the slider on the track)."""
+        return self.metadata.get(METADATA_NAME, {}).get(CONVENTION_KEY, LOADS)
+
+    @property
+    def external_force_z_sign(self) -> float:
+        """What the file's ``external_force_z`` values are multiplied by to mean
+        what they mean today (z away from the track): 1.0, or -1.0 for a file
+        in the old ``loads`` convention.  RecordingError for a convention this
+        version does not know."""
+        convention = self.external_force_z_convention
+        if convention == LIFTS:
+            return 1.0
+        if convention == LOADS:
+            return -1.0
+        raise RecordingError(f"{self.path}: {CONVENTION_KEY} = {convention!r} is not known "
+                             f"(known: {LIFTS}, {LOADS})")
+
     # -- notes -------------------------------------------------------------------------
 
     @property
@@ -291,7 +323,11 @@ class Recording:
             lines.append(f"{label:<12}{topic:<{width}}  {channel.type_name:<38} {self.counts.get(channel.id, 0)}")
         meta = self.metadata.get(METADATA_NAME, {})
         if meta:
-            lines.append("Parameters: " + ", ".join(f"{k} = {v}" for k, v in meta.items() if k != "format"))
+            lines.append("Parameters: " + ", ".join(f"{k} = {v}" for k, v in meta.items()
+                                                    if k not in ("format", CONVENTION_KEY)))
+            words = _CONVENTION_WORDS.get(self.external_force_z_convention, self.external_force_z_convention)
+            lines.append(f"Convention: external_wrench force.z > 0 {words}"
+                         + ("" if CONVENTION_KEY in meta else " (a file written before the convention was marked)"))
         return lines
 
     # -- filling it in ------------------------------------------------------------
@@ -322,6 +358,9 @@ class Recording:
         if first is not None and last is not None:
             self.start_ns = first if not had else min(self.start_ns, first)
             self.end_ns = last if not had else max(self.end_ns, last)
+
+
+_CONVENTION_WORDS = {LIFTS: "lifts (z away from the track)", LOADS: "loads the contact (the old convention)"}
 
 
 def read_recording(path: str | Path, *, require_friction_sim: bool = True) -> Recording:

@@ -15,7 +15,12 @@ read it as they read a recorded bag:
   ``topic_type_hash`` (RIHS01);
 * chunked, zstd-compressed, with message indexes, statistics and summary
   (:class:`~friction_sim.io.bagfile.BagFile`);
-* a metadata record ``friction_sim`` with the run's parameters, written first;
+* a metadata record ``friction_sim`` with the run's parameters, written
+  first, and the key ``external_force_z_convention: lifts``: the file's
+  ``external_wrench`` force.z and ``external_force_z`` point away from the
+  track (> 0 lifts).  Files written before that convention existed have no
+  such key; their positive force.z pressed the slider on the track
+  (``loads``), and the reader turns it round (:mod:`friction_sim.io.reader`);
   and when the file is finished, a ``friction_sim_summary`` record (messages
   written, messages dropped) and a complete ``rosbag2`` metadata record
   (``serialized_metadata``, bag metadata version 9) as rosbag2 writes on
@@ -90,8 +95,15 @@ _log = logging.getLogger("friction_sim.io.recorder")
 METADATA_NAME = "friction_sim"
 #: Name of the metadata record written on finish with the recorder's counts.
 SUMMARY_METADATA_NAME = "friction_sim_summary"
-#: Value of the "format" key of the friction_sim metadata record.
-FORMAT = "friction_sim-recording/1"
+#: Value of the "format" key of the friction_sim metadata record (2: z up, flight, the convention key).
+FORMAT = "friction_sim-recording/2"
+#: Key of the friction_sim metadata record that says which way ``external_force_z``
+#: (``external_wrench`` force.z) points in the file's commands and parameters.
+CONVENTION_KEY = "external_force_z_convention"
+#: The convention written since issue 11: z away from the track, > 0 lifts the slider.
+LIFTS = "lifts"
+#: The convention of files without :data:`CONVENTION_KEY`: > 0 pressed the slider on the track.
+LOADS = "loads"
 #: The plant and input fields a recording starts from (what ``--verify`` rebuilds).
 PLANT_FIELDS = tuple(spec.PLANT)
 INPUT_FIELDS = tuple(spec.INPUTS)
@@ -100,11 +112,15 @@ INPUT_FIELDS = tuple(spec.INPUTS)
 URGENT_HEADROOM = 4096
 
 
-def plant_parameters(params: SliderParams, inputs: Inputs) -> dict[str, float]:
+def plant_parameters(params: SliderParams, inputs: Inputs) -> dict[str, float | str]:
     """The physical parameters and inputs a run starts with, by field name
-    (what ``--verify`` rebuilds the simulation from)."""
-    values = {name: float(getattr(params, name)) for name in PLANT_FIELDS}
-    values.update({name: float(getattr(inputs, name)) for name in INPUT_FIELDS})
+    (what ``--verify`` rebuilds the simulation from): floats, and text for a
+    string setting (``landing_friction``)."""
+    values: dict[str, float | str] = {}
+    for source, names in ((params, PLANT_FIELDS), (inputs, INPUT_FIELDS)):
+        for name in names:
+            value = getattr(source, name)
+            values[name] = value if isinstance(value, str) else float(value)
     return values
 
 
@@ -113,7 +129,7 @@ def recording_metadata(params: SliderParams, inputs: Inputs, *, log_rate: float,
     """The ``friction_sim`` metadata record: the format, the log rate, the frame
     and the parameters at start (full precision), plus ``extra``."""
     data = {"format": FORMAT, "log_rate": repr(float(log_rate)), "frame_id": frame_id}
-    data.update({name: repr(float(value)) for name, value in plant_parameters(params, inputs).items()})
+    data.update({name: value_text(value) for name, value in plant_parameters(params, inputs).items()})
     data.update({name: value_text(value) for name, value in extra.items()})
     return data
 
@@ -142,7 +158,10 @@ class Recorder:
     records and build the messages on that thread).
 
     ``metadata`` becomes the ``friction_sim`` MCAP metadata record, written
-    first.  ``namespace`` is the node's namespace: relative topic names are
+    first, with ``external_force_z_convention`` (default ``lifts``, the
+    convention of this version) added unless ``metadata`` has it; None adds
+    no key (a file as written before the key existed: tests of old files).
+    ``namespace`` is the node's namespace: relative topic names are
     stored fully qualified in it.  ``setting`` names the setting ``path``
     came from, for the error message.  ``queue_size`` counts messages (a
     state is three); ``flush_interval`` [s of wall time] bounds what a
@@ -156,6 +175,7 @@ class Recorder:
         metadata_name: str = METADATA_NAME, namespace: str = "/", setting: str = "log_path",
         queue_size: int = 262_144, block_when_full: bool = True, flush_interval: float = 0.25,
         chunk_size: int = 4 * 1024 * 1024, fsync: bool = False, qos_profiles: list[dict[str, Any]] | None = None,
+        external_force_z_convention: str | None = LIFTS,
     ) -> None:
         if not flush_interval > 0.0:
             raise ParameterError("flush_interval", flush_interval, "must be > 0 s")
@@ -190,6 +210,8 @@ class Recorder:
         self._waits = 0
         self._warned_behind = False
         self._stream = self._open()
+        if metadata is not None and metadata_name == METADATA_NAME and external_force_z_convention is not None:
+            metadata = {**metadata, CONVENTION_KEY: metadata.get(CONVENTION_KEY, external_force_z_convention)}
         self._file = self._start(qos_profiles if qos_profiles is not None else DEFAULT_QOS, chunk_size,
                                  metadata_name, metadata)
         self._writer = RecordWriter(self._file, namespace, self.path)
@@ -518,6 +540,6 @@ def _prepare_encoders() -> None:
 
 
 __all__ = [
-    "FORMAT", "INPUT_FIELDS", "METADATA_NAME", "PLANT_FIELDS", "SUMMARY_METADATA_NAME", "Recorder",
-    "RecordingStats", "plant_parameters", "qualified_topic", "recording_metadata",
+    "CONVENTION_KEY", "FORMAT", "INPUT_FIELDS", "LIFTS", "LOADS", "METADATA_NAME", "PLANT_FIELDS",
+    "SUMMARY_METADATA_NAME", "Recorder", "RecordingStats", "plant_parameters", "qualified_topic", "recording_metadata",
 ]

@@ -52,6 +52,16 @@ Item = tuple[Any, ...]
 ROWS_PER_PASS = 2048
 
 
+#: The numbers of a state the three state messages carry, in the order of a row
+#: of :meth:`BagFile.add_rows` (pose x and z, velocity v and vz, friction force and R).
+STATE_VALUES = ("x", "z", "v", "vz", "friction_force", "normal_force")
+
+
+def _state_values(state: SliderState) -> tuple[float, ...]:
+    """The :data:`STATE_VALUES` of ``state``."""
+    return state.x, state.z, state.v, state.vz, state.friction_force, state.normal_force
+
+
 def qualified_topic(namespace: str, topic: str) -> str:
     """``topic`` as rosbag2 names it: absolute names stay, relative ones are
     resolved in ``namespace`` (``pose`` in ``/`` is ``/pose``, in ``/feeder1``
@@ -127,7 +137,7 @@ class RecordWriter:
                     self._write_safely(("state", state, frame_id))
                 continue
             try:
-                table = np.array([(s.t, s.x, s.v, s.friction_force, s.normal_force) for s in part], dtype=np.float64)
+                table = np.array([(s.t, *_state_values(s)) for s in part], dtype=np.float64)
                 ns = np.rint(table[:, 0] * 1e9)  # = seconds_to_ns(t): round half to even, as round()
                 ok = (ns >= 0.0) & (ns <= MAX_STAMP_NS)  # False for NaN too
                 if not ok.all():
@@ -143,11 +153,12 @@ class RecordWriter:
         """The fixed layouts of a state's three messages in ``frame_id`` (cached)."""
         if frame_id not in self._state_groups:
             def make(ns: int, values: Sequence[float]) -> Sequence[Any]:
-                x, v, friction, normal = values
-                return state_messages(SliderState(ns / 1e9, x, v, 0.0, friction, normal, 0.0, Mode.STUCK), frame_id)
+                x, z, v, vz, friction, normal = values
+                return state_messages(SliderState(ns / 1e9, x, v, 0.0, friction, normal, 0.0, Mode.STUCK, z, vz),
+                                      frame_id)
 
             topics = [self.topic(topic) for topic in STATE_TOPICS]
-            self._state_groups[frame_id] = self.file.row_group(topics, make, 4)
+            self._state_groups[frame_id] = self.file.row_group(topics, make, len(STATE_VALUES))
         return self._state_groups[frame_id]
 
     def _write_period(self, period: PeriodSummary, frame_id: str) -> None:
@@ -230,4 +241,4 @@ def _messages(item: Item) -> list[tuple[str, Any, int]]:
     raise ValueError(f"unknown record kind {kind!r}")
 
 
-__all__ = ["ROWS_PER_PASS", "RecordWriter", "qualified_topic"]
+__all__ = ["ROWS_PER_PASS", "STATE_VALUES", "RecordWriter", "qualified_topic"]

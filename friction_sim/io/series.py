@@ -30,6 +30,9 @@ Series = tuple[IntArray, FloatArray]
 
 POSITION: Fields = (lambda m: (m.pose.position.x,), 1)
 VELOCITY: Fields = (lambda m: (m.twist.linear.x,), 1)
+#: Position x, y, z and velocity x, y, z: columns 0 and 2 are (x, z) and (v, vz).
+POSITION_XZ: Fields = (lambda m: (m.pose.position.x, m.pose.position.y, m.pose.position.z), 3)
+VELOCITY_XZ: Fields = (lambda m: (m.twist.linear.x, m.twist.linear.y, m.twist.linear.z), 3)
 FORCE: Fields = (lambda m: (m.wrench.force.x, m.wrench.force.y, m.wrench.force.z), 3)
 
 
@@ -174,5 +177,5 @@ def thinned_series(recording: Recording, topics: Mapping[str, Fields], points: i
     return {name: thinner.result() for name, thinner in thinners.items()}
 
 
-__all__ = ["FORCE", "POSITION", "VELOCITY", "Fields", "Thinner", "stamped_floats", "stamps_ns", "state_blocks",
-           "state_values", "status_names", "thinned_series"]
+__all__ = ["FORCE", "POSITION", "POSITION_XZ", "VELOCITY", "VELOCITY_XZ", "Fields", "Thinner", "stamped_floats",
+           "stamps_ns", "state_blocks", "state_values", "status_names", "thinned_series"]

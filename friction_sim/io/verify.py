@@ -4,8 +4,18 @@
 (:func:`initial_parameters`) and the accepted commands
 (:func:`recorded_commands`, applied at their recorded simulation times
 through :func:`friction_sim.core.commands.apply`, the one gate) and compares
-it with every recorded pose and velocity sample; it passes when both differ
-by at most 1e-9 relative to the largest recorded |x| and |v|.
+it with every recorded pose and velocity sample: position x, velocity v, and
+in flight the height z and its rate vz.  It passes when each differs by at
+most 1e-9 relative to the largest recorded magnitude of its quantity (a run
+that never leaves the track has z = vz = 0 throughout, and must reproduce
+exactly that).
+
+A file written before the ``external_wrench`` convention was marked (force.z
+> 0 pressed the slider on the track) is re-simulated in today's convention
+(force.z > 0 lifts) with its ``external_force_z`` values turned round
+(:attr:`~friction_sim.io.reader.Recording.external_force_z_sign`); plant
+parameters it does not name (it predates them) take their defaults, the
+paper's model it was recorded with.
 
 The file is streamed: one pass reads the commands (few), a second the
 samples chunk by chunk, re-simulating as it goes and keeping only the
@@ -24,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from friction_sim.core import spec
 from friction_sim.core.commands import PARAMETERS, Command, apply
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.slider import Slider
@@ -38,9 +49,12 @@ from friction_sim.io.messages import (
 )
 from friction_sim.io.reader import Recording
 from friction_sim.io.recorder import INPUT_FIELDS, METADATA_NAME, PLANT_FIELDS
-from friction_sim.io.series import POSITION, VELOCITY, FloatArray, IntArray, state_blocks
+from friction_sim.io.series import POSITION_XZ, VELOCITY_XZ, FloatArray, IntArray, state_blocks
 
 DEFAULT_TOLERANCE = 1e-9
+#: The fields every recording names at start; the others (added later) default to the spec's.
+REQUIRED_FIELDS = ("mass", "mu", "gravity", "drive_force", "excitation_amplitude", "excitation_frequency")
+_EXTERNAL_Z = "external_force_z"
 
 
 @dataclass(frozen=True)
@@ -49,8 +63,11 @@ class VerifyResult:
 
     ``max_dx``/``max_dv`` are the largest absolute differences (at
     ``worst_dx_t``/``worst_dv_t`` s), ``rel_dx``/``rel_dv`` the same relative
-    to the largest recorded |x| and |v|.  ``passed`` when both are within
-    ``tolerance`` and nothing went wrong (``problems``).
+    to the largest recorded |x| and |v|; ``max_dz``/``max_dvz`` and
+    ``rel_dz``/``rel_dvz`` the same for the height z and its rate vz (0 for a
+    run that never flies).  ``passed`` when all four are within ``tolerance``
+    and nothing went wrong (``problems``).  ``convention`` is the file's
+    ``external_wrench`` convention (``loads``: an old file, turned round).
     """
 
     samples: int
@@ -65,12 +82,21 @@ class VerifyResult:
     worst_dv_t: float
     tolerance: float
     problems: tuple[str, ...] = ()
+    max_dz: float = 0.0
+    max_dvz: float = 0.0
+    z_scale: float = 0.0
+    vz_scale: float = 0.0
+    rel_dz: float = 0.0
+    rel_dvz: float = 0.0
+    worst_dz_t: float = 0.0
+    worst_dvz_t: float = 0.0
+    convention: str = "lifts"
 
     @property
     def passed(self) -> bool:
         """Within the tolerance, with samples and without problems."""
         return (not self.problems and self.samples > 0
-                and self.rel_dx <= self.tolerance and self.rel_dv <= self.tolerance)
+                and all(rel <= self.tolerance for rel in (self.rel_dx, self.rel_dv, self.rel_dz, self.rel_dvz)))
 
     def lines(self) -> list[str]:
         """The report ``--verify`` prints."""
@@ -82,6 +108,16 @@ class VerifyResult:
             f"largest velocity difference: {self.max_dv:.3e} m/s at t = {self.worst_dv_t:.6f} s "
             f"({self.rel_dv:.3e} of max|v| = {self.v_scale:.6g} m/s)",
         ]
+        if self.z_scale or self.vz_scale or self.max_dz or self.max_dvz:  # the run left the track
+            lines += [
+                f"largest height difference: {self.max_dz:.3e} m at t = {self.worst_dz_t:.6f} s "
+                f"({self.rel_dz:.3e} of max|z| = {self.z_scale:.6g} m)",
+                f"largest normal velocity difference: {self.max_dvz:.3e} m/s at t = {self.worst_dvz_t:.6f} s "
+                f"({self.rel_dvz:.3e} of max|vz| = {self.vz_scale:.6g} m/s)",
+            ]
+        if self.convention != "lifts":
+            lines.append("old file: external_wrench force.z > 0 loaded the contact; re-simulated with it turned "
+                         "round (today > 0 lifts)")
         lines += [f"problem: {problem}" for problem in self.problems]
         lines.append(f"{verdict} (tolerance {self.tolerance:.0e} relative)")
         return lines
@@ -90,17 +126,30 @@ class VerifyResult:
 def initial_parameters(recording: Recording) -> dict[str, Any]:
     """The parameters at start: the first ParameterEvent's new_parameters on
     ``parameters``, else the plant and input fields of the ``friction_sim``
-    metadata record."""
+    metadata record; ``external_force_z`` in today's convention (> 0 lifts)."""
+    sign = recording.external_force_z_sign
     for raw in recording.iter_messages([PARAMETERS]):
         new, _ = parameter_event_values(recording.decode(raw))
         if new:
-            return new
+            return _turned(new, sign)
     meta = recording.metadata.get(METADATA_NAME, {})
     values: dict[str, Any] = {}
     for name in (*PLANT_FIELDS, *INPUT_FIELDS):
         if name in meta:
+            if spec.PLANT.get(name, spec.EXTERNAL_FORCE_X).kind is str:
+                values[name] = meta[name]
+                continue
             with contextlib.suppress(ValueError):
                 values[name] = float(meta[name])
+    return _turned(values, sign)
+
+
+def _turned(values: dict[str, Any], sign: float) -> dict[str, Any]:
+    """``values`` with ``external_force_z`` multiplied by ``sign`` (-1: an old
+    file's value in today's convention; 0.0 stays 0.0, not -0.0)."""
+    value = values.get(_EXTERNAL_Z)
+    if sign < 0.0 and isinstance(value, (int, float)) and not isinstance(value, bool):
+        values = {**values, _EXTERNAL_Z: 0.0 - value}
     return values
 
 
@@ -108,7 +157,9 @@ def recorded_commands(recording: Recording) -> list[Command]:
     """Every accepted command in the recording, at its log time, sorted by
     time (ties in file order): the command topics (target_speed included,
     which changes no slider) and every ParameterEvent on ``parameters`` after
-    the initial one that changes a plant or input field."""
+    the initial one that changes a plant or input field; ``external_force_z``
+    in today's convention (> 0 lifts; an old file's is turned round)."""
+    sign = recording.external_force_z_sign
     stored = {topic: recording.topic_name(topic) for topic in COMMAND_TOPICS}
     topics = {name: topic for topic, name in stored.items() if name is not None}
     found: list[tuple[int, int, Command]] = []
@@ -120,6 +171,8 @@ def recorded_commands(recording: Recording) -> list[Command]:
             initial_seen = True
             continue
         command = command_from_message(topic, msg, ns_to_seconds(raw.log_time))
+        if sign < 0.0 and _EXTERNAL_Z in command.values:
+            command = Command(command.t, command.name, _turned(dict(command.values), sign))
         if command.values:
             found.append((raw.log_time, order, command))
     return [command for _, _, command in sorted(found, key=lambda item: item[:2])]
@@ -128,43 +181,55 @@ def recorded_commands(recording: Recording) -> list[Command]:
 def verify(recording: Recording, tolerance: float = DEFAULT_TOLERANCE) -> VerifyResult:
     """Re-simulate the recording with the exact core and compare it with the
     recorded pose and velocity samples (see :class:`VerifyResult`), chunk by
-    chunk.  RecordingError if the recorder dropped messages."""
+    chunk.  RecordingError if the recorder dropped messages or the file's
+    external_wrench convention is not known."""
     recording.refuse_dropped("verified")
     values = initial_parameters(recording)
     slider = _initial_slider(recording, values)
     commands = [command for command in recorded_commands(recording) if command.for_slider]
     replay = _Replay(slider, commands, _log_rate(recording, values))
-    x, v = _Largest(), _Largest()
+    x, v, z, vz = _Largest(), _Largest(), _Largest(), _Largest()
     samples = 0
-    for block in state_blocks(recording, {"pose": POSITION, "velocity": VELOCITY}):
+    for block in state_blocks(recording, {"pose": POSITION_XZ, "velocity": VELOCITY_XZ}):
         (pose_ns, pose), (vel_ns, vel) = block["pose"], block["velocity"]
         times_ns = replay.in_order(np.unique(np.concatenate([pose_ns, vel_ns])))
         if times_ns.size == 0:
             continue
-        x_sim, v_sim = replay.states(times_ns)
+        x_sim, v_sim, z_sim, vz_sim = replay.states(times_ns)
         x.add(times_ns, x_sim, pose_ns, pose[:, 0])
+        z.add(times_ns, z_sim, pose_ns, pose[:, 2])
         v.add(times_ns, v_sim, vel_ns, vel[:, 0])
+        vz.add(times_ns, vz_sim, vel_ns, vel[:, 2])
         samples += int(pose_ns.size)
     replay.finish()
     return VerifyResult(
         samples=samples, commands=len(commands), max_dx=x.difference, max_dv=v.difference, x_scale=x.scale,
         v_scale=v.scale, rel_dx=_relative(x.difference, x.scale), rel_dv=_relative(v.difference, v.scale),
         worst_dx_t=x.t, worst_dv_t=v.t, tolerance=tolerance, problems=tuple(replay.problems),
+        max_dz=z.difference, max_dvz=vz.difference, z_scale=z.scale, vz_scale=vz.scale,
+        rel_dz=_relative(z.difference, z.scale), rel_dvz=_relative(vz.difference, vz.scale),
+        worst_dz_t=z.t, worst_dvz_t=vz.t, convention=recording.external_force_z_convention,
     )
 
 
 def _initial_slider(recording: Recording, values: dict[str, Any]) -> Slider:
     """The slider the run started with; RecordingError if the values are missing or invalid."""
-    missing = [name for name in (*PLANT_FIELDS, *INPUT_FIELDS[:3]) if name not in values]
+    missing = [name for name in REQUIRED_FIELDS if name not in values]
     if missing:
         raise RecordingError(f"{recording.path}: no initial value of {', '.join(missing)} "
                              f"(neither on 'parameters' nor in the friction_sim metadata)")
     try:
-        params = SliderParams(**{name: float(values[name]) for name in PLANT_FIELDS})
+        params = SliderParams(**{name: _value(values.get(name, spec.PLANT[name].default))
+                                 for name in PLANT_FIELDS})
         inputs = Inputs(**{name: float(values.get(name, 0.0)) for name in INPUT_FIELDS})
         return Slider(params, inputs, event_log_size=0)
     except ParameterError as error:
         raise RecordingError(f"{recording.path}: recorded initial parameters are invalid: {error}") from None
+
+
+def _value(value: Any) -> Any:
+    """A recorded parameter as the core takes it: text stays text, numbers become floats."""
+    return value if isinstance(value, str) else float(value)
 
 
 class _Replay:
@@ -194,29 +259,30 @@ class _Replay:
             times_ns = times_ns[~late]
         return times_ns
 
-    def states(self, times_ns: IntArray) -> tuple[FloatArray, FloatArray]:
-        """(x, v) at ``times_ns`` (ascending, from the last time sampled on)."""
+    def states(self, times_ns: IntArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """(x, v, z, vz) at ``times_ns`` (ascending, from the last time sampled on)."""
         times = sample_times(times_ns, self.log_rate)
-        x_sim = np.empty(times_ns.size)
-        v_sim = np.empty(times_ns.size)
+        out = np.empty((4, times_ns.size))
         first = 0
         while first < times_ns.size and self.next < len(self.batches):
             t_ns, batch = self.batches[self.next]
             last = int(np.searchsorted(times_ns, t_ns, side="right"))
             if last == times_ns.size:
                 break  # a later block may still hold samples at or before this batch
-            self._sample(times, first, last, x_sim, v_sim)
+            self._sample(times, first, last, out)
             first = last
             _apply_batch(self.slider, batch, self.problems)
             self.next += 1
-        self._sample(times, first, times_ns.size, x_sim, v_sim)
+        self._sample(times, first, times_ns.size, out)
         self.last_ns = int(times_ns[-1])
-        return x_sim, v_sim
+        return out[0], out[1], out[2], out[3]
 
-    def _sample(self, times: FloatArray, first: int, last: int, x_sim: FloatArray, v_sim: FloatArray) -> None:
+    def _sample(self, times: FloatArray, first: int, last: int, out: FloatArray) -> None:
+        """The re-simulated x, v, z, vz at ``times[first:last]`` into ``out[:, first:last]``."""
         if last > first:
             trajectory = self.slider.sample(np.maximum(times[first:last], self.slider.t))
-            x_sim[first:last], v_sim[first:last] = trajectory.x, trajectory.v
+            for row, values in enumerate((trajectory.x, trajectory.v, trajectory.z, trajectory.vz)):
+                out[row, first:last] = values
 
     def finish(self) -> None:
         """Apply the commands after the last sample (to report those that cannot be)."""

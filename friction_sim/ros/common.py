@@ -178,6 +178,8 @@ def descriptor(setting: Setting) -> ParameterDescriptor:
         result.floating_point_range = [FloatingPointRange(from_value=setting.low, to_value=setting.high, step=0.0)]
     elif setting.kind is int and setting.low is not None and setting.high is not None:
         result.integer_range = [IntegerRange(from_value=int(setting.low), to_value=int(setting.high), step=1)]
+    if setting.choices:  # rclpy has no choice constraint: the node's set callback refuses other values
+        result.additional_constraints = f"one of: {', '.join(setting.choices)}"
     return result
 
 

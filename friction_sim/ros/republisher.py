@@ -1,7 +1,12 @@
 """Republishing a recording on its topics with its timing, like ``ros2 bag play``.
 
 The recorded messages are published as recorded (serialized CDR: rclpy
-publishers take the bytes as they are), so nothing is decoded here.  The
+publishers take the bytes as they are), so nothing is decoded here; with
+one exception: a file written before the ``external_wrench`` convention was
+marked (force.z > 0 pressed the slider on the track) has its
+``external_wrench`` messages published with force.z turned round, so that a
+slider of today (force.z > 0 lifts) that takes them does what the recorded
+one did.  The
 file is streamed chunk by chunk (:meth:`Recording.iter_chunks`) and merged
 into log-time order with a buffer of about one chunk, so memory stays
 bounded whatever the recording's length.
@@ -27,6 +32,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from friction_sim.errors import ParameterError
+from friction_sim.io import cdr
 from friction_sim.io.export import select_topics
 from friction_sim.io.messages import NS_PER_S, ns_to_seconds
 from friction_sim.io.reader import Channel, RawMessage, Recording
@@ -144,6 +150,22 @@ def in_time_order(chunks: Iterable[list[RawMessage]]) -> Iterator[RawMessage]:
         yield heapq.heappop(pending)[2]
 
 
+def in_todays_convention(recording: Recording, messages: Iterator[RawMessage]) -> Iterator[RawMessage]:
+    """``messages`` as a slider of today reads them: those of an old file's
+    ``external_wrench`` (force.z > 0 loaded the contact) with force.z turned
+    round; everything else (and everything of a file of today) as recorded."""
+    wrench = recording.topic_name("external_wrench")
+    if wrench is None or recording.external_force_z_sign > 0.0:
+        yield from messages
+        return
+    for raw in messages:
+        if raw.topic == wrench:
+            msg = recording.decode(raw)
+            msg.wrench.force.z = 0.0 - msg.wrench.force.z
+            raw = raw._replace(data=cdr.serialize(msg))
+        yield raw
+
+
 class _Failed(NamedTuple):
     error: BaseException
 
@@ -200,8 +222,8 @@ def _play(recording: Recording, topics: list[str], publishers: dict[str, Any], r
     try:
         while True:
             sent = result.messages
-            _play_once(prefetched(in_time_order(recording.iter_chunks(topics))), publishers, rate, result, bar,
-                       stop)
+            _play_once(prefetched(in_todays_convention(recording, in_time_order(recording.iter_chunks(topics)))),
+                       publishers, rate, result, bar, stop)
             if result.messages == sent:
                 break  # nothing to publish
             result.loops += 1
@@ -283,4 +305,4 @@ class _Progress:
         self.stream.flush()
 
 
-__all__ = ["PublishResult", "in_time_order", "publish", "qos"]
+__all__ = ["PublishResult", "in_time_order", "in_todays_convention", "publish", "qos"]

@@ -7,10 +7,14 @@ the present on every tick, and publishes the state.  There is no physics here.
 All names are relative, so ``--ros-args -r __ns:=/feeder1`` moves a whole
 feeder into a namespace (``/clock`` excepted, which is global by convention).
 
+The frame is the track's: x along it (+ = conveying), z normal to it, away
+from it.  Above the throw number 1 (Pa > m g cos(alpha) - Fz) the slider
+hops, and the height z and its rate vz are published with x and v.
+
 Subscriptions: ``drive_force``, ``excitation_amplitude``,
 ``excitation_frequency`` (std_msgs/Float64) and ``external_wrench``
-(geometry_msgs/WrenchStamped: force.x tangential, force.z normal, > 0 loads
-the contact; held until the next message).
+(geometry_msgs/WrenchStamped: force.x tangential, force.z normal, > 0 lifts,
+away from the track; held until the next message).
 Publications: ``pose``, ``velocity``, ``friction_force`` at ``publish_rate``;
 ``mean_velocity`` once per completed excitation period; ``diagnostics`` at
 1 Hz; ``/clock`` while ``publish_clock`` is true (the publisher exists only
@@ -96,13 +100,15 @@ TICK_SWITCH_INTERVAL = 0.0005
 PARAMETERS = spec.SLIDER_NODE
 #: What the node publishes (topic, type, meaning), for --help.
 PUBLICATIONS = (
-    ("pose", "geometry_msgs/msg/PoseStamped", "position.x = x [m], at publish_rate"),
-    ("velocity", "geometry_msgs/msg/TwistStamped", "linear.x = v [m/s], at publish_rate"),
+    ("pose", "geometry_msgs/msg/PoseStamped",
+     "position.x = x [m] along the track, position.z = z [m] height above it (> 0 in flight), at publish_rate"),
+    ("velocity", "geometry_msgs/msg/TwistStamped", "linear.x = v [m/s], linear.z = vz [m/s], at publish_rate"),
     ("friction_force", "geometry_msgs/msg/WrenchStamped",
-     "force.x = friction force [N] (signed), force.z = normal reaction R [N], at publish_rate"),
+     "force.x = friction force [N] (signed), force.z = contact force R [N] (0 in flight), at publish_rate"),
     ("mean_velocity", "geometry_msgs/msg/TwistStamped",
      "linear.x = mean speed [m/s] over the last mean_window_periods whole periods, once per period"),
-    ("diagnostics", "diagnostic_msgs/msg/DiagnosticArray", "status 'slider', 1 Hz"),
+    ("diagnostics", "diagnostic_msgs/msg/DiagnosticArray",
+     "status 'slider', 1 Hz: with the throw number, flight fraction, lift-offs and landings"),
     ("/clock", "rosgraph_msgs/msg/Clock", "simulation time, while publish_clock is true"),
 )
 

@@ -11,7 +11,15 @@ import math
 import numpy as np
 import pytest
 
-from friction_sim.core.params import Inputs, SliderParams, check_contact
+from friction_sim.core.events import EventKind, Mode
+from friction_sim.core.params import (
+    Inputs,
+    SliderParams,
+    amplitude_ratio,
+    cos_degrees,
+    sin_degrees,
+    throw_number,
+)
 from friction_sim.core.slider import Slider
 from friction_sim.errors import FrictionSimError, ParameterError
 
@@ -179,87 +187,88 @@ def test_inputs_refuse_finite_but_absurd_values(field, value):
 
 
 # --------------------------------------------------------------------------
-# check_contact: the normal reaction must stay positive at every phase
+# The general model's plant: angles, slope, static friction, restitution,
+# landing friction
 # --------------------------------------------------------------------------
 
 
 @pytest.mark.parametrize(
-    "params, amplitude, fz, text",
+    "field, bad, text",
     [
-        (SliderParams(), 10.0, 0.0, "10.0"),  # Pa == m*g
-        (SliderParams(), 12.0, 0.0, "12.0"),  # Pa > m*g
-        (SliderParams(), 12.0, 1.5, "12.0"),  # Pa > m*g + Fz
-        (SliderParams(), 11.5, 1.5, "11.5"),  # Pa == m*g + Fz
-        (SliderParams(), 4.0, -6.0, "4.0"),  # Fz unloads below Pa
-        (SliderParams(mass=2.0, gravity=3.0), 6.0, 0.0, "6.0"),
-    ],
+        ("static_ratio", 0.999, "0.999"),  # mu_s < mu
+        ("static_ratio", 101.0, "101.0"),
+        ("excitation_angle", 0.0, "0.0"),  # a vibration along the track has no normal part
+        ("excitation_angle", 90.5, "90.5"),
+        ("excitation_angle", -30.0, "-30.0"),
+        ("excitation_phase", 180.5, "180.5"),
+        ("excitation_phase", -181.0, "-181.0"),
+        ("track_inclination", 90.0, "90.0"),  # a vertical track holds nothing
+        ("track_inclination", -89.5, "-89.5"),
+        ("restitution", 1.0, "1.0"),  # e = 1 would bounce for ever
+        ("restitution", -0.1, "-0.1"),
+    ] + [(field, bad, text) for field in ("static_ratio", "excitation_angle", "excitation_phase",
+                                           "track_inclination", "restitution")
+         for bad, text in NOT_FINITE + [("abc", "'abc'"), (True, "True"), (None, "None")]],
 )
-def test_check_contact_refuses_lift_off_amplitude(params, amplitude, fz, text):
-    inputs = Inputs(excitation_amplitude=amplitude, external_force_z=fz)
+def test_the_general_plant_refuses_values_outside_its_ranges(field, bad, text):
     with pytest.raises(ParameterError) as excinfo:
-        check_contact(params, inputs)
-    assert_refused(excinfo, "excitation_amplitude", text)
-    mean_load = params.weight + fz
-    assert repr(mean_load) in str(excinfo.value)  # the limit quotes m*g + Fz
-
-
-@pytest.mark.parametrize("fz, amplitude, text", [(-10.0, 0.0, "-10.0"), (-1e6, 3.0, "-1000000.0")])
-def test_check_contact_refuses_fz_at_or_below_minus_weight(fz, amplitude, text):
-    # m*g + Fz <= 0: no excitation amplitude (>= 0) could make this valid, so
-    # the error must name external_force_z whatever was changed last.
-    inputs = Inputs(excitation_amplitude=amplitude, external_force_z=fz)
+        SliderParams(**{field: bad})
+    assert_refused(excinfo, field, text)
     with pytest.raises(ParameterError) as excinfo:
-        check_contact(SliderParams(), inputs)
-    assert_refused(excinfo, "external_force_z", text)
-
-
-@pytest.mark.parametrize("fz, text", [(-10.0, "-10.0"), (-12.0, "-12.0")])
-def test_check_contact_refuses_fz_at_or_below_minus_weight_when_changed(fz, text):
-    inputs = Inputs(excitation_amplitude=0.0, external_force_z=fz)
-    with pytest.raises(ParameterError) as excinfo:
-        check_contact(SliderParams(), inputs, {"external_force_z"})
-    assert_refused(excinfo, "external_force_z", text)
-
-
-@pytest.mark.parametrize(
-    "changed, field, text",
-    [
-        ({"external_force_z"}, "external_force_z", "-6.0"),
-        ({"drive_force", "external_force_z"}, "external_force_z", "-6.0"),
-        ({"excitation_amplitude"}, "excitation_amplitude", "5.0"),
-        ({"external_force_z", "excitation_amplitude"}, "excitation_amplitude", "5.0"),
-        ((), "excitation_amplitude", "5.0"),
-        ({"drive_force"}, "excitation_amplitude", "5.0"),
-    ],
-)
-def test_check_contact_blames_the_changed_field(changed, field, text):
-    inputs = Inputs(excitation_amplitude=5.0, external_force_z=-6.0)  # m*g + Fz = 4 N
-    with pytest.raises(ParameterError) as excinfo:
-        check_contact(SliderParams(), inputs, changed)
+        SliderParams().replace(**{field: bad})
     assert_refused(excinfo, field, text)
 
 
-@pytest.mark.parametrize("changed, field, text", [({"mass"}, "mass", "0.4"), ({"gravity"}, "gravity", "12.0"),
-                                                  ((), "excitation_amplitude", "5.0")])
-def test_check_contact_blames_changed_params(changed, field, text):
-    params = SliderParams(mass=0.4, gravity=12.0)  # m*g = 4.8 N < Pa = 5 N
+@pytest.mark.parametrize("bad, text", [("plastic", "'plastic'"), ("", "''"), ("Impulsive", "'Impulsive'"),
+                                       (" none", "' none'"), (1.0, "1.0"), (None, "None"), (True, "True")])
+def test_landing_friction_takes_one_of_its_choices_and_names_them(bad, text):
     with pytest.raises(ParameterError) as excinfo:
-        check_contact(params, Inputs(), changed)
-    assert_refused(excinfo, field, text)
+        SliderParams(landing_friction=bad)
+    assert_refused(excinfo, "landing_friction", text)
+    if isinstance(bad, str):
+        assert "impulsive" in str(excinfo.value) and "none" in str(excinfo.value)  # the choices
+    assert SliderParams(landing_friction="none").landing_friction == "none"
+    assert SliderParams().landing_friction == "impulsive"
 
 
-@pytest.mark.parametrize(
-    "amplitude, fz",
-    [
-        (np.nextafter(10.0, 0.0), 0.0),
-        (0.0, -9.999),
-        (5.0, 0.0),
-        (11.0, 1.5),
-        (4.0, -5.5),
-    ],
-)
-def test_check_contact_accepts_positive_reaction(amplitude, fz):
-    check_contact(SliderParams(), Inputs(excitation_amplitude=amplitude, external_force_z=fz))
+def test_the_general_plant_accepts_its_edges():
+    edges = SliderParams(static_ratio=100.0, excitation_angle=0.1, excitation_phase=-180.0, track_inclination=-89.0,
+                         restitution=0.99, landing_friction="none")
+    assert (edges.static_ratio, edges.excitation_angle, edges.excitation_phase, edges.track_inclination,
+            edges.restitution) == (100.0, 0.1, -180.0, -89.0, 0.99)
+    assert SliderParams(excitation_phase=180, track_inclination=89).excitation_phase == 180.0
+
+
+def test_derived_forces_of_the_general_plant_are_exact_at_the_kostek_case():
+    kostek = SliderParams()
+    assert kostek.is_kostek and kostek.tangential_ratio == 0.0  # cot(90 deg) exactly 0, not 6e-17
+    assert (kostek.normal_weight, kostek.downhill_weight) == (10.0, 0.0)
+    assert throw_number(kostek, Inputs()) == 0.5 == amplitude_ratio(kostek, Inputs())
+    for angle in (-270.0, -180.0, -90.0, 0.0, 90.0, 180.0, 270.0, 360.0):  # exact at the right angles
+        assert sin_degrees(angle) == round(math.sin(math.radians(angle)))
+        assert cos_degrees(angle) == round(math.cos(math.radians(angle)))
+
+
+@pytest.mark.parametrize("alpha, beta", [(10.0, 30.0), (-20.0, 60.0), (5.0, 89.9), (0.0, 0.1)])
+def test_derived_forces_of_a_tilted_vibration_on_a_slope(alpha, beta):
+    params = SliderParams(mass=2.0, gravity=9.81, excitation_angle=beta, track_inclination=alpha)
+    weight = 2.0 * 9.81
+    assert not params.is_kostek
+    assert params.normal_weight == pytest.approx(weight * math.cos(math.radians(alpha)), rel=1e-15)
+    assert params.downhill_weight == pytest.approx(weight * math.sin(math.radians(alpha)), rel=1e-15, abs=0.0)
+    assert params.tangential_ratio == pytest.approx(1.0 / math.tan(math.radians(beta)), rel=1e-14)
+    inputs = Inputs(excitation_amplitude=30.0)
+    assert throw_number(params, inputs) == pytest.approx(30.0 / (weight * math.cos(math.radians(alpha))), rel=1e-15)
+    assert not SliderParams(static_ratio=1.5).is_kostek
+
+
+@pytest.mark.parametrize("amplitude, fz", [(10.0, 0.0), (12.0, 0.0), (4.0, 6.0), (0.0, 10.0), (1e6, -1e6),
+                                           (5.0, 1e6)])
+def test_an_amplitude_or_lifting_force_above_the_weight_is_accepted(amplitude, fz):
+    # No lift-off refusal any more: the slider hops (the throw number above 1).
+    inputs = Inputs(excitation_amplitude=amplitude, external_force_z=fz)
+    assert (inputs.excitation_amplitude, inputs.external_force_z) == (amplitude, fz)
+    assert throw_number(SliderParams(), inputs) == amplitude / 10.0
 
 
 # --------------------------------------------------------------------------
@@ -267,21 +276,25 @@ def test_check_contact_accepts_positive_reaction(amplitude, fz):
 # --------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(
-    "params, inputs, field, text",
-    [
-        (SliderParams(), Inputs(excitation_amplitude=10.0), "excitation_amplitude", "10.0"),
-        (SliderParams(), Inputs(excitation_amplitude=12.0), "excitation_amplitude", "12.0"),
-        (SliderParams(mass=0.5), Inputs(), "excitation_amplitude", "5.0"),
-        (SliderParams(gravity=4.0), Inputs(), "excitation_amplitude", "5.0"),
-        (SliderParams(), Inputs(excitation_amplitude=0.0, external_force_z=-10.0),
-         "external_force_z", "-10.0"),
-    ],
-)
-def test_slider_refuses_lift_off(params, inputs, field, text):
-    with pytest.raises(ParameterError) as excinfo:
-        Slider(params, inputs)
-    assert_refused(excinfo, field, text)
+@pytest.mark.parametrize("amplitude", [12.0, 15.0])
+def test_the_slider_hops_above_the_weight(amplitude):
+    # Gamma = Pa/(m g) > 1 from rest: in contact until R = m g - Pa sin(theta) reaches 0 at
+    # sin(theta) = 1/Gamma, then off the track (z > 0) until it lands again.
+    slider = Slider(SliderParams(), Inputs(excitation_amplitude=amplitude, drive_force=0.0))
+    gamma = amplitude / 10.0
+    omega = 2.0 * math.pi * 50.0
+    events = slider.advance_to(0.1)
+    lift_offs = [e for e in events if e.kind is EventKind.LIFT_OFF]
+    landings = [e for e in events if e.kind is EventKind.LANDING]
+    assert lift_offs and landings
+    assert lift_offs[0].t == pytest.approx(math.asin(1.0 / gamma) / omega, rel=1e-12)
+    assert lift_offs[0].after is Mode.FLIGHT and landings[0].before is Mode.FLIGHT
+    assert landings[0].vz_before < 0.0 and landings[0].t > lift_offs[0].t
+    in_flight = 0.5 * (lift_offs[0].t + landings[0].t)
+    fresh = Slider(SliderParams(), Inputs(excitation_amplitude=amplitude, drive_force=0.0))
+    fresh.advance_to(in_flight)
+    state = fresh.state()
+    assert state.in_flight and state.z > 0.0 and state.normal_force == 0.0 and state.friction_force == 0.0
 
 
 @pytest.mark.parametrize("field", ["t0", "x0", "phase0"])
@@ -316,13 +329,9 @@ def _future(slider, t_end=0.2):
 @pytest.mark.parametrize(
     "changes, field, text",
     [
-        ({"excitation_amplitude": 10.0}, "excitation_amplitude", "10.0"),
-        ({"excitation_amplitude": 12.0}, "excitation_amplitude", "12.0"),
-        # Fz = -6 leaves m*g + Fz = 4 N < Pa = 5 N: R would reach zero; the
-        # error blames the field the user just changed.
-        ({"external_force_z": -6.0}, "external_force_z", "-6.0"),
-        ({"external_force_z": -6.0, "excitation_amplitude": 4.5}, "excitation_amplitude", "4.5"),
-        ({"external_force_z": -10.0}, "external_force_z", "-10.0"),
+        ({"excitation_amplitude": 1.5e6}, "excitation_amplitude", "1500000.0"),
+        ({"external_force_z": -INF}, "external_force_z", "-inf"),
+        ({"external_force_z": 1.0, "excitation_amplitude": -4.5}, "excitation_amplitude", "-4.5"),
         ({"drive_force": NAN}, "drive_force", "nan"),
         ({"excitation_frequency": -50.0}, "excitation_frequency", "-50.0"),
         ({"excitation_amplitude": -1.0}, "excitation_amplitude", "-1.0"),
@@ -351,8 +360,8 @@ def test_set_inputs_refuses_whole_inputs_object_and_changes_nothing():
     slider.advance_to(MID_SLIP)
     before = _snapshot(slider)
     with pytest.raises(ParameterError) as excinfo:
-        slider.set_inputs(Inputs(drive_force=0.2, excitation_amplitude=10.5))
-    assert_refused(excinfo, "excitation_amplitude", "10.5")
+        slider.set_inputs(Inputs(drive_force=0.2, excitation_amplitude=-10.5))
+    assert_refused(excinfo, "excitation_amplitude", "-10.5")
     assert _snapshot(slider) == before
 
 
@@ -368,26 +377,38 @@ def test_set_inputs_accepts_a_valid_change():
 
 @pytest.mark.parametrize("when", [MID_SLIP, MID_STICK])
 @pytest.mark.parametrize(
-    "params, field, text",
+    "changes, field, text",
     [
-        # blamed on the changed field, not on the amplitude already in force
-        (SliderParams(mass=0.5), "mass", "0.5"),  # m*g = 5 N == Pa
-        (SliderParams(gravity=4.0), "gravity", "4.0"),  # m*g = 4 N < Pa
-        (SliderParams(mass=0.4, gravity=12.0), "mass", "0.4"),  # 4.8 N < Pa
+        ({"landing_friction": "sliding"}, "landing_friction", "'sliding'"),
+        ({"restitution": 1.0}, "restitution", "1.0"),
+        ({"mass": 0.5, "static_ratio": 0.5}, "static_ratio", "0.5"),
     ],
 )
-def test_set_params_refusal_changes_nothing(when, params, field, text):
+def test_set_params_refusal_changes_nothing(when, changes, field, text):
+    # An invalid plant cannot even be built, so the running slider never sees it.
     slider = Slider()
     control = Slider()
     slider.advance_to(when)
     control.advance_to(when)
     before = _snapshot(slider)
     with pytest.raises(ParameterError) as excinfo:
-        slider.set_params(params)
+        slider.set_params(slider.params.replace(**changes))
     assert_refused(excinfo, field, text)
     assert _snapshot(slider) == before
     assert slider.params == SliderParams()
     assert _future(slider) == _future(control)
+
+
+@pytest.mark.parametrize("params", [SliderParams(mass=0.4), SliderParams(gravity=4.0)])
+def test_a_lighter_plant_under_the_same_amplitude_now_hops(params):
+    # m*g = 4 N < Pa = 5 N: once refused as a lift-off, now the flight regime.  (At m*g = Pa
+    # exactly, R = m g (1 - sin(theta)) only touches zero: no lift-off.)
+    slider = Slider()
+    slider.advance_to(MID_STICK)
+    slider.set_params(params)
+    events = slider.advance_to(0.1)
+    assert EventKind.LIFT_OFF in {e.kind for e in events}
+    assert slider.params == params
 
 
 def test_set_params_accepts_a_valid_change():

@@ -18,7 +18,7 @@ def real_recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
     and a plant change."""
     path = tmp_path_factory.mktemp("rec") / "run.mcap"
     schedule = random_schedule(np.random.default_rng(21), 2.0, external=True)
-    schedule += [Command(0.7, "excitation_amplitude", {"excitation_amplitude": 40.0}),
+    schedule += [Command(0.7, "excitation_amplitude", {"excitation_amplitude": -4.0}),  # refused: Pa < 0
                  Command(1.1, "parameters", {"mass": 1.3})]
     record_offline(path, schedule=schedule, duration=2.0)
     return path

@@ -38,7 +38,7 @@ def test_csv_has_one_file_per_topic_with_every_field(real_recording: Path, tmp_p
     with files["rejected_commands"].open() as stream:
         refused = list(csv.DictReader(stream))
     assert refused[0]["name"] == "excitation_amplitude" and refused[0]["level"] == "1"
-    assert json.loads(refused[0]["values"]) == [{"key": "excitation_amplitude", "value": "40.0"}]
+    assert json.loads(refused[0]["values"]) == [{"key": "excitation_amplitude", "value": "-4.0"}]
     with files["parameters"].open() as stream:
         events = list(csv.DictReader(stream))
     names = [p["name"] for p in json.loads(events[0]["new_parameters"])]
