@@ -14,8 +14,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from friction_sim.core import spec
-from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.params import Inputs, SliderParams, throw_number
 from friction_sim.errors import FrictionSimError, ParameterError
 
 MAX_GRID = 2001
@@ -29,15 +31,20 @@ MAX_TRACE_PERIODS = 100.0
 #: set: the plant and the inputs the slider takes as parameters.
 PLANT_OPTIONS = tuple(setting for setting in (*spec.PLANT.values(), *spec.INPUTS.values())
                       if setting.name in spec.SLIDER_NODE)
+#: The plant settings ``umap`` takes (``--mu --static-ratio --angle --phase
+#: --inclination --restitution --landing-friction``): U = V f/(g mu) depends on
+#: them, not on the mass or g.  At their defaults U is Kostek's closed form.
+MODEL_OPTIONS = tuple(setting for setting in spec.PLANT.values() if setting.name not in ("mass", "gravity"))
 
 # The command line's own numbers, declared like the model's settings and
 # checked by the same Setting.check (cross-field rules stay in the core).
 # phi has no physical bound, but past |phi| = 1 + a nothing changes (the slider
 # slips all the time), so a bound far beyond that only catches typos.
 PHI = spec.Setting("phi", 0.7, "-", "drive ratio phi = Fd/(mu m g)", -1e6, 1e6)
-# a < 1 is exclusive (the core's u_map says so); a Setting bound is inclusive.
-AMPLITUDE_RATIO = spec.Setting("amplitude_ratio", 0.5, "-", "amplitude ratio a = Pa/(m g)", 0.0, None,
-                               rule="a < 1 (Pa < m g: the slider must not lift off)", flag="--ratio")
+# a up to the controller's largest amplitude ratio: above 1/cos(alpha) the slider hops.
+AMPLITUDE_RATIO = spec.Setting("amplitude_ratio", 0.5, "-", "amplitude ratio a = Pa/(m g)", 0.0,
+                               spec.MAX_AMPLITUDE_RATIO.high,
+                               rule="a >= 1/cos(alpha): the slider hops (general mean speed)", flag="--ratio")
 GRID = spec.Setting("grid", 101, "points", "map on N x N points of (phi, a) in (0, 1)", 2, MAX_GRID)
 PERIODS = spec.Setting("periods", 2.5, "periods", "excitation periods shown", 1.0, MAX_TRACE_PERIODS)
 DURATION = spec.Setting("duration", 2.0, "s", "simulated time", None, None,
@@ -78,9 +85,10 @@ def add_flag(parser: Any, setting: spec.Setting, default: Any = None) -> None:
     """Add ``setting`` as the option ``setting.option`` (dest: its name), parsed
     by :func:`flag_type`; the help gives its meaning, unit, range and default."""
     unit = f" [{setting.unit}]" if setting.unit and setting.unit != "-" else ""
-    limits = "; ".join(part for part in (setting.range_text(), setting.rule) if part)
-    shown = "" if default is None else f"; default {default:g}" if not isinstance(default, str) else f"; default {default}"
-    metavar = "{" + ",".join(setting.choices) + "}" if setting.choices else setting.option.lstrip("-").replace("-", "_").upper()
+    limits = "; ".join(part for part in (setting.range_text().replace("\\|", "|"), setting.rule) if part)
+    shown = "" if default is None else f"; default {default}" if isinstance(default, str) else f"; default {default:g}"
+    metavar = ("{" + ",".join(setting.choices) + "}" if setting.choices
+               else setting.option.lstrip("-").replace("-", "_").upper())
     parser.add_argument(setting.option, dest=setting.name, type=flag_type(setting), default=default,
                         metavar=metavar,
                         help=f"{setting.description}{unit}" + (f" ({limits}{shown})" if limits or shown else ""))
@@ -99,6 +107,18 @@ def add_plant_options(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("plant (defaults: the paper's Fig. 2 case)")
     for setting in PLANT_OPTIONS:
         add_flag(group, setting, setting.default)
+
+
+def add_model_options(parser: argparse.ArgumentParser) -> None:
+    """The plant settings U depends on (:data:`MODEL_OPTIONS`) as options, at their defaults."""
+    group = parser.add_argument_group("model (defaults: Kostek's model, where U has its closed form)")
+    for setting in MODEL_OPTIONS:
+        add_flag(group, setting, setting.default)
+
+
+def model(args: argparse.Namespace) -> SliderParams:
+    """The plant the model options give (mass and g at their defaults: U does not depend on them)."""
+    return SliderParams(**{s.name: getattr(args, s.name) for s in MODEL_OPTIONS})
 
 
 def plant(args: argparse.Namespace) -> tuple[SliderParams, Inputs]:
@@ -139,7 +159,8 @@ def umap(args: argparse.Namespace) -> int:
         raise FrictionSimError("umap --grid needs --csv FILE and/or --png FILE")
     from friction_sim.core import urelation
 
-    grid = urelation.u_grid(args.grid)
+    params = model(args)
+    grid = urelation.u_grid(args.grid) if params.is_kostek else _general_grid(args.grid, params)
     if args.csv is not None:
         from friction_sim.io.export import write_umap_csv
 
@@ -151,14 +172,29 @@ def umap(args: argparse.Namespace) -> int:
     return 0
 
 
+def _general_grid(points: int, params: SliderParams) -> Any:
+    """The map of the general model on the grid of :func:`urelation.u_grid` (one
+    mean-speed simulation per point where the closed form does not hold)."""
+    from friction_sim.core import urelation
+    from friction_sim.core.meanspeed import u_general
+
+    axis = np.arange(1, points + 1) / (points + 1.0)
+    phi, a = np.meshgrid(axis, axis)
+    return urelation.UMap(phi=axis, amplitude_ratio=axis.copy(), u=np.asarray(u_general(phi, a, params)))
+
+
 def _umap_point(args: argparse.Namespace) -> int:
     """U(phi, a) and what the slider does there: never moves, sticks and slips
-    once a period (where the slip starts and how long it lasts), or slips all the time."""
+    once a period (where the slip starts and how long it lasts), or slips all the time.
+    Off Kostek's model (or with a hop) the general mean speed, and its kind of motion."""
     from friction_sim.core import urelation
 
     phi, ratio = args.phi, args.amplitude_ratio
     if phi is None or ratio is None:
         raise FrictionSimError("umap needs --phi and --ratio for one point, or --grid N for the map")
+    params = model(args)
+    if not (params.is_kostek and ratio < 1.0):
+        return _general_point(args, params)
     u = urelation.u_map(phi, ratio) + 0.0  # + 0.0: no '-0.0' where a backward drive stands still
     motion, why = motion_regime(phi, ratio)
     periodic = motion == STICK_SLIP
@@ -174,6 +210,52 @@ def _umap_point(args: argparse.Namespace) -> int:
     print(f"U({phi:g}, {ratio:g}) = {u!r}")
     print(f"{motion}: {why}")
     return 0
+
+
+def _general_point(args: argparse.Namespace, params: SliderParams) -> int:
+    """``umap`` off the closed form: the general mean speed at (phi, a) for the model options."""
+    from friction_sim.core.meanspeed import mean_speed
+
+    phi, ratio = args.phi, args.amplitude_ratio
+    inputs = Inputs(drive_force=phi * params.mu * params.weight, excitation_amplitude=ratio * params.weight)
+    result = mean_speed(params, inputs)
+    u = result.u + 0.0
+    motion = general_motion(result)
+    if args.json:
+        _print_json({
+            "phi": phi, "amplitude_ratio": ratio, "throw_number": throw_number(params, inputs), "U": u,
+            "motion": motion, "periodic": result.periodic, "period_multiple": result.period_multiple,
+            "settle_periods": result.settle_periods, "periods": result.periods,
+            "flight_fraction": result.flight_fraction, "stick_fraction": result.stick_fraction,
+            "exact": result.exact, "runaway": result.runaway,
+            **{s.name: getattr(params, s.name) for s in MODEL_OPTIONS},
+        })
+        return 0
+    print(f"U({phi:g}, {ratio:g}) = {u!r}  (Gamma = {throw_number(params, inputs):g})")
+    print(motion)
+    return 0
+
+
+def general_motion(result: Any) -> str:
+    """What a :class:`~friction_sim.core.meanspeed.MeanSpeed` says the slider does, in words."""
+    if result.runaway:
+        return "slips all the time and speeds up without bound"
+    if result.stick_fraction >= 1.0:
+        return NEVER_MOVES
+    parts = []
+    if result.flight_fraction > 0.0:
+        parts.append(f"hops: off the track {result.flight_fraction:.4g} of the time")
+    if result.stick_fraction > 0.0:
+        parts.append(f"stuck {result.stick_fraction:.4g} of the time")
+    elif result.flight_fraction == 0.0:
+        parts.append("slips all the time")
+    if result.periodic:
+        every = "every period" if result.period_multiple == 1 else f"every {result.period_multiple} periods"
+        parts.append(f"periodic, repeating {every} (mean exact to rounding)")
+    else:
+        parts.append(f"not periodic within {result.settle_periods} periods: "
+                     f"the mean is over the {result.periods} periods after them")
+    return "; ".join(parts)
 
 
 NEVER_MOVES, STICK_SLIP, SLIPS_ALWAYS = "never moves", "sticks and slips once a period", "slips all the time"
@@ -245,7 +327,10 @@ def simulate(args: argparse.Namespace) -> int:
     print(f"phi = {result.phi!r}, a = {result.amplitude_ratio!r}")
     print(f"mean velocity over {result.periods} periods after {result.settle:g} s: "
           f"{result.mean_velocity!r} m/s")
-    print(f"U measured = {result.u_measured!r}, U exact = {result.u_exact!r}")
+    relation = ("closed form" if result.u_closed_form else
+                "general mean speed, " + ("periodic" if result.u_periodic else "not periodic: a window's mean"))
+    print(f"U measured = {result.u_measured!r}, U relation = {result.u_exact!r} ({relation})")
+    print(f"throw number Gamma = {result.throw_number:g}, flight fraction {result.flight_fraction!r}")
     print(f"events: {counts}; wall time {result.wall_time * 1e3:.2f} ms")
     if args.csv is not None:
         print(f"wrote {args.csv}")

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from friction_sim.core.events import EventKind
+from friction_sim.core.events import EventKind, Mode
 from friction_sim.core.simulation import SimulationResult
 from friction_sim.core.urelation import UMap
 from friction_sim.experiment.report import RunData, SegmentRow, inputs_at
@@ -91,36 +91,48 @@ def trace_figure(result: SimulationResult) -> Figure:
     """The paper's Fig. 2 from a sampled simulation (``sample_rate`` set).
 
     The force panel's legend sits above the panel, clear of every curve; the
-    velocity panel keeps headroom so the labels of A, B and C stay inside it."""
+    velocity panel keeps headroom so the labels of A, B and C stay inside it.
+    A run that leaves the track gets a fifth panel, the height z above the
+    track, with every lift-off and landing marked (and the drawn tangential
+    force is the whole applied Ft(t) wherever it varies: an inclined
+    vibration or a slope)."""
     traj = result.trajectory
     if traj is None:
         raise ValueError("trace_figure needs a SimulationResult with a sampled trajectory")
     t_ms = traj.t * 1e3
+    applied = tangential_force(result)
     # Magnitudes along the slip: with Ft < 0 everything mirrors.
-    drive = abs(result.inputs.tangential_force)
-    drive_label = r"$F_d$ (drive force)" if result.inputs.tangential_force >= 0.0 else r"$|F_d|$ (drive force)"
+    drive = np.abs(applied)
+    if np.ndim(applied) == 0:
+        drive_label = (r"$F_d$ (drive force)" if result.inputs.tangential_force >= 0.0
+                       else r"$|F_d|$ (drive force)")
+    else:
+        drive_label = r"$|F_t|$ (applied tangential force)"
     limit = result.params.mu * traj.normal_force
     friction_magnitude = np.abs(traj.friction_force)
-    slipping = traj.mode != 0
+    slipping = (traj.mode == Mode.FORWARD) | (traj.mode == Mode.BACKWARD)
+    # The applied force along the slip: above |Ff| it speeds the slider up.
+    along = np.sign(traj.v) * applied if np.ndim(applied) else drive
+    flights = flies(result)
 
-    fig = _pyplot_free_figure(figsize=(8.0, 9.5), layout="constrained")
-    axes = fig.subplots(4, 1, sharex=True)
+    fig = _pyplot_free_figure(figsize=(8.0, 11.5 if flights else 9.5), layout="constrained")
+    axes = fig.subplots(5 if flights else 4, 1, sharex=True)
     ax = axes[0]
     ax.plot(t_ms, limit, color="tab:blue", linestyle="--", label=r"$\mu R$ (friction limit)")
     ax.plot(t_ms, friction_magnitude, color="tab:red", linewidth=2.2, label=r"$|F_f|$ (friction force)")
-    ax.plot(t_ms, np.full_like(t_ms, drive), color="black", linewidth=1.0, label=drive_label)
-    ax.fill_between(t_ms, drive, friction_magnitude, where=slipping & (drive >= friction_magnitude),
+    ax.plot(t_ms, np.broadcast_to(drive, t_ms.shape), color="black", linewidth=1.0, label=drive_label)
+    ax.fill_between(t_ms, drive, friction_magnitude, where=slipping & (along >= friction_magnitude),
                     facecolor="none", hatch="///", edgecolor="tab:green", label="impulse accelerating")
-    ax.fill_between(t_ms, drive, friction_magnitude, where=slipping & (drive < friction_magnitude),
+    ax.fill_between(t_ms, drive, friction_magnitude, where=slipping & (along < friction_magnitude),
                     facecolor="none", hatch="\\\\\\", edgecolor="tab:orange", label="impulse decelerating")
     ax.set_ylabel("force [N]")
     ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.02, 1.0, 0.1), mode="expand", borderaxespad=0.0,
               ncol=3, fontsize=8, frameon=False)
-    for axis, values, label in (
-        (axes[1], traj.acceleration, "acceleration [m/s²]"),
-        (axes[2], traj.v * 1e3, "velocity [mm/s]"),
-        (axes[3], traj.x * 1e6, "displacement [µm]"),
-    ):
+    panels = [(axes[1], traj.acceleration, "acceleration [m/s²]"), (axes[2], traj.v * 1e3, "velocity [mm/s]"),
+              (axes[3], traj.x * 1e6, "displacement [µm]")]
+    if flights:
+        panels.append((axes[4], traj.z * 1e6, "height z [µm]"))
+    for axis, values, label in panels:
         axis.plot(t_ms, values, color="black", linewidth=1.0)
         axis.set_ylabel(label)
     for axis in axes:
@@ -128,12 +140,72 @@ def trace_figure(result: SimulationResult) -> Figure:
     axes[2].set_ymargin(0.18)  # room above B's label and below A's and C's
     axes[-1].set_xlabel("time [ms]")
     _mark_points(axes, result)
-    p, i = result.params, result.inputs
-    fig.suptitle(
-        f"$P_a$ = {i.excitation_amplitude:g} N, $F_d$ = {i.drive_force:g} N, $f$ = {i.excitation_frequency:g} Hz, "
-        f"$\\mu$ = {p.mu:g}, $g$ = {p.gravity:g} m/s², $m$ = {p.mass:g} kg"
-    )
+    if flights:
+        _mark_flights(axes, result)
+    fig.suptitle(_trace_title(result))
     return fig
+
+
+def flies(result: SimulationResult) -> bool:
+    """Whether a sampled run leaves the track within its samples (a lift-off, or a sample in flight)."""
+    traj = result.trajectory
+    assert traj is not None
+    return bool(np.any(traj.mode == Mode.FLIGHT)) or any(
+        event.kind is EventKind.LIFT_OFF and event.t <= traj.t[-1] for event in result.events)
+
+
+def tangential_force(result: SimulationResult) -> Any:
+    """The applied tangential force at the samples [N]: Ft = Fd + Fx - m g sin(alpha)
+    + Pt sin(theta + psi) with Pt = Pa cot(beta); a number where it is constant
+    (Kostek's model), else an array."""
+    traj = result.trajectory
+    assert traj is not None
+    p, i = result.params, result.inputs
+    steady = i.tangential_force - p.downhill_weight
+    tangential = i.excitation_amplitude * p.tangential_ratio
+    if tangential == 0.0:
+        return steady if p.downhill_weight != 0.0 else i.tangential_force
+    return steady + tangential * np.sin(traj.phase + math.radians(p.excitation_phase))
+
+
+def _trace_title(result: SimulationResult) -> str:
+    """The inputs and the plant; the general model's angles and Gamma where they differ from Kostek's."""
+    p, i = result.params, result.inputs
+    title = (f"$P_a$ = {i.excitation_amplitude:g} N, $F_d$ = {i.drive_force:g} N, $f$ = {i.excitation_frequency:g} Hz, "
+             f"$\\mu$ = {p.mu:g}, $g$ = {p.gravity:g} m/s², $m$ = {p.mass:g} kg")
+    extra = []
+    if p.excitation_angle != 90.0 or p.excitation_phase != 0.0:
+        extra.append(f"$\\beta$ = {p.excitation_angle:g}°, $\\psi$ = {p.excitation_phase:g}°")
+    if p.track_inclination != 0.0:
+        extra.append(f"$\\alpha$ = {p.track_inclination:g}°")
+    if p.static_ratio != 1.0:
+        extra.append(f"$\\mu_s/\\mu$ = {p.static_ratio:g}")
+    if flies(result):
+        extra.append(f"$\\Gamma$ = {result.throw_number:.4g}, $e$ = {p.restitution:g}, "
+                     f"landing friction {p.landing_friction}")
+    return title + ("\n" + ", ".join(extra) if extra else "")
+
+
+def _mark_flights(axes: np.ndarray, result: SimulationResult) -> None:
+    """Mark every lift-off (triangle up) and landing (triangle down) on the
+    height panel, with a thin dotted line through every panel."""
+    traj = result.trajectory
+    assert traj is not None
+    height = axes[4]
+    shown: set[str] = set()
+    for event in result.events:
+        if event.t > traj.t[-1] or event.kind not in (EventKind.LIFT_OFF, EventKind.LANDING):
+            continue
+        lift = event.kind is EventKind.LIFT_OFF
+        label = ("lift-off" if lift else "landing")
+        height.plot(event.t * 1e3, 0.0, "^" if lift else "v", color="tab:green" if lift else "tab:red",
+                    markersize=6, label=None if label in shown else label, clip_on=False, zorder=3)
+        shown.add(label)
+        for axis in axes:
+            axis.axvline(event.t * 1e3, color="tab:green" if lift else "tab:red", linewidth=0.5,
+                         linestyle=":", zorder=0)
+    if shown:
+        height.legend(loc="upper right", fontsize=8)
 
 
 def _mark_points(axes: np.ndarray, result: SimulationResult) -> None:
@@ -144,14 +216,17 @@ def _mark_points(axes: np.ndarray, result: SimulationResult) -> None:
     end = traj.t[-1]
     events = [event for event in result.events if event.t <= end]
     stops = [event.t for event in events if event.kind is EventKind.STICK]
+    ends = sorted(stops + [event.t for event in events if event.kind is EventKind.LIFT_OFF])
     points: list[tuple[str, float]] = [("C", t) for t in stops]
     for event in events:
         if event.kind is EventKind.SLIP_START:
-            stop = next((t for t in stops if t > event.t), end)
-            points += [("A", event.t)] + [("B", t) for t in _fastest(result, event.t, event.phase, stop)]
+            stop = next((t for t in ends if t > event.t), end)
+            fastest = (_fastest(result, event.t, event.phase, stop) if np.ndim(tangential_force(result)) == 0
+                       else _fastest_sampled(result, event.t, stop))
+            points += [("A", event.t)] + [("B", t) for t in fastest]
     speed_axis = axes[2]
     for label, t in sorted(points, key=lambda point: point[1]):
-        v = float(np.interp(t, traj.t, traj.v)) * 1e3
+        v = float(np.interp(t, traj.t, traj.v)) * 1e3 if label == "B" else 0.0  # v = 0 at A and C
         speed_axis.plot(t * 1e3, v, "o", color="tab:purple", markersize=5)
         # Labels clear of the curve: A left of the point (the curve leaves it to the right),
         # B on the outside of the peak, C right of the point.
@@ -164,16 +239,38 @@ def _mark_points(axes: np.ndarray, result: SimulationResult) -> None:
 def _fastest(result: SimulationResult, t_start: float, phase_start: float, end: float) -> list[float]:
     """Times after a slip start (at ``phase_start``) before ``end`` at which mu R rises
     back through |Ft|: the speed peaks there (B), at the phase pi - asin(e) with
-    e = (m g + Fz - |Ft|/mu)/Pa (R = m g + Fz - Pa sin(phase))."""
+    e = (m g cos(alpha) - Fz - |Ft|/mu)/Pa (R = m g cos(alpha) - Fz - Pa sin(phase);
+    Ft constant: no tangential excitation)."""
     p, i = result.params, result.inputs
     if i.excitation_amplitude <= 0.0:
         return []
-    e = (p.weight + i.external_force_z - abs(i.tangential_force) / p.mu) / i.excitation_amplitude
+    force = abs(i.tangential_force - p.downhill_weight)
+    e = (p.normal_weight - i.external_force_z - force / p.mu) / i.excitation_amplitude
     if not -1.0 <= e <= 1.0:
         return []
     omega = 2.0 * math.pi * i.excitation_frequency
     first = t_start + ((math.pi - math.asin(e) - phase_start) % (2.0 * math.pi)) / omega
     return list(np.arange(first, end, 2.0 * math.pi / omega))
+
+
+def _fastest_sampled(result: SimulationResult, t_start: float, end: float) -> list[float]:
+    """Where the speed peaks in a slip from ``t_start`` to ``end`` when Ft varies
+    (no closed form for B): each sign change of the acceleration along the slip from
+    + to -, between two samples, placed by linear interpolation."""
+    traj = result.trajectory
+    assert traj is not None
+    inside = np.nonzero((traj.t > t_start) & (traj.t < end) & (traj.mode != Mode.STUCK)
+                        & (traj.mode != Mode.FLIGHT))[0]
+    if inside.size < 2:
+        return []
+    way = np.sign(traj.v[inside])
+    along = way * traj.acceleration[inside]
+    found = []
+    for k in np.nonzero((along[:-1] > 0.0) & (along[1:] <= 0.0) & (way[:-1] == way[1:]))[0]:
+        a0, a1 = along[k], along[k + 1]
+        t0, t1 = traj.t[inside[k]], traj.t[inside[k + 1]]
+        found.append(float(t0 + (t1 - t0) * a0 / (a0 - a1)))
+    return found
 
 
 def report_figure(data: RunData, rows: Sequence[SegmentRow]) -> Figure:

@@ -85,6 +85,7 @@ def _add_umap(sub: Subcommands) -> None:
     umap = sub.add_parser("umap", help="the nondimensional mean speed U(phi, a): one point or the map")
     for setting in (commands.PHI, commands.AMPLITUDE_RATIO, commands.GRID):
         commands.add_flag(umap, setting)
+    commands.add_model_options(umap)
     umap.add_argument("--csv", type=Path, help="write the map as CSV (phi, amplitude_ratio, U)")
     umap.add_argument("--png", type=Path, help="draw the map like the paper's Fig. 3")
     umap.add_argument("--json", action="store_true", help="print one JSON object")

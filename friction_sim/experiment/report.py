@@ -374,8 +374,9 @@ class _Keeper:
 
 def _initial_state(initial: dict[str, Any]) -> tuple[SliderParams, Inputs]:
     """The plant and inputs a recording started with (defaults for what it lacks)."""
-    params = SliderParams(**{k: initial[k] if isinstance(initial[k], str) else float(initial[k])
-                             for k in settings.PLANT if k in initial})
+    plant: dict[str, Any] = {k: initial[k] if isinstance(initial[k], str) else float(initial[k])
+                             for k in settings.PLANT if k in initial}
+    params = SliderParams(**plant)
     inputs = Inputs(**{k: float(initial[k]) for k in settings.INPUTS if k in initial})
     return params, inputs
 

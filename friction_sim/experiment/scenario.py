@@ -30,7 +30,7 @@ periods, overshooting by at most ``overshoot`` of the step (optional).
 Everything is checked before anything starts: an unknown key or a bad value is
 a :class:`ScenarioError` naming the file, the line, the key and the reason.
 The plant and every open-loop command are validated with the same rules the
-slider applies (so a scenario that would lift the slider off is refused), and
+slider applies (an amplitude above the weight is valid: the slider hops), and
 a ``target_speed`` needs a controller.
 """
 
@@ -227,9 +227,9 @@ class _Parser:
         """The plant and initial inputs (``plant:`` or ``plant_params:``), checked as the slider would."""
         if "plant" in top and "plant_params" in top:
             raise self.fail(top["plant_params"][0], "give either 'plant' or 'plant_params', not both")
-        values: dict[str, float] = {}
+        values: dict[str, Any] = {}
         if "plant" in top:
-            values = {key: self.number(entry, key)
+            values = {key: self.plant_value(entry, key)
                       for key, entry in self.mapping(top["plant"][0], PLANT_KEYS, "plant").items()}
         elif "plant_params" in top:
             values = self.params_file(top["plant_params"])
@@ -241,6 +241,17 @@ class _Parser:
             raise self.plant_error(top, error) from error
         return params, inputs
 
+    def plant_value(self, entry: Entry, key: str) -> Any:
+        """One ``plant:`` value: a finite number, or one of the choices of a
+        text setting (``landing_friction: none``)."""
+        setting = settings.SLIDER_NODE[key]
+        if setting.kind is not str:
+            return self.number(entry, key)
+        try:
+            return setting.check(entry[1])
+        except ParameterError as error:
+            raise self.fail(entry[0], f"plant: {error}") from error
+
     def plant_error(self, top: dict[str, Entry], error: ParameterError) -> ScenarioError:
         """A refused plant, at the line of the key it blames (or of the section)."""
         node = top["plant"][0] if "plant" in top else top.get("plant_params", (None,))[0]
@@ -250,7 +261,7 @@ class _Parser:
             node = next((key for key, _ in node.value if key.value == error.field), node)
         return self.fail(node, f"plant: {error}")
 
-    def params_file(self, entry: Entry) -> dict[str, float]:
+    def params_file(self, entry: Entry) -> dict[str, Any]:
         """The slider's values from a ROS 2 parameters file (``/**`` or ``slider`` section)."""
         node, value = entry
         path = (self.base / str(value)) if not Path(str(value)).is_absolute() else Path(str(value))
