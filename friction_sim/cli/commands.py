@@ -337,6 +337,13 @@ def simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def conveyor(args: argparse.Namespace) -> int:
+    """``conveyor``: the conveying figure (U against Gamma and against the inclination) and its CSV."""
+    from friction_sim.cli.conveyor import run as run_conveyor
+
+    return run_conveyor(args)
+
+
 # -- nodes ----------------------------------------------------------------------
 
 
@@ -403,7 +410,8 @@ def replay(args: argparse.Namespace) -> int:
 
 __all__ = [
     "AMPLITUDE_RATIO", "DURATION", "GRID", "MAX_GRID", "MAX_PERIODS", "MAX_SAMPLES", "MAX_TRACE_PERIODS",
-    "NEVER_MOVES", "PERIODS", "PHI", "PLANT_OPTIONS", "SAMPLE_RATE", "SETTLE", "SLIPS_ALWAYS", "STICK_SLIP",
-    "add_flag", "add_plant_options", "controller", "experiment", "feeder", "flag_of", "flag_type", "motion_regime",
-    "plant", "replay", "report", "ros_args", "simulate", "slider", "trace", "umap",
+    "MODEL_OPTIONS", "NEVER_MOVES", "PERIODS", "PHI", "PLANT_OPTIONS", "SAMPLE_RATE", "SETTLE", "SLIPS_ALWAYS",
+    "STICK_SLIP", "add_flag", "add_model_options", "add_plant_options", "controller", "conveyor", "experiment",
+    "feeder", "flag_of", "flag_type", "general_motion", "model", "motion_regime", "plant", "replay", "report",
+    "ros_args", "simulate", "slider", "trace", "umap",
 ]

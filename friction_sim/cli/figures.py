@@ -5,6 +5,9 @@ so the core and the nodes never pay for it.
 * :func:`u_map_figure` is the paper's Fig. 3: U over (Fd/FfN, Pa/Q).
 * :func:`trace_figure` is the paper's Fig. 2: forces with the impulse areas,
   acceleration, velocity and displacement, with the points A, B, C.
+* :func:`conveyor_figure` is the general model's conveying figure: U
+  against the throw number for several vibration angles, and against the
+  track inclination (``friction-sim conveyor``).
 * :func:`report_figure` is an experiment report's picture: target and
   measured mean speed, Pa, Fd and f against time.
 
@@ -28,6 +31,8 @@ from friction_sim.experiment.report import RunData, SegmentRow, inputs_at
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
+
+    from friction_sim.cli.conveyor import ConveyorSweep
 
 
 #: The resolution of every saved figure [dots per inch]: print quality, and
@@ -271,6 +276,64 @@ def _fastest_sampled(result: SimulationResult, t_start: float, end: float) -> li
         t0, t1 = traj.t[inside[k]], traj.t[inside[k + 1]]
         found.append(float(t0 + (t1 - t0) * a0 / (a0 - a1)))
     return found
+
+
+def conveyor_figure(sweep: ConveyorSweep) -> Figure:
+    """U against the throw number for each vibration angle (level track, Fd = 0),
+    Gamma = 1 and 3.30 marked and each curve's peak starred; below, U against the
+    track inclination at a fixed Gamma and angle, the reversal marked.  Hollow
+    markers: motion not periodic within the settling periods (the mean is over
+    the stated window after them)."""
+    from friction_sim.cli.conveyor import MARKED_GAMMAS
+
+    fig = _pyplot_free_figure(figsize=(8.0, 9.0), layout="constrained")
+    top, bottom = fig.subplots(2, 1)
+    colours = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
+    for (angle, c), colour in zip(sweep.gamma_curves.items(), colours * 4):
+        top.plot(c.x, c.u, color=colour, linewidth=1.3, label=rf"$\beta$ = {angle:g}°")
+        _hollow(top, c.x, c.u, c.periodic, colour)
+        best = sweep.peaks[angle]
+        top.plot(best.throw_number, best.u, "*", color=colour, markersize=11, markeredgecolor="black",
+                 markeredgewidth=0.5, zorder=4)
+    for gamma, text in MARKED_GAMMAS:
+        top.axvline(gamma, color="0.35", linestyle="--", linewidth=0.9, zorder=0)
+        top.annotate(text, (gamma, 1.0), xycoords=("data", "axes fraction"), xytext=(0, 3),
+                     textcoords="offset points", va="bottom", ha="center", fontsize=8, color="0.25")
+    top.plot([], [], "o", markerfacecolor="none", markeredgecolor="0.3", label="not periodic (window mean)")
+    top.plot([], [], "*", color="0.5", markeredgecolor="black", markeredgewidth=0.5, markersize=10,
+             label="peak speed")
+    top.axhline(0.0, color="black", linewidth=0.6)
+    top.set_xlim(0.0, max(float(c.x[-1]) for c in sweep.gamma_curves.values()))
+    top.set_xlabel(r"throw number $\Gamma = P_a / (m g \cos\alpha)$")
+    top.set_ylabel(r"$U = V f / (g \mu)$")
+    top.set_title(rf"Level track, $F_d$ = 0, $\mu$ = {sweep.mu:g}", pad=16)
+    top.legend(loc="upper left", fontsize=8)
+    top.grid(alpha=0.3)
+
+    slope = sweep.slope
+    bottom.plot(slope.x, slope.u, color="black", linewidth=1.3)
+    _hollow(bottom, slope.x, slope.u, slope.periodic, "black")
+    bottom.axhline(0.0, color="black", linewidth=0.6)
+    if sweep.reversal is not None:
+        bottom.axvline(sweep.reversal, color="tab:red", linestyle="--", linewidth=1.0)
+        bottom.plot(sweep.reversal, 0.0, "o", color="tab:red", zorder=4,
+                    label=rf"reversal: $\alpha$ = {sweep.reversal:.3f}°")
+        bottom.legend(loc="upper right", fontsize=8)
+    bottom.set_xlabel(r"track inclination $\alpha$ [°] (> 0: conveying uphill)")
+    bottom.set_ylabel(r"$U = V f / (g \mu)$")
+    bottom.set_title(rf"$\Gamma$ = {sweep.slope_gamma:g}, $\beta$ = {sweep.slope_angle:g}°, "
+                     rf"$F_d$ = 0, $\mu$ = {sweep.mu:g}")
+    bottom.grid(alpha=0.3)
+    fig.suptitle("Vibratory conveying: mean speed of the exact point-mass model")
+    return fig
+
+
+def _hollow(ax: Any, x: np.ndarray, u: np.ndarray, periodic: np.ndarray, colour: str) -> None:
+    """Hollow markers on the points whose motion is not periodic."""
+    irregular = ~periodic & np.isfinite(u)
+    if np.any(irregular):
+        ax.plot(x[irregular], u[irregular], "o", markerfacecolor="none", markeredgecolor=colour, markersize=4,
+                linewidth=0.0)
 
 
 def report_figure(data: RunData, rows: Sequence[SegmentRow]) -> Figure:

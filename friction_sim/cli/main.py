@@ -7,6 +7,7 @@ Subcommands::
     friction-sim umap --grid 101 --csv u.csv --png u.png
     friction-sim trace --png fig2.png [--periods 2] [plant options]
     friction-sim simulate [plant options] --duration 2 [--settle 0.2] [--csv out.csv] [--json]
+    friction-sim conveyor --png conveyor.png [--csv conveyor.csv] [--points 101]
     friction-sim slider [--params FILE] [--log run.mcap] [--ros-args ...]
     friction-sim controller [--params FILE] [--ros-args ...]
     friction-sim feeder [--slider-params FILE] [--controller-params FILE] [--ros-args ...]
@@ -73,10 +74,11 @@ def build_parser() -> argparse.ArgumentParser:
     """The ``friction-sim`` parser with every subcommand."""
     parser = _OneLineParser(
         prog="friction-sim",
-        description="Exact stick-slip simulator of a vibratory-feeder slider (Kostek's model).",
+        description="Exact event-driven simulator of a vibratory-feeder slider: stick, slip and flight "
+                    "(Kostek's model and its generalization).",
     )
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_OneLineParser)
-    for add in (_add_umap, _add_trace, _add_simulate, _add_nodes, _add_experiment, _add_replay):
+    for add in (_add_umap, _add_trace, _add_simulate, _add_conveyor, _add_nodes, _add_experiment, _add_replay):
         add(sub)
     return parser
 
@@ -109,6 +111,15 @@ def _add_simulate(sub: Subcommands) -> None:
     commands.add_flag(simulate, commands.SAMPLE_RATE, commands.SAMPLE_RATE.default)
     simulate.add_argument("--json", action="store_true", help="print one JSON object")
     simulate.set_defaults(handler=commands.simulate)
+
+
+def _add_conveyor(sub: Subcommands) -> None:
+    from friction_sim.cli.conveyor import add_arguments
+
+    conveyor = sub.add_parser("conveyor", help="the conveying figure: U against the throw number for vibration "
+                              "angles 15-60 degrees, and against the track inclination (CSV beside the PNG)")
+    add_arguments(conveyor)
+    conveyor.set_defaults(handler=commands.conveyor)
 
 
 def _add_nodes(sub: Subcommands) -> None:
