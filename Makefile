@@ -49,6 +49,8 @@ demo: $(STAMP)
 	mkdir -p out
 	$(VENV)/bin/friction-sim trace --png out/fig2.png
 	$(VENV)/bin/friction-sim umap --grid 101 --csv out/umap.csv --png out/umap.png
+	$(VENV)/bin/friction-sim trace --png out/demo/flight.png --angle 30 --mu 0.5 --amplitude 20 --drive-force 0
+	$(VENV)/bin/friction-sim conveyor --png out/demo/conveyor.png --csv out/demo/conveyor.csv
 	$(VENV)/bin/friction-sim experiment config/demo.yaml
 
 bench: $(STAMP)
