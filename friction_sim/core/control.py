@@ -22,6 +22,18 @@ excitation amplitude Pa.  Its model is the exact relation U(phi, a):
   direction of a saturated output; an unreachable target (U* above
   U(phi, max_amplitude_ratio)) saturates, is flagged, and freezes it.
 
+Beyond Kostek's model (an inclined vibration, a slope, mu_s > mu) or with
+``max_amplitude_ratio`` >= 1 (a hopping slider) there is no closed form: the
+law then inverts the general mean speed (:mod:`friction_sim.core.meanspeed`)
+on its first stretch where U rises with a toward the target's sign
+(:class:`~friction_sim.core.ubranch.Branch`, built once per model, drive
+force and limit, and cached).  The branch's end (a_end, U_end) takes the
+place of max_amplitude_ratio: a target beyond it is unreachable and the
+output saturates at a_end, the fastest the plant conveys; a target of
+either sign is taken (the vibration conveys without a drive force), and
+one the branch does not reach is flagged unreachable.  Kostek's model with
+max_amplitude_ratio < 1 keeps the exact path above, unchanged.
+
 Why "clean": every slip of the periodic regime starts from rest at the same
 phase, so the plant reaches its new periodic motion in the first whole period
 after Pa changes.  A mean-velocity sample whose window began before the last
@@ -41,7 +53,8 @@ value, whatever the (finite, in range) inputs:
   the periodic regime (|phi| < 1) starts from rest and ends within the
   period, so the mean speed of a window is at most |Fd|/(2 m f) (the exact
   relation never exceeds |Fd|/(2 pi m f)), backwards for a negative drive
-  as well as forwards.  The limit is :data:`SPEED_LIMIT_FACTOR` |Fd|/(m f),
+  as well as forwards.  The limit is :data:`SPEED_LIMIT_FACTOR` |Fd|/(m f)
+  (beyond Kostek's model: see :func:`speed_limit`),
   four times that: room for a slip that outlasts a period after a change, a
   plant lighter than the model, an external force the controller does not
   see.  With |phi| >= 1 the slider slides away and any speed comes in time:
@@ -69,9 +82,12 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
 
+import numpy as np
+
 from friction_sim.core import spec
-from friction_sim.core.params import SliderParams
+from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.realtime import NS_PER_S
+from friction_sim.core.ubranch import Branch, rising_branch
 from friction_sim.core.urelation import amplitude_ratio_for, u_map
 from friction_sim.errors import ParameterError
 
@@ -83,19 +99,55 @@ RATIO_LIMITS = (1e-6, 1e6)
 _INPUTS = {setting.name: setting for setting in (spec.TARGET_SPEED, spec.DRIVE_FORCE, spec.EXCITATION_FREQUENCY)}
 #: A mean-velocity sample is refused beyond this many times |Fd|/(m f).
 SPEED_LIMIT_FACTOR = 2.0
+#: Beyond Kostek's model, samples up to this many times the model's fastest mean speed are accepted.
+GENERAL_SPEED_MARGIN = 4.0 * math.pi
 #: Samples past the mean window after a change of the plant before the limit
 #: of the plant before the change is dropped (those still queued on their way).
 LIMIT_SLACK_SAMPLES = 12
 
 
-def speed_limit(drive_force: float, model: SliderParams, frequency: float) -> float:
+def speed_limit(drive_force: float, model: SliderParams, frequency: float,
+                max_ratio: float = float(spec.MAX_AMPLITUDE_RATIO.default)) -> float:
     """The largest |mean velocity| [m/s] a slider of the model's mass, driven
     by ``drive_force`` at excitation ``frequency``, can show (see the module
-    doc); inf when |phi| >= 1 (it slides away, and reaches any speed in time)."""
-    force = abs(drive_force)
-    if force >= model.mu * model.weight:
+    doc); inf when |phi| >= 1 (it slides away, and reaches any speed in time).
+
+    Beyond Kostek's model below lift-off (:func:`uses_closed_form`) the
+    tangential excitation Pt <= ``max_ratio``*m*g*|cot(beta)| and the slope's
+    pull add to the drive: the limit is :data:`SPEED_LIMIT_FACTOR`
+    (|Fd - m g sin(alpha)| + Pt)/(m f), and at least :data:`GENERAL_SPEED_MARGIN`
+    times the fastest mean speed the model shows for a <= ``max_ratio``; inf
+    when |Fd - m g sin(alpha)| >= mu m g cos(alpha) or when the model runs away
+    somewhere in that range (a hopping slider without landing friction can).
+    """
+    if uses_closed_form(model, max_ratio):
+        force = abs(drive_force)
+        if force >= model.mu * model.weight:
+            return math.inf
+        return SPEED_LIMIT_FACTOR * force / (model.mass * frequency)
+    if runs_away(drive_force, model):
         return math.inf
-    return SPEED_LIMIT_FACTOR * force / (model.mass * frequency)
+    samples = _branch(model, drive_force, max_ratio, 1).u
+    if not np.all(np.isfinite(samples)):
+        return math.inf
+    fastest = float(np.max(np.abs(samples))) * model.gravity * model.mu / frequency
+    pull = abs(drive_force - model.downhill_weight) + max_ratio * model.weight * abs(model.tangential_ratio)
+    return max(SPEED_LIMIT_FACTOR * pull / (model.mass * frequency), GENERAL_SPEED_MARGIN * fastest)
+
+
+def uses_closed_form(model: SliderParams, max_ratio: float) -> bool:
+    """True where the law inverts Kostek's exact map (his model, a < 1: the
+    controller of issue 10, unchanged); elsewhere it inverts the general mean
+    speed on its rising branch (:mod:`friction_sim.core.ubranch`)."""
+    return model.is_kostek and max_ratio < 1.0
+
+
+def runs_away(drive_force: float, model: SliderParams) -> bool:
+    """True when the drive beats the friction whatever the excitation: |Fd -
+    m g sin(alpha)| >= mu m g cos(alpha) (Kostek: |phi| >= 1).  Coulomb friction
+    averages at most mu m g cos(alpha) over time (less when the slider hops),
+    and the excitation averages to nothing, so the slider then accelerates."""
+    return abs(drive_force - model.downhill_weight) >= model.mu * model.normal_weight
 
 
 @dataclass(frozen=True)
@@ -103,7 +155,9 @@ class ControllerConfig:
     """The controller's model of the plant and its tuning.
 
     integral_gain: fraction of each clean sample's error (in U) added to I.
-    max_amplitude_ratio: the largest a = Pa/(m*g) applied (< 1: lift-off).
+    max_amplitude_ratio: the largest a = Pa/(m*g) applied (above 1 the slider
+        hops; the law then, or for any model other than Kostek's, inverts the
+        general mean speed on its rising branch).
     settle_margin: extra fraction of a period a sample's window must keep
         clear of the last change of Pa (message latencies), on top of the
         delivery jitter observed in the recent samples.
@@ -131,9 +185,9 @@ class ControlOutput:
     feedforward_ratio: float  # a_ff = a(U*, phi) (NaN when unreachable)
     applied_ratio: float  # a actually applied
     integral: float  # I [U]
-    saturated: bool  # a clamped at max_amplitude_ratio
-    unreachable: bool  # U* > U(phi, max_amplitude_ratio), or no drive in the target's direction
-    runaway: bool  # |phi| >= 1: the slider slides on whatever Pa is
+    saturated: bool  # a clamped at max_amplitude_ratio (general model: at the rising branch's end)
+    unreachable: bool  # U* > U(phi, max_amplitude_ratio) (beyond the branch's end), or no drive that way
+    runaway: bool  # |phi| >= 1 (|Fd - m g sin(alpha)| >= mu m g cos(alpha)): it slides on whatever Pa is
 
 
 class SampleClock:
@@ -200,7 +254,7 @@ class MeanSpeedController:
         self._last_clean: tuple[float, float] | None = None  # (U_cmd, shortfall) for the secant
         self.clock = SampleClock()
         self.measured_speed = math.nan
-        self._limit = speed_limit(self._drive_force, config.model, self._frequency)
+        self._limit = speed_limit(self._drive_force, config.model, self._frequency, config.max_amplitude_ratio)
         self._envelope = self._limit  # the largest limit of the plants whose windows may still come
         self._settling = 0  # samples to come before the envelope may shrink to the limit
         self.output = self._decide()
@@ -265,16 +319,17 @@ class MeanSpeedController:
         if name not in _INPUTS:
             raise ParameterError(name, value, f"unknown input; known: {', '.join(_INPUTS)}")
         number = float(_INPUTS[name].check(value))
+        kostek = self._config.model.is_kostek  # elsewhere the vibration conveys too: any direction may be reachable
         if name == "target_speed":
             force = self._drive_force
-            if number != 0.0 and (force == 0.0 or math.copysign(1.0, number) != math.copysign(1.0, force)):
+            if kostek and number != 0.0 and (force == 0.0 or math.copysign(1.0, number) != math.copysign(1.0, force)):
                 raise ParameterError(
                     "target_speed", number,
                     f"must have the sign of drive_force = {force!r} N (the slider only creeps that way)")
             self._target = number
         elif name == "drive_force":
             self._drive_force = number
-            if self._target != 0.0 and math.copysign(1.0, self._target) != math.copysign(1.0, number):
+            if kostek and self._target != 0.0 and math.copysign(1.0, self._target) != math.copysign(1.0, number):
                 self._target = 0.0  # the old target now points the wrong way
         else:
             self._frequency = number
@@ -327,7 +382,8 @@ class MeanSpeedController:
     def _plant_changed(self) -> None:
         """Drive force, frequency or the model's mass changed: a new speed
         limit, and the old one still holds for the windows on their way."""
-        limit = speed_limit(self._drive_force, self._config.model, self._frequency)
+        limit = speed_limit(self._drive_force, self._config.model, self._frequency,
+                            self._config.max_amplitude_ratio)
         if limit != self._limit:
             self._envelope = max(self._envelope, limit)
             self._settling = self._config.mean_window_periods + LIMIT_SLACK_SAMPLES
@@ -379,6 +435,8 @@ class MeanSpeedController:
         model, top = self.config.model, self.config.max_amplitude_ratio
         phi = self._drive_force / (model.mu * model.weight)
         u_target = self._target * self._frequency / (model.gravity * model.mu)
+        if not uses_closed_form(model, top):
+            return self._decide_general(phi, u_target)
         runaway = abs(phi) >= 1.0
         if self._target == 0.0 or runaway:
             return self._output(0.0, u_target, phi, 0.0 if self._target == 0.0 else math.nan, False, False, runaway)
@@ -398,6 +456,37 @@ class MeanSpeedController:
         if not 0.0 <= ratio <= top:  # not expected: the relation is exact and u_command <= u_top
             raise ArithmeticError(f"the inverse U relation gave a = {ratio!r} for U = {u_command!r}, "
                                   f"phi = {phi!r} (expected 0 <= a <= {top!r})")
+        return self._output(ratio, u_target, phi, feedforward, False, False, False)
+
+    def _decide_general(self, phi: float, u_target: float) -> ControlOutput:
+        """The law on the general mean speed's rising branch toward U*'s sign:
+        saturated at its end (the fastest it conveys), unreachable beyond it
+        or where the branch does not exist, and kept from below its start."""
+        model, top = self.config.model, self.config.max_amplitude_ratio
+        runaway = runs_away(self._drive_force, model)
+        if self._target == 0.0 or runaway:
+            return self._output(0.0, u_target, phi, 0.0 if self._target == 0.0 else math.nan, False, False, runaway)
+        if u_target == 0.0:
+            return self._output(0.0, u_target, phi, 0.0, False, False, False)
+        direction = 1 if u_target > 0.0 else -1
+        branch = _branch(model, self._drive_force, top, direction)
+        if not branch.reachable(u_target):
+            beyond = not branch.empty and direction * u_target > direction * branch.u_end
+            ratio = branch.a_end if beyond else branch.a_start
+            return self._output(ratio, u_target, phi, math.nan, beyond, True, False)
+        feedforward = _general_inverse(model, self._drive_force, top, direction, u_target)
+        u_command = u_target * self._ratio
+        if direction * u_command >= direction * branch.u_end:
+            self._ratio = _clamp(branch.u_end / u_target, *RATIO_LIMITS)
+            return self._output(branch.a_end, u_target, phi, feedforward, True, False, False)
+        if not branch.reachable(u_command):  # below the start: the plant already moves that fast at a_start
+            if direction * branch.u_start > 0.0:
+                self._ratio = _clamp(branch.u_start / u_target, *RATIO_LIMITS)
+            return self._output(branch.a_start, u_target, phi, feedforward, False, False, False)
+        ratio = _general_inverse(model, self._drive_force, top, direction, u_command)
+        if not 0.0 <= ratio <= top:  # not expected: u_command is on the branch
+            raise ArithmeticError(f"the general inverse gave a = {ratio!r} for U = {u_command!r} "
+                                  f"(expected 0 <= a <= {top!r})")
         return self._output(ratio, u_target, phi, feedforward, False, False, False)
 
     def _output(self, ratio: float, u_target: float, phi: float, feedforward: float,
@@ -442,3 +531,12 @@ def _u_top(phi: float, top: float) -> float:
 def _inverse(u: float, phi: float, top: float) -> float:
     return float(amplitude_ratio_for(u, phi, top))
 
+
+@lru_cache(maxsize=16)
+def _branch(model: SliderParams, drive_force: float, top: float, direction: int) -> Branch:
+    return rising_branch(model, Inputs(drive_force=drive_force), top, direction)
+
+
+@lru_cache(maxsize=64)
+def _general_inverse(model: SliderParams, drive_force: float, top: float, direction: int, u: float) -> float:
+    return _branch(model, drive_force, top, direction).amplitude_ratio_for(u)

@@ -30,10 +30,15 @@ others cost a clock read).  An unexpected error in a callback is logged
 once, reported as ERROR on diagnostics, and the input that caused it is
 refused (the law's state is left as it was); the node goes on.
 
-With ``plant_node`` set (default ``slider``) the controller reads mass, mu,
-gravity and mean_window_periods from that node's parameters at start-up
-through the parameter services; if the node does not answer within 5 s it
-says so and keeps its own.  With ``active`` false it stands by, publishing
+With ``plant_node`` set (default ``slider``) the controller reads its whole
+model (mass, mu, gravity and the general model's static_ratio,
+excitation_angle, excitation_phase, track_inclination, restitution and
+landing_friction) and mean_window_periods from that node's parameters at
+start-up through the parameter services; a model parameter the plant node
+does not have keeps this node's value, and if the node does not answer
+within 5 s it says so and keeps its own.  Beyond Kostek's model (or with
+max_amplitude_ratio >= 1) the law inverts the general mean speed on its
+rising branch (see :mod:`friction_sim.core.control`).  With ``active`` false it stands by, publishing
 nothing, until the first target_speed message (or parameter) arrives: an
 experiment can steer the slider open loop first.  It publishes nothing until
 the model is settled and
@@ -63,7 +68,7 @@ from std_msgs.msg import Float64
 
 from friction_sim.core import spec
 from friction_sim.core.commands import CONTROLLER, consumed_by
-from friction_sim.core.control import ControllerConfig, ControlOutput, MeanSpeedController
+from friction_sim.core.control import ControllerConfig, ControlOutput, MeanSpeedController, uses_closed_form
 from friction_sim.core.params import SliderParams
 from friction_sim.errors import ParameterError, one_line
 from friction_sim.io.messages import command_from_message, key_values, message_class, ns_to_seconds, stamp_ns
@@ -203,15 +208,16 @@ class ControllerNode(Node):
                          f"{PLANT_TIMEOUT:g} s: using this node's own mass, mu and gravity", warn=True)
 
     def _adopt_plant(self, response: Any) -> None:
-        """Take the plant's mass, mu, gravity and window as this node's own
-        parameters (validated and applied like any parameter change)."""
+        """Take the plant's model and window as this node's own parameters
+        (validated and applied like any parameter change).  A model parameter
+        the plant node does not declare (an older slider) keeps this node's value."""
         names = [*MODEL, "mean_window_periods"]
         try:
             values = [Parameter.from_parameter_msg(_named(name, value)).value
-                      for name, value in zip(names, response.values)]
-            update = [Parameter(n, value=float(v)) for n, v in zip(MODEL, values[:3])]
-            update.append(Parameter("mean_window_periods", value=int(values[3])))
-        except (TypeError, ValueError, IndexError) as error:
+                      for name, value in zip(names, response.values, strict=True)]
+            update = [Parameter(name, value=_typed(PARAMETERS[name], value))
+                      for name, value in zip(names, values) if value is not None]
+        except (TypeError, ValueError) as error:
             self._settle(f"plant parameters unusable ({error}): using this node's own", warn=True)
             return
         result = self.set_parameters_atomically(update)
@@ -220,8 +226,13 @@ class ControllerNode(Node):
             return
         model = self._control.config.model
         self.model_source = f"plant node '{self.get_parameter('plant_node').value}'"
+        shape = "" if model.is_kostek else (
+            f", static_ratio {model.static_ratio:g}, excitation_angle {model.excitation_angle:g} deg, "
+            f"excitation_phase {model.excitation_phase:g} deg, track_inclination {model.track_inclination:g} deg")
+        flight = "" if model == model.replace(restitution=0.0, landing_friction="impulsive") else (
+            f", restitution {model.restitution:g}, landing_friction {model.landing_friction}")
         self._settle(f"model from {self.model_source}: mass {model.mass:g} kg, mu {model.mu:g}, "
-                     f"gravity {model.gravity:g} m/s^2")
+                     f"gravity {model.gravity:g} m/s^2{shape}{flight}")
 
     def _settle(self, message: str, warn: bool = False) -> None:
         (self.get_logger().warning if warn else self.get_logger().info)(message)
@@ -364,14 +375,19 @@ class ControllerNode(Node):
     def _warn_on_conditions(self, output: ControlOutput) -> None:
         """Warn once each time the target becomes unreachable or the drive runs away."""
         if output.unreachable and not self._warned_unreachable:
+            config = self._control.config
+            if uses_closed_form(config.model, config.max_amplitude_ratio):
+                where = f"with Pa <= {config.max_amplitude_ratio:g} m g"
+            else:
+                where = (f"on the rising branch of the mean speed for Pa <= {config.max_amplitude_ratio:g} m g "
+                         "(it ends where U stops rising with Pa)")
             self.get_logger().warning(
-                f"target {output.target_speed!r} m/s is unreachable with Pa <= "
-                f"{self._control.config.max_amplitude_ratio:g} m g: saturated at {output.amplitude:g} N")
+                f"target {output.target_speed!r} m/s is unreachable {where}: Pa set to {output.amplitude:g} N")
             self._publish_diagnostics()
         if output.runaway and not self._warned_runaway:
             self.get_logger().warning(
-                f"phi = {output.phi:.3f} >= 1: the drive force exceeds friction, the slider slides on "
-                "whatever the excitation; Pa set to 0")
+                f"phi = {output.phi:.3f}: the drive force (with the slope's pull) exceeds friction, the slider "
+                "slides on whatever the excitation; Pa set to 0")
         if output.unreachable != self._warned_unreachable and not output.unreachable:
             self._publish_diagnostics()
         self._warned_unreachable, self._warned_runaway = output.unreachable, output.runaway
@@ -386,7 +402,7 @@ class ControllerNode(Node):
             (bool(self.names.problem), self.names.problem),
             (out.unreachable, "target unreachable"),
             (out.saturated and not out.unreachable, "saturated"),
-            (out.runaway, "phi >= 1: no control over the speed"),
+            (out.runaway, "the drive beats friction (phi >= 1): no control over the speed"),
             (not self.ready, "waiting for the plant's parameters"),
             (self.ready and not self.active, "standing by for a target"),
             (refused_now > 0, f"{refused_now} inputs refused ({self.last_rejection})"),
@@ -469,6 +485,18 @@ def _config(values: dict[str, Any]) -> ControllerConfig:
         integral_gain=values["integral_gain"], max_amplitude_ratio=values["max_amplitude_ratio"],
         mean_window_periods=values["mean_window_periods"], settle_margin=values["settle_margin"],
     )
+
+
+def _typed(setting: spec.Setting, value: Any) -> Any:
+    """A plant parameter's value as this node's parameter of the same name
+    takes it (an integer answer for a float parameter is taken as a float)."""
+    if setting.kind is str:
+        if not isinstance(value, str):
+            raise TypeError(f"{setting.name} = {value!r} is not a string")
+        return value
+    if setting.kind is int:
+        return int(value)
+    return float(value)
 
 
 def _named(name: str, value: Any) -> Any:

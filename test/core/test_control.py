@@ -137,9 +137,15 @@ def test_bad_targets_are_rejected_and_the_last_valid_one_kept(value: float, word
     assert controller.target_speed == 2e-4
 
 
-def test_config_rejects_a_ratio_at_or_above_one() -> None:
-    with pytest.raises(ParameterError, match="max_amplitude_ratio"):
-        ControllerConfig(max_amplitude_ratio=1.0)
+def test_config_takes_a_ratio_above_one_and_refuses_one_beyond_its_range() -> None:
+    """Since issue 11 the slider may hop: max_amplitude_ratio reaches 10 (the
+    general inverse takes over at 1); beyond it, or not finite, is refused."""
+    assert ControllerConfig(max_amplitude_ratio=1.0).max_amplitude_ratio == 1.0
+    assert ControllerConfig(max_amplitude_ratio=10.0).max_amplitude_ratio == 10.0
+    for bad in (10.5, 0.0, math.nan):
+        with pytest.raises(ParameterError, match="max_amplitude_ratio") as caught:
+            ControllerConfig(max_amplitude_ratio=bad)
+        assert "[0.001, 10]" in str(caught.value)
 
 
 def test_a_plant_at_half_speed_is_not_judged_at_full_speed_before_its_pace_is_known() -> None:
