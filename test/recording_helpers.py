@@ -26,11 +26,12 @@ def replay_args(path: Path, **options: Any) -> argparse.Namespace:
 
 
 def rewrite(source: Path, target: Path, edit: Callable[[str, int, Any], Any] = lambda topic, t, msg: msg,
+            *, metadata: Callable[[dict[str, str]], dict[str, str]] = lambda data: data,
             **recorder_options: Any) -> Path:
     """Copy a recording message by message; ``edit`` may change a message or
-    drop it (None)."""
+    drop it (None); ``metadata`` may change the friction_sim metadata record."""
     recording = read_recording(source)
-    with Recorder(target, metadata=recording.metadata[METADATA_NAME], **recorder_options) as out:
+    with Recorder(target, metadata=metadata(dict(recording.metadata[METADATA_NAME])), **recorder_options) as out:
         for raw in recording.messages:
             msg = edit(raw.topic, raw.log_time, recording.decode(raw))
             if msg is not None:

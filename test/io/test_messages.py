@@ -24,6 +24,33 @@ def test_state_messages_carry_x_v_friction_and_normal_force() -> None:
         assert M.stamp_ns(msg.header.stamp) == 1_234_567_890
 
 
+def test_state_messages_carry_the_height_its_rate_and_no_contact_force_in_flight() -> None:
+    flying = SliderState(t=0.5, x=2e-3, v=0.04, acceleration=0.7, friction_force=0.0, normal_force=0.0,
+                         phase=2.0, mode=Mode.FLIGHT, z=3.25e-4, vz=-0.0125)
+    pose, twist, wrench = M.state_messages(flying)
+    assert (pose.pose.position.x, pose.pose.position.y, pose.pose.position.z) == (2e-3, 0.0, 3.25e-4)
+    assert (twist.twist.linear.x, twist.twist.linear.y, twist.twist.linear.z) == (0.04, 0.0, -0.0125)
+    assert (wrench.wrench.force.x, wrench.wrench.force.z) == (0.0, 0.0)
+    on_track = M.state_messages(STATE)  # z = vz = 0 in contact: the paper's messages, unchanged
+    assert (on_track[0].pose.position.z, on_track[1].twist.linear.z) == (0.0, 0.0)
+
+
+def test_flight_events_carry_the_velocities_before_and_after() -> None:
+    landing = M.event_message(Event(0.031, EventKind.LANDING, 4e-4, 3.9, Mode.FLIGHT, Mode.STUCK,
+                                    v_before=0.021, v_after=0.0, vz_before=-0.08, vz_after=0.0))
+    assert (landing.name, landing.message) == ("landing", "flight -> stuck")
+    values = {kv.key: kv.value for kv in landing.values}
+    assert list(values) == ["t", "x", "phase", "before", "after", "v_before", "v_after", "vz_before", "vz_after"]
+    assert (float(values["v_before"]), float(values["vz_before"])) == (0.021, -0.08)
+    assert (float(values["v_after"]), float(values["vz_after"])) == (0.0, 0.0)
+    lift_off = M.event_message(Event(0.0023, EventKind.LIFT_OFF, 1e-5, 0.7297, Mode.FORWARD, Mode.FLIGHT,
+                                     v_before=0.01, v_after=0.01))
+    assert (lift_off.name, lift_off.message) == ("lift_off", "forward -> flight")
+    assert {kv.key: kv.value for kv in lift_off.values}["v_after"] == "0.01"
+    stick = M.event_message(Event(0.01, EventKind.STICK, 1e-5, 3.0, Mode.FORWARD, Mode.STUCK))
+    assert [kv.key for kv in stick.values] == ["t", "x", "phase", "before", "after"]  # as before flight existed
+
+
 def test_time_helpers_round_trip_whole_nanoseconds() -> None:
     for ns in (0, 1, 999_999_999, 1_000_000_000, 3_600_123_456_789, -1, -1_500_000_000):
         stamp = M.time_msg(ns)
@@ -41,6 +68,10 @@ def test_command_messages_per_topic() -> None:
     assert M.stamp_ns(wrench.header.stamp) == 500_000_000
     change = M.command_message(Command(0.5, "parameters", {"mass": 2.0, "mu": 0.2}))
     assert M.parameter_event_values(change) == ({}, {"mass": 2.0, "mu": 0.2})
+    text = M.command_message(Command(0.5, "parameters", {"landing_friction": "none", "restitution": 0.5}))
+    assert M.parameter_event_values(text) == ({}, {"landing_friction": "none", "restitution": 0.5})
+    back = M.command_from_message("parameters", text, 0.5)
+    assert back == Command(0.5, "parameters", {"landing_friction": "none", "restitution": 0.5})
     with pytest.raises(ValueError, match="command = 'warp_drive' rejected: must be one of"):
         M.command_message(Command(0.5, "warp_drive", {"x": 1.0}))
 

@@ -80,6 +80,29 @@ def test_refusals_name_field_value_and_limit_in_the_vocabularys_words(bare: Node
     assert "read-only" in why("log_rate", 10.0) and "log_rate = 10.0" in why("log_rate", 10.0)
 
 
+def test_the_general_models_descriptors_derive_from_the_spec(bare: Node) -> None:
+    """Ranges of the new parameters come with their descriptors (rclpy refuses
+    outside them); the string with choices states them (rclpy has no choice
+    constraint: the node's set callback refuses the others, see test_slider_node)."""
+    for name in ("static_ratio", "excitation_angle", "excitation_phase", "track_inclination", "restitution"):
+        setting = spec.SLIDER_NODE[name]
+        (span,) = bare.describe_parameter(name).floating_point_range
+        assert (span.from_value, span.to_value) == (setting.low, setting.high), name
+        assert bare.get_parameter(name).value == setting.default
+    landing = bare.describe_parameter("landing_friction")
+    assert landing.type == Parameter.Type.STRING.value and landing.additional_constraints == "one of: impulsive, none"
+    assert bare.get_parameter("landing_friction").value == "impulsive"
+
+    def why(name: str, value: Any) -> str:
+        return descriptor_refusal(bare, Parameter(name, value=value), spec.SLIDER_NODE)
+
+    assert why("restitution", 1.0) == "restitution = 1.0 rejected: must be in [0, 0.99]"
+    assert why("excitation_angle", 0.0) == "excitation_angle = 0.0 rejected: must be in [0.1, 90] deg"
+    assert why("landing_friction", 1.0) == ("landing_friction = 1.0 rejected: must be a string, "
+                                            "not a floating-point number")
+    assert why("landing_friction", "sticky") == "", "a string reaches the node's own check"
+
+
 def test_the_throttled_warning_warns_once_per_interval_and_counts_the_rest(
         monkeypatch: pytest.MonkeyPatch) -> None:
     said: list[str] = []

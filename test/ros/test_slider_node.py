@@ -19,6 +19,7 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
 
+from friction_sim.core import spec
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.simulation import run_schedule
 from friction_sim.core.slider import Slider
@@ -72,10 +73,16 @@ def test_topic_contract_names_types_and_namespace(rig) -> None:  # type: ignore[
     for key in ("achieved_real_time_factor", "tick_rate", "late_ticks", "commands_accepted",
                 "commands_rejected", "last_rejection", "drive_force", "excitation_amplitude",
                 "excitation_frequency", "phi", "amplitude_ratio", "predicted_U",
-                "predicted_mean_velocity", "stick_fraction"):
+                "predicted_mean_velocity", "stick_fraction", "throw_number", "flight_fraction",
+                "flight_fraction_in_interval", "lift_offs", "landings", "lift_offs_in_interval",
+                "landings_in_interval"):
         assert key in values
     assert float(values["phi"]) == pytest.approx(0.7)
     assert 0.0 < float(values["stick_fraction"]) < 1.0
+    # The paper's case never leaves the track: z = vz = 0, no flight.
+    assert all(m.pose.position.z == 0.0 for m in poses)
+    assert all(m.twist.linear.z == 0.0 for m in probe.received["velocity"])
+    assert (float(values["throw_number"]), float(values["flight_fraction"]), values["lift_offs"]) == (0.5, 0.0, "0")
 
 
 def test_published_trajectory_equals_the_exact_core_whatever_the_jitter(rig) -> None:  # type: ignore[no-untyped-def]
@@ -132,12 +139,12 @@ BAD_INPUTS = [
     ("drive_force", math.nan, "nan"),
     ("drive_force", math.inf, "inf"),
     ("excitation_amplitude", -math.inf, "-inf"),
-    ("excitation_amplitude", 10.0, "10.0"),
+    ("excitation_amplitude", 2e6, "2000000.0"),  # above the weight is not refused (it hops); beyond the range is
     ("excitation_amplitude", -1.0, "-1.0"),
     ("excitation_frequency", 0.0, "0.0"),
     ("excitation_frequency", -50.0, "-50.0"),
     ("excitation_frequency", math.nan, "nan"),
-    ("external_wrench", (0.0, -6.0), "-6.0"),
+    ("external_wrench", (0.0, -2e6), "-2000000.0"),
     ("external_wrench", (math.nan, 0.0), "nan"),
     ("external_wrench", (0.0, -math.inf), "-inf"),
     # finite but absurd: outside the documented ranges, refused by the core's one gate
@@ -182,12 +189,31 @@ def test_parameters_via_the_parameter_services(rig) -> None:  # type: ignore[no-
 
     assert set_("drive_force", 0.8) == (True, "")
     assert node.realtime.slider.inputs.drive_force == 0.8
-    ok, reason = set_("excitation_amplitude", 12.0)
-    assert not ok and "excitation_amplitude" in reason and "12.0" in reason
-    assert node.realtime.slider.inputs.excitation_amplitude == 5.0
-    ok, reason = set_("mass", 0.4)  # Pa = 5 N would lift a 4 N slider off
-    assert not ok and "mass" in reason and "0.4" in reason and "0.5 kg" in reason
-    assert node.realtime.slider.params.mass == 1.0
+    # The general model's parameters: a string with choices, refused through the set-parameters
+    # path with the field, the value and the choices; ranges refused by the descriptors.
+    ok, reason = set_("landing_friction", "sticky")
+    assert not ok and reason == "landing_friction = 'sticky' rejected: must be one of impulsive, none", reason
+    assert node.realtime.slider.params.landing_friction == "impulsive"
+    assert node.get_parameter("landing_friction").value == "impulsive"
+    for name, value in (("restitution", 1.0), ("excitation_angle", 0.0), ("static_ratio", 0.5),
+                        ("track_inclination", 90.0), ("excitation_phase", -200.0)):
+        ok, reason = set_(name, value)  # rclpy's own reason (the node's warning says it in the spec's words)
+        assert not ok and name in reason, (name, reason)
+    assert node.realtime.slider.params == SliderParams()
+    assert set_("landing_friction", "none") == (True, "")
+    assert set_("restitution", 0.5) == (True, "")
+    assert set_("excitation_angle", 30.0) == (True, "")
+    assert node.realtime.slider.params == SliderParams(landing_friction="none", restitution=0.5,
+                                                       excitation_angle=30.0)
+    for name in ("landing_friction", "restitution", "excitation_angle"):
+        assert set_(name, spec.SLIDER_NODE[name].default) == (True, "")
+    # An amplitude above the weight, or a plant too light for the one in force: no longer refused.
+    assert set_("excitation_amplitude", 12.0) == (True, "")
+    assert node.realtime.slider.inputs.excitation_amplitude == 12.0
+    assert set_("excitation_amplitude", 5.0) == (True, "")
+    assert set_("mass", 0.4) == (True, "")
+    assert node.realtime.slider.params.mass == 0.4
+    assert set_("mass", 1.0) == (True, "")
     ok, reason = set_("excitation_frequency", math.nan)
     assert not ok and "excitation_frequency" in reason
     ok, reason = set_("mu", -0.1)
@@ -350,15 +376,22 @@ def test_a_flood_of_commands_does_not_stall_publishing(ros: None, kind: str) -> 
 
 
 def test_parameters_are_checked_against_the_inputs_in_force(rig) -> None:  # type: ignore[no-untyped-def]
-    """A topic command changed the amplitude since the parameters were set: a
-    mass that would lift the slider off under it is refused, and nothing changes."""
+    """A topic command changed the frequency since the parameters were set: a
+    real-time factor the loop cannot follow at that frequency (f x rtf > 20000)
+    is refused, though it was fine at the frequency the parameter still says;
+    nothing changes.  (A mass that the amplitude in force lifts off is no
+    longer refused: the slider hops.)"""
     node, probe, _outcomes = rig
+    probe.send("excitation_frequency", 5000.0)
+    assert probe.spin_until(lambda: node.realtime.slider.inputs.excitation_frequency == 5000.0, 15.0)
+    successful, reason = probe.set_parameter(f"{node.get_namespace()}/slider", "real_time_factor", 5.0)
+    assert not successful and "real_time_factor = 5.0" in reason and "5000" in reason, reason
+    assert node.get_parameter("real_time_factor").value == 1.0
+    assert node.realtime.clock.rate == 1.0
     probe.send("excitation_amplitude", 9.0)
     assert probe.spin_until(lambda: node.realtime.slider.inputs.excitation_amplitude == 9.0, 15.0)
-    successful, reason = probe.set_parameter(f"{node.get_namespace()}/slider", "mass", 0.6)
-    assert not successful and "mass" in reason and "0.6" in reason
-    assert node.get_parameter("mass").value == 1.0
-    assert node.realtime.slider.params.mass == 1.0
+    assert probe.set_parameter(f"{node.get_namespace()}/slider", "mass", 0.6) == (True, "")
+    assert node.realtime.slider.params.mass == 0.6
 
 
 def test_a_frequency_the_real_time_loop_cannot_follow_is_refused(rig) -> None:  # type: ignore[no-untyped-def]

@@ -18,7 +18,7 @@ from typing import Any
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import PoseStamped, WrenchStamped
 from rclpy.parameter import Parameter
 
 from friction_sim.ros.common import EXIT_RECORDING_FAILED
@@ -152,3 +152,52 @@ def test_recording_faster_than_the_machine_computes_keeps_the_node_answering(ros
     done = subprocess.run([str(BIN / "friction-sim"), "replay", str(path), "--verify"], capture_output=True,
                           text=True, timeout=300, check=False)
     assert done.returncode == 0 and "reproducible" in done.stdout, done.stdout + done.stderr
+
+
+def test_a_hopping_slider_publishes_its_flight_and_the_recording_verifies(ros: None, tmp_path: Path) -> None:
+    """Pa = 15 N on the default 1 kg slider (throw number 1.5): the node takes it,
+    publishes z > 0 with R = 0 while the slider is off the track, counts lift-offs
+    and landings in diagnostics; a lifting external force (force.z > 0) makes the
+    flights longer; the recording holds the lift_off and landing events, marks
+    the convention, and replay --verify reproduces the flight."""
+    ns, path = namespace(), tmp_path / "hop.mcap"
+    process = subprocess.Popen(
+        [str(BIN / "slider"), "--ros-args", "-r", f"__ns:={ns}", "-p", "excitation_amplitude:=15.0",
+         "-p", f"log_path:={path}"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=dict(os.environ))
+    probe = Probe(ns, outputs={"pose": PoseStamped, "friction_force": WrenchStamped, "diagnostics": DiagnosticArray})
+    try:
+        probe.wait_for_connection(timeout=20.0)
+        assert probe.spin_until(lambda: len(probe.received["diagnostics"]) >= 2, 10.0)
+        poses = probe.received["pose"][-600:]
+        normal = {stamp_ns(m): m.wrench.force.z for m in probe.received["friction_force"]}
+        flying = [m for m in poses if m.pose.position.z > 0.0]
+        assert flying and min(m.pose.position.z for m in poses) >= 0.0, "z > 0 published while it hops"
+        assert all(normal[stamp_ns(m)] == 0.0 for m in flying if stamp_ns(m) in normal), "R = 0 in flight"
+        before = diagnostics_values(probe.received["diagnostics"][-1])
+        assert int(before["lift_offs"]) > 10 and int(before["landings"]) > 10
+        assert float(before["throw_number"]) == 1.5 and 0.0 < float(before["flight_fraction"]) < 1.0
+        probe.send("external_wrench", (0.0, 3.0))  # lifts: the load is m g - Fz = 7 N < Pa
+        count = len(probe.received["diagnostics"])
+        assert probe.spin_until(lambda: len(probe.received["diagnostics"]) >= count + 2, 10.0)
+        after = diagnostics_values(probe.received["diagnostics"][-1])
+        assert float(after["external_force_z"]) == 3.0
+        assert float(after["flight_fraction"]) > float(before["flight_fraction"]), "a lifting force: longer flights"
+        process.send_signal(signal.SIGINT)
+        _out, err = process.communicate(timeout=20)
+    finally:
+        kill_if_running(process)
+        probe.close()
+    assert process.returncode == 0, err
+    from friction_sim.io.reader import read_recording
+
+    recording = read_recording(path)
+    assert recording.metadata["friction_sim"]["external_force_z_convention"] == "lifts"
+    events = [msg for _, msg in recording.decoded("events")]
+    landings = [{kv.key: float(kv.value) for kv in m.values if kv.key.startswith("v")} for m in events
+                if m.name == "landing"]
+    assert any(m.name == "lift_off" for m in events) and landings
+    assert all(v["vz_before"] < 0.0 for v in landings)
+    done = subprocess.run([str(BIN / "friction-sim"), "replay", str(path), "--verify"], capture_output=True,
+                          text=True, timeout=300, check=False)
+    assert done.returncode == 0 and "reproducible" in done.stdout, done.stdout + done.stderr
+    assert "largest height difference" in done.stdout

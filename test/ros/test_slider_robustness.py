@@ -143,9 +143,12 @@ def test_a_simulation_fault_ends_the_process_with_one_line_and_exit_code_3(ros: 
 
 def test_an_atomic_set_valid_together_is_applied_whole(ros: None) -> None:
     """{excitation_frequency: 2500, real_time_factor: 1} from a real-time factor of 10
-    (each alone would break f x rtf <= 20000), and {mass: 0.4, excitation_amplitude: 3}
-    from the defaults (mass alone would lift off): the simulation runs on the new
-    values, and the node's log says what the answer says."""
+    (each alone would break f x rtf <= 20000), {mass: 0.4, excitation_amplitude: 3}
+    from the defaults: the simulation runs on the new values.  A set with one bad
+    value (a landing_friction that is not a choice) is refused whole.  A set that
+    takes the throw number above 1 ({mass: 0.2, excitation_amplitude: 3}: Pa > m g)
+    is taken, and the slider hops: z > 0 and R = 0 are published.  The node's log
+    says what the answers say."""
     ns = namespace()
     process = start_slider(ns, "-p", "real_time_factor:=10.0")
     probe = Probe(ns, outputs={"diagnostics": DiagnosticArray, "mean_velocity": TwistStamped,
@@ -175,25 +178,37 @@ def test_an_atomic_set_valid_together_is_applied_whole(ros: None) -> None:
             return min(normal), max(normal)
 
         # Within [1, 7] N and spread over more than 3 N: m g = 4 N and Pa = 3 N, both in force
-        # (the mass alone would lift off; Pa alone gives [7, 13] N).
+        # (the mass alone gives [-1, 9] N: a hop; Pa alone gives [7, 13] N).
         low, high = normal_range()
         assert low >= 1.0 - 1e-9 and high <= 7.0 + 1e-9 and high - low > 3.0, (low, high)
-        # Refused whole: Pa = 3.5 N would lift a 0.3 kg slider off; nothing changes.
-        successful, reason = probe.set_parameters_atomically(slider, {"mass": 0.3, "excitation_amplitude": 3.5})
-        assert not successful and "excitation_amplitude = 3.5" in reason and "3.0 N" in reason
+        # Refused whole: one value is not one of its choices; nothing changes.
+        successful, reason = probe.set_parameters_atomically(
+            slider, {"mass": 0.3, "excitation_amplitude": 3.5, "landing_friction": "bouncy"})
+        assert not successful and "landing_friction = 'bouncy'" in reason and "impulsive, none" in reason, reason
         probe.spin_for(0.3)
         low, high = normal_range()
         assert low >= 1.0 - 1e-9 and high <= 7.0 + 1e-9 and high - low > 3.0, (low, high)
+        # Taken whole: Pa = 3 N > m g = 2 N, throw number 1.5: it hops.
+        assert probe.set_parameters_atomically(slider, {"mass": 0.2, "excitation_amplitude": 3.0}) == (True, "")
+        count = len(probe.received["pose"])
+        assert probe.spin_until(lambda: len(probe.received["pose"]) > count + 600, 10.0)
+        heights = [m.pose.position.z for m in probe.received["pose"][-500:]]
+        normal = {stamp_ns(m): m.wrench.force.z for m in probe.received["friction_force"][-500:]}
+        flying = [m for m in probe.received["pose"][-500:] if m.pose.position.z > 0.0]
+        assert min(heights) >= 0.0 and flying, "z > 0 is published while it hops"
+        assert all(normal.get(stamp_ns(m), 0.0) == 0.0 for m in flying), "R = 0 in flight"
+        assert min(normal.values()) >= 0.0 and max(normal.values()) <= 2.0 + 3.0 + 1e-9
     finally:
         code, err = stop(process)
         probe.close()
     assert code == 0, err
     accepted = [line for line in err.splitlines() if "parameters set:" in line]
-    assert len(accepted) == 2, err
+    assert len(accepted) == 3, err
     assert "excitation_frequency = 2500.0" in accepted[0] and "real_time_factor = 1.0" in accepted[0]
     assert "mass = 0.4" in accepted[1] and "excitation_amplitude = 3.0" in accepted[1]
+    assert "mass = 0.2" in accepted[2] and "excitation_amplitude = 3.0" in accepted[2]
     refused = [line for line in err.splitlines() if "WARN" in line and "rejected" in line]
-    assert len(refused) == 1 and "excitation_amplitude = 3.5" in refused[0], err
+    assert len(refused) == 1 and "landing_friction = 'bouncy'" in refused[0], err
 
 
 # -- values rclpy refuses, names, start-up ---------------------------------------------
@@ -286,13 +301,15 @@ def test_help_prints_usage_and_exits_0_without_starting_a_node(script: str) -> N
 
 def test_diagnostics_give_the_groups_the_prediction_uses_stamped_by_the_node_clock(rig) -> None:  # type: ignore[no-untyped-def]
     node, probe, outcomes = rig
-    probe.send("external_wrench", (0.05, 1.0))
+    probe.send("external_wrench", (0.05, 1.0))  # force.z > 0 lifts: the load is m g - Fz = 9 N
     assert probe.spin_until(lambda: any(o.accepted for o in outcomes), 15.0)
     start = len(probe.received["diagnostics"])
     assert probe.spin_until(lambda: len(probe.received["diagnostics"]) > start, 5.0)
     msg = probe.received["diagnostics"][-1]
     values = diagnostics_values(msg)
-    phi, ratio = (0.7 + 0.05) / (0.1 * 11.0), 5.0 / 11.0
+    phi, ratio = (0.7 + 0.05) / (0.1 * 9.0), 5.0 / 9.0
+    assert float(values["throw_number"]) == 0.5  # Pa/(m g cos(alpha)), without the external force
+    assert float(values["flight_fraction"]) == 0.0 and values["lift_offs"] == values["landings"] == "0"
     assert float(values["phi"]) == pytest.approx(phi, rel=1e-15)
     assert float(values["amplitude_ratio"]) == pytest.approx(ratio, rel=1e-15)
     assert float(values["predicted_U"]) == pytest.approx(u_map(phi, ratio), rel=1e-12)
