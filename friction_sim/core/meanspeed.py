@@ -26,8 +26,9 @@ The mean speed is read off it like this:
   still settling) is averaged over ``periods`` more, and the record says so
   (``periodic`` False, ``period_multiple`` 0).  A slider that accelerates
   without bound (the period-start speed keeps growing by steady steps and it
-  never sticks: the drive beats the friction on average) has ``runaway``
-  True and an infinite U, as the closed form has beyond phi = 1.
+  never sticks: the drive beats the friction on average; see
+  :func:`_runs_away`) has ``runaway`` True and an infinite U, as the closed
+  form has beyond phi = 1.
 
 U is nondimensional, U = V*f/(g*mu) with the plant's own g (not an effective
 one), so it depends on the force ratios, the angles, mu, mu_s/mu, e and the
@@ -37,6 +38,7 @@ paper's groups phi = Fd/(mu*m*g) and a = Pa/(m*g).
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -216,14 +218,23 @@ def _window(params: SliderParams, inputs: Inputs, starts: list[_Start], first: i
 
 
 def _runs_away(window: list[_Start]) -> bool:
-    """True when the period-start speed grows in steady steps (it does not
-    settle: the second half of the window gains at least half what the first
-    did, in the direction of motion) and the slider never sticks."""
-    if len(window) < 3 or window[-1].stuck != window[0].stuck:
+    """True when the speed grows without bound over the window: the slider
+    never sticks in it, and the mean speeds of its four quarters grow
+    steadily in the direction of motion (each step at least half the first,
+    all together at least a quarter of the last), as they do under a
+    constant mean acceleration; an irregular but bounded motion, or one
+    still settling, does not do that."""
+    count = len(window) - 1
+    if count < 4 or window[-1].stuck != window[0].stuck:
         return False
-    first, middle, last = window[0].v, window[len(window) // 2].v, window[-1].v
-    early, late = middle - first, last - middle
-    return last != 0.0 and early * late > 0.0 and late * last > 0.0 and abs(late) >= 0.5 * abs(early)
+    cuts = [window[round(count * k / 4)] for k in range(5)]
+    means = [(q.x - p.x) / (round(count * (k + 1) / 4) - round(count * k / 4))
+             for k, (p, q) in enumerate(itertools.pairwise(cuts))]
+    steps = [b - a for a, b in itertools.pairwise(means)]
+    sign = math.copysign(1.0, means[-1])
+    return (means[-1] != 0.0 and all(sign * step > 0.0 for step in steps)
+            and all(abs(step) >= 0.5 * abs(steps[0]) for step in steps)
+            and abs(means[-1] - means[0]) >= 0.25 * abs(means[-1]))
 
 
 @dataclass(frozen=True)
@@ -273,7 +284,9 @@ def u_general(phi: ArrayLike, a: ArrayLike, model: SliderParams | None = None, *
             runaway[exact] = np.isinf(u[exact])
             multiple[exact] = np.where(runaway[exact], 0, 1)
     weight = params.weight
-    for index in zip(*np.nonzero(~exact)):
+    for index in np.ndindex(phi_arr.shape):
+        if exact[index]:
+            continue
         inputs = Inputs(drive_force=float(phi_arr[index]) * params.mu * weight,
                         excitation_amplitude=float(a_arr[index]) * weight, excitation_frequency=frequency)
         result = mean_speed(params, inputs, settle_periods=settle_periods, periods=periods)

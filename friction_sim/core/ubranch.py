@@ -46,9 +46,11 @@ from friction_sim.errors import ParameterError
 #: Amplitude ratios sampled on [0, max_ratio] to find the branch.
 DEFAULT_SAMPLES = 48
 #: Golden-section steps refining the peak that ends a branch (its bracket shrinks to 0.618**steps).
-PEAK_STEPS = 16
+PEAK_STEPS = 10
 #: The inverse stops where U meets the target to this fraction of it.
 U_TOLERANCE = 1e-12
+#: The largest amplitude ratio a branch may reach (that of the controller's max_amplitude_ratio).
+MAX_RATIO = float(spec.MAX_AMPLITUDE_RATIO.high or 10.0)
 #: Most mean-speed evaluations one inversion may take.
 MAX_ITERATIONS = 60
 _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
@@ -63,6 +65,8 @@ class Branch:
     unless the plant moves at a = 0 already) and (a_end, u_end) its end: its
     peak, or ``max_ratio``.  ``empty``: s*U never becomes positive (finitely)
     below ``max_ratio``, so no target in that direction is reachable.
+    ``params`` and the forces are the plant's in units of its weight (mass
+    1 kg, gravity 1 m/s^2, forces over m*g): U depends on nothing else.
     """
 
     params: SliderParams
@@ -115,12 +119,14 @@ def rising_branch(params: SliderParams, inputs: Inputs, max_ratio: float, direct
         raise ParameterError("direction", direction, "must be +1 or -1")
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 3:
         raise ParameterError("samples", samples, "must be an integer >= 3")
-    top_force, limit = max_ratio * params.weight, spec.EXCITATION_AMPLITUDE.high
-    if limit is not None and top_force > limit:
-        raise ParameterError("max_ratio", max_ratio, f"must keep Pa = max_ratio*m*g <= {limit:g} N "
-                                                     f"(m*g = {params.weight:g} N)")
-    return _branch(params, inputs.drive_force, inputs.external_force_x, inputs.external_force_z, float(max_ratio),
-                   direction, samples)
+    if max_ratio > MAX_RATIO:
+        raise ParameterError("max_ratio", max_ratio, f"must be <= {MAX_RATIO:g}")
+    # U depends on the forces only through their ratios to the weight: the branch is built for the plant
+    # in units of its weight (1 kg at 1 m/s^2), so every mass and gravity of one shape shares it.
+    weight = params.weight
+    unit = params.replace(mass=1.0, gravity=1.0)
+    return _branch(unit, inputs.drive_force / weight, inputs.external_force_x / weight,
+                   inputs.external_force_z / weight, float(max_ratio), direction, samples)
 
 
 def amplitude_ratio_for_general(u: float, params: SliderParams, inputs: Inputs, max_ratio: float) -> float:

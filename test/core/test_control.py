@@ -190,3 +190,69 @@ def test_inputs_of_one_instant_are_judged_in_order_and_decided_once(monkeypatch:
     same = MeanSpeedController(ControllerConfig(), drive_force=-0.7, frequency=60.0, target_speed=-3e-4)
     assert controller.output == same.output
     assert controller.take([("target_speed", math.inf)])[0] is not None and controller.output == same.output
+
+
+# -- the general model (issue 11) ---------------------------------------------------------
+
+TILTED = SliderParams(mu=0.5, excitation_angle=60.0)  # vibration at 60 degrees to the track: it conveys on its own
+
+
+def general_loop(model: SliderParams, plant: SliderParams, target: float, periods: int,
+                 drive_force: float = 0.0, top: float = 3.0) -> tuple[MeanSpeedController, list[float]]:
+    controller = MeanSpeedController(ControllerConfig(model=model, max_amplitude_ratio=top),
+                                     drive_force=drive_force, frequency=50.0, target_speed=target)
+    speeds = closed_loop_offline(controller, plant, periods, Inputs(drive_force=drive_force))
+    return controller, speeds
+
+
+@pytest.mark.parametrize("u_star", [0.02, 0.2])  # stick-slip, and hopping (Gamma ~ 1.5)
+def test_a_matched_general_model_is_exact_after_the_transient(u_star: float) -> None:
+    target = u_star * 10.0 * 0.5 / 50.0  # V* = U* g mu / f
+    controller, speeds = general_loop(TILTED, TILTED, target, 12)
+    out = controller.output
+    assert not (out.saturated or out.unreachable or out.runaway)
+    assert out.applied_ratio == pytest.approx(out.feedforward_ratio, rel=1e-9)  # no correction needed
+    assert all(v == pytest.approx(target, rel=1e-9) for v in speeds[3:])
+
+
+@pytest.mark.parametrize("mu_model", [0.4, 0.6])
+def test_a_wrong_general_model_is_corrected_by_the_integral_action(mu_model: float) -> None:
+    target = 0.01  # U* = 0.1 for the plant (mu = 0.5)
+    _, speeds = general_loop(TILTED.replace(mu=mu_model), TILTED, target, 40)
+    assert abs(speeds[1] - target) > 0.05 * target, "the model really is wrong"
+    assert all(abs(v - target) <= 0.02 * target for v in speeds[25:])
+    assert speeds[-1] == pytest.approx(target, rel=1e-6)
+
+
+def test_a_general_target_beyond_the_branch_is_unreachable_and_saturates_at_its_end() -> None:
+    """At 60 degrees and mu = 0.5 U peaks near cot(60)/(2 mu) = 0.577 (Gamma ~ 3.3):
+    with max_amplitude_ratio 6 the branch ends there, not at 6."""
+    too_fast = 0.6 * 10.0 * 0.5 / 50.0  # U* = 0.6
+    controller = MeanSpeedController(ControllerConfig(model=TILTED, max_amplitude_ratio=6.0), drive_force=0.0,
+                                     frequency=50.0, target_speed=too_fast)
+    out = controller.output
+    assert out.unreachable and out.saturated and math.isnan(out.feedforward_ratio)
+    assert 3.0 < out.applied_ratio < 4.5, "the branch's end, not max_amplitude_ratio"
+    closed_loop_offline(controller, TILTED, 10, Inputs(drive_force=0.0))
+    assert controller.output.integral == 0.0, "no windup while unreachable"
+    reachable = controller.set_target(0.5 * 10.0 * 0.5 / 50.0)
+    assert not reachable.unreachable and reachable.applied_ratio < out.applied_ratio
+    backwards = controller.set_target(-1e-3)  # the tilted vibration conveys forwards only: no branch backwards
+    assert backwards.unreachable and backwards.amplitude == 0.0
+
+
+def test_kostek_above_lift_off_uses_the_general_inverse() -> None:
+    """max_amplitude_ratio >= 1 on Kostek's model: a target beyond U(0.7, 0.95)
+    becomes reachable by hopping."""
+    u_star = 0.08  # above u_map(0.7, 0.95) = 0.0604
+    target = u_star * 10.0 * 0.1 / 50.0
+    low = MeanSpeedController(ControllerConfig(), drive_force=0.7, frequency=50.0, target_speed=target)
+    assert low.output.unreachable
+    high = MeanSpeedController(ControllerConfig(max_amplitude_ratio=3.0), drive_force=0.7, frequency=50.0,
+                               target_speed=target)
+    out = high.output
+    assert not out.unreachable and out.applied_ratio > 1.0
+    speeds = closed_loop_offline(high, SliderParams(), 8)
+    assert speeds[-1] == pytest.approx(target, rel=1e-9)
+    with pytest.raises(ParameterError, match="sign of drive_force"):
+        high.set_target(-target)  # Kostek's model conveys along the drive only, hopping or not
