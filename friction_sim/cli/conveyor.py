@@ -216,7 +216,7 @@ def features(sweep: ConveyorSweep) -> list[str]:
         kind = "" if p.periodic else " (not periodic: mean over a window)"
         if p.throw_number >= GAMMA_MAX:
             kind += " (the end of the range: still rising)"
-        lines.append(f"beta = {angle:g} deg: U peaks at Gamma = {p.throw_number:.3f} (U = {p.u:.4f}){kind}")
+        lines.append(f"beta = {angle:g} deg: U peaks at Gamma = {p.throw_number:.4f} (U = {p.u:.6f}){kind}")
     where = f"Gamma = {sweep.slope_gamma:g}, beta = {sweep.slope_angle:g} deg"
     low, high = float(sweep.slope.x[0]), float(sweep.slope.x[-1])
     if sweep.reversal is None:

@@ -15,11 +15,14 @@ import pytest
 
 from friction_sim.cli.commands import NEVER_MOVES, SLIPS_ALWAYS, STICK_SLIP, motion_regime
 from friction_sim.cli.main import build_parser, main
+from friction_sim.core import spec
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.simulation import simulate
 from friction_sim.core.urelation import dimensional_speed, u_map
 
 SCRIPT = Path(sys.executable).parent / "friction-sim"
+#: Settings whose flags take a word (their choices), not a number.
+TEXT_SETTINGS = {name for name, setting in spec.PLANT.items() if setting.kind is str}
 
 
 def run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
@@ -95,14 +98,22 @@ def test_simulate_csv_has_uniform_samples_and_events(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("args", "words"),
     [
-        (("simulate", "--amplitude", "12"), ("excitation_amplitude", "12.0", "10.0")),
+        (("simulate", "--landing-friction", "bogus"), ("--landing-friction", "'bogus'", "impulsive, none")),
+        (("umap", "--phi", "0", "--ratio", "2", "--landing-friction", "sticky"), ("--landing-friction", "'sticky'")),
+        (("simulate", "--angle", "0"), ("--angle", "excitation_angle", "0.0", "[0.1, 90] deg")),
+        (("trace", "--png", "f.png", "--inclination", "95"), ("--inclination", "track_inclination", "95.0", "89")),
+        (("simulate", "--restitution", "1"), ("--restitution", "restitution", "1.0", "[0, 0.99]")),
+        (("umap", "--phi", "0", "--ratio", "2", "--static-ratio", "0.5"), ("--static-ratio", "0.5", "[1, 100]")),
+        (("simulate", "--phase", "200"), ("--phase", "excitation_phase", "200.0", "[-180, 180] deg")),
+        (("conveyor", "--png", "c.png", "--points", "3"), ("--points", "3", "[11, 2001]")),
+        (("conveyor", "--png", "c.png", "--slope-angle", "0"), ("--slope-angle", "0.0", "[0.1, 90]")),
+        (("conveyor",), ("--png",)),
         (("simulate", "--mass", "nan"), ("mass", "nan")),
         (("simulate", "--mu", "-1"), ("mu", "-1.0", "[1e-06, 10]")),
         (("simulate", "--frequency", "0"), ("excitation_frequency", "0.0")),
         (("simulate", "--duration", "0.001"), ("duration", "0.001")),
         (("simulate", "--mass", "heavy"), ("--mass", "heavy")),
-        (("umap", "--phi", "0.5", "--ratio", "1.5"), ("--ratio", "amplitude_ratio", "1.5", "[0, 1)")),
-        (("umap", "--phi", "0.5", "--ratio", "1"), ("--ratio", "amplitude_ratio", "1.0", "[0, 1)")),
+        (("umap", "--phi", "0.5", "--ratio", "11"), ("--ratio", "amplitude_ratio", "11.0", "[0, 10]")),
         (("umap",), ("--phi", "--grid")),
         (("nosuchcommand",), ("nosuchcommand",)),
         # NaN, inf and absurd values, refused while parsing, flag, value and limit named
@@ -145,7 +156,8 @@ def numeric_flags() -> list[tuple[str, str]]:
     assert isinstance(subcommands.choices, dict)
     for name, sub in subcommands.choices.items():
         for action in sub._actions:  # noqa: SLF001 - as above
-            if action.option_strings and action.type is not None and action.type not in (Path, str):
+            if action.option_strings and action.type is not None and action.type not in (Path, str) \
+                    and action.dest not in TEXT_SETTINGS:
                 found.append((name, action.option_strings[-1]))
     return found
 
@@ -227,4 +239,5 @@ def test_help_gives_each_flag_its_range() -> None:
     done = run("umap", "--help")
     assert done.returncode == 0
     text = " ".join(done.stdout.split())
-    assert "-1e+06 … 1e+06" in text and "2 … 2001" in text and "a < 1" in text
+    assert "-1e+06 … 1e+06" in text and "2 … 2001" in text and "0 … 10" in text and "hops" in text
+    assert "--landing-friction {impulsive,none}" in text and "impulsive | none; default impulsive" in text

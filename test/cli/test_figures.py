@@ -17,9 +17,11 @@ from matplotlib.figure import Figure
 from matplotlib.text import Text
 from PIL import Image
 
-from friction_sim.cli.figures import FIGURE_DPI, save_figure, trace_figure, u_map_figure
+from friction_sim.cli.conveyor import conveyor_sweep
+from friction_sim.cli.figures import FIGURE_DPI, conveyor_figure, save_figure, trace_figure, u_map_figure
 from friction_sim.cli.jobs import write_report
 from friction_sim.core.commands import Command
+from friction_sim.core.events import EventKind
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.simulation import SimulationResult, simulate
 from friction_sim.core.urelation import u_grid
@@ -33,6 +35,7 @@ CASES = {
     "short slip": (0.05, 9.9),
     "slips always": (1.2, 5.0),
     "never moves": (0.3, 5.0),
+    "hops": (0.3, 20.0),  # Gamma = 2: one flight a period
 }
 
 
@@ -183,3 +186,56 @@ def test_only_save_figure_writes_pictures_in_the_cli_modules_here() -> None:
     for name in ("commands.py", "jobs.py", "main.py"):
         assert "savefig(" not in (package / name).read_text(), f"{name} calls savefig itself"
     assert (package / "figures.py").read_text().count("savefig(") == 1
+
+
+@pytest.mark.parametrize(("params", "drive", "amplitude"), [
+    (SliderParams(), 0.3, 20.0),  # normal excitation, Gamma = 2
+    (SliderParams(mu=0.5, excitation_angle=30.0), 0.0, 20.0),  # inclined, the conveyor's case
+    (SliderParams(mu=0.3, excitation_angle=60.0, track_inclination=5.0, static_ratio=1.3), 0.0, 15.0),
+])
+def test_a_flight_gets_a_height_panel_with_every_lift_off_and_landing(params: SliderParams, drive: float,
+                                                                      amplitude: float) -> None:
+    inputs = Inputs(drive_force=drive, excitation_amplitude=amplitude)
+    result = simulate(params, inputs, 3.0 / inputs.excitation_frequency, sample_rate=2000.0 * 50.0)
+    traj = result.trajectory
+    assert traj is not None and traj.z.max() > 0.0
+    figure = trace_figure(result)
+    assert len(figure.axes) == 5
+    height = figure.axes[4]
+    assert "height z" in height.get_ylabel()
+    curve = height.get_lines()[0]
+    np.testing.assert_array_equal(curve.get_ydata(), traj.z * 1e6)
+    inside = [e for e in result.events if e.t <= traj.t[-1]]
+    for kind, marker in ((EventKind.LIFT_OFF, "^"), (EventKind.LANDING, "v")):
+        marked = sorted(float(line.get_xdata()[0]) for line in height.get_lines() if line.get_marker() == marker)
+        assert marked == [e.t * 1e3 for e in inside if e.kind is kind] and len(marked) >= 2
+    assert any(r"\Gamma" in text for text in figure_text(figure))
+
+
+def test_a_run_on_the_track_keeps_the_four_panels() -> None:
+    assert len(trace_figure(trace_of(*CASES["paper"])).axes) == 4
+    # an inclined vibration below lift-off: Ft varies, still four panels
+    result = simulate(SliderParams(excitation_angle=60.0), Inputs(drive_force=0.0, excitation_amplitude=8.0),
+                      2.0 / 50.0, sample_rate=100_000.0)
+    assert result.flight_fraction == 0.0 and len(trace_figure(result).axes) == 4
+
+
+def test_the_conveyor_figure_marks_gammas_peaks_reversal_and_irregular_points() -> None:
+    sweep = conveyor_sweep(21, 9)
+    figure = conveyor_figure(sweep)
+    top, bottom = figure.axes
+    vertical = sorted({float(line.get_xdata()[0]) for line in top.get_lines()
+                       if len(line.get_xdata()) == 2 and line.get_xdata()[0] == line.get_xdata()[1]})
+    assert vertical == [1.0, 3.30]
+    texts = figure_text(figure)
+    assert any(r"\Gamma = 1$" in t for t in texts) and any(r"\Gamma = 3.30$" in t for t in texts)
+    stars = [line for line in top.get_lines() if line.get_marker() == "*" and len(line.get_xdata()) == 1]
+    assert sorted((float(s.get_xdata()[0]), float(s.get_ydata()[0])) for s in stars) == sorted(
+        (p.throw_number, p.u) for p in sweep.peaks.values())
+    hollow = sum(len(line.get_xdata()) for axis in (top, bottom) for line in axis.get_lines()
+                 if line.get_marker() == "o" and line.get_markerfacecolor() == "none" and len(line.get_xdata()))
+    irregular = sum(int(np.sum(~c.periodic)) for c in (*sweep.gamma_curves.values(), sweep.slope))
+    assert hollow == irregular
+    assert sweep.reversal is not None
+    assert any(float(line.get_xdata()[0]) == sweep.reversal for line in bottom.get_lines())
+    assert spelled_out_greek(texts) == []

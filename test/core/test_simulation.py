@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from friction_sim.core.commands import Command
+from friction_sim.core.events import EventKind
 from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.simulation import random_schedule, run_schedule
+from friction_sim.core.simulation import random_schedule, run_schedule, simulate
 from friction_sim.core.slider import Slider
+from friction_sim.core.urelation import u_map
 
 
 def driven(schedule: list[Command], until: float) -> Slider:
@@ -56,3 +60,52 @@ def test_one_piece_and_many_pieces_give_the_same_samples() -> None:
     pieces = run_schedule(Slider(SliderParams(), Inputs()), schedule, times)
     assert pieces.t.size == 101 and np.array_equal(pieces.t, times)
     assert np.all(np.isfinite(pieces.x))
+
+
+def test_a_schedule_into_flight_carries_z_and_vz() -> None:
+    """Raising Pa past the weight mid-run: the joined samples carry the height and
+    its rate, equal to a slider driven by hand to each sample time."""
+    schedule = [Command(0.013, "excitation_amplitude", {"excitation_amplitude": 20.0})]
+    times = np.linspace(0.0, 0.06, 61)
+    pieces = run_schedule(Slider(), schedule, times)
+    assert pieces.z.max() > 0.0 and np.any(pieces.vz < 0.0)
+    assert np.all(pieces.z[times < 0.013] == 0.0)
+    reference = Slider()
+    for k, t in enumerate(times):
+        if t >= 0.013 and reference.inputs.excitation_amplitude != 20.0:
+            reference.advance_to(0.013)
+            reference.set_inputs(excitation_amplitude=20.0)
+        reference.advance_to(float(t))
+        state = reference.state()
+        assert (pieces.z[k], pieces.vz[k], pieces.x[k]) == pytest.approx((state.z, state.vz, state.x), rel=1e-12,
+                                                                        abs=1e-15)
+
+
+def test_simulate_flight_fraction_is_the_time_between_lift_offs_and_landings() -> None:
+    """The flight fraction over the measured window, against the event list: the sum of
+    landing - lift-off times (clipped to the window) over its length."""
+    params = SliderParams(mu=0.5, excitation_angle=30.0, track_inclination=3.0)
+    inputs = Inputs(drive_force=0.0, excitation_amplitude=22.0)
+    result = simulate(params, inputs, 0.41, settle=0.1, sample_rate=1000.0)
+    start, end = 0.1, 0.1 + result.periods / 50.0
+    assert result.periods == 15
+    flying, since = 0.0, None
+    for event in result.events:
+        if event.kind is EventKind.LIFT_OFF:
+            since = event.t
+        elif event.kind is EventKind.LANDING and since is not None:
+            flying += max(0.0, min(event.t, end) - max(since, start))
+            since = None
+    assert flying > 0.0
+    assert result.flight_fraction == pytest.approx(flying / (end - start), rel=1e-12)
+    counts = {kind.value: sum(e.kind is kind for e in result.events) for kind in EventKind}
+    assert result.event_counts == counts and counts["lift_off"] >= 20
+    assert result.as_dict()["events"] == counts and result.as_dict()["flight_fraction"] == result.flight_fraction
+    assert not result.u_closed_form and result.throw_number == pytest.approx(22.0 / (10.0 * math.cos(math.radians(3))))
+
+
+def test_simulate_in_kostek_s_model_keeps_its_closed_form() -> None:
+    result = simulate(SliderParams(), Inputs(), 1.0, settle=0.1)
+    assert result.u_closed_form and result.flight_fraction == 0.0
+    assert result.u_exact == u_map(0.7, 0.5) and result.u_measured == pytest.approx(result.u_exact, rel=1e-9)
+    assert result.event_counts["lift_off"] == result.event_counts["landing"] == 0

@@ -103,11 +103,11 @@ def test_report_rebuilds_the_same_table_from_the_recording(experiment, tmp_path:
 
 def test_a_bad_scenario_fails_before_anything_starts(tmp_path: Path) -> None:
     bad = tmp_path / "bad.yaml"
-    bad.write_text("duration: 1.0\nschedule:\n  - {t: 0.2, excitation_amplitude: 20.0}\n")
+    bad.write_text("duration: 1.0\nschedule:\n  - {t: 0.2, excitation_amplitude: -20.0}\n")
     done = subprocess.run([str(Path(sys.executable).parent / "friction-sim"), "experiment", str(bad),
                            "--output", str(tmp_path / "out")], capture_output=True, text=True, timeout=60)
     assert done.returncode == 2
-    assert done.stderr.count("\n") == 1 and "line 3" in done.stderr and "20.0" in done.stderr
+    assert done.stderr.count("\n") == 1 and "line 3" in done.stderr and "-20.0" in done.stderr
     assert not (tmp_path / "out").exists(), "nothing started"
 
 

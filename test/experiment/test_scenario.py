@@ -77,8 +77,11 @@ BAD = [
     ("plant: {mass: 1.0}\n", 1, ("missing key 'duration'",)),
     ("duration: -1\n", 1, ("duration", "-1", "> 0")),
     ("duration: .nan\n", 1, ("duration", "nan", "finite")),
-    ("duration: 1.0\nplant:\n  mass: 1.0\n  excitation_amplitude: 12.0\n", 4,
-     ("excitation_amplitude", "12.0", "lift off")),
+    ("duration: 1.0\nplant:\n  mass: 1.0\n  excitation_amplitude: -12.0\n", 4,
+     ("excitation_amplitude", "-12.0", "[0, 1e+06] N")),
+    ("duration: 1.0\nplant:\n  landing_friction: sticky\n", 3, ("landing_friction", "'sticky'", "impulsive, none")),
+    ("duration: 1.0\nplant:\n  restitution: 1.0\n", 3, ("restitution", "1.0", "[0, 0.99]")),
+    ("duration: 1.0\nplant:\n  excitation_angle: 0\n", 3, ("excitation_angle", "0.0", "[0.1, 90] deg")),
     ("duration: 1.0\nplant:\n  mass: 0\n", 3, ("mass", "0.0", "[1e-06, 1e+06] kg")),
     ("duration: 1.0\nplant:\n  masss: 1.0\n", 3, ("unknown key 'masss'", "mass")),
     ("duration: 1.0\nschedule:\n  - {t: 0.5, target_speed: 0.001}\n", 3, ("target_speed needs a controller",)),
@@ -87,10 +90,10 @@ BAD = [
      ("comes before",)),
     ("duration: 1.0\nschedule:\n  - {t: 0.5, drive_force: 0.5, excitation_amplitude: 1.0}\n", 3,
      ("exactly one",)),
-    ("duration: 1.0\nschedule:\n  - {t: 0.5, excitation_amplitude: 11.0}\n", 3,
-     ("excitation_amplitude", "11.0", "lift off")),
-    ("duration: 1.0\nschedule:\n  - {t: 0.5, external_wrench: {x: 0, z: -6}}\n", 3,
-     ("external_force_z", "-6.0")),
+    ("duration: 1.0\nschedule:\n  - {t: 0.5, excitation_amplitude: 2000000.0}\n", 3,
+     ("excitation_amplitude", "2000000.0", "[0, 1e+06] N")),
+    ("duration: 1.0\nschedule:\n  - {t: 0.5, external_wrench: {x: 0, z: -2000000.0}}\n", 3,
+     ("external_force_z", "-2000000.0")),
     ("duration: 1.0\nschedule:\n  - {t: 0.5, external_wrench: {y: 1}}\n", 3, ("unknown key 'y'",)),
     ("duration: 1.0\nschedule:\n  - {t: 0.5, excitation_frequency: 0}\n", 3,
      ("excitation_frequency", "0.0", "[0.001, 20000] Hz")),
@@ -105,6 +108,34 @@ BAD = [
     ("duration: [1\n", 2, ("not valid YAML",)),
     ("- just a list\n", None, ("mapping",)),
 ]
+
+
+HOPS = """\
+duration: 1.0
+plant:
+  excitation_amplitude: 25.0
+  excitation_angle: 30.0
+  track_inclination: 5.0
+  static_ratio: 1.2
+  restitution: 0.2
+  landing_friction: none
+schedule:
+  - {t: 0.5, excitation_amplitude: 40.0}
+  - {t: 0.6, external_wrench: {x: 0.0, z: -6.0}}
+  - {t: 0.7, external_wrench: {x: 0.0, z: 12.0}}
+"""
+
+
+def test_a_hopping_plant_and_amplitudes_above_the_weight_are_valid() -> None:
+    """No lift-off refusal any more: Pa above m g cos(alpha) hops, an external force may press
+    (z < 0) or lift the slider off entirely (z > 0 beyond the weight)."""
+    scenario = parse_scenario(HOPS)
+    assert scenario.params == SliderParams(excitation_angle=30.0, track_inclination=5.0, static_ratio=1.2,
+                                           restitution=0.2, landing_friction="none")
+    assert scenario.inputs == Inputs(excitation_amplitude=25.0)
+    assert [c.values for c in scenario.schedule] == [
+        {"excitation_amplitude": 40.0}, {"external_force_x": 0.0, "external_force_z": -6.0},
+        {"external_force_x": 0.0, "external_force_z": 12.0}]
 
 
 @pytest.mark.parametrize(("text", "line", "words"), BAD)
