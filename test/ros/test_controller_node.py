@@ -127,3 +127,53 @@ def test_a_target_is_checked_against_the_drive_force_in_force(ros: None) -> None
     finally:
         probe.close()
         controller.destroy_node()
+
+
+def test_controller_reads_the_general_model_from_the_plant(ros: None) -> None:
+    """Issue 11: the whole model comes from the plant node (the text parameter
+    landing_friction too); on a tilted vibration a target needs no drive force
+    in its direction, and the law inverts the general mean speed."""
+    ns = f"/c{uuid.uuid4().hex[:8]}"
+    plant = {"mu": 0.5, "static_ratio": 1.5, "excitation_angle": 60.0, "excitation_phase": 10.0,
+             "track_inclination": 5.0, "restitution": 0.3, "landing_friction": "none"}
+    slider = SliderNode(namespace=ns, parameter_overrides=[Parameter(k, value=v) for k, v in plant.items()])
+    controller = ControllerNode(namespace=ns, parameter_overrides=[Parameter("drive_force", value=0.0),
+                                                                   Parameter("target_speed", value=0.0)])
+    probe = Probe(ns, slider, controller)
+    try:
+        assert probe.spin_until(lambda: controller.ready, 10.0)
+        assert controller.control.config.model == SliderParams(**plant)
+        assert controller.get_parameter("landing_friction").value == "none"
+        assert controller.model_source == "plant node 'slider'"
+        assert probe.set_parameter(f"{ns}/controller", "target_speed", 2e-3)[0]  # U* = 0.02, no drive force
+        out = controller.control.output
+        assert not (out.unreachable or out.saturated or out.runaway) and 0.0 < out.applied_ratio < 0.95
+        successful, reason = probe.set_parameter(f"{ns}/controller", "landing_friction", "sliding")
+        assert not successful and "landing_friction" in reason and "impulsive, none" in reason
+    finally:
+        probe.close()
+        controller.destroy_node()
+        slider.destroy_node()
+
+
+def test_a_plant_without_the_general_parameters_leaves_them_as_they_are(ros: None) -> None:
+    """A slider from before issue 11 answers mass, mu, gravity and the window
+    but not the new model parameters (NOT_SET): those keep the controller's values."""
+    from types import SimpleNamespace
+
+    from rcl_interfaces.msg import ParameterType, ParameterValue
+
+    ns = f"/c{uuid.uuid4().hex[:8]}"
+    controller = ControllerNode(namespace=ns, parameter_overrides=[Parameter("plant_node", value=""),
+                                                                   Parameter("excitation_angle", value=45.0)])
+    try:
+        def double(value: float) -> ParameterValue:
+            return ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
+
+        answer = [double(2.0), double(0.2), double(9.81), *[ParameterValue() for _ in range(6)],
+                  ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=2)]
+        controller._adopt_plant(SimpleNamespace(values=answer))  # noqa: SLF001 - the reply of an older plant
+        assert controller.control.config.model == SliderParams(mass=2.0, mu=0.2, gravity=9.81, excitation_angle=45.0)
+        assert controller.control.config.mean_window_periods == 2
+    finally:
+        controller.destroy_node()
