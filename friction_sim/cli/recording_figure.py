@@ -1,5 +1,7 @@
 """The figure of a recording (``friction-sim replay --plot``): position,
-velocity, friction force and normal force R against time, commands marked.
+velocity, friction force and normal force R against time, commands marked;
+a recording in which the slider leaves the track gets a fifth panel, its
+height z above the track.
 
 The file is streamed in two passes (the commands; the states, thinned to
 the extremes of each run of samples, :func:`friction_sim.io.series.thinned_series`),
@@ -18,7 +20,7 @@ from friction_sim.io.messages import (
     parameter_event_values,
 )
 from friction_sim.io.reader import Recording
-from friction_sim.io.series import FORCE, POSITION, VELOCITY, thinned_series
+from friction_sim.io.series import FORCE, POSITION_XZ, VELOCITY, thinned_series
 
 #: About how many points each trace of the figure keeps.
 POINTS = 4000
@@ -64,18 +66,19 @@ def command_marks(recording: Recording) -> list[tuple[float, str, bool]]:
 
 
 def plot(recording: Recording, points: int = POINTS) -> Figure:
-    """Position, velocity, friction force and normal force R against time,
-    with every command marked (refused ones dotted red); each trace thinned
+    """Position, velocity, friction force and normal force R (and the height z,
+    if the slider flies) against time, with every command marked (refused ones dotted red); each trace thinned
     to about ``points`` points.  matplotlib is imported here; the Figure is
     not registered with pyplot."""
     from matplotlib.figure import Figure
 
-    series = thinned_series(recording, {"pose": POSITION, "velocity": VELOCITY, "friction_force": FORCE,
+    series = thinned_series(recording, {"pose": POSITION_XZ, "velocity": VELOCITY, "friction_force": FORCE,
                                         "mean_velocity": VELOCITY}, points)
     (pose_ns, pose), (vel_ns, vel) = series["pose"], series["velocity"]
     (force_ns, force), (mean_ns, mean) = series["friction_force"], series["mean_velocity"]
-    figure = Figure(figsize=(10, 9), layout="constrained")
-    axes = figure.subplots(4, 1, sharex=True)
+    flies = bool(pose.size and (pose[:, 2] != 0.0).any())
+    figure = Figure(figsize=(10, 11 if flies else 9), layout="constrained")
+    axes = figure.subplots(5 if flies else 4, 1, sharex=True)
     axes[0].plot(pose_ns / NS_PER_S, pose[:, 0] * 1e3, lw=0.8)
     axes[0].set_ylabel("position x [mm]")
     axes[1].plot(vel_ns / NS_PER_S, vel[:, 0] * 1e3, lw=0.8, label="v")
@@ -87,7 +90,10 @@ def plot(recording: Recording, points: int = POINTS) -> Figure:
     axes[2].set_ylabel("friction force [N]")
     axes[3].plot(force_ns / NS_PER_S, force[:, 2], lw=0.8, color="tab:green")
     axes[3].set_ylabel("normal force R [N]")
-    axes[3].set_xlabel("simulation time t [s]")
+    if flies:
+        axes[4].plot(pose_ns / NS_PER_S, pose[:, 2] * 1e6, lw=0.8, color="tab:purple")
+        axes[4].set_ylabel("height z [µm]")
+    axes[-1].set_xlabel("simulation time t [s]")
     marks = command_marks(recording)
     _mark(axes, marks)
     figure.suptitle(f"{recording.path.name}: {len(marks)} commands")
