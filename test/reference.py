@@ -209,11 +209,11 @@ def _validate_inputs(inputs: ReferenceInputs, mass: float, gravity: float, where
     for fld in fields(inputs):
         _check_finite(f'{where}.{fld.name}', getattr(inputs, fld.name))
     _check_positive(f'{where}.excitation_frequency', inputs.excitation_frequency)
-    base = mass * gravity + inputs.external_force_z
+    base = mass * gravity - inputs.external_force_z  # Fz > 0 lifts
     if abs(inputs.excitation_amplitude) >= base:
         raise ValueError(
             f'{where}.excitation_amplitude: |{inputs.excitation_amplitude!r}| >= '
-            f'mass*gravity + external_force_z = {base!r}, so the normal reaction '
+            f'mass*gravity - external_force_z = {base!r}, so the normal reaction '
             'R would become <= 0 (lift-off is outside the model)'
         )
 
@@ -258,7 +258,7 @@ def _build_pieces(
             t_end=t1,
             theta_start=theta,
             tangential=float(inp.drive_force) + float(inp.external_force_x),
-            base_load=mass * gravity + float(inp.external_force_z),
+            base_load=mass * gravity - float(inp.external_force_z),
             amplitude=float(inp.excitation_amplitude),
             omega=_TWO_PI * f,
             period=1.0 / f,

@@ -247,3 +247,159 @@ def _falling_root(
             return step
         tau = step
     return tau
+
+
+# --------------------------------------------------------------------------
+# Flight: when the height returns to zero.
+# --------------------------------------------------------------------------
+
+#: A flight still in the air after this many turning points of its vertical
+#: speed (two per excitation period) is taken as endless: its mean vertical
+#: acceleration is then within rounding of zero.
+_LONGEST_FLIGHT_PIECES = 2_000_000
+
+
+class _Harmonic1D:
+    """w(tau) and its integral for dw/dt = b0 + b1*sin(phase0 + omega*tau), w(0) = w0."""
+
+    __slots__ = ("w0", "b0", "b1", "phase0", "omega", "g0", "k", "cos0", "sin0", "start")
+
+    def __init__(self, w0: float, b0: float, b1: float, phase0: float, omega: float, start: float = 0.0) -> None:
+        self.w0, self.b0, self.b1, self.phase0, self.omega, self.start = w0, b0, b1, phase0, omega, start
+        self.cos0, self.sin0 = math.cos(phase0), math.sin(phase0)
+        self.g0 = b0 + b1 * self.sin0
+        self.k = b1 / omega
+
+    def rate(self, tau: float) -> float:
+        return self.b0 + self.b1 * math.sin(self.phase0 + self.omega * tau)
+
+    def speed(self, tau: float) -> float:
+        c1, s2, _ = trig_remainders(self.omega * tau)
+        speed: float = self.w0 + self.g0 * tau + self.k * (self.cos0 * c1 - self.sin0 * s2)
+        return speed
+
+    def travel(self, tau: float) -> float:
+        _, s2, c2 = trig_remainders(self.omega * tau)
+        height: float = self.start + (self.w0 * tau + 0.5 * self.g0 * tau * tau
+                                      + (self.k / self.omega) * (self.cos0 * s2 - self.sin0 * c2))
+        return height
+
+
+def _polish(f: Any, df: Any, lo: float, hi: float, f_lo: float, f_hi: float) -> float:
+    """The root of a monotone ``f`` on [lo, hi], f(lo) and f(hi) of opposite
+    signs (or zero): Newton kept inside the shrinking bracket, bisection when
+    it would leave it, to full double precision."""
+    if f_lo == 0.0:
+        return lo
+    if f_hi == 0.0:
+        return hi
+    rising = f_hi > 0.0
+    tau = lo + (hi - lo) * (f_lo / (f_lo - f_hi))
+    for _ in range(200):
+        value = f(tau)
+        if value == 0.0:
+            return tau
+        if (value > 0.0) == rising:
+            hi = tau
+        else:
+            lo = tau
+        slope = df(tau)
+        step = tau - value / slope if slope != 0.0 else math.nan
+        if not lo < step < hi:
+            step = 0.5 * (lo + hi)
+        if step == tau or abs(step - tau) <= 2.2e-16 * abs(tau):
+            return step
+        tau = step
+    return tau
+
+
+def _turning_points(b0: float, b1: float, phase0: float, omega: float) -> Any:
+    """The times tau > 0 at which dz/dt has a turning point (b0 + b1*sin = 0),
+    in order, each with True where it is a minimum of dz/dt; endless."""
+    low = math.asin(-b0 / b1)  # sin rises through -b0/b1: minimum of the speed
+    marks = sorted(((low % TWO_PI, True), ((math.pi - low) % TWO_PI, False)))
+    base = phase0 - phase0 % TWO_PI
+    n = 0
+    while True:
+        for mark, is_min in marks:
+            tau = (base + TWO_PI * n + mark - phase0) / omega
+            if tau > 0.0:
+                yield tau, is_min
+        n += 1
+
+
+def landing_delay(vz0: float, b0: float, b1: float, phase0: float, omega: float, z0: float = 0.0) -> float:
+    """Time until a flight's height z returns to 0 (``inf``: never), for a
+    flight that starts at height ``z0`` >= 0 with dz/dt = ``vz0`` (>= 0 when
+    z0 = 0) under d2z/dt2 = b0 + b1*sin(phase0 + omega*tau), b1 >= 0.
+
+    Every root is bracketed: dz/dt is monotone between the turning points of
+    the acceleration (closed form), so its zeros are bracketed; z is monotone
+    between those, so the first stretch on which z falls to <= 0 holds the
+    landing, which is then polished to full precision.  A near-tangent landing
+    (z just grazing 0 at a minimum) is found as long as the minimum is <= 0.
+    """
+    h = _Harmonic1D(vz0, b0, b1, phase0, omega, z0)
+    if b1 <= 0.0 or abs(b0) >= b1:  # the acceleration never changes sign
+        if b0 >= 0.0:
+            return NEVER
+        return _fall_from(h, _apex(h, 0.0, vz0))
+    lo, v_lo = 0.0, vz0
+    for count, (tau, is_min) in enumerate(_turning_points(b0, b1, phase0, omega)):
+        v = h.speed(tau)
+        if v_lo > 0.0 and v <= 0.0:  # the apex is in (lo, tau): z rises to it, then falls
+            apex = _polish(h.speed, h.rate, lo, tau, v_lo, v)
+            found = _falling(h, apex, tau)
+            if found is not None:
+                return found
+        elif v_lo <= 0.0 and (lo > 0.0 or z0 > 0.0):  # falling from lo (above 0 there)
+            found = _falling(h, lo, tau) if v <= 0.0 else _falling(h, lo, _polish(h.speed, h.rate, lo, tau, v_lo, v))
+            if found is not None:
+                return found
+        elif v_lo <= 0.0 and v <= 0.0:  # at the start and falling: no rise at all
+            return 0.0
+        if is_min and v > 0.0 and b0 >= 0.0:  # the speed's minima only grow: it never comes down
+            return NEVER
+        if count > _LONGEST_FLIGHT_PIECES:
+            return NEVER
+        lo, v_lo = tau, v
+    return NEVER  # pragma: no cover (the generator is endless)
+
+
+def _falling(h: _Harmonic1D, lo: float, hi: float) -> float | None:
+    """The landing on [lo, hi], where z falls, if z reaches 0 there."""
+    z_hi = h.travel(hi)
+    if z_hi > 0.0:
+        return None
+    return _polish(h.travel, h.speed, lo, hi, h.travel(lo), z_hi)
+
+
+def _apex(h: _Harmonic1D, lo: float, v_lo: float) -> float:
+    """Where a speed that only falls reaches zero (lo if it is not above it)."""
+    if v_lo <= 0.0:
+        return lo
+    hi = lo + 1.0 / h.omega
+    while h.speed(hi) > 0.0:
+        hi = lo + 2.0 * (hi - lo)
+    return _polish(h.speed, h.rate, lo, hi, v_lo, h.speed(hi))
+
+
+def _fall_from(h: _Harmonic1D, apex: float) -> float:
+    """The landing after ``apex`` when z only falls from there."""
+    if apex == 0.0 and h.start == 0.0:
+        return 0.0
+    hi = apex + 1.0 / h.omega
+    while h.travel(hi) > 0.0:
+        hi = apex + 2.0 * (hi - apex)
+    return _polish(h.travel, h.speed, apex, hi, h.travel(apex), h.travel(hi))
+
+
+def reduce_phase(theta: float, cycles: int) -> tuple[float, int]:
+    """Split a phase counted from period ``cycles`` into [0, 2*pi) and whole periods."""
+    whole = math.floor(theta / TWO_PI)
+    phase = theta - whole * TWO_PI
+    if phase < 0.0:  # theta/2*pi rounded up (a large theta, where whole*2*pi is coarse)
+        phase, whole = phase + TWO_PI, whole - 1
+    if phase >= TWO_PI:  # rounding at the very end of a period
+        phase, whole = 0.0, whole + 1
+    return phase, cycles + whole

@@ -50,6 +50,7 @@ import numpy as np
 
 from friction_sim.core.events import MODES as _MODES
 from friction_sim.core.events import CycleMark, Event, EventKind, Mode, SliderState, Trajectory
+from friction_sim.core.motion import FLIGHT, NEVER_STEP, STUCK, GeneralPlant, Motion, Step, next_step
 from friction_sim.core.params import Inputs, SliderParams, require_finite
 from friction_sim.core.roots import (
     NEVER,
@@ -57,6 +58,7 @@ from friction_sim.core.roots import (
     can_ever_slip,
     from_rest_b0,
     next_slip_start,
+    reduce_phase,
     slip_stop_delay,
     trig_remainders,
     two_sum,
@@ -184,17 +186,6 @@ def _changed(old: Any, new: Any) -> set[str]:
     return {f.name for f in fields(new) if getattr(old, f.name) != getattr(new, f.name)}
 
 
-def _reduce_phase(theta: float, cycles: int) -> tuple[float, int]:
-    """Split a phase counted from period ``cycles`` into [0, 2*pi) and whole periods."""
-    whole = math.floor(theta / TWO_PI)
-    phase = theta - whole * TWO_PI
-    if phase < 0.0:  # theta/2*pi rounded up (a large theta, where whole*2*pi is coarse)
-        phase, whole = phase + TWO_PI, whole - 1
-    if phase >= TWO_PI:  # rounding at the very end of a period
-        phase, whole = 0.0, whole + 1
-    return phase, cycles + whole
-
-
 class _Checkpoint:
     """A slider as it was (:meth:`Slider.checkpoint`), to put back if taking a change fails.
 
@@ -272,14 +263,14 @@ class Slider:
         self._t = require_finite("t0", t0)
         if abs(self._t) > MAX_TIME:
             raise ParameterError("t0", self._t, f"must be within +-{MAX_TIME:g} s")
-        phase, _ = _reduce_phase(require_finite("phase0", phase0), 0)  # -1e-300 % 2pi == 2pi
+        phase, _ = reduce_phase(require_finite("phase0", phase0), 0)  # -1e-300 % 2pi == 2pi
         if event_log_size is not None and not (isinstance(event_log_size, int) and event_log_size >= 0):
             raise ParameterError("event_log_size", event_log_size, "must be an integer >= 0 or None")
         if cycle_log_size is not None and not (isinstance(cycle_log_size, int) and cycle_log_size >= 0):
             raise ParameterError("cycle_log_size", cycle_log_size, "must be an integer >= 0 or None")
         self._events: deque[Event] = deque(maxlen=event_log_size)
         self._counts = {kind: 0 for kind in EventKind}
-        self._stuck_time = 0.0
+        self._stuck_time = self._flight_time = 0.0
         self._cache: dict[tuple[float, float, float, float, int], tuple[float, Any]] = {}
         self._marks: deque[CycleMark] | None = None
         self._next_mark_n, self._next_mark_t, self._next_mark_s = 1, NEVER, NEVER
@@ -290,10 +281,13 @@ class Slider:
             self._marks = deque(maxlen=cycle_log_size)
             if phase == 0.0:
                 self._marks.append(CycleMark(0, self._t, x0, 0.0))
-        self._can_slip = can_ever_slip(self._params, self._inputs)
-        self._plant = _Plant(self._params, self._inputs)
+        self._seg: _Segment | Motion
+        self._set_plant(self._params, self._inputs, in_flight=False)
         self._set_anchor(self._t, 0, phase)
-        self._start_stuck(self._t, 0.0, x0, 0.0, phase, 0)
+        if self._general:
+            self._start_motion(self._t, 0.0, x0, 0.0, 0.0, phase, 0, STUCK)
+        else:
+            self._start_stuck(self._t, 0.0, x0, 0.0, phase, 0)
 
     # -- read-only views -------------------------------------------------------
 
@@ -327,6 +321,12 @@ class Slider:
         return self._stuck_time + (self._t - seg.t0 if seg.direction == 0 else 0.0)
 
     @property
+    def flight_time(self) -> float:
+        """Total time [s] spent off the track since the start, up to :attr:`t`."""
+        seg = self._seg
+        return self._flight_time + (self._t - seg.t0 if seg.direction == FLIGHT else 0.0)
+
+    @property
     def cycle_marks(self) -> list[CycleMark]:
         """The most recent period starts, oldest first (empty unless enabled)."""
         return list(self._marks) if self._marks is not None else []
@@ -349,8 +349,8 @@ class Slider:
     def state(self) -> SliderState:
         """The state at the current time :attr:`t`."""
         seg = self._seg
-        x, v, acc, friction, normal, theta = seg.evaluate(self._t)
-        return SliderState(self._t, x, v, acc, friction, normal, theta % TWO_PI, _MODES[seg.direction])
+        x, v, acc, friction, normal, theta, *height = seg.evaluate(self._t)
+        return SliderState(self._t, x, v, acc, friction, normal, theta % TWO_PI, _MODES[seg.direction], *height)
 
     # -- advancing -------------------------------------------------------------
 
@@ -383,6 +383,7 @@ class Slider:
         if times[0] < self._t or np.any(np.diff(times) < 0.0):
             raise ParameterError("times", float(times[0]), f"must ascend from >= {self._t!r} s")
         columns = [np.empty_like(times) for _ in range(7)]
+        height: list[np.ndarray] = [np.zeros_like(times), np.zeros_like(times)]
         happened: list[Event] = []
         first = 0
         while first < times.size:
@@ -390,7 +391,7 @@ class Slider:
             if last > first:
                 seg = self._seg
                 values = seg.evaluate(times[first:last], np)
-                for column, value in zip(columns, values):
+                for column, value in zip(columns[:6] + height, values):
                     column[first:last] = value
                 columns[5][first:last] %= TWO_PI
                 columns[6][first:last] = seg.direction
@@ -399,7 +400,8 @@ class Slider:
                 happened.extend(self.advance_to(self._next_t))
         happened.extend(self.advance_to(float(times[-1])))
         x, v, acc, friction, normal, phase, mode = columns
-        return Trajectory(times, x, v, acc, friction, normal, phase, mode.astype(np.int8), tuple(happened))
+        return Trajectory(times, x, v, acc, friction, normal, phase, mode.astype(np.int8), tuple(happened),
+                          height[0], height[1])
 
     # -- changing inputs and parameters ----------------------------------------
 
@@ -448,23 +450,47 @@ class Slider:
         """When (after the anchor) the total phase reaches 2*pi*cycles + phase."""
         return (cycles - self._origin_cycles) / self._frequency + (phase - self._origin_phase) / self._plant.omega
 
+    def _set_plant(self, params: SliderParams, inputs: Inputs, in_flight: bool) -> None:
+        """Take new parameters and inputs: Kostek's model (normal excitation,
+        level track, one friction coefficient, never leaving the track) runs
+        on its own fast segments, everything else on the general ones."""
+        self._params, self._inputs = params, inputs
+        self._general = in_flight or not (
+            params.is_kostek and inputs.excitation_amplitude < params.weight - inputs.external_force_z)
+        if self._general:
+            self._gplant = GeneralPlant(params, inputs)
+            self._steps: dict[tuple[int, float, float, float, float, int, bool], Step] = {}
+            self._plant = _Plant(params, inputs)  # (its omega times the anchor)
+            self._can_slip = True
+        else:
+            self._can_slip = can_ever_slip(params, inputs)
+            self._plant = _Plant(params, inputs)
+
     def _rebase(self, params: SliderParams, inputs: Inputs) -> None:
         """Start a new segment at the current time from the current state."""
         seg = self._seg
         tau = self._t - seg.t0
         theta = seg.phase0 + seg.omega * tau
         x, xl = seg.position(tau)
-        w = seg.speed_and_travel(tau)[0] if seg.direction != 0 else 0.0
-        phase, cycles = _reduce_phase(theta, seg.cycles)
+        phase, cycles = reduce_phase(theta, seg.cycles)
+        if isinstance(seg, Motion):
+            (v, vz), z = seg.velocities(tau), seg.after(tau)[6]
+            w = abs(v)
+        else:
+            w = seg.speed_and_travel(tau)[0] if seg.direction != 0 else 0.0
+            v, vz, z = seg.direction * w, 0.0, 0.0
         if seg.direction == 0:
             self._stuck_time += tau
-        self._params, self._inputs = params, inputs
-        self._can_slip = can_ever_slip(params, inputs)
-        self._plant = _Plant(params, inputs)
+        elif seg.direction == FLIGHT:
+            self._flight_time += tau
+        self._set_plant(params, inputs, in_flight=seg.direction == FLIGHT)
         if inputs.excitation_frequency != self._frequency:
             self._set_anchor(self._t, cycles, phase)
         s = self._t - self._origin
-        if seg.direction != 0 and w > 0.0:
+        if self._general:
+            mode = FLIGHT if seg.direction == FLIGHT else (STUCK if w == 0.0 else (1 if v > 0.0 else -1))
+            self._start_motion(self._t, s, x, xl, v, phase, cycles, mode, vz=vz, z=max(z, 0.0))
+        elif seg.direction != 0 and w > 0.0:
             self._start_slip(self._t, s, x, xl, w, phase, cycles, seg.direction)
         else:
             self._start_stuck(self._t, s, x, xl, phase, cycles)
@@ -523,9 +549,57 @@ class Slider:
             return delay, None
         return delay, (direction * seg.speed_and_travel(delay)[1], phase + seg.omega * delay)
 
+    # -- internals: the general model ---------------------------------------------
+
+    def _start_motion(self, t: float, s: float, x: float, xl: float, v: float, phase: float, cycles: int,
+                      mode: int, *, vz: float = 0.0, z: float = 0.0, closing: int = 0, grounded: bool = False) -> None:
+        """Start a segment of the general model and schedule its next event
+        (worked out once per distinct start: see :class:`motion.Step`)."""
+        self._seg = seg = Motion(s, t, x, xl, v, phase, cycles, mode, self._gplant, vz, z)
+        key = (mode, phase, v, vz, z, closing, grounded)
+        step = self._steps.get(key)
+        if step is None:
+            if len(self._steps) >= _CACHE_LIMIT:
+                self._steps.clear()
+            step = self._steps[key] = next_step(seg, closing, grounded) if self._can_slip else NEVER_STEP
+        self._step = step
+        if step.tied:  # tied to a phase: timed from the anchor, as a slip onset
+            next_s = self._offset(cycles + step.whole, step.phase)
+            if next_s < s:
+                next_s = s
+        else:
+            next_s = s + step.delay
+        self._next_s = next_s
+        next_t = self._origin + next_s
+        self._next_t = next_t if next_t >= t else t
+
+    def _apply_general(self) -> Event:
+        """Carry out the worked-out event of a general segment and start the next."""
+        seg: Motion = self._seg  # type: ignore[assignment]  # (general: a Motion)
+        step, t, s = self._step, self._next_t, self._next_s
+        then = step.then
+        assert then is not None  # an endless segment has no event
+        x, xl = two_sum(seg.x0, seg.xl + step.travel)
+        phase, cycles = step.phase, seg.cycles + step.whole
+        if seg.direction == STUCK:
+            self._stuck_time += s - seg.s0
+        elif seg.direction == FLIGHT:
+            self._flight_time += s - seg.s0
+        self._start_motion(t, s, x, xl, then.v, phase, cycles, then.mode, vz=then.vz, closing=then.closing,
+                           grounded=then.grounded)
+        if then.kind is EventKind.LANDING or then.kind is EventKind.LIFT_OFF:
+            event = Event(t, then.kind, x, phase, _MODES[seg.direction], _MODES[then.mode], step.v, then.v,
+                          step.vz, then.vz)
+        else:
+            event = Event(t, then.kind, x, phase, _MODES[seg.direction], _MODES[then.mode])
+        return self._log(event)
+
     def _apply(self) -> Event:
         """Carry out the event at ``_next_t`` and start the segment after it."""
-        seg, t, s = self._seg, self._next_t, self._next_s
+        if self._general:
+            return self._apply_general()
+        seg: _Segment = self._seg  # type: ignore[assignment]  # (not general: Kostek's segment)
+        t, s = self._next_t, self._next_s
         if seg.direction == 0:
             self._stuck_time += s - seg.s0
             phase, direction, cycles = self._next_start
@@ -538,7 +612,7 @@ class Slider:
         x = x0 + part  # two_sum, inlined (once per slip)
         bb = x - x0
         xl = (x0 - (x - bb)) + (part - bb)
-        phase, cycles = _reduce_phase(theta, seg.cycles)
+        phase, cycles = reduce_phase(theta, seg.cycles)
         plant = self._plant
         direction = plant.direction
         before = _MODES[seg.direction]
@@ -562,12 +636,16 @@ class Slider:
         t = max(self._next_mark_t, seg.t0)  # a start that rounding put before this segment's is at it
         # Where the slider is when the phase passes 2*pi*n exactly (not at the rounded t).
         tau = seg.to_cycle(n)
+        flight = self._flight_time
         if seg.direction == 0:  # only x is needed: no full state evaluation
             x, stuck = seg.x0, self._stuck_time + tau
+        elif isinstance(seg, Motion):
+            x, stuck = sum(seg.position(tau)), self._stuck_time
+            flight += tau if seg.direction == FLIGHT else 0.0
         else:
             x, stuck = seg.x0 + (seg.xl + seg.direction * seg.speed_and_travel(tau)[1]), self._stuck_time
         assert self._marks is not None
-        self._marks.append(CycleMark(n, t, x, stuck))
+        self._marks.append(CycleMark(n, t, x, stuck, flight))
         self._next_mark_n += 1
         self._schedule_mark()
 

@@ -92,8 +92,8 @@ def test_mirror_symmetry(mass, mu, g, f, phi, a, seed, external):
 def test_zero_creep_below_the_boundary(mass, mu, g, f, a, u, sign, fz_frac, split, phase0, x0):
     """|Ft| <= mu*min(R) (with a relative margin of 1e-9): x stays x0 exactly."""
     params = SliderParams(mass=mass, mu=mu, gravity=g)
-    fz = fz_frac * params.weight
-    load = params.weight + fz
+    fz = -fz_frac * params.weight  # pressing on the contact (Fz > 0 lifts)
+    load = params.weight - fz
     pa = a * load
     ft = sign * u * mu * (load - pa)
     inputs = Inputs(drive_force=split * ft, excitation_amplitude=pa, excitation_frequency=f,
@@ -246,7 +246,7 @@ def test_time_only_forward_and_stuck_means_still(mass, mu, g, f, phi, a, seed, e
     for command in [None] + sorted(schedule, key=lambda c: c.t):
         if command is not None:
             current = current.replace(**command.values)
-        load = params.weight + current.external_force_z + current.excitation_amplitude
+        load = params.weight - current.external_force_z + current.excitation_amplitude
         amax = max(amax, (abs(current.tangential_force) + params.mu * load) / params.mass)
     dt = np.diff(grid)
     bound = np.abs(tr.v[:-1]) * dt + 0.5 * amax * dt**2

@@ -278,7 +278,7 @@ def test_sample_order_and_duplicates_are_preserved():
     ({'schedule': [(0.0, ReferenceInputs(excitation_frequency=0.0))]}, 'excitation_frequency'),
     ({'schedule': [(0.0, ReferenceInputs(drive_force=float('inf')))]}, 'drive_force'),
     ({'schedule': [(0.0, ReferenceInputs(excitation_amplitude=10.0))]}, 'excitation_amplitude'),
-    ({'schedule': [(0.0, ReferenceInputs(external_force_z=-5.0))]}, 'excitation_amplitude'),
+    ({'schedule': [(0.0, ReferenceInputs(external_force_z=5.0))]}, 'excitation_amplitude'),
     ({'schedule': [(0.0, PAPER), (1.0, ReferenceInputs(external_force_x=float('nan')))]},
      'external_force_x'),
     ({'sample_times': [0.0, float('nan')]}, 'sample_times'),

@@ -135,10 +135,10 @@ def test_reference_sees_a_brief_return_to_rest():
     m, mu, g = 3.303024945183361, 0.4928846653308694, 11.582013567825095
     inputs = ReferenceInputs(drive_force=-16.55540011563017, excitation_amplitude=19.274444896712595,
                              excitation_frequency=36.308604383562205, external_force_x=-0.3806132807973947,
-                             external_force_z=2.770832334496362)
+                             external_force_z=-2.770832334496362)
     v0, theta0 = -5.928363747229046e-05, 0.2409504149232461
     omega = 2.0 * np.pi * inputs.excitation_frequency
-    load = m * g + inputs.external_force_z
+    load = m * g - inputs.external_force_z
     ft = inputs.drive_force + inputs.external_force_x
 
     def v_backward(t):

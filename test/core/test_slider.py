@@ -68,7 +68,7 @@ def paper_slider(**kw):
 def max_acceleration(params, inputs):
     """An upper bound of |dv/dt| under these inputs."""
     return (abs(inputs.tangential_force)
-            + params.mu * (params.weight + inputs.external_force_z + inputs.excitation_amplitude)
+            + params.mu * (params.weight - inputs.external_force_z + inputs.excitation_amplitude)
             ) / params.mass
 
 
@@ -454,7 +454,7 @@ def test_energy_balance():
     m, mu, g = params.mass, params.mu, params.gravity
     pieces = [
         (0.0, Inputs()),
-        (0.0305, Inputs(0.85, 4.0, 40.0, 0.05, 0.5)),
+        (0.0305, Inputs(0.85, 4.0, 40.0, 0.05, -0.5)),
         (0.071, Inputs(-0.8, 6.0, 60.0, 0.0, 0.0)),
     ]
     t_end = 0.11
@@ -478,7 +478,7 @@ def test_energy_balance():
         work_in += inputs.tangential_force * (slider.state().x - x0)
         events.extend(inside)
 
-        omega, load, pa = TWO_PI * inputs.excitation_frequency, m * g + inputs.external_force_z, \
+        omega, load, pa = TWO_PI * inputs.excitation_frequency, m * g - inputs.external_force_z, \
             inputs.excitation_amplitude
 
         def power(t, theta0=theta0, t0=t0, omega=omega, load=load, pa=pa):
@@ -510,8 +510,8 @@ def test_mirror_symmetry(seed):
     t_end = 0.6
     schedule = random_schedule(rng, t_end, external=True)
     times = np.sort(np.concatenate([np.linspace(0.0, t_end, 2001), rng.uniform(0, t_end, 500)]))
-    start = Inputs(drive_force=0.7, external_force_x=0.04, external_force_z=0.3)
-    mirror_start = Inputs(drive_force=-0.7, external_force_x=-0.04, external_force_z=0.3)
+    start = Inputs(drive_force=0.7, external_force_x=0.04, external_force_z=-0.3)
+    mirror_start = Inputs(drive_force=-0.7, external_force_x=-0.04, external_force_z=-0.3)
 
     a = Slider(SliderParams(), start, event_log_size=None)
     b = Slider(SliderParams(), mirror_start, event_log_size=None)
@@ -671,7 +671,8 @@ def test_event_log_is_bounded_but_counts_keep_counting():
     assert len(returned) == 100  # the call itself returns them all
     assert len(bounded.events) == 10
     assert bounded.events == full.events[-10:]
-    assert bounded.event_counts == {EventKind.SLIP_START: 50, EventKind.STICK: 50, EventKind.REVERSAL: 0}
+    assert bounded.event_counts == {EventKind.SLIP_START: 50, EventKind.STICK: 50, EventKind.REVERSAL: 0,
+                                    EventKind.LIFT_OFF: 0, EventKind.LANDING: 0}
     assert full.event_counts == bounded.event_counts
     assert len(full.events) == 100
 
