@@ -112,7 +112,7 @@ class GeneralPlant:
 
 class Axis:
     """w(tau) and its integral for dw/dt = form(theta0 + omega*tau), w(0) = w0
-    (the closed form of :class:`friction_sim.core.slider._Segment`)."""
+    (the closed form of :class:`friction_sim.core.kostek.KostekSegment`)."""
 
     __slots__ = ("w0", "g0", "k", "kk", "cos0", "sin0", "omega", "form", "phase")
 
@@ -155,7 +155,7 @@ class Motion:
     stuck (mode 0), slipping (+-1) or in flight (2).
 
     ``s0``/``t0``, ``x0 + xl``, ``phase0``/``cycles`` mean what they mean in
-    :class:`friction_sim.core.slider._Segment`; ``v0`` is the tangential and
+    :class:`friction_sim.core.kostek.KostekSegment`; ``v0`` is the tangential and
     ``vz0`` the normal velocity and ``z0`` the height at the start (z0 > 0
     only for a flight whose inputs changed in the air).
     """

@@ -1,10 +1,16 @@
-"""The exact, event-driven stick-slip core (no ROS, numpy only).
+"""The exact, event-driven core (no ROS, numpy only).
+
+The slider follows the general model of :mod:`friction_sim.core.motion`
+(flight, inclined vibration, a sloped track, static friction) on its general
+segments, and Kostek's model, the default special case described below, on
+the fast segments of :mod:`friction_sim.core.kostek`; it switches between
+them whenever a change of parameters or inputs makes the other apply.
 
 Model (R. Kostek): a rigid slider of mass m on a slideway with one Coulomb
 friction coefficient mu, pushed by a tangential force Ft = Fd + Fx and unloaded
 by a normal harmonic force, so that the normal reaction is
 
-    R(t) = m*g + Fz - Pa*sin(theta(t)),   d(theta)/dt = 2*pi*f.
+    R(t) = m*g - Fz - Pa*sin(theta(t)),   d(theta)/dt = 2*pi*f   (Fz > 0 lifts).
 
 Stuck (v = 0) while |Ft| <= mu*R; slipping, m*dv/dt = Ft - mu*R*sign(v).
 
@@ -13,11 +19,11 @@ is a constant plus a sinusoid.  Writing s = +-1 for the slip direction and
 w = s*v >= 0 for the speed, over a slip that starts at (t0, x0, w0, theta0):
 
     w(tau)  = w0 + B0*tau + (B1/omega)*(cos(theta0) - cos(theta0 + omega*tau))
-    B0 = (s*Ft - mu*(m*g + Fz)) / m,   B1 = mu*Pa/m >= 0
+    B0 = (s*Ft - mu*(m*g - Fz)) / m,   B1 = mu*Pa/m >= 0
 
 and x is its integral.  Events are the roots of simple equations:
 
-* stick -> slip: |Ft| rises above mu*R, i.e. Pa*sin(theta) > m*g + Fz - |Ft|/mu,
+* stick -> slip: |Ft| rises above mu*R, i.e. Pa*sin(theta) > m*g - Fz - |Ft|/mu,
   solved in closed form with asin;
 * slip -> stick or reversal: w returns to 0.  w is monotone between the zeros
   of w' = B0 + B1*sin(theta), so the root is bracketed on the first falling
@@ -40,27 +46,23 @@ advances it; detecting the next event (:func:`next_slip_start`,
 
 from __future__ import annotations
 
-import math
 from collections import deque
-from dataclasses import fields
-from types import ModuleType
 from typing import Any
 
 import numpy as np
 
 from friction_sim.core.events import MODES as _MODES
 from friction_sim.core.events import CycleMark, Event, EventKind, Mode, SliderState, Trajectory
+from friction_sim.core.kostek import KostekPlant, KostekSegment
 from friction_sim.core.motion import FLIGHT, NEVER_STEP, STUCK, GeneralPlant, Motion, Step, next_step
 from friction_sim.core.params import Inputs, SliderParams, require_finite
 from friction_sim.core.roots import (
     NEVER,
     TWO_PI,
     can_ever_slip,
-    from_rest_b0,
     next_slip_start,
     reduce_phase,
     slip_stop_delay,
-    trig_remainders,
     two_sum,
 )
 from friction_sim.errors import ParameterError
@@ -73,117 +75,6 @@ _CACHE_LIMIT = 256
 #: slider, at 2e12 m/s^2, covers 1e44 m by then).
 MAX_TIME = 2.0**53
 MAX_POSITION = 1e100
-
-
-# --------------------------------------------------------------------------
-# The segment: closed-form motion between two events.
-# --------------------------------------------------------------------------
-
-
-class _Plant:
-    """The constants of the motion under one set of parameters and inputs,
-    computed once per change rather than once per segment."""
-
-    __slots__ = ("omega", "tangential", "load", "amplitude", "mu", "b1", "b0", "direction")
-
-    def __init__(self, params: SliderParams, inputs: Inputs) -> None:
-        self.omega = TWO_PI * inputs.excitation_frequency
-        self.tangential = inputs.tangential_force
-        self.load = params.weight - inputs.external_force_z
-        self.amplitude = inputs.excitation_amplitude
-        self.mu = params.mu
-        self.b1 = self.mu * self.amplitude / params.mass
-        #: b0 of dw/dt = b0 + b1*sin(theta) for a slip in direction d, at index d (0, +1, -1).
-        self.b0 = tuple((d * self.tangential - self.mu * self.load) / params.mass for d in (0, 1, -1))
-        #: the direction a slip from rest takes: sign(Ft)
-        self.direction = 1 if self.tangential > 0.0 else -1
-
-
-class _Segment:
-    """Closed-form motion from (x0, w0, phase0) under constant inputs.
-
-    ``direction`` 0 is stuck; +-1 is a slip, whose speed w = direction*v.
-    ``phase0`` is in [0, 2*pi); ``cycles`` counts the whole excitation periods
-    before it, so the total phase at its start is 2*pi*cycles + phase0.
-
-    It starts at time ``t0``; ``s0`` is that start as an offset from the
-    slider's phase anchor (see :class:`Slider`), before rounding to ``t0``, and
-    the next event is timed from it, so event times do not inherit one
-    another's rounding.  The position is a double-double
-    ``x0 + xl``, so that a long run's travel is a sum without rounding drift.
-    """
-
-    __slots__ = (
-        "t0", "s0", "x0", "xl", "w0", "phase0", "cycles", "direction", "plant", "omega", "b0", "b1", "g0",
-        "cos0", "sin0", "stop",
-    )
-
-    def __init__(
-        self, s0: float, t0: float, x0: float, xl: float, w0: float, phase0: float, cycles: int,
-        direction: int, plant: _Plant,
-    ) -> None:
-        self.s0, self.t0 = s0, t0
-        self.x0, self.xl, self.w0, self.phase0, self.direction = x0, xl, w0, phase0, direction
-        self.cycles, self.plant, self.omega = cycles, plant, plant.omega
-        #: (signed travel, raw phase) where the slip stops (None: it never stops)
-        self.stop: tuple[float, float] | None = None
-        if direction:  # a stuck segment needs none of a slip's constants
-            self.b1 = plant.b1
-            self.cos0, self.sin0 = math.cos(phase0), math.sin(phase0)
-            self.b0 = from_rest_b0(w0, plant.b0[direction], self.b1, self.sin0)
-            self.g0 = self.b0 + self.b1 * self.sin0
-
-    def evaluate(self, t: Any, xp: ModuleType = math) -> tuple[Any, Any, Any, Any, Any, Any]:
-        """(x, v, acceleration, friction force, normal force, phase) at time(s) t.
-
-        The phase is counted from this segment's start of period, unreduced
-        (see :func:`_reduce_phase`).  ``xp`` is ``math`` for one float or
-        ``numpy`` for an array of times.
-        """
-        return self.after(t - self.t0, xp)
-
-    def after(self, tau: Any, xp: ModuleType = math) -> tuple[Any, Any, Any, Any, Any, Any]:
-        """:meth:`evaluate` at ``tau`` after the segment's start."""
-        plant = self.plant
-        theta = self.phase0 + self.omega * tau
-        sin_theta = xp.sin(theta)
-        normal = plant.load - plant.amplitude * sin_theta
-        s = self.direction
-        if s == 0:
-            zero = tau * 0.0
-            return self.x0 + zero, zero, zero, -plant.tangential + zero, normal, theta
-        w, travel = self.speed_and_travel(tau, xp)
-        acceleration = s * (self.b0 + self.b1 * sin_theta)
-        return self.x0 + (self.xl + s * travel), s * w, acceleration, -s * plant.mu * normal, normal, theta
-
-    def position(self, tau: float) -> tuple[float, float]:
-        """The position ``tau`` into the segment as a double-double (hi, lo)."""
-        if self.direction == 0:
-            return self.x0, self.xl
-        return two_sum(self.x0, self.xl + self.direction * self.speed_and_travel(tau)[1])
-
-    def speed_and_travel(self, tau: Any, xp: ModuleType = math) -> tuple[Any, Any]:
-        """Speed w and distance travelled (>= 0, along the slip) ``tau`` into a slip."""
-        k = self.b1 / self.omega
-        c1, s2, c2 = trig_remainders(self.omega * tau, xp)
-        w = self.w0 + self.g0 * tau + k * (self.cos0 * c1 - self.sin0 * s2)
-        travel = (
-            self.w0 * tau + 0.5 * self.g0 * tau * tau
-            + (k / self.omega) * (self.cos0 * s2 - self.sin0 * c2)
-        )
-        return w, travel
-
-    def to_cycle(self, n: int) -> float:
-        """tau at which the total phase reaches 2*pi*n (0 if it already had)."""
-        whole = n - self.cycles
-        if whole <= 0:
-            return 0.0
-        return (TWO_PI * whole - self.phase0) / self.omega
-
-
-def _changed(old: Any, new: Any) -> set[str]:
-    """Names of the dataclass fields that differ between ``old`` and ``new``."""
-    return {f.name for f in fields(new) if getattr(old, f.name) != getattr(new, f.name)}
 
 
 class _Checkpoint:
@@ -281,7 +172,7 @@ class Slider:
             self._marks = deque(maxlen=cycle_log_size)
             if phase == 0.0:
                 self._marks.append(CycleMark(0, self._t, x0, 0.0))
-        self._seg: _Segment | Motion
+        self._seg: KostekSegment | Motion
         self._set_plant(self._params, self._inputs, in_flight=False)
         self._set_anchor(self._t, 0, phase)
         if self._general:
@@ -408,24 +299,24 @@ class Slider:
     def set_inputs(self, inputs: Inputs | None = None, **changes: Any) -> Inputs:
         """Change the inputs at the current time; the phase stays continuous.
 
-        Pass a whole :class:`Inputs` or field changes.  A change that would let
-        the normal reaction reach zero is refused and nothing changes.
+        Pass a whole :class:`Inputs` or field changes (validated as a new
+        :class:`Inputs`; a bad value is refused and nothing changes).  Every
+        valid combination is followed, including one that lifts the slider off.
         """
         new = (inputs if inputs is not None else self._inputs).replace(**changes)
-        self.set_plant(self._params, new, changes if inputs is None else None)
+        self.set_plant(self._params, new)
         return new
 
     def set_params(self, params: SliderParams) -> None:
-        """Change mass, mu or gravity at the current time (refused if it would
-        let the normal reaction reach zero under the present inputs)."""
+        """Change the plant's parameters at the current time."""
         self.set_plant(params, self._inputs)
 
     def set_plant(self, params: SliderParams, inputs: Inputs, changed: Any = None) -> None:
-        """Change parameters and inputs together at the current time: checked as
-        one new state (``changed`` names the fields to blame; default: those
-        that differ), then one new segment."""
-        if changed is None:
-            changed = _changed(self._params, params) | _changed(self._inputs, inputs)
+        """Change parameters and inputs together at the current time: one new
+        segment from the present state (in the air, a flight goes on under
+        the new forces).  ``changed`` (the fields a command named) is accepted
+        for callers that pass it; no combination of valid values is refused."""
+        del changed
         self._rebase(params, inputs)
 
     def checkpoint(self) -> _Checkpoint:
@@ -460,11 +351,11 @@ class Slider:
         if self._general:
             self._gplant = GeneralPlant(params, inputs)
             self._steps: dict[tuple[int, float, float, float, float, int, bool], Step] = {}
-            self._plant = _Plant(params, inputs)  # (its omega times the anchor)
+            self._plant = KostekPlant(params, inputs)  # (its omega times the anchor)
             self._can_slip = True
         else:
             self._can_slip = can_ever_slip(params, inputs)
-            self._plant = _Plant(params, inputs)
+            self._plant = KostekPlant(params, inputs)
 
     def _rebase(self, params: SliderParams, inputs: Inputs) -> None:
         """Start a new segment at the current time from the current state."""
@@ -499,7 +390,7 @@ class Slider:
         self, t: float, s: float, x: float, xl: float, phase: float, cycles: int, after_stop: int = 0
     ) -> None:
         plant = self._plant
-        self._seg = _Segment(s, t, x, xl, 0.0, phase, cycles, 0, plant)
+        self._seg = KostekSegment(s, t, x, xl, 0.0, phase, cycles, 0, plant)
         direction = plant.direction
         delta, start_phase = NEVER, NEVER
         if self._can_slip:
@@ -523,7 +414,7 @@ class Slider:
     def _start_slip(
         self, t: float, s: float, x: float, xl: float, w: float, phase: float, cycles: int, direction: int
     ) -> None:
-        self._seg = seg = _Segment(s, t, x, xl, w, phase, cycles, direction, self._plant)
+        self._seg = seg = KostekSegment(s, t, x, xl, w, phase, cycles, direction, self._plant)
         if w == 0.0:
             # Every slip from rest at this phase under these inputs is this slip:
             # its stop (duration, travel, phase) is computed once.
@@ -542,7 +433,7 @@ class Slider:
         self._next_t = next_t if next_t >= t else t
 
     @staticmethod
-    def _slip_stop(seg: _Segment, w: float, phase: float, direction: int) -> tuple[float, Any]:
+    def _slip_stop(seg: KostekSegment, w: float, phase: float, direction: int) -> tuple[float, Any]:
         """(duration, (signed travel, raw phase) at the stop or None) of a slip."""
         delay = slip_stop_delay(w, seg.b0, seg.b1, phase, seg.omega)
         if delay == NEVER:
@@ -598,7 +489,7 @@ class Slider:
         """Carry out the event at ``_next_t`` and start the segment after it."""
         if self._general:
             return self._apply_general()
-        seg: _Segment = self._seg  # type: ignore[assignment]  # (not general: Kostek's segment)
+        seg: KostekSegment = self._seg  # type: ignore[assignment]  # (not general: Kostek's segment)
         t, s = self._next_t, self._next_s
         if seg.direction == 0:
             self._stuck_time += s - seg.s0
