@@ -203,3 +203,14 @@ def test_conveyor_reversal_is_a_sign_change_of_u(conveyor: tuple[str, list[dict[
     assert len(brackets) == 1 and brackets[0][0] < alpha < brackets[0][1]
     # and the mean speed itself changes sign there (each side a fresh exact simulation)
     assert point(angle, alpha - 1e-4, gamma, 0.5).u > 0.0 > point(angle, alpha + 1e-4, gamma, 0.5).u
+
+
+@pytest.mark.parametrize("angle", [15.0, 30.0, 45.0, 60.0])
+def test_the_marked_gamma_3_30_is_the_one_period_flight(angle: float) -> None:
+    """At the figure's marked Gamma = 3.30 (just above sqrt(1 + pi^2)) a plastic
+    landing is followed at once by the next lift-off, and the slider, stopped by
+    the first impulsive landing, gains Pt cos(theta0)/(m omega) a period in the
+    mean: U = cot(beta)/(2 mu) (cos(theta0) = pi/Gamma at the one-period flight)."""
+    at_mark = point(angle, 0.0, 3.30, 0.5)
+    assert at_mark.periodic and at_mark.flight_fraction == pytest.approx(1.0, abs=1e-12)
+    assert at_mark.u == pytest.approx(1.0 / math.tan(math.radians(angle)) / (2.0 * 0.5), rel=1e-9)
