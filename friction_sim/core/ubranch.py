@@ -10,7 +10,11 @@ and direction (it is cached: the controller asks once per sample):
 
 * U is sampled at ``samples`` amplitude ratios evenly spaced on
   [0, max_ratio] with :func:`~friction_sim.core.meanspeed.mean_speed`
-  (exact for the closed-form cases, the exact simulated motion elsewhere);
+  (exact for the closed-form cases, the exact simulated motion elsewhere,
+  an irregular one averaged over :data:`BRANCH_PERIODS` after
+  :data:`BRANCH_SETTLE_PERIODS`); where the drive beats friction
+  (|Fd + Fx - m g sin(alpha)| > mu (m g cos(alpha) - Fz)) every amplitude
+  runs away and the branch is empty without a simulation;
 * with s = +1 for a forward target and -1 for a backward one, the branch
   starts at the last sample before s*U first becomes positive (there
   s*U <= 0: the motion boundary lies between the two) and runs while s*U
@@ -39,12 +43,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from friction_sim.core import spec
-from friction_sim.core.meanspeed import REFERENCE_FREQUENCY, mean_speed
-from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.meanspeed import REFERENCE_FREQUENCY, MeanSpeed, mean_speed
+from friction_sim.core.params import Inputs, SliderParams, cos_degrees, sin_degrees
 from friction_sim.errors import ParameterError
 
 #: Amplitude ratios sampled on [0, max_ratio] to find the branch.
-DEFAULT_SAMPLES = 48
+DEFAULT_SAMPLES = 40
+#: The window of every mean speed the branch is made of: a motion that does not repeat within
+#: BRANCH_SETTLE_PERIODS is averaged over BRANCH_PERIODS (half mean_speed's defaults: the branch
+#: takes some fifty of them, and a controller's model need not be finer than that).
+BRANCH_SETTLE_PERIODS = 100
+BRANCH_PERIODS = 100
 #: Golden-section steps refining the peak that ends a branch (its bracket shrinks to 0.618**steps).
 PEAK_STEPS = 10
 #: The inverse stops where U meets the target to this fraction of it.
@@ -60,7 +69,8 @@ _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 class Branch:
     """The first stretch where s*U rises with the amplitude ratio a (s = ``direction``).
 
-    ``a`` and ``u`` are the samples of U(a) on [0, ``max_ratio``];
+    ``a`` and ``u`` are the samples of U(a) on [0, ``max_ratio``]
+    (``periodic``: where the motion repeats, see :class:`~friction_sim.core.meanspeed.MeanSpeed`);
     (a_start, u_start) is the sample where the branch starts (s*U <= 0 there,
     unless the plant moves at a = 0 already) and (a_end, u_end) its end: its
     peak, or ``max_ratio``.  ``empty``: s*U never becomes positive (finitely)
@@ -77,6 +87,7 @@ class Branch:
     direction: int
     a: NDArray[np.float64]
     u: NDArray[np.float64]
+    periodic: NDArray[np.bool_]
     a_start: float
     u_start: float
     a_end: float
@@ -143,9 +154,13 @@ def amplitude_ratio_for_general(u: float, params: SliderParams, inputs: Inputs, 
     return branch.amplitude_ratio_for(u)
 
 
-def _u(params: SliderParams, inputs: Inputs, ratio: float) -> float:
+def _mean(params: SliderParams, inputs: Inputs, ratio: float) -> MeanSpeed:
     plant = inputs.replace(excitation_amplitude=ratio * params.weight, excitation_frequency=REFERENCE_FREQUENCY)
-    return mean_speed(params, plant).u
+    return mean_speed(params, plant, settle_periods=BRANCH_SETTLE_PERIODS, periods=BRANCH_PERIODS)
+
+
+def _u(params: SliderParams, inputs: Inputs, ratio: float) -> float:
+    return _mean(params, inputs, ratio).u
 
 
 @lru_cache(maxsize=32)
@@ -155,7 +170,16 @@ def _branch(params: SliderParams, drive: float, fx: float, fz: float, max_ratio:
                     external_force_z=fz)
     a = max_ratio * np.arange(samples) / (samples - 1)
     a[-1] = max_ratio
-    u = np.array([_u(params, inputs, float(ratio)) for ratio in a])
+    pull, load = drive + fx - sin_degrees(params.track_inclination), cos_degrees(params.track_inclination) - fz
+    if abs(pull) > params.mu * load:
+        # The drive (with the slope's pull) beats the most friction the track can give on average: every
+        # amplitude runs away (the excitation averages to nothing), no simulation needed to say so.
+        u = np.full(samples, math.copysign(math.inf, pull))
+        periodic = np.zeros(samples, dtype=bool)
+    else:
+        means = [_mean(params, inputs, float(ratio)) for ratio in a]
+        u = np.array([mean.u for mean in means])
+        periodic = np.array([mean.periodic for mean in means])
     g = direction * u
     finite = np.isfinite(g)
     positive = np.nonzero(finite & (g > 0.0))[0]
@@ -165,7 +189,7 @@ def _branch(params: SliderParams, drive: float, fx: float, fz: float, max_ratio:
         first_a, first_g = (0.0, float(g[0])) if empty else (float(nodes_a[0]), float(nodes_g[0]))
         last_a, last_g = (0.0, float(g[0])) if empty else (float(nodes_a[-1]), float(nodes_g[-1]))
         return Branch(params=params, drive_force=drive, external_force_x=fx, external_force_z=fz,
-                      max_ratio=max_ratio, direction=direction, a=a, u=u, a_start=first_a,
+                      max_ratio=max_ratio, direction=direction, a=a, u=u, periodic=periodic, a_start=first_a,
                       u_start=direction * first_g, a_end=last_a, u_end=direction * last_g, empty=empty,
                       nodes_a=tuple(float(x) for x in nodes_a), nodes_g=tuple(float(x) for x in nodes_g))
 
@@ -179,7 +203,7 @@ def _branch(params: SliderParams, drive: float, fx: float, fz: float, max_ratio:
     while end + 1 < samples and finite[end + 1] and g[end + 1] > g[end]:
         end += 1
     nodes_a, nodes_g = list(a[start:end + 1]), list(g[start:end + 1])
-    if end + 1 < samples:
+    if end + 1 < samples and periodic[end]:  # a peak of irregular means is noise: not refined
         peak_a, peak_g = _peak(params, inputs, direction, float(a[end - 1] if end > start else a[end]),
                                float(a[end + 1]), float(a[end]), float(g[end]))
         if peak_g > nodes_g[-1]:
