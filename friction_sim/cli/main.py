@@ -95,7 +95,8 @@ def _add_umap(sub: Subcommands) -> None:
 
 
 def _add_trace(sub: Subcommands) -> None:
-    trace = sub.add_parser("trace", help="draw the paper's Fig. 2 (forces, a, v, x with A, B, C)")
+    trace = sub.add_parser("trace", help="draw the paper's Fig. 2 (forces, a, v, x with A, B, C; the height z "
+                           "with lift-offs and landings when the slider flies)")
     trace.add_argument("--png", type=Path, required=True, help="output picture")
     commands.add_flag(trace, commands.PERIODS, commands.PERIODS.default)
     commands.add_plant_options(trace)
