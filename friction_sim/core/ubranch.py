@@ -18,7 +18,8 @@ and direction (it is cached: the controller asks once per sample):
 * with s = +1 for a forward target and -1 for a backward one, the branch
   starts at the last sample before s*U first becomes positive (there
   s*U <= 0: the motion boundary lies between the two) and runs while s*U
-  rises from sample to sample and stays finite (a runaway ends it);
+  rises from sample to sample (or stays put, to :data:`PLATEAU_TOLERANCE`)
+  and stays finite (a runaway ends it);
 * if it ends before max_ratio its peak is refined by a golden-section search
   between the neighbouring samples (:data:`PEAK_STEPS` steps), giving
   (a_end, U_end);
@@ -56,6 +57,9 @@ BRANCH_SETTLE_PERIODS = 100
 BRANCH_PERIODS = 100
 #: Golden-section steps refining the peak that ends a branch (its bracket shrinks to 0.618**steps).
 PEAK_STEPS = 10
+#: A sample within this fraction below the one before still continues the branch: a stretch where U
+#: stays put (a plateau: one at cot(beta)/(2 mu) follows the one-period flights) is rounding noise apart.
+PLATEAU_TOLERANCE = 1e-9
 #: The inverse stops where U meets the target to this fraction of it.
 U_TOLERANCE = 1e-12
 #: The largest amplitude ratio a branch may reach (that of the controller's max_amplitude_ratio).
@@ -200,9 +204,13 @@ def _branch(params: SliderParams, drive: float, fx: float, fz: float, max_ratio:
     if first > 0 and not (finite[start] and g[start] < g[first]):
         start = first  # a runaway sample before it: the branch starts where U is finite
     end = first
-    while end + 1 < samples and finite[end + 1] and g[end + 1] > g[end]:
+    while end + 1 < samples and finite[end + 1] and g[end + 1] >= g[end] - PLATEAU_TOLERANCE * abs(g[end]):
         end += 1
-    nodes_a, nodes_g = list(a[start:end + 1]), list(g[start:end + 1])
+    nodes_a, nodes_g = [float(a[start])], [float(g[start])]
+    for index in range(start + 1, end + 1):  # strictly rising nodes: a plateau keeps its first sample
+        if g[index] > nodes_g[-1]:
+            nodes_a.append(float(a[index]))
+            nodes_g.append(float(g[index]))
     if end + 1 < samples and periodic[end]:  # a peak of irregular means is noise: not refined
         peak_a, peak_g = _peak(params, inputs, direction, float(a[end - 1] if end > start else a[end]),
                                float(a[end + 1]), float(a[end]), float(g[end]))

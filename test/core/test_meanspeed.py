@@ -187,13 +187,26 @@ def test_the_inverse_round_trips_on_the_rising_branch(beta: float, phi: float, t
 
 def test_the_branch_ends_at_its_peak_before_the_top() -> None:
     """beta = 60 degrees, mu = 0.5: U rises to the one-period-flight value
-    cot(beta)/(2 mu) near Gamma = 3.3 and falls below it further on."""
+    cot(beta)/(2 mu) at Gamma = 3.30, stays there (a plateau of flights that
+    take off again at once), rises a little further in period-doubled motion
+    (peak near Gamma = 3.9) and falls: the branch ends at that peak, not at
+    max_amplitude_ratio = 6."""
     params = SliderParams(mu=0.5, excitation_angle=60.0)
+    plateau = [mean_speed(params, Inputs(drive_force=0.0, excitation_amplitude=10.0 * gamma)).u
+               for gamma in (3.35, 3.45, 3.6)]
+    assert plateau == pytest.approx([1.0 / math.sqrt(3.0)] * 3, rel=1e-9)
     branch = rising_branch(params, Inputs(drive_force=0.0), 6.0)
-    assert 3.0 < branch.a_end < 4.5
-    assert branch.u_end == pytest.approx(1.0 / (math.sqrt(3.0)), rel=1e-3)
+    assert 3.6 < branch.a_end < 4.25
+    assert 1.0 / math.sqrt(3.0) < branch.u_end < 1.02 / math.sqrt(3.0)
     assert branch.u_end >= np.nanmax(branch.u[branch.a <= branch.a_end])
-    assert branch.u[-1] != branch.u_end and np.any(branch.u[branch.a > branch.a_end] < branch.u_end)
+    assert np.any(branch.u[branch.a > branch.a_end] < branch.u_end), "U falls after the end"
+    assert mean_speed(params, Inputs(drive_force=0.0, excitation_amplitude=10.0 * branch.a_end)).u == \
+        pytest.approx(branch.u_end, rel=1e-12)
+    # targets on the plateau and just above it are reached
+    for u in (1.0 / math.sqrt(3.0), 0.5 * (1.0 / math.sqrt(3.0) + branch.u_end)):
+        a = branch.amplitude_ratio_for(u)
+        assert mean_speed(params, Inputs(drive_force=0.0, excitation_amplitude=10.0 * a)).u == pytest.approx(
+            u, rel=1e-11)
 
 
 def test_kostek_with_a_top_below_one_is_the_exact_inverse() -> None:
