@@ -11,7 +11,8 @@ scheduled commands):
 * settling: whole excitation periods from the segment's start until the mean
   speed stays within ``tolerance`` of the target (inf: it never did);
 * stick fraction: the share of the segment's last whole period spent stuck,
-  from the recorded stick/slip events.
+  from the recorded events (a lift-off ends a stuck stretch; a landing that
+  stops the slider begins one).
 
 This module is pure (no ROS, no matplotlib): the picture is
 :func:`friction_sim.cli.figures.report_figure`, and writing the files is
@@ -108,8 +109,18 @@ def target_at(data: RunData, t: float) -> float | None:
     return target
 
 
+#: A landing that leaves the slider stuck (an impulsive landing that stops it), as
+#: the report names it: the recorded kind is ``landing`` whatever follows.
+LANDING_STUCK = "landing_stuck"
+#: Event kinds after which the slider is stuck, and after which it moves (slips or flies).
+STUCK_AFTER = frozenset({"stick", LANDING_STUCK})
+MOVING_AFTER = frozenset({"slip_start", "lift_off", "landing"})
+
+
 def stick_fraction(events: Sequence[tuple[float, str]], start: float, end: float) -> float:
-    """Share of [start, end] spent stuck, from the stick/slip events (stuck at t = 0)."""
+    """Share of [start, end] spent stuck, from the events (stuck at t = 0): a slip
+    start or a lift-off ends a stuck stretch, a stick or a landing that stops the
+    slider (:data:`LANDING_STUCK`) begins one; reversals change nothing."""
     if end <= start:
         return math.nan
     stuck, since, total = True, 0.0, 0.0
@@ -119,9 +130,9 @@ def stick_fraction(events: Sequence[tuple[float, str]], start: float, end: float
             total += upto - max(since, start)
         if when >= end:
             break
-        if kind == "slip_start":
+        if kind in MOVING_AFTER:
             stuck, since = False, when
-        elif kind == "stick":
+        elif kind in STUCK_AFTER:
             stuck, since = True, when
     return total / (end - start)
 
@@ -317,7 +328,8 @@ class _Keeper:
                         self.mean_speed(stamp / 1e9 - start, v)
             if groups.get("events"):
                 for raw, kind in zip(groups["events"], status_names(recording, groups["events"])):
-                    self.event(raw.log_time / 1e9 - start, kind)
+                    self.event(raw.log_time / 1e9 - start, _landing_kind(recording, raw) if kind == "landing"
+                               else kind)
             if groups.get("velocity"):
                 times, values = state_values(recording, groups["velocity"], VELOCITY)
                 for t_ns, v in zip(times.tolist(), values[:, 0].tolist()):
@@ -347,12 +359,12 @@ class _Keeper:
             self.run = []
 
     def event(self, t: float, kind: str) -> None:
-        """One stick/slip event (time order)."""
+        """One event (time order): those that decide whether the slider is stuck are kept."""
         event = (self.count, t, kind)
         self.count += 1
         for k, (low, high) in enumerate(self.windows):
             if t < low:
-                if kind in ("slip_start", "stick"):
+                if kind in STUCK_AFTER or kind in MOVING_AFTER:
                     self.before[k] = event
             elif t <= high and (not self.events or self.events[-1] is not event):
                 self.events.append(event)
@@ -370,6 +382,14 @@ class _Keeper:
         events = set(self.events) | {e for e in self.before if e is not None}
         self.data.events = [(t, kind) for _, t, kind in sorted(events, key=lambda e: (e[1], e[0]))]
         self.data.velocity = self.velocity
+
+
+def _landing_kind(recording: Any, raw: Any) -> str:
+    """``landing``, or :data:`LANDING_STUCK` when the recorded landing left the
+    slider stuck (its message reads ``flight -> stuck``).  Decoded in full: at
+    most one landing a period, so the cost stays a fraction of the read."""
+    message = str(recording.decode(raw).message)
+    return LANDING_STUCK if message.endswith("-> stuck") else "landing"
 
 
 def _initial_state(initial: dict[str, Any]) -> tuple[SliderParams, Inputs]:
@@ -400,7 +420,7 @@ def _scheduled_targets(scenario: ScenarioRecord) -> list[tuple[float, float]]:
 
 
 __all__ = [
-    "PICTURE_POINTS", "TOLERANCE", "RunData", "SegmentRow", "build_report", "command_label", "inputs_at",
-    "report_markdown", "run_data_from_recording", "segment_target", "segments", "stick_fraction", "stick_window",
-    "table_markdown", "table_text", "target_at",
+    "LANDING_STUCK", "MOVING_AFTER", "PICTURE_POINTS", "STUCK_AFTER", "TOLERANCE", "RunData", "SegmentRow",
+    "build_report", "command_label", "inputs_at", "report_markdown", "run_data_from_recording", "segment_target",
+    "segments", "stick_fraction", "stick_window", "table_markdown", "table_text", "target_at",
 ]

@@ -133,3 +133,35 @@ def test_attach_drives_nodes_running_in_another_process(tmp_path: Path) -> None:
     recording = read_recording(job.recording)
     assert recording.complete
     assert f"{namespace}/pose" in recording.topics  # fully qualified, as rosbag2 names them
+
+
+def test_the_stick_fraction_of_a_hopping_run_counts_flights_as_moving(tmp_path: Path) -> None:
+    """A recording of a slider thrown off the track: each row's stick fraction
+    (its last whole period) equals the core's own stuck time over that window,
+    with lift-offs ending stuck stretches and landings that stop it starting them."""
+    from friction_sim.core.commands import Command
+    from friction_sim.core.events import EventKind, Mode
+    from friction_sim.core.slider import Slider
+    from friction_sim.experiment.report import build_report, run_data_from_recording
+    from friction_sim.io.offline import record_offline
+
+    params, inputs = SliderParams(), Inputs(excitation_amplitude=15.0)
+    schedule = [Command(0.2, "excitation_amplitude", {"excitation_amplitude": 25.0}),
+                Command(0.3, "drive_force", {"drive_force": 0.2})]
+    path = tmp_path / "hop.mcap"
+    record_offline(path, params, inputs, schedule, duration=0.4)
+    rows = build_report(run_data_from_recording(path))
+    assert [row.start for row in rows] == [0.0, 0.2, 0.3]
+    slider = Slider(params, inputs, event_log_size=None)
+    stuck = {}
+    for t in (0.18, 0.2, 0.28, 0.3, 0.38, 0.4):
+        slider.advance_to(t)
+        stuck[t] = slider.stuck_time
+        for command in schedule:
+            if command.t == t:
+                slider.set_inputs(**command.values)
+    for row, (low, high) in zip(rows, [(0.18, 0.2), (0.28, 0.3), (0.38, 0.4)]):
+        assert row.stick_fraction == pytest.approx((stuck[high] - stuck[low]) / (high - low), abs=1e-6)
+        assert 0.0 < row.stick_fraction < 1.0
+    kinds = {(event.kind, event.after) for event in slider.events}
+    assert (EventKind.LANDING, Mode.STUCK) in kinds and (EventKind.LIFT_OFF, Mode.FLIGHT) in kinds
