@@ -156,11 +156,7 @@ class _Start:
         state = slider.state()
         self.x, self.v, self.z, self.vz, self.mode = state.x, state.v, state.z, state.vz, state.mode
         self.stuck = slider.stuck_time
-        self.flight = _flight_time(slider)
-
-
-def _flight_time(slider: Slider) -> float:
-    return float(getattr(slider, "flight_time", 0.0))
+        self.flight = slider.flight_time
 
 
 def _scales(params: SliderParams, inputs: Inputs) -> tuple[float, float]:
