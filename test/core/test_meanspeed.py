@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Any
 
 import numpy as np
 import pytest
@@ -150,9 +151,10 @@ def test_predict_falls_back_to_the_general_mean_speed() -> None:
 
 
 def test_bad_windows_are_refused_by_name() -> None:
-    for name, value in (("settle_periods", -1), ("periods", 0), ("max_multiple", 1.5)):
-        with pytest.raises(ParameterError, match=name):
-            mean_speed(SliderParams(), Inputs(), **{name: value})
+    windows: list[dict[str, Any]] = [{"settle_periods": -1}, {"periods": 0}, {"max_multiple": 1.5}]
+    for window in windows:
+        with pytest.raises(ParameterError, match=next(iter(window))):
+            mean_speed(SliderParams(), Inputs(), **window)
 
 
 def test_records_are_frozen() -> None:
