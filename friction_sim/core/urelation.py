@@ -41,6 +41,12 @@ where w is monotone; each element stops on its own, so a value does not
 depend on the array it came in.  The inverse a(U, phi),
 which the controller uses, inverts the monotone rise of U with a by a
 bracketed (Illinois) secant iteration, again on whole arrays.
+
+All of this is Kostek's model below lift-off (normal excitation, level track,
+mu_s = mu, a < 1).  The general model of issue 11 has no closed form: its
+mean speed is :func:`friction_sim.core.meanspeed.mean_speed` (this module's
+value, bit for bit, wherever this one applies) and its inverse lives in
+:mod:`friction_sim.core.ubranch`; :func:`predict` chooses between them.
 """
 
 from __future__ import annotations
