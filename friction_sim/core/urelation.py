@@ -39,8 +39,9 @@ phi - (1 - a), computed without rounding.  psi_C is found for whole arrays
 at once by Newton's method kept inside the bracket [pi - 2*theta_A, 2*pi],
 where w is monotone; each element stops on its own, so a value does not
 depend on the array it came in.  The inverse a(U, phi),
-which the controller uses, inverts the monotone rise of U with a by a
-bracketed (Illinois) secant iteration, again on whole arrays.
+which the controller uses, inverts the monotone rise of U with a by
+Newton's method with the exact slope dU/da, kept inside a shrinking
+bracket, again on whole arrays.
 
 All of this is Kostek's model below lift-off (normal excitation, level track,
 mu_s = mu, a < 1).  The general model of issue 11 has no closed form: its
