@@ -421,9 +421,15 @@ class MeanSpeedController:
 
     @config.setter
     def config(self, config: ControllerConfig) -> None:
-        """A new model or tuning takes effect at once."""
+        """A new model or tuning takes effect at once.  On Kostek's model the
+        slider creeps only along the drive force: a target of the other sign
+        (taken under a model whose vibration conveys by itself) becomes 0."""
         with self._transaction():
             self._config = config
+            target, force = self._target, self._drive_force
+            if config.model.is_kostek and target != 0.0 and (
+                    force == 0.0 or math.copysign(1.0, target) != math.copysign(1.0, force)):
+                self._target = 0.0
             self._plant_changed()
             self.output = self._decide()
 

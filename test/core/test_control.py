@@ -256,3 +256,16 @@ def test_kostek_above_lift_off_uses_the_general_inverse() -> None:
     assert speeds[-1] == pytest.approx(target, rel=1e-9)
     with pytest.raises(ParameterError, match="sign of drive_force"):
         high.set_target(-target)  # Kostek's model conveys along the drive only, hopping or not
+
+
+def test_back_to_kostek_a_target_against_the_drive_becomes_zero() -> None:
+    """A backward target is fine on a tilted vibration; on Kostek's model it is
+    one no plant reaches, so a change of model drops it, as a change of drive does."""
+    controller = MeanSpeedController(ControllerConfig(model=TILTED), drive_force=0.7, frequency=50.0,
+                                     target_speed=-1e-4)
+    assert controller.target_speed == -1e-4 and controller.output.unreachable
+    controller.config = ControllerConfig()
+    assert controller.target_speed == 0.0 and controller.output.amplitude == 0.0
+    still = MeanSpeedController(ControllerConfig(model=TILTED), drive_force=0.0, frequency=50.0, target_speed=1e-3)
+    still.config = ControllerConfig()  # no drive at all: nothing to creep along
+    assert still.target_speed == 0.0
