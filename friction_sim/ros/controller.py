@@ -36,7 +36,9 @@ excitation_angle, excitation_phase, track_inclination, restitution and
 landing_friction) and mean_window_periods from that node's parameters at
 start-up through the parameter services; a model parameter the plant node
 does not have keeps this node's value, and if the node does not answer
-within 5 s it says so and keeps its own.  Beyond Kostek's model (or with
+within 5 s it says so and keeps its own.  An initial ``target_speed`` that
+only the plant's model allows (a target without a drive force, for a
+tilted vibration) waits for that model and is judged then.  Beyond Kostek's model (or with
 max_amplitude_ratio >= 1) the law inverts the general mean speed on its
 rising branch (see :mod:`friction_sim.core.control`).  With ``active`` false it stands by, publishing
 nothing, until the first target_speed message (or parameter) arrives: an
@@ -111,10 +113,20 @@ class ControllerNode(Node):
     def __init__(self, node_name: str = "controller", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         values = declare_settings(self, PARAMETERS)
-        self._control = MeanSpeedController(
-            _config(values), drive_force=values["drive_force"], frequency=values["excitation_frequency"],
-            target_speed=values["target_speed"],
-        )
+        #: A target_speed parameter the node's own model refuses but the plant's may take (a target with
+        #: no drive force, for a plant whose tilted vibration conveys): judged again once the model is settled.
+        self._pending_target: float | None = None
+        try:
+            self._control = MeanSpeedController(
+                _config(values), drive_force=values["drive_force"], frequency=values["excitation_frequency"],
+                target_speed=values["target_speed"],
+            )
+        except ParameterError:
+            if not values["plant_node"] or values["target_speed"] == 0.0:
+                raise
+            self._control = MeanSpeedController(_config(values), drive_force=values["drive_force"],
+                                                frequency=values["excitation_frequency"])
+            self._pending_target = values["target_speed"]
         #: Commands on topics taken; inputs refused (commands, parameter values, samples).
         self.accepted = 0
         self.rejected = 0
@@ -238,6 +250,12 @@ class ControllerNode(Node):
         (self.get_logger().warning if warn else self.get_logger().info)(message)
         self._plant_settled = True
         self._deadline = time.monotonic() + PLANT_TIMEOUT
+        pending, self._pending_target = self._pending_target, None
+        if pending is not None:
+            try:
+                self._control.set_target(pending)
+            except ParameterError as error:
+                self._refuse(str(error), "target 0 kept")
 
     # -- commands -----------------------------------------------------------------
 

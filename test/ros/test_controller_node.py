@@ -132,20 +132,24 @@ def test_a_target_is_checked_against_the_drive_force_in_force(ros: None) -> None
 def test_controller_reads_the_general_model_from_the_plant(ros: None) -> None:
     """Issue 11: the whole model comes from the plant node (the text parameter
     landing_friction too); on a tilted vibration a target needs no drive force
-    in its direction, and the law inverts the general mean speed."""
+    in its direction (an initial one waits for the plant's model), and the law
+    inverts the general mean speed."""
     ns = f"/c{uuid.uuid4().hex[:8]}"
     plant = {"mu": 0.5, "static_ratio": 1.5, "excitation_angle": 60.0, "excitation_phase": 10.0,
              "track_inclination": 5.0, "restitution": 0.3, "landing_friction": "none"}
     slider = SliderNode(namespace=ns, parameter_overrides=[Parameter(k, value=v) for k, v in plant.items()])
+    # U* = 0.02 with no drive force: the node's own (Kostek) model refuses it, the plant's takes it
     controller = ControllerNode(namespace=ns, parameter_overrides=[Parameter("drive_force", value=0.0),
-                                                                   Parameter("target_speed", value=0.0)])
+                                                                   Parameter("target_speed", value=2e-3)])
     probe = Probe(ns, slider, controller)
     try:
+        assert controller.control.target_speed == 0.0, "waiting for the plant's model"
         assert probe.spin_until(lambda: controller.ready, 10.0)
         assert controller.control.config.model == SliderParams(**plant)
         assert controller.get_parameter("landing_friction").value == "none"
         assert controller.model_source == "plant node 'slider'"
-        assert probe.set_parameter(f"{ns}/controller", "target_speed", 2e-3)[0]  # U* = 0.02, no drive force
+        assert controller.control.target_speed == 2e-3 and controller.rejected == 0
+        assert probe.set_parameter(f"{ns}/controller", "target_speed", 3e-3)[0]
         out = controller.control.output
         assert not (out.unreachable or out.saturated or out.runaway) and 0.0 < out.applied_ratio < 0.95
         successful, reason = probe.set_parameter(f"{ns}/controller", "landing_friction", "sliding")
