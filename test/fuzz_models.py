@@ -125,7 +125,8 @@ class SliderModel(ParameterModel):
         ok, countable, values = self.declared_check(items)
         if not ok:
             return self.refuse(items, countable)
-        physics = {k: float(v) for k, v in values.items() if k in spec.PLANT or k in spec.INPUTS}
+        physics = {k: v if isinstance(v, str) else float(v) for k, v in values.items()
+                   if k in spec.PLANT or k in spec.INPUTS}
         try:
             params, inputs = apply(Command(0.0, PARAMETERS, physics), self.params, self.inputs)
             rate = float(values.get("real_time_factor", self.rate))

@@ -159,10 +159,23 @@ def texts() -> st.SearchStrategy[str]:
                      st.text(st.characters(exclude_characters="\x00", exclude_categories=("Cs",)), max_size=40))
 
 
+def choices(setting: spec.Setting, valid: bool = False) -> st.SearchStrategy[str]:
+    """Text for a string setting with choices (``landing_friction``): each choice,
+    often, and (unless ``valid``) near misses (case, spaces, a prefix, another
+    word) and any text."""
+    exact = st.sampled_from(setting.choices)
+    if valid:
+        return exact
+    near = [variant for choice in setting.choices
+            for variant in (choice.upper(), choice.capitalize(), f" {choice}", f"{choice} ", choice[:-1])]
+    return st.one_of(exact, exact, exact, st.sampled_from([*near, "plastic", "coulomb", "sliding"]), texts())
+
+
 def setting_values(setting: spec.Setting, within: tuple[float, float] | None = None,
                    valid: bool = False) -> st.SearchStrategy[Any]:
-    """Values for a parameter: of its own type (by class, see :func:`numbers`)
-    or of a wrong one (``valid``: of its own type, inside its range)."""
+    """Values for a parameter: of its own type (by class, see :func:`numbers`;
+    a string with choices: the choices and near misses, :func:`choices`) or of a
+    wrong one (``valid``: of its own type, inside its range or one of its choices)."""
     kind = setting.kind
     own: st.SearchStrategy[Any]
     if kind is float:
@@ -171,6 +184,8 @@ def setting_values(setting: spec.Setting, within: tuple[float, float] | None = N
         own = integers(setting, valid)
     elif kind is bool:
         own = st.booleans()
+    elif setting.choices:
+        own = choices(setting, valid)
     else:
         own = texts()
     return own if valid else st.one_of(own, own, own, own, own, own, wrong_types(kind))
@@ -287,6 +302,6 @@ def waits() -> st.SearchStrategy[Wait]:
 
 __all__ = [
     "ABSURD", "NON_FINITE", "SAMPLE_SPEED", "UNKNOWN_NAMES", "USE_SIM_TIME", "Burst", "Params", "Step", "Topic",
-    "Wait", "bursts", "integers", "mean_velocity_samples", "numbers", "parameter_items", "params",
+    "Wait", "bursts", "choices", "integers", "mean_velocity_samples", "numbers", "parameter_items", "params",
     "setting_values", "topic", "topics", "waits", "wrong_types",
 ]

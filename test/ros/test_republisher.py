@@ -190,3 +190,65 @@ def test_prefetched_reads_ahead_passes_errors_on_and_stops_with_its_consumer() -
     count = len(produced)
     time.sleep(0.5)
     assert len(produced) == count < 20, "bounded read-ahead, and no reading after the end"
+
+
+def _pressing_run(tmp_path: Path) -> tuple[Path, Path]:
+    """A run whose external force presses the slider on the track (force.z < 0 today),
+    and the same run as written before the convention was marked (force.z > 0 then)."""
+    from friction_sim.io.recorder import CONVENTION_KEY
+
+    from recording_helpers import rewrite
+
+    today = tmp_path / "today.mcap"
+    record_offline(today, schedule=[Command(0.1, "external_wrench", {"external_force_x": 0.02,
+                                                                      "external_force_z": -3.0}),
+                                    Command(0.2, "drive_force", {"drive_force": 0.8})], duration=0.3, log_rate=100.0)
+
+    def old_sign(topic: str, t: int, msg: Any) -> Any:
+        if topic.lstrip("/") == "external_wrench":
+            msg.wrench.force.z = -msg.wrench.force.z
+        return msg
+
+    def unmarked(data: dict[str, str]) -> dict[str, str]:
+        data.pop(CONVENTION_KEY)
+        return data
+
+    old = rewrite(today, tmp_path / "old.mcap", old_sign, metadata=unmarked, external_force_z_convention=None)
+    return today, old
+
+
+def test_an_old_files_external_wrench_is_republished_in_todays_convention(ros: None, tmp_path: Path) -> None:
+    """A slider of today that takes a republished old recording must feel the force the
+    recorded slider felt: the old file's force.z (> 0 loaded the contact) goes out turned
+    round; a file of today, and every other topic, go out as recorded."""
+    from friction_sim.ros.republisher import in_todays_convention
+
+    today, old = _pressing_run(tmp_path)
+    for path in (today, old):
+        recording = read_recording(path)
+        raws = list(in_todays_convention(recording, recording.iter_messages()))
+        assert [(r.topic, r.log_time) for r in raws] == [(r.topic, r.log_time) for r in recording.iter_messages()]
+        (wrench,) = [recording.decode(r) for r in raws if r.topic.lstrip("/") == "external_wrench"]
+        assert (wrench.wrench.force.x, wrench.wrench.force.z) == (0.02, -3.0)  # today's convention, both files
+        others = [r.data for r in raws if r.topic.lstrip("/") != "external_wrench"]
+        assert others == [r.data for r in recording.iter_messages() if r.topic.lstrip("/") != "external_wrench"]
+
+    namespace = f"/replay_{uuid.uuid4().hex[:8]}"
+    listener = rclpy.create_node("listener", namespace=namespace)
+    received: list[Any] = []
+    recording = read_recording(old)
+    listener.create_subscription(recording.message_type("external_wrench"), "external_wrench", received.append, 10)
+    executor = SingleThreadedExecutor()
+    executor.add_node(listener)
+    player = threading.Thread(target=lambda: publish(recording, topics=["external_wrench"], namespace=namespace,
+                                                     wait_for_subscribers=1, wait_timeout=10.0, delay=0.3))
+    try:
+        player.start()
+        deadline = time.monotonic() + 15.0
+        while not received and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.01)
+        player.join(timeout=10.0)
+    finally:
+        executor.shutdown(timeout_sec=0.0)
+        listener.destroy_node()
+    assert [(m.wrench.force.x, m.wrench.force.z) for m in received] == [(0.02, -3.0)]
