@@ -173,15 +173,29 @@ class ControllerModel(ParameterModel):
         self.accepted = 0
         #: Bounds on the refused mean_velocity samples (a count of their own, or part of commands_rejected).
         self.samples = Count()
-        #: The largest m g any configuration in force had: a bound for Pa in flight.
-        self.largest_weight = self.weight
+        #: The largest max_amplitude_ratio m g any configuration in force had: a bound for Pa in flight.
+        self.largest_limit = self.amplitude_limit()
 
     @property
     def weight(self) -> float:
         return float(self.values["mass"]) * float(self.values["gravity"])
 
     @staticmethod
-    def _target_allowed(target: float, drive_force: float) -> bool:
+    def _kostek(values: Mapping[str, Any]) -> bool:
+        """Whether the model is the paper's (normal vibration, level track, one mu):
+        only there does the slider creep along the drive force alone."""
+        return (float(values["excitation_angle"]) == 90.0 and float(values["track_inclination"]) == 0.0
+                and float(values["static_ratio"]) == 1.0)
+
+    @property
+    def kostek(self) -> bool:
+        return self._kostek(self.values)
+
+    def _target_allowed(self, target: float, drive_force: float, kostek: bool | None = None) -> bool:
+        """On the paper's model a target must agree in sign with the drive force;
+        on any other, the vibration conveys by itself: any sign."""
+        if not (self.kostek if kostek is None else kostek):
+            return True
         return target == 0.0 or (drive_force != 0.0 and _sign(target) == _sign(drive_force))
 
     def topic(self, name: str, value: float) -> bool:
@@ -201,7 +215,7 @@ class ControllerModel(ParameterModel):
             self.active = True
         elif name == "drive_force":
             self.drive_force = value
-            if self.target != 0.0 and _sign(self.target) != _sign(value):
+            if self.kostek and self.target != 0.0 and _sign(self.target) != _sign(value):
                 self.target = 0.0  # the old target would point the wrong way
         else:
             self.frequency = value
@@ -221,13 +235,16 @@ class ControllerModel(ParameterModel):
         if not ok:
             return self.refuse(items, countable)
         drive, target = self.drive_force, self.target
+        kostek = self._kostek({**self.values, **values})
+        if kostek and target != 0.0 and (drive == 0.0 or _sign(target) != _sign(drive)):
+            target = 0.0  # back on the paper's model: a target against the drive is dropped
         if "drive_force" in values:
             drive = float(values["drive_force"])
-            if target != 0.0 and _sign(target) != _sign(drive):
+            if kostek and target != 0.0 and _sign(target) != _sign(drive):
                 target = 0.0
         if "target_speed" in values:
             target = float(values["target_speed"])
-            if not self._target_allowed(target, drive):
+            if not self._target_allowed(target, drive, kostek):
                 self.rejected.add(1, len(items))
                 return Verdict(False, cross_field=True)
         self.drive_force, self.target = drive, target
@@ -235,7 +252,7 @@ class ControllerModel(ParameterModel):
         if "active" in values or "target_speed" in values:
             self.active = bool(values.get("active", True)) or "target_speed" in values
         self.values.update(values)
-        self.largest_weight = max(self.largest_weight, self.weight)
+        self.largest_limit = max(self.largest_limit, self.amplitude_limit())
         return Verdict(True)
 
     def in_force(self) -> dict[str, float]:

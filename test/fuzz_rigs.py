@@ -485,9 +485,9 @@ class ControllerRig(Rig):
                           checks={"excitation_amplitude": self._amplitude_problem})
 
     def _amplitude_problem(self, msg: Float64) -> str | None:
-        limit = 0.999 * self.model.largest_weight
+        limit = self.model.largest_limit
         if not 0.0 <= msg.data <= limit * (1 + 1e-12):
-            return f"Pa = {msg.data!r} N outside [0, {limit!r}] (0.999 m g of any model in force)"
+            return f"Pa = {msg.data!r} N outside [0, {limit!r}] (max_amplitude_ratio m g of any model in force)"
         return None
 
     def new_model(self) -> ControllerModel:
