@@ -509,5 +509,4 @@ class RealtimeSlider:
     def _flight_record(self) -> tuple[float, int, int]:
         """(time in flight [s], lift-offs, landings) since the start, up to the slider's time."""
         counts = self.slider.event_counts
-        flight_time = float(getattr(self.slider, "flight_time", 0.0))  # TEMP until the general core lands
-        return flight_time, counts.get(EventKind.LIFT_OFF, 0), counts.get(EventKind.LANDING, 0)
+        return self.slider.flight_time, counts.get(EventKind.LIFT_OFF, 0), counts.get(EventKind.LANDING, 0)
