@@ -11,7 +11,12 @@ Measures, in one run on this machine:
       started at t0 in {0, 1e6, 2e9} s, the largest error of a slip start
       against its exact time t0 + (n + theta_A/(2 pi))/f, in units in the last
       place of t, and of the displacement per period against the exact D
-      (both exact values from mpmath, see test/reference.py).
+      (both exact values from mpmath, see test/reference.py);
+  (e) a flight case of issue 11 (Gamma = 2, vibration angle 30 degrees, mu = 0.5,
+      plastic landings with a Coulomb impulse: one lift-off and one landing
+      every period): the core's periods per wall-clock second against the
+      independent solve_ivp reference of test/reference_general.py (rtol 1e-12)
+      on the same case, their ratio, and how far apart the two runs end.
 Timings are medians of repeated runs; the machine is shared and noisy, so the
 ratio measured in the same run is the figure to trust.  Prints figures only:
 a benchmark never passes or fails on timing.
@@ -195,6 +200,61 @@ def long_run_phase_error(quick: bool) -> None:
               f"displacement per period exact to {drift:.1e} (target: a few ulp, 1e-12)  [{elapsed:.1f} s]")
 
 
+#: (e): Gamma = 2 on a level track, vibration at 30 degrees, mu = 0.5, no drive, plastic landings.
+FLIGHT_PARAMS = SliderParams(mass=1.0, mu=0.5, gravity=10.0, excitation_angle=30.0)
+FLIGHT_INPUTS = Inputs(drive_force=0.0, excitation_amplitude=2.0 * FLIGHT_PARAMS.normal_weight,
+                       excitation_frequency=FREQUENCY)
+
+
+def flight_throughput(quick: bool) -> None:
+    from reference_general import GeneralModel
+    from reference_general import solve as reference_general_solve
+
+    from friction_sim.core.events import EventKind
+    from friction_sim.core.params import throw_number
+
+    periods_core = 2_000 if quick else 20_000
+    periods_ref = 5 if quick else 20
+    duration = periods_core / FREQUENCY
+
+    def run_core() -> Slider:
+        slider = Slider(FLIGHT_PARAMS, FLIGHT_INPUTS, event_log_size=1000)
+        slider.advance_to(duration)
+        return slider
+
+    run_core()  # warm-up
+    core_time = median_time(run_core, 3 if quick else 9)
+    counts = run_core().event_counts
+    model = GeneralModel.from_core(FLIGHT_PARAMS, FLIGHT_INPUTS)
+    ref_duration = periods_ref / FREQUENCY
+    reference_general_solve(model, 1.0 / FREQUENCY)  # warm-up (imports)
+    ref_time = median_time(lambda: reference_general_solve(model, ref_duration), 1 if quick else 3)
+    ref = reference_general_solve(model, ref_duration)
+    check = Slider(FLIGHT_PARAMS, FLIGHT_INPUTS, event_log_size=None)
+    check.advance_to(ref_duration)
+    core_rate, ref_rate = periods_core / core_time, periods_ref / ref_time
+    landings, lift_offs = counts[EventKind.LANDING], counts[EventKind.LIFT_OFF]
+    print(f"(e) flight case: Gamma = {throw_number(FLIGHT_PARAMS, FLIGHT_INPUTS):g}, vibration angle "
+          f"{FLIGHT_PARAMS.excitation_angle:g} deg, mu = {FLIGHT_PARAMS.mu:g}, Fd = 0, e = 0, impulsive landings")
+    print(f"    {periods_core:,} periods: " + ", ".join(f"{k.value} {n}" for k, n in counts.items())
+          + f"  ({landings / periods_core:.3f} landings and {lift_offs / periods_core:.3f} lift-offs per period;"
+          f" flight fraction {run_core().flight_time / duration:.3f})")
+    print(f"    exact core:            {core_rate:12,.0f} periods/s  (median of repeats, {core_time:.3f} s)")
+    print(f"    solve_ivp reference:   {ref_rate:12,.0f} periods/s  ({periods_ref} periods, rtol 1e-12, "
+          f"{len(ref.events)} events)")
+    print(f"    ratio core/reference:  {core_rate / ref_rate:12,.0f} x   (targets: >= 50,000 periods/s, >= 100 x)")
+    t_core = [e.t for e in check.events]
+    t_ref = [e.t for e in ref.events]
+    if len(t_core) == len(t_ref):
+        dt = max(abs(a - b) for a, b in zip(t_core, t_ref))
+        end = ref.evaluate([ref_duration])["x"][0]
+        print(f"    over the reference's {periods_ref} periods: {len(t_ref)} events in both, largest |dt| = "
+              f"{dt:.1e} s, x at the end {end:.6e} m, |dx| = {abs(check.state().x - end):.1e} m")
+    else:
+        print(f"    over the reference's {periods_ref} periods: {len(t_core)} core events, "
+              f"{len(t_ref)} reference events")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller runs (for a smoke test)")
@@ -205,6 +265,7 @@ def main() -> int:
     map_time()
     mean_speed_accuracy(args.quick)
     long_run_phase_error(args.quick)
+    flight_throughput(args.quick)
     return 0
 
 

@@ -84,7 +84,8 @@ STUCK, FORWARD, BACKWARD, FLIGHT = 0, 1, -1, 2  # the values of friction_sim.cor
 SCAN_POINTS = 64
 #: max_step of the integration, as a fraction of the period.
 STEPS_PER_PERIOD = 20
-#: Default plastic floor: a rebound slower than this times g*cos(alpha)/omega is plastic.
+#: Default plastic floor: a rebound slower than this times (g*cos(alpha) - Fz/m)/omega is plastic
+#: (gravity would stop it within a millionth of a radian of phase; the core documents the same rule).
 PLASTIC_RATIO = 1e-6
 
 
@@ -104,9 +105,9 @@ class GeneralModel:
     """Parameters and (constant) inputs of the general model, plain floats.
 
     ``plastic_speed`` [m/s]: a rebound speed e*|vz_before| below it makes the
-    landing plastic (None: :data:`PLASTIC_RATIO` times g*cos(alpha)/omega, the
-    speed scale of the excitation; set it to the core's floor to compare bounce
-    sequences that chatter down to rest).
+    landing plastic (None: :data:`PLASTIC_RATIO` times (g*cos(alpha) - Fz/m)/omega,
+    the speed scale of the excitation, the floor the core documents; a bounce
+    sequence that chatters down to rest depends on it).
     """
 
     mass: float = 1.0
@@ -138,7 +139,7 @@ class GeneralModel:
         """The rebound speed [m/s] below which a landing is plastic."""
         if self.plastic_speed is not None:
             return self.plastic_speed
-        return PLASTIC_RATIO * self.gravity * abs(_cos_deg(self.track_inclination)) / self.omega
+        return PLASTIC_RATIO * max(self.normal_load, 0.0) / self.mass / self.omega
 
     @property
     def omega(self) -> float:
@@ -451,9 +452,17 @@ class _Runner:
         def land(t: float, y: Any) -> float:
             return float(y[2])
 
-        land.terminal = True  # type: ignore[attr-defined]
-        land.direction = -1  # type: ignore[attr-defined]
+        def apex(t: float, y: Any) -> float:
+            return float(y[3])
+
+        land.terminal = apex.terminal = True  # type: ignore[attr-defined]
+        land.direction = apex.direction = -1  # type: ignore[attr-defined]
         while st.t < self.t_final:
+            # A rebound starts on the track (z = 0) moving up: z's own zero at the start would
+            # bracket a false landing when a first step overshoots a short bounce, so such a
+            # section only runs to the apex (vz = 0, found the same way); the landing is looked
+            # for from there, where z > 0.
+            rising_from_track = st.z == 0.0 and st.vz > 0.0
             r0 = float(self.R(st.t))
             convex = r0 < 0.0
             if convex:
@@ -462,11 +471,19 @@ class _Runner:
                 t_change = first_positive(lambda u: -self.R(u), st.t, self.t_final, period)
             t_end = self.t_final if t_change is None else t_change
             x_start = st.x
-            sol = self._ivp(rhs, st.t, t_end, [0.0, st.v, st.z, st.vz], [land])
+            sol = self._ivp(rhs, st.t, t_end, [0.0, st.v, st.z, st.vz], [apex if rising_from_track else land])
             if sol.status < 0:
                 raise RuntimeError(f"solve_ivp failed in a flight: {sol.message}")
-            t_land: float | None = float(sol.t_events[0][0]) if sol.t_events[0].size else None
             dense = sol.sol
+            if rising_from_track:
+                t_top = float(sol.t[-1])
+                self.result.segments.append(_Segment(st.t, t_top, FLIGHT, x_start, dense))
+                y = dense(t_top)
+                st.t, st.x, st.v, st.z, st.vz = t_top, x_start + float(y[0]), float(y[1]), float(y[2]), float(y[3])
+                if not st.z > 0.0:  # pragma: no cover - a rebound is above the track until its apex
+                    raise RuntimeError(f"rebound below the track at {t_top!r}")
+                continue
+            t_land: float | None = float(sol.t_events[0][0]) if sol.t_events[0].size else None
             if t_land is None and convex and st.vz < 0.0 < float(sol.y[3][-1]):
                 # the one minimum of a convex stretch of z: below the track means a landing before it
                 t_low = float(brentq(lambda u, d=dense: float(d(u)[3]), st.t, t_end, xtol=4e-16))
