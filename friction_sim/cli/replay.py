@@ -1,7 +1,11 @@
 """``friction-sim replay FILE``: verify, republish, export or plot a recording.
 
-Without an action it describes the recording (``ros2 bag info``-like).
-Every action streams the file (memory bounded whatever its length).
+Without an action it describes the recording (``ros2 bag info``-like,
+with the file's ``external_wrench`` convention).  Every action streams the
+file (memory bounded whatever its length).  A file written before the
+convention was marked (force.z > 0 pressed the slider on the track) is
+verified and republished in today's (force.z > 0 lifts); ``--csv`` writes
+its messages as recorded.
 Exit codes: 0 ok, 1 when ``--verify`` finds a difference; a file that
 cannot be used, and ``--verify`` of a file whose recorder dropped messages,
 raise :class:`~friction_sim.errors.RecordingError` (the CLI prints it as
