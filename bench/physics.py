@@ -228,7 +228,7 @@ def flight_throughput(quick: bool) -> None:
     model = GeneralModel.from_core(FLIGHT_PARAMS, FLIGHT_INPUTS)
     ref_duration = periods_ref / FREQUENCY
     reference_general_solve(model, 1.0 / FREQUENCY)  # warm-up (imports)
-    ref_time = median_time(lambda: reference_general_solve(model, ref_duration), 1 if quick else 3)
+    ref_time = median_time(lambda: reference_general_solve(model, ref_duration), 3)
     ref = reference_general_solve(model, ref_duration)
     check = Slider(FLIGHT_PARAMS, FLIGHT_INPUTS, event_log_size=None)
     check.advance_to(ref_duration)
