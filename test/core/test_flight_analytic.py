@@ -21,6 +21,7 @@ from __future__ import annotations
 import itertools
 import math
 import time
+from typing import Any
 
 import numpy as np
 import pytest
@@ -290,3 +291,79 @@ def test_restitution_near_one_ends_in_finitely_many_bounces(gamma: float, chatte
         assert len(plastic) == periods
         assert all(0.99 * abs(e.vz_before) <= floor for e in plastic)
     assert elapsed < 10.0
+
+
+# ---------------------------------------------------------------------------- a grazing landing
+
+
+def rebound_height(gamma: float) -> tuple[float, float, Any, Any]:
+    """Level track, Fd = 0: the first flight from lift-off at sin(theta0) = 1/Gamma
+    lands at phase theta_L with speed w_L (units g/omega); a rebound with
+    restitution e then has the height (units g/omega^2, u = theta - theta_L)
+    z2(u, e) = e*w_L*u - u^2/2 + Gamma*(cos(theta_L)*u - sin(theta_L + u) + sin(theta_L))."""
+    from scipy.optimize import brentq
+
+    theta0 = math.asin(1.0 / gamma)
+
+    def z1(u: float) -> float:
+        return gamma * math.cos(theta0) * u - gamma * (math.sin(theta0 + u) - math.sin(theta0)) - u * u / 2
+
+    u_land = brentq(z1, math.pi, 2 * math.pi, xtol=1e-16)
+    theta_l = theta0 + u_land
+    w_l = -(gamma * math.cos(theta0) - gamma * math.cos(theta_l) - u_land)
+
+    def z2(u: float, e: float) -> float:
+        return e * w_l * u - u * u / 2 + gamma * (math.cos(theta_l) * u - (math.sin(theta_l + u) - math.sin(theta_l)))
+
+    def dz2(u: float, e: float) -> float:
+        return e * w_l - u + gamma * (math.cos(theta_l) - math.cos(theta_l + u))
+
+    return theta_l, w_l, z2, dz2
+
+
+def first_turn(dz: Any, e: float, lo: float, hi: float, rising: bool) -> float:
+    """Where dz(., e) first changes sign on (lo, hi): from + to - (apex) or - to + (a minimum)."""
+    from scipy.optimize import brentq
+
+    grid = np.linspace(lo, hi, 2001)
+    values = [dz(u, e) for u in grid]
+    for k in range(1, grid.size):
+        if (values[k - 1] > 0.0 >= values[k]) if not rising else (values[k - 1] <= 0.0 < values[k]):
+            return float(brentq(dz, grid[k - 1], grid[k], args=(e,), xtol=1e-16))
+    raise AssertionError("no turn")
+
+
+def test_grazing_landing_is_not_missed() -> None:
+    """Gamma = 2: the rebound after the first landing dips towards the track
+    while the track accelerates up, and at e = e* (~0.482) its lowest point
+    just touches z = 0.  Slightly below e* the slider lands at that dip (a
+    near-tangent root, depth 5e-6 and 5e-9 of g/omega^2); slightly above it
+    passes over and lands ~0.38 periods later.  The core must find either
+    landing, at the analytic time."""
+    from scipy.optimize import brentq
+
+    gamma, frequency = 2.0, 50.0
+    omega = 2.0 * math.pi * frequency
+    theta_l, _, z2, dz2 = rebound_height(gamma)
+
+    def lowest(e: float) -> float:
+        return z2(first_turn(dz2, e, 1e-9, 2 * math.pi, rising=True), e)
+
+    e_star = brentq(lowest, 0.4, 0.5, xtol=1e-16)
+    for rel in (-1e-6, -1e-9, 1e-9, 1e-6):
+        e = e_star * (1.0 + rel)
+        dip = first_turn(dz2, e, 1e-9, 2 * math.pi, rising=True)
+        if rel < 0:
+            apex = first_turn(dz2, e, 1e-9, dip, rising=False)
+            u2 = brentq(z2, apex, dip, args=(e,), xtol=1e-16)
+        else:
+            u2 = brentq(z2, dip, dip + 2 * math.pi, args=(e,), xtol=1e-16)
+        expected = (theta_l + u2) / omega
+        params = SliderParams(mass=1.0, mu=0.5, gravity=10.0, restitution=e)
+        inputs = Inputs(drive_force=0.0, excitation_amplitude=gamma * params.weight, excitation_frequency=frequency)
+        slider = Slider(params, inputs, event_log_size=None)
+        slider.advance_to(3.0 / frequency)
+        landings = [event for event in slider.events if event.kind is EventKind.LANDING]
+        assert landings[0].t == pytest.approx(theta_l / omega, rel=1e-13)
+        assert abs(landings[1].t - expected) <= 1e-9 * expected, (rel, landings[1].t, expected)
+        assert (landings[1].t < (theta_l + dip) / omega) is (rel < 0)
