@@ -9,7 +9,9 @@ sets in every regime of issue 11 the core must agree with it to 1e-9:
 * event kinds in the same order, event times within 1e-9 of the run's length;
 * x at 400 sample times and at every event within 1e-9 of the largest travel
   |x - x0| of the run; z within 1e-9 of the largest height of the run (or of
-  the excitation's length scale g/omega^2 when it never flies).
+  the excitation's length scale g/omega^2 when it never flies); v within 1e-9
+  of the largest |v|; the mode (stuck, slip direction, flight) the same at
+  every sample not within 1e-9 of an event.
 
 The reference's own error is ~1e-13 (its self-checks: the Kostek periodic slip
 against the exact U, free flight against the closed form, the one-period flight
@@ -119,6 +121,11 @@ def compare(case: Case) -> tuple[dict[str, float], rg.GeneralResult, list[Any]]:
     t_ref = np.array([e.t for e in ref.events])
     x_core = np.array([e.x for e in core_events])
     x_ref = np.array([e.x for e in ref.events])
+    near_event = np.zeros(times.shape, dtype=bool)
+    for t in t_ref:
+        near_event |= np.abs(times - t) <= TOL * t_end
+    wrong_mode = (trajectory.mode.astype(int) != expected["mode"].astype(int)) & ~near_event
+    assert not wrong_mode.any(), f"modes differ at t = {times[wrong_mode][:3]} for {case}"
     errors = {
         "t": float(np.max(np.abs(t_core - t_ref), initial=0.0)) / t_end,
         "x": max(float(np.max(np.abs(trajectory.x - expected["x"]))),
@@ -192,7 +199,7 @@ def test_lift_off_from_a_slip_where_the_lift_form_rounds_to_zero() -> None:
     errors, ref, _core_events = compare(case)
     lift = next(e for e in ref.events if e.kind == "lift_off")
     assert lift.before == rg.FORWARD and lift.t == pytest.approx(0.012037326723928899, rel=1e-14)
-    assert errors["t"] <= TOL and errors["x"] <= TOL and errors["z"] <= TOL, errors
+    assert max(errors.values()) <= TOL, errors
 
 
 # ---------------------------------------------------------------------------- regimes
@@ -336,14 +343,16 @@ def test_core_agrees_with_reference(regime: str) -> None:
         done += 1
         for key, value in errors.items():
             worst[key] = max(worst[key], value)
-        assert errors["t"] <= TOL and errors["x"] <= TOL and errors["z"] <= TOL, (regime, case, errors)
+        assert max(errors.values()) <= TOL, (regime, case, errors)
     WORST[regime] = worst
 
 
 def test_report_worst_agreement(capsys: pytest.CaptureFixture[str]) -> None:
     """Print the worst agreement per regime (for the closing note)."""
-    assert WORST, "run with the regime tests"
     with capsys.disabled():
+        if not WORST:
+            print("\n(no regime test ran in this session: nothing to report)")
+            return
         print("\nworst core/reference agreement per regime (relative: t to run length, x to travel, "
               "z to height, v to max|v|):")
         for regime, worst in WORST.items():
