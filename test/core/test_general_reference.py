@@ -104,8 +104,8 @@ def compare(case: Case) -> tuple[dict[str, float], rg.GeneralResult, list[Any]]:
     empty = [(a, b) for a, b in itertools.pairwise(core_events)
              if kind_name(a.kind) == "lift_off" and kind_name(b.kind) == "landing" and b.t == a.t]
     assert not empty, f"the core flies for no time (lift_off, then a landing at the same instant): {empty[0]} in {case}"
-    core_kinds = [kind_name(e.kind) for e in core_events]
-    ref_kinds = [e.kind for e in ref.events]
+    core_kinds = [(kind_name(e.kind), int(e.before), int(e.after)) for e in core_events]
+    ref_kinds = [(e.kind, e.before, e.after) for e in ref.events]
     if core_kinds != ref_kinds:
         first = next((i for i, (a, b) in enumerate(zip(core_kinds, ref_kinds)) if a != b),
                      min(len(core_kinds), len(ref_kinds)))
