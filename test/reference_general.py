@@ -60,7 +60,10 @@ module uses none of that reasoning and imports nothing of
   turns positive) and a flight in sections that end where R changes sign: on a
   section where R > 0, z is concave and can only cross 0 once; where R < 0, z
   is convex and its one minimum is located (vz = 0 on the dense output) and
-  checked.  Every slip stop and landing is therefore bracketed.
+  checked.  A rebound (z = 0, vz > 0) first runs to its apex (a vz = 0 event):
+  z's own zero at the start would otherwise bracket a false landing when a
+  first step overshoots a short bounce.  Every slip stop and landing is
+  therefore bracketed.
 
 :func:`solve` returns a :class:`GeneralResult`: the event list and
 ``evaluate(times)`` for x, v, z, vz.  scipy is a test dependency only.
