@@ -189,7 +189,8 @@ class Motion:
     def z_axis(self) -> Axis | None:
         """The normal closed form of a flight (None in contact)."""
         if self._z_axis is None and self.direction == FLIGHT:
-            self._z_axis = Axis(self.vz0, self.plant.flight_z, self.phase0, self.omega)
+            self._z_axis = Axis(self.vz0, self.plant.flight_z, self.phase0, self.omega,
+                                from_rest=self.vz0 == 0.0 and self.z0 == 0.0)
         return self._z_axis
 
     # -- the closed form ---------------------------------------------------------
@@ -255,7 +256,10 @@ class Motion:
         plant, mode, theta0 = self.plant, self.direction, self.phase0
         if mode == FLIGHT:
             form = plant.flight_z
-            delay = landing_delay(self.vz0, form.b0, form.b1, theta0, self.omega, self.z0)
+            b0 = form.b0
+            if self.vz0 == 0.0 and self.z0 == 0.0:  # a lift-off: it cannot start falling (see from_rest_b0)
+                b0 = from_rest_b0(0.0, b0, form.b1, math.sin(theta0))
+            delay = landing_delay(self.vz0, b0, form.b1, theta0, self.omega, self.z0)
             return Plan(EventKind.LANDING, delay, None, 0)
         best = _onset(plant.lift, theta0, EventKind.LIFT_OFF, 0, grounded)
         if mode == STUCK:

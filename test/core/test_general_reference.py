@@ -36,12 +36,12 @@ from typing import Any
 
 import numpy as np
 import pytest
-import reference_general as rg
 
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.slider import Slider
 
 import reference
+import reference_general as rg
 
 TOL = 1e-9
 SAMPLES = 400
