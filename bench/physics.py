@@ -207,11 +207,11 @@ FLIGHT_INPUTS = Inputs(drive_force=0.0, excitation_amplitude=2.0 * FLIGHT_PARAMS
 
 
 def flight_throughput(quick: bool) -> None:
-    from reference_general import GeneralModel
-    from reference_general import solve as reference_general_solve
-
     from friction_sim.core.events import EventKind
     from friction_sim.core.params import throw_number
+
+    from reference_general import GeneralModel
+    from reference_general import solve as reference_general_solve
 
     periods_core = 2_000 if quick else 20_000
     periods_ref = 5 if quick else 20
