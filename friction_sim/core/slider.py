@@ -65,7 +65,7 @@ from friction_sim.core.roots import (
     slip_stop_delay,
     two_sum,
 )
-from friction_sim.errors import ParameterError
+from friction_sim.errors import ParameterError, SimulationFault
 
 #: Slip stops kept per slider (one per phase a slip from rest starts at).
 _CACHE_LIMIT = 256
@@ -74,6 +74,11 @@ _CACHE_LIMIT = 256
 #: ranges of core/spec.py they keep every state finite (the fastest accepted
 #: slider, at 2e12 m/s^2, covers 1e44 m by then).
 MAX_TIME = 2.0**53
+#: More events than this at one instant means the general model made no
+#: progress (a rounding case its guards missed): the slider raises a
+#: SimulationFault instead of looping for ever.  A real instant has at most a
+#: handful (a landing, a lift-off at once, a slip onset).
+MAX_EVENTS_AT_ONE_INSTANT = 1000
 MAX_POSITION = 1e100
 
 
@@ -162,6 +167,7 @@ class Slider:
         self._events: deque[Event] = deque(maxlen=event_log_size)
         self._counts = {kind: 0 for kind in EventKind}
         self._stuck_time = self._flight_time = 0.0
+        self._at_instant = 0
         self._cache: dict[tuple[float, float, float, float, int], tuple[float, Any]] = {}
         self._marks: deque[CycleMark] | None = None
         self._next_mark_n, self._next_mark_t, self._next_mark_s = 1, NEVER, NEVER
@@ -470,6 +476,13 @@ class Slider:
         step, t, s = self._step, self._next_t, self._next_s
         then = step.then
         assert then is not None  # an endless segment has no event
+        if t == seg.t0:
+            self._at_instant += 1
+            if self._at_instant > MAX_EVENTS_AT_ONE_INSTANT:
+                raise SimulationFault(f"the general model made no progress: more than {MAX_EVENTS_AT_ONE_INSTANT} "
+                                      f"events at t = {t!r} s (the last a {then.kind.value} at phase {step.phase!r})")
+        else:
+            self._at_instant = 0
         x, xl = two_sum(seg.x0, seg.xl + step.travel)
         phase, cycles = step.phase, seg.cycles + step.whole
         if seg.direction == STUCK:

@@ -728,3 +728,26 @@ def test_sample_equals_per_point_advance_and_state():
     assert np.array_equal(tr.mode, np.array([int(s.mode) for s in states]))
     assert np.array_equal(tr.t, times)
     assert np.any(tr.mode == 0) and np.any(tr.mode == 1)
+
+
+def test_a_general_model_that_makes_no_progress_fails_loudly(monkeypatch):
+    """Should a rounding case ever slip past the general model's progress guards
+    (zero-length events at one instant, for ever), advance_to raises a
+    SimulationFault naming the instant instead of hanging, and the slider is
+    left at its last good state."""
+    from friction_sim.core import slider as slider_module
+    from friction_sim.core.motion import FLIGHT, After, Step
+    from friction_sim.errors import SimulationFault
+
+    slider = Slider(SliderParams(excitation_angle=60.0), Inputs())
+    slider.advance_to(0.01)
+    before = slider.state()
+
+    def stuck_in_place(seg, closing=0, grounded=False):
+        return Step(0.0, False, seg.phase0, 0, 0.0, 0.0, 0.0, After(EventKind.LANDING, FLIGHT, 0.0, 0.0))
+
+    monkeypatch.setattr(slider_module, "next_step", stuck_in_place)
+    slider.set_inputs(drive_force=0.5)  # a new segment: its step comes from the stand-in
+    with pytest.raises(SimulationFault, match=r"no progress: more than 1000 events at t = 0\.01 s"):
+        slider.advance_to(0.02)
+    assert slider.t == before.t and slider.state().x == before.x
