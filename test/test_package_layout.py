@@ -133,6 +133,10 @@ ROSDEP_KEYS = {
     'zstandard': {'mcap-ros2-support'},  # mcap's own dependency: the same pip key brings it
     'rosbags': {'python3-rosbags-pip'},
     'matplotlib': {'python3-matplotlib'},
+    # Sweeps only: rosdep has no key for these (ros/rosdistro 8468e88); package.xml says to pip-install them.
+    'dask': set(),
+    'distributed': set(),
+    'pyarrow': set(),
 }
 
 
