@@ -14,6 +14,8 @@ Subcommands::
     friction-sim experiment SCENARIO.yaml [--output DIR] [--attach NAMESPACE]
     friction-sim report run.mcap [--output DIR]
     friction-sim replay run.mcap [--verify] [--publish ...] [--csv DIR] [--plot PNG]
+    friction-sim sweep SWEEP.yaml [--workers N | --scheduler tcp://HOST:8786] [--output FILE.parquet]
+    friction-sim sweep-report results.parquet --x PARAM --y PARAM [--output DIR]
 
 Errors are one line on stderr and exit code 2, never a traceback.  This
 module only parses and dispatches: each subcommand is a function of
@@ -78,7 +80,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "(Kostek's model and its generalization).",
     )
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_OneLineParser)
-    for add in (_add_umap, _add_trace, _add_simulate, _add_conveyor, _add_nodes, _add_experiment, _add_replay):
+    for add in (_add_umap, _add_trace, _add_simulate, _add_conveyor, _add_nodes, _add_experiment, _add_replay,
+                _add_sweep):
         add(sub)
     return parser
 
@@ -162,6 +165,20 @@ def _add_replay(sub: Subcommands) -> None:
     replay = sub.add_parser("replay", help="verify, republish, export or plot a recording")
     add_arguments(replay)
     replay.set_defaults(handler=commands.replay)
+
+
+def _add_sweep(sub: Subcommands) -> None:
+    """sweep and sweep-report (options and handlers in :mod:`friction_sim.cli.sweep`)."""
+    from friction_sim.cli import sweep
+
+    run = sub.add_parser("sweep", help="run a grid, list or Monte Carlo sweep of the batch core on Dask "
+                         "(Parquet results, resumable)")
+    sweep.add_sweep_arguments(run)
+    run.set_defaults(handler=sweep.sweep)
+    report = sub.add_parser("sweep-report", help="maps of a sweep's mean speed over two parameters (PNG) and "
+                            "the optimum per slice (Markdown)")
+    sweep.add_report_arguments(report)
+    report.set_defaults(handler=sweep.sweep_report)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -211,11 +211,11 @@ class _SweepParser(ScenarioParser):
                 raise self.fail(root, f"missing key '{key}' (whole periods averaged per point)")
         self.lines: dict[str, int] = {}
         name = str(top["name"][1]) if "name" in top else "sweep"
+        self.exclusive(top)
         fixed = {key: self.value(entry, key) for key, entry in self.section(top, "fixed").items()}
         grid = {key: self.grid_values(entry, key) for key, entry in self.section(top, "grid").items()}
         points = self.point_list(top.get("points"))
         random = {key: self.distribution(entry, key) for key, entry in self.section(top, "random").items()}
-        self.exclusive(top, (fixed, grid, points, random))
         if random and "samples" not in top:
             raise self.fail(top["random"][0], "random values need 'samples' (parts per combination)")
         samples = self.integer(top["samples"], "samples", 1, MAX_POINTS) if "samples" in top else 1
@@ -248,15 +248,24 @@ class _SweepParser(ScenarioParser):
             self.lines.setdefault(key, node.start_mark.line + 1)
         return entries
 
-    def exclusive(self, top: dict[str, Entry], sections: tuple[dict[str, Any], ...]) -> None:
+    def exclusive(self, top: dict[str, Entry]) -> None:
         """A key in one section only, and no two keys that set the same field."""
         seen: dict[str, str] = {}
-        for section, name in zip(sections, ("fixed", "grid", "points", "random")):
-            for key in section:
+        for name in ("fixed", "grid", "points", "random"):
+            if name not in top or top[name][1] is None:
+                continue
+            node = top[name][0]
+            if name == "points":
+                first = node.value[0] if isinstance(node, yaml.SequenceNode) and node.value else None
+                pairs = first.value if isinstance(first, yaml.MappingNode) else []
+            else:
+                pairs = node.value if isinstance(node, yaml.MappingNode) else []
+            for key_node, _ in pairs:
+                key = key_node.value
                 target = DERIVED[key][0] if key in DERIVED else key
                 if target in seen:
-                    raise self.fail(top[name][0], f"'{key}' in {name} sets {target}, which '{seen[target]}' "
-                                                  f"already sets: give one of them")
+                    raise self.fail(key_node, f"'{key}' in {name} sets {target}, which '{seen[target]}' "
+                                              f"already sets: give one of them")
                 seen[target] = key
 
     def setting(self, key: str) -> Setting:
@@ -476,7 +485,7 @@ def _derive(columns: dict[str, np.ndarray], given: dict[str, np.ndarray]) -> Non
     if "amplitude_ratio" in given:
         columns["excitation_amplitude"] = given["amplitude_ratio"] * weight
     if "drive_ratio" in given:
-        columns["drive_force"] = given["drive_ratio"] * columns["mu"].astype(float) * weight
+        columns["drive_force"] = given["drive_ratio"] * (columns["mu"].astype(float) * weight)
 
 
 def check_points(sweep: Sweep, columns: dict[str, np.ndarray]) -> None:

@@ -196,6 +196,10 @@ class Progress:
         self.shown = -1.0
         self.done_chunks = self.done_points = self.new_points = 0
 
+    def restart(self) -> None:
+        """Count the time from now (the cluster is up, the work starts)."""
+        self.start = time.monotonic()
+
     def advance(self, points: int, *, new: bool = True) -> None:
         """One more chunk of ``points`` done (``new``: computed now, not reused)."""
         self.done_chunks += 1
@@ -284,13 +288,12 @@ def run_sweep(sweep: Sweep, executor: Executor, *, output: Path | None = None, e
     started = time.monotonic()
     if output.exists() and not fresh:
         if read_metadata(output).get(META + "sweep_identity") == sweep.identity:
-            if progress is not None:
-                progress.advance(sweep.size, new=False) if sweep.chunks == 1 else None
             return SweepOutcome(output, sweep.size, sweep.chunks, 0, sweep.chunks, 0.0, "already complete")
         raise SweepRunError(f"{output} holds the results of another sweep: run with --fresh to replace it, "
                             "or give another --output")
     done = _prepare(sweep, output, fresh)
     if progress is not None:
+        progress.restart()
         for index in sorted(done):
             start, stop = sweep.chunk_range(index)
             progress.advance(stop - start, new=False)
