@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 from friction_sim.core import batchroots as br
 from friction_sim.core.batch import EVENT_KINDS, BatchResult, BatchSamples, Population, finish
 from friction_sim.core.motion import REBOUND_FLOOR
-from friction_sim.core.roots import NEVER, TWO_PI, trig_remainders, two_sum
+from friction_sim.core.roots import NEVER, TWO_PI, two_sum
 from friction_sim.errors import SimulationFault
 
 Floats = NDArray[np.float64]
@@ -139,7 +139,7 @@ def _reduce_phase(theta: Floats) -> tuple[Floats, Ints]:
 def _axis_at(axis: list[Floats], omega: Floats, tau: Floats) -> tuple[Floats, Floats]:
     """motion.Axis.at for arrays: (w, travel); ``axis`` is (w0, g0, k, kk, cos0, sin0)."""
     w0, g0, k, kk, cos0, sin0 = axis
-    c1, s2, c2 = trig_remainders(omega * tau, np)
+    c1, s2, c2 = br.remainders(omega * tau)
     w = w0 + g0 * tau + k * (cos0 * c1 - sin0 * s2)
     return w, w0 * tau + 0.5 * g0 * tau * tau + kk * (cos0 * s2 - sin0 * c2)
 

@@ -68,9 +68,20 @@ def next_slip_start(phase: Floats, b0: Floats, b1: Floats, closing: Bools) -> tu
     return delta, start
 
 
+def remainders(psi: Floats) -> tuple[Floats, Floats, Floats]:
+    """roots.trig_remainders(psi, numpy), the same values, with the Taylor
+    series computed only when some |psi| < 0.25 needs it."""
+    if np.all(np.abs(psi) >= 0.25):
+        half = np.sin(0.5 * psi)
+        c1 = 2.0 * half * half
+        return c1, psi - np.sin(psi), 0.5 * (psi * psi) - c1
+    result: tuple[Floats, Floats, Floats] = trig_remainders(psi, np)
+    return result
+
+
 def _speed(w0: Any, g0: Any, k: Any, cos0: Any, sin0: Any, omega: Any, tau: Any) -> Any:
     """roots._speed for arrays (the trig_remainders form)."""
-    c1, s2, _ = trig_remainders(omega * tau, np)
+    c1, s2, _ = remainders(omega * tau)
     return w0 + g0 * tau + k * (cos0 * c1 - sin0 * s2)
 
 
@@ -157,8 +168,10 @@ def falling_root(w0: Floats, b0: Floats, b1: Floats, phase0: Floats, omega: Floa
         for _ in range(_ITERATIONS):
             psi = omega * tau
             half = np.sin(0.5 * psi)
-            inline = w0 + g0 * tau + k * (cos0 * 2.0 * half * half - sin0 * (psi - np.sin(psi)))
-            w = np.where(psi >= 0.25, inline, _speed(w0, g0, k, cos0, sin0, omega, tau))
+            w = w0 + g0 * tau + k * (cos0 * 2.0 * half * half - sin0 * (psi - np.sin(psi)))
+            small = psi < 0.25
+            if small.any():
+                w = np.where(small, _speed(w0, g0, k, cos0, sin0, omega, tau), w)
             lo = np.where(w > 0.0, tau, lo)
             hi = np.where(w < 0.0, tau, hi)
             slope = b0 + b1 * np.sin(phase0 + psi)
@@ -170,11 +183,11 @@ def falling_root(w0: Floats, b0: Floats, b1: Floats, phase0: Floats, omega: Floa
             if finished.any():
                 out[act[finished]] = np.where(zero[finished], tau[finished], step[finished])
                 keep = ~finished
+                if not keep.any():
+                    return out
                 act, tau, step = act[keep], tau[keep], step[keep]
                 lo, hi, w0, g0, k, cos0, sin0, omega, b0, b1, phase0 = (
                     a[keep] for a in (lo, hi, w0, g0, k, cos0, sin0, omega, b0, b1, phase0))
-                if not act.size:
-                    return out
             tau = step
     out[act] = tau
     return out
@@ -199,12 +212,12 @@ class Harmonic:
         return result
 
     def speed(self, tau: Floats, i: NDArray[np.intp]) -> Floats:
-        c1, s2, _ = trig_remainders(self.omega[i] * tau, np)
+        c1, s2, _ = remainders(self.omega[i] * tau)
         result: Floats = self.w0[i] + self.g0[i] * tau + self.k[i] * (self.cos0[i] * c1 - self.sin0[i] * s2)
         return result
 
     def travel(self, tau: Floats, i: NDArray[np.intp]) -> Floats:
-        _, s2, c2 = trig_remainders(self.omega[i] * tau, np)
+        _, s2, c2 = remainders(self.omega[i] * tau)
         result: Floats = 0.0 + (self.w0[i] * tau + 0.5 * self.g0[i] * tau * tau
                                 + (self.k[i] / self.omega[i]) * (self.cos0[i] * s2 - self.sin0[i] * c2))
         return result
