@@ -313,19 +313,52 @@ def _polish(f: Any, df: Any, lo: float, hi: float, f_lo: float, f_hi: float) -> 
     return tau
 
 
-def _turning_points(b0: float, b1: float, phase0: float, omega: float) -> Any:
+class _TurningPoints:
     """The times tau > 0 at which dz/dt has a turning point (b0 + b1*sin = 0),
-    in order, each with True where it is a minimum of dz/dt; endless."""
-    low = math.asin(-b0 / b1)  # sin rises through -b0/b1: minimum of the speed
-    marks = sorted(((low % TWO_PI, True), ((math.pi - low) % TWO_PI, False)))
-    base = phase0 - phase0 % TWO_PI
-    n = 0
-    while True:
-        for mark, is_min in marks:
-            tau = (base + TWO_PI * n + mark - phase0) / omega
+    in order (:meth:`next`), each with True where it is a minimum of dz/dt."""
+
+    def __init__(self, b0: float, b1: float, phase0: float, omega: float) -> None:
+        low = math.asin(-b0 / b1)  # sin rises through -b0/b1: minimum of the speed
+        self.marks = sorted(((low % TWO_PI, True), ((math.pi - low) % TWO_PI, False)))
+        self.phase0, self.omega = phase0, omega
+        self.base = phase0 - phase0 % TWO_PI
+        self.n, self.i = 0, 0
+
+    def next(self) -> tuple[float, bool]:
+        while True:
+            mark, is_min = self.marks[self.i]
+            tau = (self.base + TWO_PI * self.n + mark - self.phase0) / self.omega
+            self.i += 1
+            if self.i == 2:
+                self.n, self.i = self.n + 1, 0
             if tau > 0.0:
-                yield tau, is_min
-        n += 1
+                return tau, is_min
+
+    def skip_to(self, tau: float) -> None:
+        """Go on from the period that holds time ``tau``."""
+        self.n = max(self.n, math.floor((self.phase0 + self.omega * tau - self.base) / TWO_PI))
+        self.i = 0
+
+
+def _safe_stretch(h: _Harmonic1D) -> tuple[float, float]:
+    """(tau1, tau2): while tau1 < tau < tau2 the height is surely above 0, for a
+    flight whose mean acceleration b0 < 0 pulls it back (empty: (inf, -inf)).
+
+    z = z0 + (vz0 + b1*cos(phase0)/omega)*tau + b0*tau**2/2 + an oscillation of
+    amplitude at most 2*b1/omega**2, so z > 0 wherever that parabola is above
+    twice the oscillation (with a margin for rounding).  A long flight (a
+    throw number of 1e5 flies for thousands of periods) skips that stretch
+    instead of walking it turning point by turning point.
+    """
+    margin = 4.0 * h.b1 / (h.omega * h.omega) * (1.0 + 1e-6)
+    slope = h.w0 + h.k * h.cos0
+    a, b, c = 0.5 * h.b0, slope, h.start - margin
+    disc = b * b - 4.0 * a * c
+    if not (h.b0 < 0.0 and disc > 0.0):
+        return NEVER, -NEVER
+    root = math.sqrt(disc)
+    tau1, tau2 = sorted(((-b + root) / (2.0 * a), (-b - root) / (2.0 * a)))
+    return tau1, tau2
 
 
 def landing_delay(vz0: float, b0: float, b1: float, phase0: float, omega: float, z0: float = 0.0) -> float:
@@ -338,14 +371,25 @@ def landing_delay(vz0: float, b0: float, b1: float, phase0: float, omega: float,
     between those, so the first stretch on which z falls to <= 0 holds the
     landing, which is then polished to full precision.  A near-tangent landing
     (z just grazing 0 at a minimum) is found as long as the minimum is <= 0.
+    The stretch of a long flight where z is surely positive is skipped
+    (:func:`_safe_stretch`), so the cost does not grow with the flight's length.
     """
     h = _Harmonic1D(vz0, b0, b1, phase0, omega, z0)
     if b1 <= 0.0 or abs(b0) >= b1:  # the acceleration never changes sign
         if b0 >= 0.0:
             return NEVER
         return _fall_from(h, _apex(h, 0.0, vz0))
+    safe_from, safe_to = _safe_stretch(h)
+    period = TWO_PI / omega
     lo, v_lo = 0.0, vz0
-    for count, (tau, is_min) in enumerate(_turning_points(b0, b1, phase0, omega)):
+    points = _TurningPoints(b0, b1, phase0, omega)
+    for _ in range(_LONGEST_FLIGHT_PIECES):
+        tau, is_min = points.next()
+        if safe_from < lo and tau < safe_to - 4.0 * period:  # surely in the air until near safe_to
+            points.skip_to(safe_to - 4.0 * period)
+            lo = points.next()[0]  # a turning point inside the stretch: z > 0 there
+            v_lo = h.speed(lo)
+            continue
         v = h.speed(tau)
         if v_lo > 0.0 and v <= 0.0:  # the apex is in (lo, tau): z rises to it, then falls
             apex = _polish(h.speed, h.rate, lo, tau, v_lo, v)
@@ -360,10 +404,8 @@ def landing_delay(vz0: float, b0: float, b1: float, phase0: float, omega: float,
             return 0.0
         if is_min and v > 0.0 and b0 >= 0.0:  # the speed's minima only grow: it never comes down
             return NEVER
-        if count > _LONGEST_FLIGHT_PIECES:
-            return NEVER
         lo, v_lo = tau, v
-    return NEVER  # pragma: no cover (the generator is endless)
+    return NEVER
 
 
 def _falling(h: _Harmonic1D, lo: float, hi: float) -> float | None:

@@ -136,8 +136,9 @@ def table(*settings: Setting) -> dict[str, Setting]:
 MASS = Setting("mass", 1.0, "kg", "slider mass m", 1e-6, 1e6)
 MU = Setting("mu", 0.1, "-", "kinetic Coulomb friction coefficient mu", 1e-6, 10.0)
 GRAVITY = Setting("gravity", 10.0, "m/s^2", "gravity g", 1e-6, 1e3)
-STATIC_RATIO = Setting("static_ratio", 1.0, "-", "static over kinetic friction mu_s/mu (stuck while |Ft| <= mu_s R)",
-                       1.0, 100.0)
+STATIC_RATIO = Setting(
+    "static_ratio", 1.0, "-",
+    "static over kinetic friction mu_s/mu (stuck while the tangential force is at most mu_s R)", 1.0, 100.0)
 EXCITATION_ANGLE = Setting(
     "excitation_angle", 90.0, "deg", "vibration angle beta to the track; tangential amplitude Pt = Pa cot(beta) "
     "(90: normal only, the paper)", 0.1, 90.0, flag="--angle")
@@ -230,7 +231,7 @@ def markdown_table(settings: dict[str, Setting]) -> str:
     rows = ["| parameter | default | unit | range / rule | meaning |", "|---|---|---|---|---|"]
     for setting in settings.values():
         limits = "; ".join(part for part in (setting.range_text(), setting.rule) if part) or "–"
-        meaning = setting.description + ("; start-up only" if setting.start_only else "")
+        meaning = (setting.description + ("; start-up only" if setting.start_only else "")).replace("|", "\\|")
         unit = setting.unit if setting.unit not in ("", "-") else "–"
         rows.append(f"| `{setting.name}` | {_default_text(setting.default)} | {unit} | {limits} "
                     f"| {meaning} |")

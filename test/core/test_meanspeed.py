@@ -25,13 +25,14 @@ from typing import Any
 
 import numpy as np
 import pytest
-from reference_general import GeneralModel, solve
 
 from friction_sim.core.meanspeed import MeanSpeed, MeanSpeedGrid, mean_speed, u_general
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.ubranch import amplitude_ratio_for_general, rising_branch
 from friction_sim.core.urelation import predict, u_map
 from friction_sim.errors import ParameterError
+
+from reference_general import GeneralModel, solve
 
 GAMMA_1 = math.sqrt(1.0 + math.pi**2)  # one-period flights with a plastic landing
 

@@ -13,8 +13,10 @@ from __future__ import annotations
 
 import itertools
 import math
+import time
 import warnings
 from typing import Any
+from unittest import mock
 
 import numpy as np
 from hypothesis import HealthCheck, example, given, settings
@@ -253,3 +255,38 @@ def test_the_prediction_is_quiet_and_sane_over_the_accepted_range(params: Slider
         prediction = predict(params, inputs)
     assert prediction.u >= 0.0 or math.isinf(prediction.u) or inputs.tangential_force < 0.0
     assert not math.isnan(prediction.u)
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(st.floats(0.05, 1.0), st.floats(0.0, TWO_PI, exclude_max=True), st.floats(0.0, 3.0), st.floats(0.0, 1e-3),
+       st.sampled_from([2.0, 20.0, 300.0]))
+def test_a_long_flight_skips_its_safe_stretch_and_lands_where_the_full_walk_does(
+        pull: float, phase0: float, speed: float, height: float, throw: float) -> None:
+    """landing_delay skips the stretch where a long flight is surely in the air;
+    the landing is bit for bit the one the turning-point walk finds without
+    the skip (the same final bracket), for flights of one to ~2000 periods."""
+    from friction_sim.core import roots
+
+    omega, g = TWO_PI * 50.0, 10.0
+    b1 = throw * g
+    b0 = -pull * g  # a weak pull back: long flights
+    vz0 = speed * b1 / omega
+    skipped = roots.landing_delay(vz0, b0, b1, phase0, omega, height)
+    with mock.patch.object(roots, "_safe_stretch", lambda h: (math.inf, -math.inf)):
+        walked = roots.landing_delay(vz0, b0, b1, phase0, omega, height)
+    assert skipped == walked
+
+
+def test_a_huge_throw_number_lands_without_walking_every_period() -> None:
+    """Throw number 1e11 (the lightest slider, the largest amplitude): the flight
+    lasts ~1e10 periods; its landing is found in milliseconds, and z is 0 there."""
+    from friction_sim.core.roots import _Harmonic1D, landing_delay
+
+    omega, b1, b0 = TWO_PI * 50.0, 1e12, -10.0
+    started = time.perf_counter()
+    delay = landing_delay(0.0, b0, b1, 1e-11, omega)
+    assert time.perf_counter() - started < 0.05
+    assert 1e7 < delay * 50.0 < 1e12
+    h = _Harmonic1D(0.0, b0, b1, 1e-11, omega)
+    scale = b1 / omega * delay
+    assert abs(h.travel(delay)) <= 1e-12 * scale and h.speed(delay) < 0.0
