@@ -46,6 +46,8 @@ def add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
                        help="worker processes of the local Dask cluster (default: one per core; 0: no Dask, "
                             "in this process)")
     where.add_argument("--scheduler", metavar="tcp://HOST:8786", help="run on an existing Dask cluster")
+    parser.add_argument("--connect-timeout", type=float, default=20.0, metavar="S",
+                        help="seconds to wait for --scheduler (default 20)")
     parser.add_argument("--chunk-size", type=_count(1), metavar="N",
                         help="points per batch-core call (default: the sweep's chunk_size)")
     parser.add_argument("--engine", choices=("numpy", "scalar"), default="numpy",
@@ -80,11 +82,12 @@ def sweep(args: argparse.Namespace) -> int:
     output = args.output or spec.output
     if output.suffix != ".parquet":
         raise ParameterError("--output", str(output), "must end in .parquet")
-    executor = SerialExecutor() if args.workers == 0 else DaskExecutor(args.scheduler, args.workers)
-    print(f"{args.sweep}: {spec.size} points x {spec.settle_periods + spec.periods} periods in {spec.chunks} "
-          f"chunk(s) of {spec.chunk_size}", file=sys.stderr)
+    executor = SerialExecutor() if args.workers == 0 \
+        else DaskExecutor(args.scheduler, args.workers, connect_timeout=args.connect_timeout)
     progress = None if args.quiet else Progress(spec.name, spec.chunks, spec.size)
     with executor:
+        print(f"{args.sweep}: {spec.size} points x {spec.settle_periods + spec.periods} periods in {spec.chunks} "
+              f"chunk(s) of {spec.chunk_size} ({executor.description})", file=sys.stderr)
         outcome = run_sweep(spec, executor, output=output, engine=args.engine, fresh=args.fresh, progress=progress)
     rate = f", {outcome.points / outcome.seconds:,.0f} points/s" if outcome.computed == outcome.chunks \
         and outcome.seconds > 0 else ""

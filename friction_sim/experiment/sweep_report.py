@@ -109,6 +109,9 @@ def build_maps(path: Path, x: str, y: str, *, value: str = "mean_velocity", slic
     if slices is None:
         design = json.loads(meta.get(META + "columns", "{}")).get("design", [])
         slices = [key for key in design if key not in (x, y)]
+    for name in slices:
+        if name in (x, y):
+            raise SweepReportError(f"--slice {name}: it is already the {'x' if name == x else 'y'} axis")
     columns, meta = load_results(path, [x, y, value, *slices, "U", "flight_fraction"])
     if columns[value].dtype.kind not in "fiu":
         raise SweepReportError(f"--value {value}: not a numeric column")
