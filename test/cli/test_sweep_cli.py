@@ -90,7 +90,8 @@ def test_a_sweep_runs_resumes_and_reports(tmp_path: Path, capsys: pytest.Capture
     (["sweep-report", "{good}", "--x", "mu", "--y", "mass"], r"not a readable Parquet file"),
     (["sweep-report", "{results}", "--x", "mu", "--y", "mu"], r"--x and --y are both 'mu'"),
     (["sweep-report", "{results}", "--x", "speed", "--y", "mu"], r"no column 'speed'; inputs and outputs: "),
-    (["sweep-report", "{results}", "--x", "mu", "--y", "mass", "--slice", "mass"], r"--slice mass: it is already the y axis$"),
+    (["sweep-report", "{results}", "--x", "mu", "--y", "mass", "--slice", "mass"],
+     r"--slice mass: it is already the y axis$"),
 ])
 def test_bad_input_is_one_line_and_exit_code_2(tmp_path: Path, args: list[str], message: str) -> None:
     good = tmp_path / "good.yaml"
