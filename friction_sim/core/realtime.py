@@ -437,17 +437,29 @@ class RealtimeSlider:
 
     # -- diagnostics ------------------------------------------------------------
 
-    def prediction(self) -> Prediction:
-        """The U relation's prediction for the inputs in force (computed once
-        per change: it is asked for under the tick's lock)."""
-        params, inputs = self.slider.params, self.slider.inputs
+    def prediction(self, params: SliderParams | None = None, inputs: Inputs | None = None) -> Prediction:
+        """The mean-speed prediction for ``params`` and ``inputs`` (default: those
+        in force), computed once per change; NaN where there is none.
+
+        Outside Kostek's model it is a simulation (:func:`predict` falls back
+        on the general mean speed: a millisecond, up to ~0.4 s for a chattering
+        plant), so a node asks for it outside its tick's lock and passes it to
+        :meth:`diagnostics`.
+        """
+        params = self.slider.params if params is None else params
+        inputs = self.slider.inputs if inputs is None else inputs
         cached = self._prediction
         if cached is None or cached[0] is not params or cached[1] is not inputs:
-            cached = self._prediction = (params, inputs, predict(params, inputs))
+            try:
+                value = predict(params, inputs)
+            except Exception:  # noqa: BLE001 - diagnostics must answer whatever the inputs: nan = no prediction
+                value = Prediction(math.nan, math.nan, math.nan, math.nan)
+            cached = self._prediction = (params, inputs, value)
         return cached[2]
 
-    def diagnostics(self, wall_ns: int) -> dict[str, Any]:
-        """The figures of the last diagnostics interval; starts a new interval."""
+    def diagnostics(self, wall_ns: int, prediction: Prediction | None = None) -> dict[str, Any]:
+        """The figures of the last diagnostics interval; starts a new interval.
+        ``prediction`` is :meth:`prediction`'s, if the caller has made it."""
         stats = self.stats
         start = stats.interval_start_ns if stats.interval_start_ns is not None else wall_ns
         wall = (wall_ns - start) / NS_PER_S
@@ -457,10 +469,8 @@ class RealtimeSlider:
         inputs = self.slider.inputs
         flight_time, lift_offs, landings = self._flight_record()
         sim_elapsed = self.slider.t - stats.interval_slider_start
-        try:
+        if prediction is None:
             prediction = self.prediction()
-        except Exception:  # noqa: BLE001 - diagnostics must answer whatever the inputs: nan = no prediction
-            prediction = Prediction(math.nan, math.nan, math.nan, math.nan)
         report = {
             "sim_time": sim_now,
             "real_time_factor": self.clock.rate,

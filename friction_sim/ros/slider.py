@@ -329,7 +329,10 @@ class SliderNode(Node):
 
     def _on_diagnostics(self) -> None:
         with self._lock:
-            report = self._rt.diagnostics(wall_ns())
+            params, inputs = self._rt.slider.params, self._rt.slider.inputs
+        prediction = self._rt.prediction(params, inputs)  # outside the lock: it may simulate
+        with self._lock:
+            report = self._rt.diagnostics(wall_ns(), prediction)
         recording = self._recording_report()
         report.update(recording)
         status = DiagnosticStatus(name="slider", hardware_id=self.get_fully_qualified_name())

@@ -123,3 +123,24 @@ def test_the_general_models_parameters_go_through_configure_text_included() -> N
     # A topic command is checked against the plant in force, one field at a time.
     outcome = rt.command(Command(0.0, "parameters", {"restitution": 1.0}), NS_PER_S // 10)
     assert not outcome.accepted and "restitution = 1.0" in outcome.reason
+
+
+def test_a_prediction_made_outside_the_lock_is_the_one_reported(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The node computes the prediction (a simulation outside Kostek's model)
+    before it takes the tick's lock and hands it to diagnostics, which then
+    does not simulate; a prediction that fails is NaN, not an exception."""
+    from friction_sim.core import realtime
+
+    params = SliderParams(excitation_angle=60.0)
+    rt = RealtimeSlider(params, HOP, wall_ns=0)
+    made = rt.prediction(params, HOP)
+    assert math.isfinite(made.u) and made.u > 0.0
+
+    def no_simulation(*_: object) -> None:
+        raise AssertionError("diagnostics simulated under the lock")
+
+    monkeypatch.setattr(realtime, "predict", no_simulation)
+    report = rt.diagnostics(NS_PER_S, made)
+    assert report["predicted_U"] == made.u
+    rt.slider.set_inputs(drive_force=0.4)  # a change: the cached prediction no longer applies
+    assert math.isnan(rt.prediction().u)  # and the failing predict gives NaN, not a traceback
