@@ -148,8 +148,9 @@ def _stick_fraction(data: RunData, start: float, end: float) -> float:
 def command_label(command: Command) -> str:
     """A command as the report names it: ``drive_force = 0.8``,
     ``external_wrench = (0, -2) N``; a parameter change lists its fields."""
-    if command.name not in COMMANDS:
-        return ", ".join(f"{k} = {v:g}" for k, v in command.values.items())
+    if command.name not in COMMANDS:  # a parameter change: numbers, or text (landing_friction)
+        return ", ".join(f"{k} = {v:g}" if isinstance(v, float | int) else f"{k} = {v}"
+                         for k, v in command.values.items())
     values = [command.values.get(name, 0.0) for name in COMMANDS[command.name].fields]
     if len(values) == 1:
         return f"{command.name} = {values[0]:g}"

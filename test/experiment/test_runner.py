@@ -165,3 +165,13 @@ def test_the_stick_fraction_of_a_hopping_run_counts_flights_as_moving(tmp_path: 
         assert 0.0 < row.stick_fraction < 1.0
     kinds = {(event.kind, event.after) for event in slider.events}
     assert (EventKind.LANDING, Mode.STUCK) in kinds and (EventKind.LIFT_OFF, Mode.FLIGHT) in kinds
+
+
+def test_a_parameter_change_with_text_is_labelled_in_the_report() -> None:
+    """A scheduled parameter change may carry text (landing_friction); the
+    report's label shows it as it is, next to the numbers."""
+    from friction_sim.core.commands import Command
+    from friction_sim.experiment.report import command_label
+
+    command = Command(1.0, "parameters", {"landing_friction": "none", "restitution": 0.25})
+    assert command_label(command) == "landing_friction = none, restitution = 0.25"
