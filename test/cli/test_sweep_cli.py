@@ -112,3 +112,13 @@ def test_bad_input_is_one_line_and_exit_code_2(tmp_path: Path, args: list[str], 
     assert done.returncode == 2, done.stderr
     assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
     assert re.search(message, lines[0].replace(str(tmp_path / "bad.yaml"), "{bad}")), lines[0]
+
+
+def test_the_readme_shows_the_example_sweep_as_shipped() -> None:
+    root = Path(__file__).resolve().parents[2]
+    readme = (root / "README.md").read_text()
+    section = readme[readme.index("## Sweeps"):]
+    block = re.search(r"```yaml\n(.*?)```", section, re.S)
+    assert block is not None
+    shipped = (root / "config" / "sweep_example.yaml").read_text()
+    assert shipped.split("\n", 1)[1] == block.group(1)
