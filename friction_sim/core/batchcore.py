@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from friction_sim.core import batchroots as br
-from friction_sim.core.batch import EVENT_KINDS, BatchResult, BatchSamples, Population, finish
+from friction_sim.core.batch import EVENT_KINDS, BatchResult, BatchSamples, Population, finish, scalar_windows
 from friction_sim.core.motion import REBOUND_FLOOR
 from friction_sim.core.roots import NEVER, TWO_PI, two_sum
 from friction_sim.errors import SimulationFault
@@ -147,8 +147,10 @@ def _axis_at(axis: list[Floats], omega: Floats, tau: Floats) -> tuple[Floats, Fl
 class _Engine:
     """The state of N sliders and the loop that advances them (see the module doc)."""
 
-    def __init__(self, pop: Population, settle: int, count: int, times: Floats | None, shortcut: bool) -> None:
+    def __init__(self, pop: Population, settle: int, count: int, times: Floats | None, shortcut: bool,
+                 scalar_tail: int = 0) -> None:
         n = self.n = pop.n
+        self.scalar_tail = scalar_tail
         self.pop, self.settle, self.end, self.shortcut = pop, settle, settle + count, shortcut
         self.plant = _Plant(pop)
         self.times = times
@@ -205,6 +207,9 @@ class _Engine:
                     self._sample(act[due])
             done = (self.mark_n[act] > self.end) & (self.sample_k[act] >= self.k_samples)
             act = act[~done]
+            if 0 < act.size <= self.scalar_tail:
+                self._finish_with_scalar_core(act)
+                break
             if act.size:
                 if not np.all(np.isfinite(self.next_s[act])):  # pragma: no cover (an endless segment finishes above)
                     raise SimulationFault("batch core: an endless segment was left unfinished")
@@ -215,6 +220,18 @@ class _Engine:
         return finish(self.pop, self.settle, self.end - self.settle, (self.win_x[:, 0], self.win_x[:, 1]),
                       (self.win_stuck[:, 0], self.win_stuck[:, 1]), (self.win_flight[:, 0], self.win_flight[:, 1]),
                       self.win_counts[:, 1] - self.win_counts[:, 0], samples)
+
+    def _finish_with_scalar_core(self, rest: Index) -> None:
+        """Run the sliders ``rest`` again from the start with the scalar core (see run_batch's scalar_tail)."""
+        part = Population(rest.size, {name: column[rest] for name, column in self.pop.columns.items()})
+        x, stuck, flight, counts, samples = scalar_windows(part, self.settle, self.end - self.settle, self.times)
+        for side in (0, 1):
+            self.win_x[rest, side], self.win_stuck[rest, side] = x[side], stuck[side]
+            self.win_flight[rest, side] = flight[side]
+        self.win_counts[rest, 0], self.win_counts[rest, 1] = 0, counts
+        if samples is not None:
+            self.sx[rest], self.sv[rest], self.sz[rest], self.svz[rest] = samples.x, samples.v, samples.z, samples.vz
+            self.smode[rest] = samples.mode
 
     # -- acting on events ----------------------------------------------------------
 
@@ -500,10 +517,10 @@ class _Engine:
 
 
 def run_numpy(pop: Population, settle: int, count: int, times: Floats | None, *,
-              shortcut: bool = True) -> BatchResult:
+              shortcut: bool = True, scalar_tail: int = 0) -> BatchResult:
     """The numpy engine of :func:`friction_sim.core.batch.run_batch`."""
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        return _Engine(pop, settle, count, times, shortcut).run()
+        return _Engine(pop, settle, count, times, shortcut, scalar_tail).run()
 
 
 __all__ = ["RING", "run_numpy"]

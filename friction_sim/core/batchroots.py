@@ -13,14 +13,13 @@ still unresolved are advanced together and the finished ones drop out.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from friction_sim.core import roots
-from friction_sim.core.roots import NEVER, TWO_PI, trig_remainders
+from friction_sim.core.roots import NEVER, TWO_PI
 
 Floats = NDArray[np.float64]
 Bools = NDArray[np.bool_]
@@ -29,6 +28,22 @@ PHASE_EDGE = 1e-12
 LONGEST_SLIP = 1e12
 LONGEST_FLIGHT_PIECES = 2_000_000
 _ITERATIONS = 200
+#: Accept a Newton step that has converged onto tau even where tau is the
+#: bracket's new end.  The scalar polish then bisects from the far end: up to
+#: fifty more iterations (a quarter of its landings take over twelve) that end
+#: within an ulp or two of the same root, and a batch waits for its slowest
+#: entry.  Off by default: on, a bouncing slider's ulp-level landing times can
+#: grow to a few 1e-12 over its bounces, beyond the agreement required of the
+#: batch core (on, mixed populations with bouncers run ~20% faster).
+EARLY_CONVERGENCE = False
+
+
+def _settled(newton: Floats, tau: Floats) -> Bools:
+    """Where a Newton step has converged onto tau (see EARLY_CONVERGENCE)."""
+    if not EARLY_CONVERGENCE:
+        return np.zeros(tau.shape, dtype=bool)
+    result: Bools = (newton == tau) | (np.abs(newton - tau) <= 2.2e-16 * np.abs(tau))
+    return result
 
 
 def from_rest_b0(w0: Floats, b0: Floats, b1: Floats, sin0: Floats) -> Floats:
@@ -69,14 +84,20 @@ def next_slip_start(phase: Floats, b0: Floats, b1: Floats, closing: Bools) -> tu
 
 
 def remainders(psi: Floats) -> tuple[Floats, Floats, Floats]:
-    """roots.trig_remainders(psi, numpy), the same values, with the Taylor
-    series computed only when some |psi| < 0.25 needs it."""
-    if np.all(np.abs(psi) >= 0.25):
-        half = np.sin(0.5 * psi)
-        c1 = 2.0 * half * half
-        return c1, psi - np.sin(psi), 0.5 * (psi * psi) - c1
-    result: tuple[Floats, Floats, Floats] = trig_remainders(psi, np)
-    return result
+    """roots.trig_remainders(psi, numpy): the same values, with the Taylor
+    series evaluated only on the entries with |psi| < 0.25 that need it."""
+    half = np.sin(0.5 * psi)
+    c1 = 2.0 * half * half
+    p2 = psi * psi
+    s2, c2 = psi - np.sin(psi), 0.5 * p2 - c1
+    small = np.flatnonzero(np.abs(psi) < 0.25)
+    if small.size:
+        q, q2 = psi[small], p2[small]
+        s2[small] = q * q2 * (1 / 6 - q2 * (1 / 120 - q2 * (1 / 5040 - q2 * (
+            1 / 362880 - q2 * (1 / 39916800 - q2 / 6227020800)))))
+        c2[small] = q2 * q2 * (1 / 24 - q2 * (1 / 720 - q2 * (1 / 40320 - q2 * (
+            1 / 3628800 - q2 * (1 / 479001600 - q2 / 87178291200)))))
+    return c1, s2, c2
 
 
 def _speed(w0: Any, g0: Any, k: Any, cos0: Any, sin0: Any, omega: Any, tau: Any) -> Any:
@@ -175,8 +196,8 @@ def falling_root(w0: Floats, b0: Floats, b1: Floats, phase0: Floats, omega: Floa
             lo = np.where(w > 0.0, tau, lo)
             hi = np.where(w < 0.0, tau, hi)
             slope = b0 + b1 * np.sin(phase0 + psi)
-            step = np.where(slope < 0.0, tau - w / slope, np.nan)
-            step = np.where((lo < step) & (step < hi), step, 0.5 * (lo + hi))
+            newton = np.where(slope < 0.0, tau - w / slope, np.nan)
+            step = np.where(_settled(newton, tau) | ((lo < newton) & (newton < hi)), newton, 0.5 * (lo + hi))
             zero = w == 0.0
             conv = ~zero & ((step == tau) | (np.abs(step - tau) <= 2.2e-16 * np.abs(tau)))
             finished = zero | conv
@@ -199,60 +220,75 @@ def falling_root(w0: Floats, b0: Floats, b1: Floats, phase0: Floats, omega: Floa
 
 
 class Harmonic:
-    """roots._Harmonic1D for arrays (start 0): speed, height and rate at tau."""
+    """roots._Harmonic1D for arrays (start 0): speed, height and rate at tau;
+    ``i`` picks the entries (None: all, in order)."""
 
     def __init__(self, w0: Floats, b0: Floats, b1: Floats, phase0: Floats, omega: Floats) -> None:
         self.w0, self.b0, self.b1, self.phase0, self.omega = w0, b0, b1, phase0, omega
         self.cos0, self.sin0 = np.cos(phase0), np.sin(phase0)
         self.g0 = b0 + b1 * self.sin0
         self.k = b1 / omega
+        self.kk = self.k / omega
 
-    def rate(self, tau: Floats, i: NDArray[np.intp]) -> Floats:
-        result: Floats = self.b0[i] + self.b1[i] * np.sin(self.phase0[i] + self.omega[i] * tau)
+    def take(self, i: NDArray[np.intp]) -> Harmonic:
+        """The entries ``i`` as a Harmonic of their own (no recomputation)."""
+        part = object.__new__(Harmonic)
+        for name in ("w0", "b0", "b1", "phase0", "omega", "cos0", "sin0", "g0", "k", "kk"):
+            setattr(part, name, getattr(self, name)[i])
+        return part
+
+    def rate(self, tau: Floats, i: NDArray[np.intp] | None = None) -> Floats:
+        h = self if i is None else self.take(i)
+        result: Floats = h.b0 + h.b1 * np.sin(h.phase0 + h.omega * tau)
         return result
 
-    def speed(self, tau: Floats, i: NDArray[np.intp]) -> Floats:
-        c1, s2, _ = remainders(self.omega[i] * tau)
-        result: Floats = self.w0[i] + self.g0[i] * tau + self.k[i] * (self.cos0[i] * c1 - self.sin0[i] * s2)
+    def speed(self, tau: Floats, i: NDArray[np.intp] | None = None) -> Floats:
+        h = self if i is None else self.take(i)
+        c1, s2, _ = remainders(h.omega * tau)
+        result: Floats = h.w0 + h.g0 * tau + h.k * (h.cos0 * c1 - h.sin0 * s2)
         return result
 
-    def travel(self, tau: Floats, i: NDArray[np.intp]) -> Floats:
-        _, s2, c2 = remainders(self.omega[i] * tau)
-        result: Floats = 0.0 + (self.w0[i] * tau + 0.5 * self.g0[i] * tau * tau
-                                + (self.k[i] / self.omega[i]) * (self.cos0[i] * s2 - self.sin0[i] * c2))
+    def travel(self, tau: Floats, i: NDArray[np.intp] | None = None) -> Floats:
+        h = self if i is None else self.take(i)
+        _, s2, c2 = remainders(h.omega * tau)
+        result: Floats = 0.0 + (h.w0 * tau + 0.5 * h.g0 * tau * tau + h.kk * (h.cos0 * s2 - h.sin0 * c2))
         return result
 
 
-Fn = Callable[[Floats, NDArray[np.intp]], Floats]
-
-
-def polish(f: Fn, df: Fn, i: NDArray[np.intp], lo: Floats, hi: Floats, f_lo: Floats, f_hi: Floats) -> Floats:
-    """roots._polish for arrays; ``i`` indexes the harmonic's entries."""
+def polish(h: Harmonic, name: str, i: NDArray[np.intp], lo: Floats, hi: Floats, f_lo: Floats,
+           f_hi: Floats) -> Floats:
+    """roots._polish for arrays, of ``h``'s height (name "travel", slope: speed)
+    or speed ("speed", slope: rate) at its entries ``i``."""
     out = np.where(f_lo == 0.0, lo, hi)
     act = np.flatnonzero(~(f_lo == 0.0) & ~(f_hi == 0.0))
     if not act.size:
         return out
-    lo, hi, f_lo, f_hi, i = lo[act].copy(), hi[act].copy(), f_lo[act], f_hi[act], i[act]
+    lo, hi, f_lo, f_hi = lo[act].copy(), hi[act].copy(), f_lo[act], f_hi[act]
+    part = h.take(i[act])
+    slope_name = "speed" if name == "travel" else "rate"
+    f, df = getattr(part, name), getattr(part, slope_name)
     rising = f_hi > 0.0
     tau = lo + (hi - lo) * (f_lo / (f_lo - f_hi))
     with np.errstate(all="ignore"):
         for _ in range(_ITERATIONS):
-            value = f(tau, i)
+            value = f(tau)
             zero = value == 0.0
             up = (value > 0.0) == rising
             hi = np.where(up, tau, hi)
             lo = np.where(up, lo, tau)
-            slope = df(tau, i)
-            step = np.where(slope != 0.0, tau - value / slope, np.nan)
-            step = np.where((lo < step) & (step < hi), step, 0.5 * (lo + hi))
+            slope = df(tau)
+            newton = np.where(slope != 0.0, tau - value / slope, np.nan)
+            step = np.where(_settled(newton, tau) | ((lo < newton) & (newton < hi)), newton, 0.5 * (lo + hi))
             conv = ~zero & ((step == tau) | (np.abs(step - tau) <= 2.2e-16 * np.abs(tau)))
             finished = zero | conv
             if finished.any():
                 out[act[finished]] = np.where(zero[finished], tau[finished], step[finished])
                 keep = ~finished
-                act, tau, step, lo, hi, rising, i = (a[keep] for a in (act, tau, step, lo, hi, rising, i))
-                if not act.size:
+                if not keep.any():
                     return out
+                act, tau, step, lo, hi, rising = (a[keep] for a in (act, tau, step, lo, hi, rising))
+                part = part.take(np.flatnonzero(keep))
+                f, df = getattr(part, name), getattr(part, slope_name)
             tau = step
     out[act] = tau
     return out
@@ -337,7 +373,7 @@ def landing_delay(vz0: Floats, b0: Floats, b1: Floats, phase0: Floats, omega: Fl
         need = apex_case | (fall_case & ~(v <= 0.0))
         if need.any():
             sel = np.flatnonzero(need)
-            zero_v = polish(h.speed, h.rate, act[sel], l0[sel], tau[sel], vl[sel], v[sel])
+            zero_v = polish(h, "speed", act[sel], l0[sel], tau[sel], vl[sel], v[sel])
             f_start[sel] = np.where(apex_case[sel], zero_v, l0[sel])
             f_end[sel] = np.where(apex_case[sel], tau[sel], zero_v)
         check = np.flatnonzero(apex_case | fall_case)
@@ -347,7 +383,7 @@ def landing_delay(vz0: Floats, b0: Floats, b1: Floats, phase0: Floats, omega: Fl
             lands = ~(z_hi > 0.0)
             if lands.any():
                 sel = check[lands]
-                found[sel] = polish(h.travel, h.speed, act[sel], f_start[sel], f_end[sel],
+                found[sel] = polish(h, "travel", act[sel], f_start[sel], f_end[sel],
                                     h.travel(f_start[sel], act[sel]), z_hi[lands])
         found[start_case] = 0.0
         hit = ~np.isnan(found)

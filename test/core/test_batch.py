@@ -119,16 +119,16 @@ def mixed() -> tuple[dict[str, Any], np.ndarray, BatchResult, np.ndarray]:
     return values, regimes, scalar, chaotic
 
 
-@pytest.mark.parametrize("shortcut", [True, False])
+@pytest.mark.parametrize(("shortcut", "tail"), [(True, 0), (False, 0), (True, 10)])
 def test_the_numpy_engine_equals_the_scalar_core_on_a_mixed_population(
-        mixed: tuple[dict[str, Any], np.ndarray, BatchResult, np.ndarray], shortcut: bool) -> None:
+        mixed: tuple[dict[str, Any], np.ndarray, BatchResult, np.ndarray], shortcut: bool, tail: int) -> None:
     values, regimes, scalar, chaotic = mixed
-    batch = run_batch(values, settle_periods=SETTLE, periods=PERIODS, periodic_shortcut=shortcut)
+    batch = run_batch(values, settle_periods=SETTLE, periods=PERIODS, periodic_shortcut=shortcut, scalar_tail=tail)
     assert batch.n == regimes.size and batch.settle_periods == SETTLE and batch.periods == PERIODS
     assert chaotic.sum() <= regimes.size // 10, f"{chaotic.sum()} chaotic sliders"
     agreement = worst(scalar, batch, values, ~chaotic)
     print(f"worst agreement over {(~chaotic).sum()} sliders ({chaotic.sum()} chaotic left out), "
-          f"shortcut {shortcut}: {agreement}")
+          f"shortcut {shortcut}, scalar tail {tail}: {agreement}")
     for name in ("mean_velocity", "flight_fraction", "stick_fraction"):
         assert agreement[name] <= AGREEMENT, name
     for kind in EVENT_KINDS:
@@ -277,6 +277,7 @@ def test_a_bad_value_is_refused_naming_field_value_index_and_limit(values: dict[
     ({"engine": "gpu"}, ["engine = 'gpu'", "numpy, scalar"]),
     ({"sample_times": [0.2, 0.1]}, ["sample_times = 0.1", "ascend", "index 1"]),
     ({"sample_times": [-1.0]}, ["sample_times = -1.0", "index 0"]),
+    ({"scalar_tail": -2}, ["scalar_tail = -2", ">= 0"]),
 ])
 def test_bad_run_arguments_are_refused(kwargs: dict[str, Any], words: list[str]) -> None:
     arguments: dict[str, Any] = {"settle_periods": 1, "periods": 1} | kwargs
