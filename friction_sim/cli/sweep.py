@@ -76,7 +76,7 @@ def add_report_arguments(parser: argparse.ArgumentParser) -> None:
 def sweep(args: argparse.Namespace) -> int:
     """``sweep``: validate the file completely, then run it (resuming), and say where the results are."""
     from friction_sim.experiment.sweep import load_sweep
-    from friction_sim.experiment.sweep_run import DaskExecutor, Progress, SerialExecutor, run_sweep
+    from friction_sim.experiment.sweep_run import DaskExecutor, Progress, SerialExecutor, parts_dir, run_sweep
 
     spec = load_sweep(args.sweep, chunk_size=args.chunk_size)
     output = args.output or spec.output
@@ -85,10 +85,16 @@ def sweep(args: argparse.Namespace) -> int:
     executor = SerialExecutor() if args.workers == 0 \
         else DaskExecutor(args.scheduler, args.workers, connect_timeout=args.connect_timeout)
     progress = None if args.quiet else Progress(spec.name, spec.chunks, spec.size)
-    with executor:
-        print(f"{args.sweep}: {spec.size} points x {spec.settle_periods + spec.periods} periods in {spec.chunks} "
-              f"chunk(s) of {spec.chunk_size} ({executor.description})", file=sys.stderr)
-        outcome = run_sweep(spec, executor, output=output, engine=args.engine, fresh=args.fresh, progress=progress)
+    try:
+        with executor:
+            print(f"{args.sweep}: {spec.size} points x {spec.settle_periods + spec.periods} periods in "
+                  f"{spec.chunks} chunk(s) of {spec.chunk_size} ({executor.description})", file=sys.stderr)
+            outcome = run_sweep(spec, executor, output=output, engine=args.engine, fresh=args.fresh,
+                                progress=progress)
+    except KeyboardInterrupt:
+        print(f"friction-sim sweep: the chunks written are kept in {parts_dir(output)}: run the same command "
+              "again to resume", file=sys.stderr)
+        raise
     rate = f", {outcome.points / outcome.seconds:,.0f} points/s" if outcome.computed == outcome.chunks \
         and outcome.seconds > 0 else ""
     print(f"wrote {outcome.output}: {outcome.points} points, {outcome.computed} chunk(s) computed, "

@@ -42,7 +42,7 @@ import numpy as np
 
 from friction_sim.core.batch import run_batch
 from friction_sim.core.spec import Setting
-from friction_sim.errors import FrictionSimError
+from friction_sim.errors import FrictionSimError, one_line
 from friction_sim.experiment.sweep import BLOCK, DERIVED, FIELDS, Sweep, materialize
 from friction_sim.io.parquet import Columns, combine, read_metadata, write_table
 
@@ -69,7 +69,10 @@ def run_chunk(sweep: Sweep, index: int, engine: str = "numpy") -> Columns:
     start, stop = sweep.chunk_range(index)
     columns = materialize(sweep, start, stop)
     values = {name: columns[name].astype(str) if FIELDS[name].kind is str else columns[name] for name in FIELDS}
-    result = run_batch(values, settle_periods=sweep.settle_periods, periods=sweep.periods, engine=engine)
+    try:
+        result = run_batch(values, settle_periods=sweep.settle_periods, periods=sweep.periods, engine=engine)
+    except FrictionSimError as error:  # one picklable error type, whatever the core raised, with the chunk named
+        raise SweepRunError(f"chunk {index} (points {start}..{stop - 1}): {one_line(error)}") from None
     columns["mean_velocity"] = np.asarray(result.mean_velocity, dtype=float)
     columns["U"] = np.asarray(result.u, dtype=float)
     columns["flight_fraction"] = np.asarray(result.flight_fraction, dtype=float)
@@ -160,7 +163,14 @@ class DaskExecutor:
         try:
             for future in as_completed(list(futures)):
                 index = futures.pop(future)
-                yield index, future.result()
+                try:
+                    columns = future.result()
+                except FrictionSimError:
+                    raise
+                except Exception as error:  # a worker's failure (no friction_sim there, killed too often)
+                    raise SweepRunError(f"chunk {index} failed on the cluster: {one_line(error, with_type=True)}") \
+                        from error
+                yield index, columns
                 future.release()
         finally:
             for future in futures:  # cancelled on error or interrupt: nothing left running for us

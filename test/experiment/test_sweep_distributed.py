@@ -118,6 +118,8 @@ def test_a_worker_killed_mid_sweep_loses_no_chunk_and_writes_none_twice(
         outcome = run_sweep(sweep, executor, output=tmp_path / "fault.parquet", engine="scalar",
                             on_chunk=kill_w2_mid_sweep)
         survivors = executor.client.scheduler_info(n_workers=-1)["workers"]
+        ros_on_workers = executor.client.run(lambda: "rclpy" in sys.modules)
+    assert list(ros_on_workers.values()) == [False]  # the chunks ran without ROS
     assert seen["held"], "w2 held no chunk when it was killed: the test did not test a loss"
     print(f"w2 killed after 3 chunks were written, holding {seen['held']}; {sweep.chunks} chunks written once each")
     assert processes["w2"].returncode == -signal.SIGKILL

@@ -199,3 +199,19 @@ def test_the_progress_bar_counts_chunks_and_points(tmp_path: Path) -> None:
     assert len(lines) == sweep.chunks
     assert lines[-1].startswith("mixed [" + "#" * 30 + "] 8/8 chunks  24/24 points")
     assert "1/8 chunks  3/24 points" in lines[0]
+
+
+def test_a_failing_chunk_is_named_and_picklable(monkeypatch: pytest.MonkeyPatch) -> None:
+    import pickle
+
+    from friction_sim.errors import SimulationFault
+    from friction_sim.experiment import sweep_run
+
+    def fails(*args: object, **kwargs: object) -> None:
+        raise SimulationFault("more than 1000 events at t = 0.5 s")
+
+    monkeypatch.setattr(sweep_run, "run_batch", fails)
+    with pytest.raises(SweepRunError) as caught:
+        run_chunk(parse_sweep(MIXED), 2, ENGINE)
+    assert str(caught.value) == "chunk 2 (points 6..8): more than 1000 events at t = 0.5 s"
+    assert str(pickle.loads(pickle.dumps(caught.value))) == str(caught.value)  # it crosses from a worker intact
