@@ -285,3 +285,21 @@ def test_bad_run_arguments_are_refused(kwargs: dict[str, Any], words: list[str])
         run_batch({}, **arguments)
     for word in words:
         assert word in str(caught.value)
+
+
+def test_a_slider_s_result_does_not_depend_on_the_others_in_its_batch() -> None:
+    """Bit for bit, in any split and order (a sweep's results must not depend on its chunking)."""
+    values, regimes = mixed_population(seed=3, per_regime=6)
+    times = np.linspace(0.0, 0.3, 7)
+    whole = run_batch(values, settle_periods=6, periods=10, sample_times=times)
+    order = np.random.default_rng(0).permutation(regimes.size)
+    for part in (order[:7], order[7:30], order[30:]):
+        piece = run_batch({name: (column[part] if np.ndim(column) else column) for name, column in values.items()},
+                          settle_periods=6, periods=10, sample_times=times)
+        for name in ("mean_velocity", "u", "flight_fraction", "stick_fraction"):
+            np.testing.assert_array_equal(getattr(piece, name), getattr(whole, name)[part])
+        for kind in EVENT_KINDS:
+            np.testing.assert_array_equal(piece.event_counts[kind], whole.event_counts[kind][part])
+        assert piece.samples is not None and whole.samples is not None
+        for name in ("x", "v", "z", "vz", "mode"):
+            np.testing.assert_array_equal(getattr(piece.samples, name), getattr(whole.samples, name)[part])
