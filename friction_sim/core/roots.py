@@ -293,6 +293,8 @@ def _polish(f: Any, df: Any, lo: float, hi: float, f_lo: float, f_hi: float) -> 
         return lo
     if f_hi == 0.0:
         return hi
+    if (f_lo > 0.0) == (f_hi > 0.0):  # no sign change: rounding at an end (values far above their root's scale)
+        return lo if abs(f_lo) <= abs(f_hi) else hi
     rising = f_hi > 0.0
     tau = lo + (hi - lo) * (f_lo / (f_lo - f_hi))
     for _ in range(200):
@@ -409,11 +411,14 @@ def landing_delay(vz0: float, b0: float, b1: float, phase0: float, omega: float,
 
 
 def _falling(h: _Harmonic1D, lo: float, hi: float) -> float | None:
-    """The landing on [lo, hi], where z falls, if z reaches 0 there."""
+    """The landing on [lo, hi], where z falls, if z reaches 0 there (at lo if
+    rounding already puts z at or below 0 there: a height far above its
+    rounding error, such as 1e16 m under a 1e12 m/s^2 excitation)."""
     z_hi = h.travel(hi)
     if z_hi > 0.0:
         return None
-    return _polish(h.travel, h.speed, lo, hi, h.travel(lo), z_hi)
+    z_lo = h.travel(lo)
+    return lo if z_lo <= 0.0 else _polish(h.travel, h.speed, lo, hi, z_lo, z_hi)
 
 
 def _apex(h: _Harmonic1D, lo: float, v_lo: float) -> float:

@@ -19,6 +19,7 @@ from typing import Any
 from unittest import mock
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -290,3 +291,18 @@ def test_a_huge_throw_number_lands_without_walking_every_period() -> None:
     h = _Harmonic1D(0.0, b0, b1, 1e-11, omega)
     scale = b1 / omega * delay
     assert abs(h.travel(delay)) <= 1e-12 * scale and h.speed(delay) < 0.0
+
+
+@pytest.mark.parametrize("phase", [-180.0, -90.0, 90.0, 180.0])
+def test_a_change_high_in_a_huge_flight_lands_within_rounding(phase: float) -> None:
+    """The lightest slider under the largest amplitude at the slowest
+    excitation (z oscillates by ~1e16 m): a change in the air starts a flight
+    whose height near its landing is below its own rounding error.  The
+    landing is then taken where rounding puts z at 0 (it divided by zero)."""
+    slider = Slider(SliderParams(mass=1e-6), Inputs(drive_force=-3.0, excitation_amplitude=1e6,
+                                                    excitation_frequency=1e-3))
+    slider.advance_to(32.359475578712505)
+    slider.set_params(slider.params.replace(excitation_phase=phase))
+    slider.advance_to(32.659475578712505)
+    state = slider.state()
+    assert state.z >= 0.0 and math.isfinite(state.x) and math.isfinite(state.vz)
