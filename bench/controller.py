@@ -1,9 +1,9 @@
 """Benchmark of the mean-speed controller.
 
-* acceptance (issue 4): the five acceptance cases in closed loop over real
+* acceptance (issues 4, 11): the acceptance cases in closed loop over real
   topics, slider and controller in this process, real time.  Prints settling
   time (excitation periods), overshoot and steady error per step, and draws
-  target, measured mean speed and Pa against time for all five cases into
+  target, measured mean speed and Pa against time for every case into
   one PNG.
 * flood (issue 10): the ``controller`` console script in its own process,
   regulating (this process sends it mean_velocity samples at 50 Hz, as a

@@ -1,4 +1,4 @@
-"""The controller's five acceptance cases: the shipped scenarios
+"""The controller's acceptance cases: the shipped scenarios
 ``config/acceptance_*.yaml`` and the check of their ``expect`` criteria.
 
 After each judged change the regulated mean speed must be within the given
@@ -32,7 +32,7 @@ def config_dir() -> Path:
 
 
 def acceptance_scenarios() -> list[Scenario]:
-    """The five controller acceptance cases, in order."""
+    """The controller acceptance cases, in order (1-5: the paper's model; 6: the general one)."""
     return [load_scenario(path) for path in sorted(config_dir().glob("acceptance_*.yaml"))]
 
 

@@ -55,7 +55,7 @@ def test_the_shipped_scenarios_load_and_judge_something() -> None:
     scenarios = acceptance_scenarios()
     assert [s.name for s in scenarios] == [
         "acceptance_1_matched", "acceptance_2_mu_plus_20", "acceptance_3_drive_step",
-        "acceptance_4_unreachable", "acceptance_5_frequency_step"]
+        "acceptance_4_unreachable", "acceptance_5_frequency_step", "acceptance_6_tilted_hopping"]
     assert all(s.expect and s.closed_loop for s in scenarios)
     demo = load_scenario(config_dir() / "demo.yaml")
     assert 14.0 <= demo.duration <= 16.0 and demo.closed_loop
