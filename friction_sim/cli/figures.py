@@ -48,7 +48,7 @@ def save_figure(figure: Figure, path: Path) -> Path:
     return path
 
 
-def _pyplot_free_figure(**kwargs: object) -> Figure:
+def pyplot_free_figure(**kwargs: object) -> Figure:
     """A Figure not registered with pyplot (no GUI backend, no global state)."""
     from matplotlib.figure import Figure
 
@@ -60,7 +60,7 @@ def u_map_figure(umap: UMap) -> Figure:
     the no-motion region hatched and its boundary phi = 1 - a drawn.  Each grid
     value fills the cell around it, out to the edges of the domain [0, 1]^2,
     so the map covers the whole axes."""
-    fig = _pyplot_free_figure(figsize=(7.0, 5.6), layout="constrained")
+    fig = pyplot_free_figure(figsize=(7.0, 5.6), layout="constrained")
     ax = fig.add_subplot()
     u = np.where(np.isfinite(umap.u), umap.u, np.nan)
     phi_edges, a_edges = _cell_edges(umap.phi), _cell_edges(umap.amplitude_ratio)
@@ -120,7 +120,7 @@ def trace_figure(result: SimulationResult) -> Figure:
     along = np.sign(traj.v) * applied if np.ndim(applied) else drive
     flights = flies(result)
 
-    fig = _pyplot_free_figure(figsize=(8.0, 11.5 if flights else 9.5), layout="constrained")
+    fig = pyplot_free_figure(figsize=(8.0, 11.5 if flights else 9.5), layout="constrained")
     axes = fig.subplots(5 if flights else 4, 1, sharex=True)
     ax = axes[0]
     ax.plot(t_ms, limit, color="tab:blue", linestyle="--", label=r"$\mu R$ (friction limit)")
@@ -286,7 +286,7 @@ def conveyor_figure(sweep: ConveyorSweep) -> Figure:
     the stated window after them)."""
     from friction_sim.cli.conveyor import MARKED_GAMMAS
 
-    fig = _pyplot_free_figure(figsize=(8.0, 9.0), layout="constrained")
+    fig = pyplot_free_figure(figsize=(8.0, 9.0), layout="constrained")
     top, bottom = fig.subplots(2, 1)
     colours = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
     for (angle, c), colour in zip(sweep.gamma_curves.items(), colours * 4):
@@ -339,7 +339,7 @@ def _hollow(ax: Any, x: np.ndarray, u: np.ndarray, periodic: np.ndarray, colour:
 def report_figure(data: RunData, rows: Sequence[SegmentRow]) -> Figure:
     """Target and measured mean speed, Pa, Fd and f against time, the
     segments' starts marked."""
-    fig = _pyplot_free_figure(figsize=(10.0, 9.0), layout="constrained")
+    fig = pyplot_free_figure(figsize=(10.0, 9.0), layout="constrained")
     ax_v, ax_pa, ax_fd, ax_f = fig.subplots(4, 1, sharex=True)
     _speed_panel(ax_v, data, rows)
     times = [0.0] + [c.t for c in data.commands] + [data.duration]

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from friction_sim.cli.figures import _pyplot_free_figure as new_figure
+from friction_sim.cli.figures import pyplot_free_figure as new_figure
 from friction_sim.experiment.sweep_report import SweepMaps, finite_range
 
 LABELS = {"mean_velocity": "mean speed V [m/s]", "U": "U = V f/(g mu)", "flight_fraction": "flight fraction",

@@ -142,11 +142,12 @@ def parse_scenario(text: str, where: str = "<scenario>", base: Path = Path("."))
         raise ScenarioError(f"{where}: {line}not valid YAML: {getattr(error, 'problem', error)}") from error
     if not isinstance(root, yaml.MappingNode):
         raise ScenarioError(f"{where}: a scenario is a mapping of keys (duration, plant, schedule, ...)")
-    return _Parser(where, base).scenario(root, text)
+    return YamlParser(where, base).scenario(root, text)
 
 
-class _Parser:
-    """Walks the YAML node tree so that every error can name its line."""
+class YamlParser:
+    """Walks the YAML node tree so that every error can name its line (the
+    scenario files' parser; sweep files reuse it, see experiment/sweep.py)."""
 
     def __init__(self, where: str, base: Path) -> None:
         self.where = where
@@ -307,7 +308,7 @@ class _Schedule:
     """Reads the schedule: one command per entry, each checked against the
     state the entries before it leave, through the core's gate."""
 
-    def __init__(self, parser: _Parser, params: SliderParams, inputs: Inputs, rate: float,
+    def __init__(self, parser: YamlParser, params: SliderParams, inputs: Inputs, rate: float,
                  controller: dict[str, Any] | None) -> None:
         self.parser = parser
         self.params, self.inputs, self.rate = params, inputs, rate
@@ -371,5 +372,6 @@ class _Schedule:
 
 
 __all__ = [
-    "CONTROLLER_KEYS", "PLANT_KEYS", "Expectation", "Scenario", "ScenarioError", "load_scenario", "parse_scenario",
+    "CONTROLLER_KEYS", "PLANT_KEYS", "Expectation", "Scenario", "ScenarioError", "YamlParser", "load_scenario",
+    "parse_scenario",
 ]

@@ -59,7 +59,7 @@ from friction_sim.core import spec as settings
 from friction_sim.core.spec import Setting
 from friction_sim.errors import FrictionSimError, ParameterError
 from friction_sim.experiment.scenario import Entry
-from friction_sim.experiment.scenario import _Parser as ScenarioParser
+from friction_sim.experiment.scenario import YamlParser as ScenarioParser
 
 #: The model's fields: every one is a column of the results.
 FIELDS: dict[str, Setting] = {**settings.PLANT, **settings.INPUTS}

@@ -39,8 +39,8 @@ class ChunkExistsError(ParquetError):
 def _pyarrow() -> tuple[Any, Any]:
     """pyarrow and pyarrow.parquet, or a one-line refusal naming the missing package."""
     try:
-        import pyarrow  # type: ignore[import-untyped]
-        import pyarrow.parquet  # type: ignore[import-untyped]
+        import pyarrow
+        import pyarrow.parquet
     except ImportError as error:  # pragma: no cover - pyarrow is a requirement; this is the message if it is not
         raise ParquetError(f"Parquet needs pyarrow: pip install -r requirements.txt ({error})") from error
     return pyarrow, pyarrow.parquet
