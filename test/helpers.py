@@ -78,8 +78,8 @@ def fail_on_poison(monkeypatch: Any) -> None:
 
     real = Slider.set_plant
 
-    def set_plant(self: Any, params: Any, inputs: Any, changed: Any = None) -> None:
-        real(self, params, inputs, changed)
+    def set_plant(self: Any, params: Any, inputs: Any) -> None:
+        real(self, params, inputs)
         if inputs.drive_force == POISON:
             raise OverflowError("cannot convert float infinity to integer")
 

@@ -137,7 +137,7 @@ def _reduce_phase(theta: Floats) -> tuple[Floats, Ints]:
 
 
 def _axis_at(axis: list[Floats], omega: Floats, tau: Floats) -> tuple[Floats, Floats]:
-    """motion.Axis.at for arrays: (w, travel); ``axis`` is (w0, g0, k, kk, cos0, sin0)."""
+    """roots.Harmonic.at for arrays: (w, travel); ``axis`` is (w0, g0, k, kk, cos0, sin0)."""
     w0, g0, k, kk, cos0, sin0 = axis
     c1, s2, c2 = br.remainders(omega * tau)
     w = w0 + g0 * tau + k * (cos0 * c1 - sin0 * s2)

@@ -220,7 +220,7 @@ def falling_root(w0: Floats, b0: Floats, b1: Floats, phase0: Floats, omega: Floa
 
 
 class Harmonic:
-    """roots._Harmonic1D for arrays (start 0): speed, height and rate at tau;
+    """roots.Harmonic for arrays (start 0): speed, height and rate at tau;
     ``i`` picks the entries (None: all, in order)."""
 
     def __init__(self, w0: Floats, b0: Floats, b1: Floats, phase0: Floats, omega: Floats) -> None:

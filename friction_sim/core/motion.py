@@ -15,7 +15,7 @@ tangential impulse of at most mu times the normal one (Coulomb impact).
 Every acceleration here is a constant plus a sinusoid of theta, which is
 written b0 + b1*sin(theta + delta) with b1 >= 0, and every event is where
 such a form (or its first or second integral) crosses zero.  So each segment
-is the same closed form as Kostek's slip (:class:`Axis`), and the event
+is the same closed form as Kostek's slip (:class:`roots.Harmonic`), and the event
 finders of :mod:`friction_sim.core.roots` (with the phase shifted by delta)
 bracket and polish every root.  This module detects the next event of a
 segment (:meth:`Motion.plan`) and computes the state after it
@@ -33,12 +33,12 @@ from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.roots import (
     NEVER,
     TWO_PI,
+    Harmonic,
     from_rest_b0,
     landing_delay,
     next_slip_start,
     reduce_phase,
     slip_stop_delay,
-    trig_remainders,
     two_sum,
 )
 
@@ -75,7 +75,7 @@ class GeneralPlant:
     """The constants of the general motion under one set of parameters and inputs."""
 
     __slots__ = (
-        "omega", "mass", "mu", "restitution", "impulsive", "rebound_floor", "normal", "tangential",
+        "omega", "mass", "mu", "restitution", "impulsive", "rebound_floor", "n0", "pa", "tangential",
         "slip", "flight_x", "flight_z", "onset", "lift",
     )
 
@@ -90,7 +90,7 @@ class GeneralPlant:
         pt = pa * params.tangential_ratio
         psi = math.radians(params.excitation_phase)
         ts, tc = (pt, 0.0) if psi == 0.0 else (pt * math.cos(psi), pt * math.sin(psi))
-        self.normal = Form(n0, pa, math.pi) if pa > 0.0 else Form(n0, 0.0, 0.0)  # R(theta)
+        self.n0, self.pa = n0, pa  # R(theta) = n0 - pa*sin(theta)
         self.tangential = Form.of(f0, ts, tc)  # Ft(theta)
         self.rebound_floor = REBOUND_FLOOR * max(n0, 0.0) / m / self.omega
         #: dw/dt (w = s*v) of a slip in direction s, per unit mass: s*Ft - mu*R
@@ -110,30 +110,14 @@ class GeneralPlant:
         return 0
 
 
-class Axis:
-    """w(tau) and its integral for dw/dt = form(theta0 + omega*tau), w(0) = w0
-    (the closed form of :class:`friction_sim.core.kostek.KostekSegment`)."""
-
-    __slots__ = ("w0", "g0", "k", "kk", "cos0", "sin0", "omega", "form", "phase")
-
-    def __init__(self, w0: float, form: Form, theta0: float, omega: float, from_rest: bool = False) -> None:
-        self.phase = phase = theta0 + form.delta
-        self.cos0, self.sin0 = math.cos(phase), math.sin(phase)
-        b0 = from_rest_b0(w0, form.b0, form.b1, self.sin0) if from_rest else form.b0
-        self.form = Form(b0, form.b1, form.delta)
-        self.w0, self.omega = w0, omega
-        self.g0 = b0 + form.b1 * self.sin0
-        self.k = form.b1 / omega
-        self.kk = self.k / omega
-
-    def at(self, tau: Any, xp: ModuleType = math) -> tuple[Any, Any]:
-        """(w, travel) ``tau`` after the start."""
-        c1, s2, c2 = trig_remainders(self.omega * tau, xp)
-        w = self.w0 + self.g0 * tau + self.k * (self.cos0 * c1 - self.sin0 * s2)
-        return w, self.w0 * tau + 0.5 * self.g0 * tau * tau + self.kk * (self.cos0 * s2 - self.sin0 * c2)
-
-    def rate(self, tau: Any, xp: ModuleType = math) -> Any:
-        return self.form.b0 + self.form.b1 * xp.sin(self.phase + self.omega * tau)
+def axis(w0: float, form: Form, theta0: float, omega: float, *, from_rest: bool = False,
+         start: float = 0.0) -> Harmonic:
+    """The closed form of a speed w0 + integral of form(theta) from phase theta0
+    (and its integral from ``start``).  ``from_rest``: a motion that starts from
+    rest cannot start decelerating (:func:`roots.from_rest_b0`)."""
+    phase = theta0 + form.delta
+    b0 = from_rest_b0(w0, form.b0, form.b1, math.sin(phase)) if from_rest else form.b0
+    return Harmonic(w0, b0, form.b1, phase, omega, start)
 
 
 class Plan(NamedTuple):
@@ -168,29 +152,29 @@ class Motion:
         self.s0, self.t0, self.x0, self.xl, self.v0, self.vz0, self.z0 = s0, t0, x0, xl, v0, vz0, z0
         self.phase0, self.cycles, self.direction, self.plant = phase0, cycles, mode, plant
         self.omega = plant.omega
-        self._x_axis: Axis | None = None
-        self._z_axis: Axis | None = None
+        self._x_axis: Harmonic | None = None
+        self._z_axis: Harmonic | None = None
 
     # (The closed forms are built on first use: in a periodic motion most
     # segments are never sampled, and their events come from a memo.)
 
     @property
-    def x_axis(self) -> Axis | None:
+    def x_axis(self) -> Harmonic | None:
         """The tangential closed form (w = v in flight, w = direction*v in a slip; None stuck)."""
         if self._x_axis is None and self.direction:
             mode, plant = self.direction, self.plant
             if mode == FLIGHT:
-                self._x_axis = Axis(self.v0, plant.flight_x, self.phase0, self.omega)
+                self._x_axis = axis(self.v0, plant.flight_x, self.phase0, self.omega)
             else:
-                self._x_axis = Axis(mode * self.v0, plant.slip[mode], self.phase0, self.omega, from_rest=self.v0 == 0.0)
+                self._x_axis = axis(mode * self.v0, plant.slip[mode], self.phase0, self.omega, from_rest=self.v0 == 0.0)
         return self._x_axis
 
     @property
-    def z_axis(self) -> Axis | None:
+    def z_axis(self) -> Harmonic | None:
         """The normal closed form of a flight (None in contact)."""
         if self._z_axis is None and self.direction == FLIGHT:
-            self._z_axis = Axis(self.vz0, self.plant.flight_z, self.phase0, self.omega,
-                                from_rest=self.vz0 == 0.0 and self.z0 == 0.0)
+            self._z_axis = axis(self.vz0, self.plant.flight_z, self.phase0, self.omega,
+                                from_rest=self.vz0 == 0.0 and self.z0 == 0.0, start=self.z0)
         return self._z_axis
 
     # -- the closed form ---------------------------------------------------------
@@ -208,8 +192,8 @@ class Motion:
             assert self.x_axis is not None and self.z_axis is not None
             v, travel = self.x_axis.at(tau, xp)
             vz, z = self.z_axis.at(tau, xp)
-            return (self.x0 + (self.xl + travel), v, self.x_axis.rate(tau, xp), zero, zero, theta, self.z0 + z, vz)
-        normal = plant.normal.b0 - plant.normal.b1 * xp.sin(theta) if plant.normal.b1 else plant.normal.b0 + zero
+            return (self.x0 + (self.xl + travel), v, self.x_axis.rate(tau, xp), zero, zero, theta, z, vz)
+        normal = plant.n0 - plant.pa * xp.sin(theta) if plant.pa else plant.n0 + zero
         if mode == STUCK:
             force = plant.tangential.b0 + plant.tangential.b1 * xp.sin(theta + plant.tangential.delta)
             return self.x0 + zero, zero, zero, -force, normal, theta, zero, zero
@@ -224,10 +208,10 @@ class Motion:
 
     def travel(self, tau: float) -> float:
         """x(tau) - x(0), signed."""
-        axis = self.x_axis
-        if axis is None:
+        closed = self.x_axis
+        if closed is None:
             return 0.0
-        travel: float = axis.at(tau)[1]
+        travel: float = closed.at(tau)[1]
         return travel if self.direction == FLIGHT else self.direction * travel
 
     def velocities(self, tau: float) -> tuple[float, float]:
@@ -255,12 +239,9 @@ class Motion:
         window to open again, which guarantees progress."""
         plant, mode, theta0 = self.plant, self.direction, self.phase0
         if mode == FLIGHT:
-            form = plant.flight_z
-            b0 = form.b0
-            if self.vz0 == 0.0 and self.z0 == 0.0:  # a lift-off: it cannot start falling (see from_rest_b0)
-                b0 = from_rest_b0(0.0, b0, form.b1, math.sin(theta0))
-            delay = landing_delay(self.vz0, b0, form.b1, theta0, self.omega, self.z0)
-            return Plan(EventKind.LANDING, delay, None, 0)
+            z = self.z_axis  # (from a lift-off it cannot start falling: see from_rest_b0)
+            assert z is not None
+            return Plan(EventKind.LANDING, landing_delay(z.w0, z.b0, z.b1, z.phase0, z.omega, z.start), None, 0)
         best = _onset(plant.lift, theta0, EventKind.LIFT_OFF, 0, grounded)
         if mode == STUCK:
             for s in (1, -1):
@@ -268,9 +249,9 @@ class Motion:
                 if onset.theta is not None and (best.theta is None or onset.theta < best.theta):
                     best = onset
             return best._replace(delay=(best.theta - theta0) / self.omega) if best.theta is not None else NO_EVENT
-        assert self.x_axis is not None
-        axis = self.x_axis
-        stop = slip_stop_delay(axis.w0, axis.form.b0, axis.form.b1, axis.phase, self.omega)
+        slip = self.x_axis
+        assert slip is not None
+        stop = slip_stop_delay(slip.w0, slip.b0, slip.b1, slip.phase0, self.omega)
         if best.theta is not None:
             lift = (best.theta - theta0) / self.omega
             if lift <= stop:
@@ -374,5 +355,5 @@ def impact(plant: GeneralPlant, v: float, vz: float) -> Impact:
     return Impact(v, rebound if bounces else 0.0, bounces)
 
 
-__all__ = ["FLIGHT", "NEVER_STEP", "NO_EVENT", "REBOUND_FLOOR", "STUCK", "After", "Axis", "Form", "GeneralPlant",
-           "Impact", "Motion", "Plan", "Step", "after_event", "impact", "next_step"]
+__all__ = ["FLIGHT", "NEVER_STEP", "NO_EVENT", "REBOUND_FLOOR", "STUCK", "After", "Form", "GeneralPlant",
+           "Impact", "axis", "Motion", "Plan", "Step", "after_event", "impact", "next_step"]

@@ -259,29 +259,41 @@ def _falling_root(
 _LONGEST_FLIGHT_PIECES = 2_000_000
 
 
-class _Harmonic1D:
-    """w(tau) and its integral for dw/dt = b0 + b1*sin(phase0 + omega*tau), w(0) = w0."""
+class Harmonic:
+    """The closed form of a speed under dw/dt = b0 + b1*sin(phase0 + omega*tau)
+    with w(0) = w0, and of its integral from ``start``: a slip's speed and
+    travel, a flight's tangential velocity and position, its vertical velocity
+    and height.  Written with :func:`trig_remainders`, so a short stretch keeps
+    its last bits (the same form as Kostek's slip in :mod:`friction_sim.core.kostek`)."""
 
-    __slots__ = ("w0", "b0", "b1", "phase0", "omega", "g0", "k", "cos0", "sin0", "start")
+    __slots__ = ("w0", "b0", "b1", "phase0", "omega", "g0", "k", "kk", "cos0", "sin0", "start")
 
     def __init__(self, w0: float, b0: float, b1: float, phase0: float, omega: float, start: float = 0.0) -> None:
         self.w0, self.b0, self.b1, self.phase0, self.omega, self.start = w0, b0, b1, phase0, omega, start
         self.cos0, self.sin0 = math.cos(phase0), math.sin(phase0)
         self.g0 = b0 + b1 * self.sin0
         self.k = b1 / omega
+        self.kk = self.k / omega
 
-    def rate(self, tau: float) -> float:
-        return self.b0 + self.b1 * math.sin(self.phase0 + self.omega * tau)
+    def rate(self, tau: Any, xp: ModuleType = math) -> Any:
+        """dw/dt at ``tau``."""
+        return self.b0 + self.b1 * xp.sin(self.phase0 + self.omega * tau)
+
+    def at(self, tau: Any, xp: ModuleType = math) -> tuple[Any, Any]:
+        """(w, start + integral of w) at ``tau``; floats or numpy arrays."""
+        c1, s2, c2 = trig_remainders(self.omega * tau, xp)
+        w = self.w0 + self.g0 * tau + self.k * (self.cos0 * c1 - self.sin0 * s2)
+        return w, self.start + (self.w0 * tau + 0.5 * self.g0 * tau * tau + self.kk * (self.cos0 * s2 - self.sin0 * c2))
 
     def speed(self, tau: float) -> float:
+        """w at ``tau`` (the root finders' hot path: no integral)."""
         c1, s2, _ = trig_remainders(self.omega * tau)
         speed: float = self.w0 + self.g0 * tau + self.k * (self.cos0 * c1 - self.sin0 * s2)
         return speed
 
     def travel(self, tau: float) -> float:
-        _, s2, c2 = trig_remainders(self.omega * tau)
-        height: float = self.start + (self.w0 * tau + 0.5 * self.g0 * tau * tau
-                                      + (self.k / self.omega) * (self.cos0 * s2 - self.sin0 * c2))
+        """start + the integral of w at ``tau``."""
+        height: float = self.at(tau)[1]
         return height
 
 
@@ -342,7 +354,7 @@ class _TurningPoints:
         self.i = 0
 
 
-def _safe_stretch(h: _Harmonic1D) -> tuple[float, float]:
+def _safe_stretch(h: Harmonic) -> tuple[float, float]:
     """(tau1, tau2): while tau1 < tau < tau2 the height is surely above 0, for a
     flight whose mean acceleration b0 < 0 pulls it back (empty: (inf, -inf)).
 
@@ -376,7 +388,7 @@ def landing_delay(vz0: float, b0: float, b1: float, phase0: float, omega: float,
     The stretch of a long flight where z is surely positive is skipped
     (:func:`_safe_stretch`), so the cost does not grow with the flight's length.
     """
-    h = _Harmonic1D(vz0, b0, b1, phase0, omega, z0)
+    h = Harmonic(vz0, b0, b1, phase0, omega, z0)
     if b1 <= 0.0 or abs(b0) >= b1:  # the acceleration never changes sign
         if b0 >= 0.0:
             return NEVER
@@ -410,7 +422,7 @@ def landing_delay(vz0: float, b0: float, b1: float, phase0: float, omega: float,
     return NEVER
 
 
-def _falling(h: _Harmonic1D, lo: float, hi: float) -> float | None:
+def _falling(h: Harmonic, lo: float, hi: float) -> float | None:
     """The landing on [lo, hi], where z falls, if z reaches 0 there (at lo if
     rounding already puts z at or below 0 there: a height far above its
     rounding error, such as 1e16 m under a 1e12 m/s^2 excitation)."""
@@ -421,7 +433,7 @@ def _falling(h: _Harmonic1D, lo: float, hi: float) -> float | None:
     return lo if z_lo <= 0.0 else _polish(h.travel, h.speed, lo, hi, z_lo, z_hi)
 
 
-def _apex(h: _Harmonic1D, lo: float, v_lo: float) -> float:
+def _apex(h: Harmonic, lo: float, v_lo: float) -> float:
     """Where a speed that only falls reaches zero (lo if it is not above it)."""
     if v_lo <= 0.0:
         return lo
@@ -431,7 +443,7 @@ def _apex(h: _Harmonic1D, lo: float, v_lo: float) -> float:
     return _polish(h.speed, h.rate, lo, hi, v_lo, h.speed(hi))
 
 
-def _fall_from(h: _Harmonic1D, apex: float) -> float:
+def _fall_from(h: Harmonic, apex: float) -> float:
     """The landing after ``apex`` when z only falls from there."""
     if apex == 0.0 and h.start == 0.0:
         return 0.0

@@ -79,7 +79,7 @@ def run_schedule(slider: Slider, schedule: Schedule, sample_times: np.ndarray) -
         events.extend(slider.advance_to(t))
         commands = list(group)
         params, inputs = apply_all(commands, slider.params, slider.inputs)
-        slider.set_plant(params, inputs, {name for c in commands for name in c.values})
+        slider.set_plant(params, inputs)
     if first < sample_times.size:
         pieces.append(slider.sample(sample_times[first:]))
         events.extend(pieces[-1].events)

@@ -317,12 +317,10 @@ class Slider:
         """Change the plant's parameters at the current time."""
         self.set_plant(params, self._inputs)
 
-    def set_plant(self, params: SliderParams, inputs: Inputs, changed: Any = None) -> None:
+    def set_plant(self, params: SliderParams, inputs: Inputs) -> None:
         """Change parameters and inputs together at the current time: one new
         segment from the present state (in the air, a flight goes on under
-        the new forces).  ``changed`` (the fields a command named) is accepted
-        for callers that pass it; no combination of valid values is refused."""
-        del changed
+        the new forces).  No combination of valid values is refused."""
         self._rebase(params, inputs)
 
     def checkpoint(self) -> _Checkpoint:

@@ -317,15 +317,15 @@ def _apply_batch(slider: Slider, batch: list[Command], problems: list[str]) -> N
     (each through the core's gate; one that cannot be applied is reported)."""
     slider.advance_to(max(batch[0].t, slider.t))
     params, inputs = slider.params, slider.inputs
-    changed: set[str] = set()
+    took_any = False
     for command in batch:
         try:
             params, inputs = apply(command, params, inputs)
-            changed.update(command.values)
+            took_any = True
         except ParameterError as error:
             problems.append(f"the command recorded at t = {command.t:.9f} s cannot be applied: {error}")
-    if changed:
-        slider.set_plant(params, inputs, changed)
+    if took_any:
+        slider.set_plant(params, inputs)
 
 
 def _log_rate(recording: Recording, initial: dict[str, Any]) -> float | None:

@@ -281,14 +281,14 @@ def test_a_long_flight_skips_its_safe_stretch_and_lands_where_the_full_walk_does
 def test_a_huge_throw_number_lands_without_walking_every_period() -> None:
     """Throw number 1e11 (the lightest slider, the largest amplitude): the flight
     lasts ~1e10 periods; its landing is found in milliseconds, and z is 0 there."""
-    from friction_sim.core.roots import _Harmonic1D, landing_delay
+    from friction_sim.core.roots import Harmonic, landing_delay
 
     omega, b1, b0 = TWO_PI * 50.0, 1e12, -10.0
     started = time.perf_counter()
     delay = landing_delay(0.0, b0, b1, 1e-11, omega)
     assert time.perf_counter() - started < 0.05
     assert 1e7 < delay * 50.0 < 1e12
-    h = _Harmonic1D(0.0, b0, b1, 1e-11, omega)
+    h = Harmonic(0.0, b0, b1, 1e-11, omega)
     scale = b1 / omega * delay
     assert abs(h.travel(delay)) <= 1e-12 * scale and h.speed(delay) < 0.0
 
