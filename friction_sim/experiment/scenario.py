@@ -132,16 +132,25 @@ def load_scenario(path: Path) -> Scenario:
     return parse_scenario(text, str(path), base=Path(path).parent)
 
 
-def parse_scenario(text: str, where: str = "<scenario>", base: Path = Path(".")) -> Scenario:
-    """Validate scenario text; ``base`` resolves a relative plant_params path."""
+def compose_mapping(text: str, where: str, error: type[FrictionSimError], what: str) -> yaml.MappingNode:
+    """The YAML node tree of ``text`` (nodes keep their lines for every later
+    message), refusing invalid YAML or a top level that is not a mapping with
+    ``error``; ``what`` says what the file is a mapping of."""
     try:
         root = yaml.compose(text)
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
+    except yaml.YAMLError as problem:
+        mark = getattr(problem, "problem_mark", None)
         line = f"line {mark.line + 1}: " if mark is not None else ""
-        raise ScenarioError(f"{where}: {line}not valid YAML: {getattr(error, 'problem', error)}") from error
+        raise error(f"{where}: {line}not valid YAML: {getattr(problem, 'problem', problem)}") from problem
     if not isinstance(root, yaml.MappingNode):
-        raise ScenarioError(f"{where}: a scenario is a mapping of keys (duration, plant, schedule, ...)")
+        raise error(f"{where}: {what}")
+    return root
+
+
+def parse_scenario(text: str, where: str = "<scenario>", base: Path = Path(".")) -> Scenario:
+    """Validate scenario text; ``base`` resolves a relative plant_params path."""
+    root = compose_mapping(text, where, ScenarioError,
+                           "a scenario is a mapping of keys (duration, plant, schedule, ...)")
     return YamlParser(where, base).scenario(root, text)
 
 
@@ -372,6 +381,7 @@ class _Schedule:
 
 
 __all__ = [
-    "CONTROLLER_KEYS", "PLANT_KEYS", "Expectation", "Scenario", "ScenarioError", "YamlParser", "load_scenario",
+    "CONTROLLER_KEYS", "PLANT_KEYS", "Expectation", "Scenario", "ScenarioError", "YamlParser", "compose_mapping",
+    "load_scenario",
     "parse_scenario",
 ]

@@ -58,7 +58,7 @@ import yaml
 from friction_sim.core import spec as settings
 from friction_sim.core.spec import Setting
 from friction_sim.errors import FrictionSimError, ParameterError
-from friction_sim.experiment.scenario import Entry
+from friction_sim.experiment.scenario import Entry, compose_mapping
 from friction_sim.experiment.scenario import YamlParser as ScenarioParser
 
 #: The model's fields: every one is a column of the results.
@@ -175,14 +175,7 @@ def load_sweep(path: Path, *, chunk_size: int | None = None) -> Sweep:
 
 def parse_sweep(text: str, where: str = "<sweep>", *, chunk_size: int | None = None) -> Sweep:
     """Validate sweep text completely, every point included."""
-    try:
-        root = yaml.compose(text)
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        line = f"line {mark.line + 1}: " if mark is not None else ""
-        raise SweepError(f"{where}: {line}not valid YAML: {getattr(error, 'problem', error)}") from error
-    if not isinstance(root, yaml.MappingNode):
-        raise SweepError(f"{where}: a sweep is a mapping of keys (periods, grid, random, ...)")
+    root = compose_mapping(text, where, SweepError, "a sweep is a mapping of keys (periods, grid, random, ...)")
     sweep = _SweepParser(where, Path(".")).sweep(root, text, chunk_size)
     for start in range(0, sweep.size, 1_000_000):
         check_points(sweep, materialize(sweep, start, min(start + 1_000_000, sweep.size)))
