@@ -26,11 +26,9 @@ The worst agreement reached per regime is printed by the last test
 
 from __future__ import annotations
 
-import contextlib
 import itertools
 import math
-import signal
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -42,6 +40,7 @@ from friction_sim.core.slider import Slider
 
 import reference
 import reference_general as rg
+from helpers import time_limit
 
 TOL = 1e-9
 SAMPLES = 400
@@ -65,23 +64,6 @@ class Case:
     inputs: Inputs
     periods: int
     phase0: float
-
-
-@contextlib.contextmanager
-def time_limit(seconds: float, what: str) -> Iterator[None]:
-    """Fail (instead of filling the memory) if the block runs longer than ``seconds``:
-    a core caught in an endless loop of events at one instant appends events forever."""
-
-    def expired(signum: int, frame: Any) -> None:
-        raise AssertionError(f"{what} did not finish in {seconds:g} s (an endless loop of events?)")
-
-    previous = signal.signal(signal.SIGALRM, expired)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0.0)
-        signal.signal(signal.SIGALRM, previous)
 
 
 def kind_name(kind: Any) -> str:
