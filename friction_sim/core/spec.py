@@ -186,6 +186,17 @@ FRAME_ID = Setting("frame_id", "slideway", "-", "header.frame_id of published me
 LOG_PATH = Setting("log_path", "", "-", "record the run to this MCAP file ('' = no recording)", start_only=True)
 LOG_RATE = Setting("log_rate", 1000.0, "Hz", "recorded state samples per simulated second", 1.0, 100_000.0,
                    start_only=True)
+FOXGLOVE_PORT = Setting("foxglove_port", 0, "-", "serve a Foxglove live view (WebSocket) on this TCP port "
+                        "(0 = off; Foxglove's usual port is 8765)", 0, 65535, start_only=True)
+FOXGLOVE_ADDRESS = Setting("foxglove_address", "127.0.0.1", "-", "address the live view listens on "
+                           "(0.0.0.0: every interface)", start_only=True)
+
+# -- simulation control (the ~/step service) -------------------------------------------
+
+STEP_PERIODS = Setting("step_periods", 1, "periods", "excitation periods one ~/step call advances "
+                       "(when step_time is 0)", 1, 10_000)
+STEP_TIME = Setting("step_time", 0.0, "s", "simulated seconds one ~/step call advances (0: step_periods "
+                    "periods instead)", 0.0, 100.0)
 
 # -- the controller ------------------------------------------------------------------
 
@@ -208,6 +219,7 @@ SLIDER_NODE = table(
     DRIVE_FORCE.described("drive force Fd along +x; setting it acts like the topic"),
     EXCITATION_AMPLITUDE, EXCITATION_FREQUENCY,
     PUBLISH_RATE, REAL_TIME_FACTOR, PUBLISH_CLOCK, MEAN_WINDOW_PERIODS, FRAME_ID, LOG_PATH, LOG_RATE,
+    FOXGLOVE_PORT, FOXGLOVE_ADDRESS, STEP_PERIODS, STEP_TIME,
 )
 CONTROLLER_NODE = table(
     MASS.described("model: slider mass m (the plant's parameters are replaced at start-up by plant_node's, if it "
