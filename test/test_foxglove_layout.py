@@ -1,0 +1,208 @@
+"""The shipped Foxglove layout (config/friction_sim.foxglove_layout.json) opens and shows real data.
+
+Foxglove cannot run here, so this checks what would make the layout break or
+show empty panels: the file is a layout as Foxglove exports it (configById,
+a react-mosaic layout tree, globalVariables, userNodes, playbackConfig), the
+tree and configById name the same panels, and every message path names a
+topic the slider, the controller or a recording has and fields that exist in
+that topic's ROS 2 message type (walked through the generated message
+classes, with Foxglove's message-path syntax: ``/topic.field.field``,
+``[:]`` slices and ``{field=="value"}`` filters).
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from friction_sim.core.events import EventKind
+from friction_sim.io.messages import TOPIC_TYPES
+
+ROOT = Path(__file__).resolve().parents[1]
+LAYOUT_FILE = ROOT / "config" / "friction_sim.foxglove_layout.json"
+
+#: Topics outside a recording's table that the nodes publish: the 1 Hz status of
+#: both nodes, and the simulation control calls (~/pause, ~/resume, ~/step,
+#: ~/reset) as the slider records them.  io.messages.TOPIC_TYPES wins where it
+#: names them too.
+TOPICS: dict[str, str] = {
+    "diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
+    "sim_control": "diagnostic_msgs/msg/DiagnosticStatus",
+    **TOPIC_TYPES,
+}
+SIM_CONTROL_CALLS = {"pause", "resume", "step", "reset"}
+#: The panel types the layout uses, and the config key holding their message paths.
+PANEL_TYPES = {"Plot", "StateTransitions", "RawMessages"}
+NUMERIC = {"double", "float", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64", "octet"}
+
+
+def load_layout() -> dict[str, Any]:
+    return json.loads(LAYOUT_FILE.read_text())  # type: ignore[no-any-return]
+
+
+def tree_panels(node: Any) -> list[str]:
+    """The panel ids at the leaves of a react-mosaic layout tree (checking each split)."""
+    if isinstance(node, str):
+        return [node]
+    assert isinstance(node, dict) and set(node) <= {"first", "second", "direction", "splitPercentage"}, node
+    assert {"first", "second", "direction"} <= set(node), f"a split needs first, second and direction: {node}"
+    assert node["direction"] in ("row", "column"), node["direction"]
+    assert 0 < node.get("splitPercentage", 50) < 100, node
+    return tree_panels(node["first"]) + tree_panels(node["second"])
+
+
+def panel_paths(panel_id: str, config: dict[str, Any]) -> list[str]:
+    """The message paths a panel reads."""
+    kind = panel_id.split("!", 1)[0]
+    if kind in ("Plot", "StateTransitions"):
+        return [series["value"] for series in config["paths"]]
+    assert kind == "RawMessages", panel_id
+    return [config["topicPath"]]
+
+
+# -- Foxglove message paths over ROS 2 message types ------------------------------
+
+_TOPIC = re.compile(r'/[A-Za-z0-9_/]*[A-Za-z0-9_]')
+_FIELD = re.compile(r'\.([A-Za-z_][A-Za-z0-9_]*)')
+_SLICE = re.compile(r'\[(?:-?\d+|-?\d*:-?\d*)\]')
+_FILTER = re.compile(r'\{([A-Za-z_][A-Za-z0-9_]*)==("(?:[^"\\]|\\.)*"|\'[^\']*\'|-?\d+(?:\.\d+)?|true|false)\}')
+_SEQUENCE = re.compile(r'^sequence<([^,>]+)(?:,\s*\d+)?>$|^(.+)\[\d+\]$')
+
+
+def message_fields(type_name: str) -> dict[str, str]:
+    """field -> type of a ROS 2 message type ``pkg/Name`` or ``pkg/msg/Name``."""
+    package, name = type_name.split("/")[0], type_name.split("/")[-1]
+    cls = getattr(importlib.import_module(f"{package}.msg"), name)
+    return cls.get_fields_and_field_types()  # type: ignore[no-any-return]
+
+
+def element_type(type_name: str) -> str | None:
+    """The element type of a sequence or array type, None for anything else."""
+    match = _SEQUENCE.match(type_name)
+    return None if match is None else (match.group(1) or match.group(2)).strip()
+
+
+def resolve(path: str) -> tuple[str, str, list[tuple[str, str]]]:
+    """(topic, type of the value the path reaches, [(filter field, literal)])
+    for a Foxglove message path; an AssertionError names the first part that
+    does not exist."""
+    topic_match = _TOPIC.match(path)
+    assert topic_match, f"{path}: no topic name"
+    topic = topic_match.group(0)
+    assert topic.lstrip("/") in TOPICS, f"{path}: {topic} is no topic of the slider, controller or a recording"
+    current, rest, filters = TOPICS[topic.lstrip("/")], path[topic_match.end():], []
+    while rest:
+        if (match := _FIELD.match(rest)) is not None:
+            assert element_type(current) is None and "/" in current, f"{path}: {current} has no fields"
+            fields = message_fields(current)
+            assert match.group(1) in fields, f"{path}: {current} has no field {match.group(1)!r} ({sorted(fields)})"
+            current = fields[match.group(1)]
+        elif (match := _SLICE.match(rest)) is not None:
+            element = element_type(current)
+            assert element is not None, f"{path}: {current} is not an array, cannot slice it"
+            current = element
+        elif (match := _FILTER.match(rest)) is not None:
+            assert element_type(current) is None and "/" in current, f"{path}: {current} is no message to filter"
+            fields = message_fields(current)
+            field, literal = match.groups()
+            assert field in fields, f"{path}: filter on {field!r}, which {current} lacks"
+            quoted = literal[0] in "\"'"
+            assert quoted == (fields[field] == "string"), f"{path}: {field} is {fields[field]}, compared with {literal}"
+            filters.append((field, literal.strip("\"'")))
+        else:
+            raise AssertionError(f"{path}: cannot read {rest!r} as a Foxglove message path")
+        rest = rest[match.end():]
+    return topic, current, filters
+
+
+# -- the file ------------------------------------------------------------------
+
+
+def test_the_layout_is_foxglove_export_json() -> None:
+    layout = load_layout()
+    assert set(layout) == {"configById", "globalVariables", "userNodes", "playbackConfig", "layout"}
+    assert layout["globalVariables"] == {} and layout["userNodes"] == {}
+    assert layout["playbackConfig"]["speed"] == 1
+    for panel_id, config in layout["configById"].items():
+        kind, _, suffix = panel_id.partition("!")
+        assert kind in PANEL_TYPES and re.fullmatch(r"[a-z0-9]+", suffix), f"panel id {panel_id!r}"
+        assert isinstance(config, dict) and config.get("foxglovePanelTitle"), f"{panel_id} has no title"
+
+
+def test_the_tree_and_configs_name_the_same_panels() -> None:
+    layout = load_layout()
+    leaves = tree_panels(layout["layout"])
+    assert len(leaves) == len(set(leaves)), f"a panel appears twice in the tree: {leaves}"
+    assert set(leaves) == set(layout["configById"]), (
+        f"in the tree only: {set(leaves) - set(layout['configById'])}; "
+        f"configured only: {set(layout['configById']) - set(leaves)}")
+
+
+def test_time_series_share_one_time_axis() -> None:
+    """Plots and state transitions sync their time axes and all read the
+    receive (log) time: the Float64 command topics have no header, and in a
+    recording the log time is simulation time, as the header stamps are."""
+    for panel_id, config in load_layout()["configById"].items():
+        if panel_id.startswith(("Plot!", "StateTransitions!")):
+            assert config["isSynced"] is True, panel_id
+            for series in config["paths"]:
+                assert series["timestampMethod"] == "receiveTime" and series["enabled"] is True, series
+
+
+def _all_paths() -> list[tuple[str, str]]:
+    return [(panel_id, path) for panel_id, config in load_layout()["configById"].items()
+            for path in panel_paths(panel_id, config)]
+
+
+@pytest.mark.parametrize(("panel_id", "path"), _all_paths())
+def test_every_message_path_exists_in_its_ros_type(panel_id: str, path: str) -> None:
+    _, value_type, filters = resolve(path)
+    if panel_id.startswith("Plot!"):
+        assert value_type in NUMERIC, f"{panel_id}: {path} is {value_type}, not a number to plot"
+    elif panel_id.startswith("StateTransitions!"):
+        assert value_type == "string" or value_type in NUMERIC, f"{panel_id}: {path} is {value_type}"
+    for field, literal in filters:  # the diagnostics panels pick a node's status by the name it publishes
+        assert field == "name" and literal in ("slider", "controller"), (panel_id, path)
+        source = (ROOT / "friction_sim" / "ros" / f"{literal}.py").read_text()
+        assert f'DiagnosticStatus(name="{literal}"' in source, f"{literal} publishes no status named {literal!r}"
+
+
+def test_the_panels_show_what_the_issue_asks_for() -> None:
+    """Position and height, velocity, friction force and R, mean speed against
+    target, Pa, the event timeline, simulation control, diagnostics and
+    refused commands."""
+    paths = {path for _, path in _all_paths()}
+    for wanted in ("/pose.pose.position.x", "/pose.pose.position.z", "/velocity.twist.linear.x",
+                   "/friction_force.wrench.force.x", "/friction_force.wrench.force.z",
+                   "/mean_velocity.twist.linear.x", "/target_speed.data", "/excitation_amplitude.data",
+                   "/events.name", "/sim_control.name", "/rejected_commands"):
+        assert wanted in paths, f"the layout does not show {wanted}"
+    assert {resolve(path)[0] for path in paths} >= {"/diagnostics"}
+    config = load_layout()["configById"]
+    mean_speed = next(c for c in config.values() if "/mean_velocity.twist.linear.x" in str(c.get("paths")))
+    assert "/target_speed.data" in {series["value"] for series in mean_speed["paths"]}, "target beside mean speed"
+
+
+def test_state_colours_cover_every_event_kind_and_control_call() -> None:
+    """The timeline's named states are exactly the event kinds the core emits
+    and the calls ~/pause, ~/resume, ~/step and ~/reset record."""
+    series = {s["value"]: s for c in load_layout()["configById"].values()
+              if "customStates" in str(c) for s in c["paths"]}
+    events = {state["value"] for state in series["/events.name"]["customStates"]["states"]}
+    assert events == {kind.value for kind in EventKind}
+    calls = {state["value"] for state in series["/sim_control.name"]["customStates"]["states"]}
+    assert calls == SIM_CONTROL_CALLS
+
+
+@pytest.mark.parametrize("path", [
+    "/pose.pose.position.w", "/nowhere.data", "/velocity.twist.linear[:]", "/diagnostics.status{name==\"slider\"}",
+    "/diagnostics.status[:]{level==\"slider\"}", "/events.name.@upper",
+])
+def test_the_path_checker_refuses_what_foxglove_would_show_empty(path: str) -> None:
+    with pytest.raises(AssertionError):
+        resolve(path)
