@@ -12,7 +12,10 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
-        ('share/' + package_name + '/config', glob('config/*.yaml')),
+        # Parameter files, scenarios and the Foxglove layout (config/*.foxglove_layout.json).
+        ('share/' + package_name + '/config', glob('config/*.yaml') + glob('config/*.json')),
+        # `ros2 launch friction_sim feeder.launch.py` looks in share/<package>/launch.
+        ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
     ],
     # ROS dependencies (rclpy, message packages) are declared in package.xml
     # and, outside a ROS installation, come from the PyPI wheels listed in
