@@ -107,6 +107,11 @@ def test_colcon_build_install_layout(tmp_path):
     assert (prefix / 'share' / 'ament_index' / 'resource_index' / 'packages' / PKG).is_file()
     assert (prefix / 'share' / PKG / 'package.xml').is_file()
     assert (prefix / 'share' / PKG / 'config' / 'slider.yaml').is_file()
+    # Where `ros2 launch friction_sim feeder.launch.py` and its default parameter files look,
+    # and the Foxglove layout the README points to.
+    assert (prefix / 'share' / PKG / 'launch' / 'feeder.launch.py').is_file()
+    assert (prefix / 'share' / PKG / 'config' / 'controller.yaml').is_file()
+    assert (prefix / 'share' / PKG / 'config' / 'friction_sim.foxglove_layout.json').is_file()
 
     # The build must not leave anything behind in the source tree.  (Only
     # colcon/setuptools artefacts are checked: other files may legitimately
@@ -126,7 +131,7 @@ def test_colcon_build_install_layout(tmp_path):
 ROSDEP_KEYS = {
     'ros-jazzy-rclpy': {'rclpy', 'rcl_interfaces', 'builtin_interfaces', 'rosgraph_msgs',
                         'ament_index_python'},
-    'ros-jazzy-common-interfaces': {'std_msgs', 'geometry_msgs', 'diagnostic_msgs'},
+    'ros-jazzy-common-interfaces': {'std_msgs', 'geometry_msgs', 'diagnostic_msgs', 'std_srvs'},
     'numpy': {'python3-numpy'},
     'pyyaml': {'python3-yaml'},
     'mcap': {'mcap-ros2-support'},
@@ -137,6 +142,8 @@ ROSDEP_KEYS = {
     'dask': set(),
     'distributed': set(),
     'pyarrow': set(),
+    # Live view only: rosdep has no key for the PyPI foxglove-sdk (requirements.txt says to pip-install it).
+    'foxglove-sdk': set(),
 }
 
 
