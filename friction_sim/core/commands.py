@@ -64,6 +64,15 @@ COMMANDS: dict[str, CommandSpec] = {
     )
 }
 
+#: Simulation control: the slider's ``~/pause``, ``~/resume``, ``~/step`` and
+#: ``~/reset`` services, recorded as commands (on ``sim_control``) so that a
+#: replay knows where the run was reset.  They carry no physics: pause, resume
+#: and step change only how simulation time follows the wall clock; reset
+#: starts the slider again from rest (see :meth:`friction_sim.core.slider.Slider.restart`).
+PAUSE, RESUME, STEP, RESET = "pause", "resume", "step", "reset"
+#: control command -> the fields it carries (a step: how far it advanced [s]).
+CONTROLS: dict[str, tuple[str, ...]] = {PAUSE: (), RESUME: (), STEP: ("duration",), RESET: ()}
+
 #: Fields a ``parameters`` command may carry: the plant's and the inputs'.
 PHYSICS_FIELDS = (*spec.PLANT, *spec.INPUTS)
 #: A command's value: a number, or the text of a string setting (``landing_friction``).
@@ -90,9 +99,10 @@ class Command:
     values: Mapping[str, Value] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        allowed = COMMANDS[self.name].fields if self.name in COMMANDS else None
+        allowed = COMMANDS[self.name].fields if self.name in COMMANDS else CONTROLS.get(self.name)
         if allowed is None and self.name != PARAMETERS:
-            raise ParameterError("command", self.name, f"must be one of {', '.join([*COMMANDS, PARAMETERS])}")
+            raise ParameterError("command", self.name,
+                                 f"must be one of {', '.join([*COMMANDS, PARAMETERS, *CONTROLS])}")
         unknown = [key for key in self.values if key not in (allowed or PHYSICS_FIELDS)]
         if unknown:
             raise ParameterError(f"{self.name}.{unknown[0]}", self.values[unknown[0]],
@@ -114,7 +124,12 @@ class Command:
         """Whether the slider takes this command: a parameter change of the
         physics, or a topic the slider subscribes to (a target speed is the
         controller's alone)."""
-        return self.name == PARAMETERS or SLIDER in COMMANDS[self.name].consumers
+        return self.name in (PARAMETERS, *CONTROLS) or SLIDER in COMMANDS[self.name].consumers
+
+    @property
+    def is_control(self) -> bool:
+        """Whether this is a simulation control (pause, resume, step, reset)."""
+        return self.name in CONTROLS
 
     def at(self, t: float) -> Command:
         """The same command at another time."""
@@ -193,6 +208,7 @@ def float_values(values: Mapping[str, Any]) -> dict[str, Value]:
 
 
 __all__ = [
-    "COMMANDS", "CONTROLLER", "PARAMETERS", "PHYSICS_FIELDS", "SLIDER", "Command", "CommandSpec", "Outcome", "Value",
-    "apply", "apply_all", "consumed_by", "float_values", "in_force", "reason",
+    "COMMANDS", "CONTROLLER", "CONTROLS", "PARAMETERS", "PAUSE", "PHYSICS_FIELDS", "RESET", "RESUME", "SLIDER",
+    "STEP", "Command", "CommandSpec", "Outcome", "Value", "apply", "apply_all", "consumed_by", "float_values",
+    "in_force", "reason",
 ]

@@ -39,7 +39,7 @@ phase, so the plant reaches its new periodic motion in the first whole period
 after Pa changes.  A mean-velocity sample whose window began before the last
 change mixes old and new motion; integrating it would only add a transient
 error.  :class:`SampleClock` decides from the sample's stamp (simulation time)
-and arrival time (wall clock) whether its window lies wholly after the change;
+whether its window lies wholly after the change, timed in simulation time too;
 on a loaded machine the margin grows by the delivery jitter it observes, since
 the Pa on its way to the plant is delayed as much as the samples coming back.
 
@@ -86,7 +86,7 @@ import numpy as np
 
 from friction_sim.core import spec
 from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.realtime import NS_PER_S
+from friction_sim.core.simclock import NS_PER_S
 from friction_sim.core.ubranch import Branch, rising_branch
 from friction_sim.core.urelation import amplitude_ratio_for, u_map
 from friction_sim.errors import ParameterError
@@ -191,16 +191,36 @@ class ControlOutput:
 
 
 class SampleClock:
-    """Relates mean-velocity stamps (simulation time) to arrival (wall time),
-    to tell whether a sample's window lies wholly after the last change of Pa."""
+    """Tells whether a mean-velocity sample's window lies wholly after the last
+    change of Pa, comparing simulation times.
+
+    A sample's stamp is the simulation time its window ends.  The time the
+    change took effect is the node's simulation clock when it has one
+    (``use_sim_time`` with the slider's ``/clock``: exact, paused or not);
+    otherwise it is estimated from the last sample: its stamp plus the wall
+    time since it arrived times the plant's pace, but never more than one
+    period plus the delivery jitter past it, since a running plant would have
+    sent the next sample by then (a plant that paused or stalled meanwhile has
+    not moved on).  So a pause, a run of ``~/step`` calls or a reset on the
+    slider never makes a window that mixes old and new motion look clean.
+    """
 
     def __init__(self) -> None:
         self._samples: deque[tuple[float, int]] = deque(maxlen=64)  # ~1 s at 50 Hz: a steady rate
-        self._change_wall_ns: int | None = None
+        self._change: float | None = None  # simulation time [s] the last change took effect
+        self._change_pending = False  # a change before any sample: timed by the first one
 
-    def note_change(self, wall_ns: int) -> None:
-        """Pa was changed (published) at ``wall_ns``."""
-        self._change_wall_ns = wall_ns
+    def note_change(self, wall_ns: int, period: float = 0.0, sim_time: float | None = None) -> None:
+        """Pa was changed (published) at ``wall_ns``; ``sim_time`` is the node's
+        simulation clock then, if it has one; ``period`` the excitation period [s]."""
+        if sim_time is not None:
+            self._change, self._change_pending = sim_time, False
+        elif self._samples:
+            stamp, arrived = self._samples[-1]
+            since = max(0, wall_ns - arrived) / NS_PER_S * self.rate()
+            self._change, self._change_pending = stamp + min(since, period + self.jitter()), False
+        else:
+            self._change, self._change_pending = None, True
 
     def rate(self) -> float:
         """Simulated seconds per wall second, from the recent samples (1 until known)."""
@@ -231,14 +251,16 @@ class SampleClock:
         """Record a sample; True when its window began after the last change,
         with ``margin`` periods plus the current delivery jitter to spare."""
         self.observe(stamp, wall_ns)
-        if self._change_wall_ns is None:  # nothing of ours applied yet: not our plant's answer
+        if self._change_pending:  # changed before any sample: the first one may predate it
+            self._change, self._change_pending = stamp, False
+            return False
+        if self._change is None:  # nothing of ours applied yet: not our plant's answer
             return False
         if len(self._samples) < 3:
             # The real-time factor is not known yet (it needs two intervals): a
             # plant at half speed would have its mixed windows judged clean.
             return False
-        since_change = (wall_ns - self._change_wall_ns) / NS_PER_S * self.rate()
-        return since_change >= (window_periods + margin) * period + self.jitter()
+        return stamp - window_periods * period >= self._change + margin * period + self.jitter()
 
 
 class MeanSpeedController:

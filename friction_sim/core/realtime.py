@@ -34,14 +34,14 @@ from dataclasses import dataclass
 from typing import Any
 
 from friction_sim.core import spec
-from friction_sim.core.commands import PARAMETERS, Command, Outcome, apply, reason
+from friction_sim.core.commands import PARAMETERS, PAUSE, RESET, RESUME, STEP, Command, Outcome, apply, reason
 from friction_sim.core.events import CycleMark, Event, EventKind, SliderState
-from friction_sim.core.params import Inputs, SliderParams, check_load, require_positive, throw_number
+from friction_sim.core.params import Inputs, SliderParams, check_load, throw_number
+from friction_sim.core.simclock import NS_PER_S, SimClock
 from friction_sim.core.slider import Slider
 from friction_sim.core.urelation import Prediction, predict
 from friction_sim.errors import ParameterError, SimulationFault, one_line
 
-NS_PER_S = 1_000_000_000
 _PHYSICS = {**spec.PLANT, **spec.INPUTS}
 #: Period marks the core keeps; more than this many periods in one tick are
 #: summarised only from the last ones (only at absurd real-time factors).
@@ -52,6 +52,9 @@ _MARK_BACKLOG = 4096
 #: recorder: one tick never holds the node for seconds, parameter sets stay
 #: answered, and diagnostics report the achieved real-time factor.
 MAX_SAMPLES_PER_ADVANCE = 1000
+#: Log samples one ``~/step`` may make at most (they are kept in memory until
+#: the next tick hands them to the recorder): 100 s at the default log rate.
+MAX_STEP_SAMPLES = 100_000
 
 
 def _non_finite(state: SliderState) -> str:
@@ -61,49 +64,6 @@ def _non_finite(state: SliderState) -> str:
         if not math.isfinite(value):
             return f"{name} = {value!r}"
     return ""
-
-
-class SimClock:
-    """Simulation time from a monotonic wall clock, both in integer nanoseconds.
-
-    t_sim = sim_start + rate * (wall - wall_start); changing the rate rebases,
-    so simulation time stays continuous.  Simulation time is kept in whole
-    nanoseconds, the resolution of a ROS header stamp, so the time a state or a
-    command is stamped with is exactly the time the core computed it for.
-    """
-
-    def __init__(self, rate: float, wall_ns: int, sim_start_ns: int = 0) -> None:
-        self._rate = require_positive("real_time_factor", rate)
-        self._wall0 = wall_ns
-        self._sim0 = sim_start_ns
-
-    @property
-    def rate(self) -> float:
-        return self._rate
-
-    def now_ns(self, wall_ns: int) -> int:
-        """Simulation time [ns] at wall time ``wall_ns``."""
-        elapsed = wall_ns - self._wall0
-        return self._sim0 + (elapsed if self._rate == 1.0 else round(self._rate * elapsed))
-
-    def now(self, wall_ns: int) -> float:
-        """Simulation time [s] at wall time ``wall_ns`` (a whole number of ns)."""
-        return self.now_ns(wall_ns) / NS_PER_S
-
-    def hold(self, wall_ns: int) -> None:
-        """Let ``wall_ns`` of wall time pass without simulation time (the caller
-        waited for something, a recorder say): simulation time does not jump."""
-        self._wall0 += max(0, int(wall_ns))
-
-    def fall_behind(self, sim_ns: int, wall_ns: int) -> None:
-        """Make it ``sim_ns`` at ``wall_ns`` (not later than it was): the
-        simulation could not keep up and goes on from there, at the same rate."""
-        self._sim0, self._wall0 = min(sim_ns, self.now_ns(wall_ns)), wall_ns
-
-    def set_rate(self, rate: float, wall_ns: int) -> None:
-        """Change the real-time factor from ``wall_ns`` on."""
-        rate = require_positive("real_time_factor", rate)
-        self._sim0, self._wall0, self._rate = self.now_ns(wall_ns), wall_ns, rate
 
 
 @dataclass(frozen=True)
@@ -130,6 +90,8 @@ class Tick:
     events: list[Event]
     periods: list[PeriodSummary]
     samples: tuple[SliderState, ...] = ()
+    #: Whether simulation time stands still (a paused tick passes no time).
+    paused: bool = False
 
 
 @dataclass
@@ -181,6 +143,7 @@ class RealtimeSlider:
         # What advancing produced since the last tick (commands advance too).
         self._events: list[Event] = []
         self._samples: list[SliderState] = []
+        self._periods: list[PeriodSummary] = []  # summaries made before a reset, for the next tick
         #: Why the run cannot go on ('' while it can): see :class:`SimulationFault`.
         self.fault = ""
 
@@ -322,6 +285,74 @@ class RealtimeSlider:
             return f"the simulation cannot take this state ({problem}); last valid state kept"
         return ""
 
+    # -- simulation control (the node's ~/pause, ~/resume, ~/step, ~/reset) ----------
+
+    @property
+    def paused(self) -> bool:
+        """Whether simulation time stands still (:meth:`pause`)."""
+        return self.clock.paused
+
+    def pause(self, wall_ns: int) -> Outcome:
+        """Stop simulation time now, exactly: nothing moves until :meth:`resume`
+        or :meth:`step` (commands are still taken, at the time it stopped)."""
+        t = self._advance(wall_ns)
+        if self.clock.paused:
+            return self._refuse(Command(t, PAUSE), f"pause: already paused at t = {t:.9f} s")
+        self.clock.pause(wall_ns)
+        return Outcome(Command(t, PAUSE))
+
+    def resume(self, wall_ns: int) -> Outcome:
+        """Let simulation time run again from where it stood (no jump)."""
+        t = self._advance(wall_ns)
+        if not self.clock.paused:
+            return self._refuse(Command(t, RESUME), "resume: not paused")
+        self.clock.resume(wall_ns)
+        return Outcome(Command(t, RESUME))
+
+    def step_length(self, step_periods: int, step_time: float) -> float:
+        """How far one step goes [s]: ``step_time``, or ``step_periods`` periods
+        of the excitation frequency in force when ``step_time`` is 0."""
+        if step_time > 0.0:
+            return float(spec.STEP_TIME.check(step_time))
+        return int(spec.STEP_PERIODS.check(step_periods)) / self.slider.inputs.excitation_frequency
+
+    def step(self, duration: float, wall_ns: int) -> Outcome:
+        """While paused: advance simulation time by ``duration`` [s] (to the
+        nanosecond of the stamps) at once, exactly as running would, keeping the
+        events, log samples and period means for the next tick; stay paused."""
+        t = self._advance(wall_ns)
+        command = Command(t, STEP, {"duration": duration})
+        step_ns = round(duration * NS_PER_S) if math.isfinite(duration) else 0
+        if not self.clock.paused:
+            return self._refuse(command, "step: the simulation is running; call pause first")
+        if step_ns < 1:
+            return self._refuse(command, f"step: duration = {duration!r} s rejected: must be >= 1 ns")
+        samples = step_ns / NS_PER_S * (self.log_rate or 0.0)
+        if samples > MAX_STEP_SAMPLES:
+            return self._refuse(command, f"step: duration = {duration!r} s rejected: at log_rate {self.log_rate:g} Hz "
+                                         f"that is {samples:.3g} recorded states, at most {MAX_STEP_SAMPLES} per step")
+        self.clock.step(step_ns)
+        self._advance_sim(self.clock.now_ns(wall_ns) / NS_PER_S, chunked=True)
+        return Outcome(Command(t, STEP, {"duration": step_ns / NS_PER_S}))
+
+    def reset(self, wall_ns: int) -> Outcome:
+        """Back to the initial state now (at rest at x = 0, excitation phase 0),
+        under the plant and inputs in force; time goes on, paused or not.  The
+        mean-velocity window starts afresh: no mean spans the reset."""
+        t = self._advance(wall_ns)
+        self._periods.extend(self._new_periods())
+        checkpoint = self.slider.checkpoint()
+        try:
+            self.slider.restart()
+            problem = _non_finite(self.slider.state())
+        except Exception as error:  # noqa: BLE001 - any failure of the core refuses the reset
+            problem = one_line(error, with_type=True)
+        if problem:
+            self.slider.restore(checkpoint)
+            return self._refuse(Command(t, RESET), f"reset: the simulation cannot restart ({problem})")
+        self._window.clear()
+        return Outcome(Command(t, RESET))
+
     # -- settings -----------------------------------------------------------
 
     def set_mean_window(self, periods: int) -> None:
@@ -352,9 +383,9 @@ class RealtimeSlider:
             problem = _non_finite(sample)
         if problem:
             self._fail(f"the state became non-finite ({problem})")
-        events, samples = self._events, tuple(self._samples)
-        self._events, self._samples = [], []
-        return Tick(state, events, self._new_periods(), samples)
+        events, samples, periods = self._events, tuple(self._samples), self._periods + self._new_periods()
+        self._events, self._samples, self._periods = [], [], []
+        return Tick(state, events, periods, samples, paused=self.clock.paused)
 
     def _log_samples(self, t: float) -> None:
         """Advance through the log grid points up to ``t`` not logged yet,
@@ -393,11 +424,26 @@ class RealtimeSlider:
             raise SimulationFault(self.fault)
         try:
             t = self._reachable(self.now(wall_ns), wall_ns)
-            self._log_samples(t)
-            self._events.extend(self.slider.advance_to(t))
         except Exception as error:  # noqa: BLE001 - whatever the core raised, the run cannot go on
             self._fail(f"advancing failed ({one_line(error, with_type=True)})")
+        self._advance_sim(t)
         return t
+
+    def _advance_sim(self, t: float, *, chunked: bool = False) -> None:
+        """Advance the core to ``t``, keeping the events and log samples on the
+        way; ``chunked``: in pieces of :data:`MAX_SAMPLES_PER_ADVANCE` samples
+        (a step).  A failure of the core is a :class:`SimulationFault`."""
+        try:
+            while True:
+                end = t
+                if chunked and self.log_rate is not None:
+                    end = min(t, self.slider.t + MAX_SAMPLES_PER_ADVANCE / self.log_rate)
+                self._log_samples(end)
+                self._events.extend(self.slider.advance_to(end))
+                if end >= t:
+                    return
+        except Exception as error:  # noqa: BLE001 - whatever the core raised, the run cannot go on
+            self._fail(f"advancing failed ({one_line(error, with_type=True)})")
 
     def _fail(self, why: str) -> None:
         """Stop for good: every later call raises the same fault."""
@@ -473,6 +519,7 @@ class RealtimeSlider:
             prediction = self.prediction()
         report = {
             "sim_time": sim_now,
+            "paused": self.clock.paused,
             "real_time_factor": self.clock.rate,
             "achieved_real_time_factor": achieved_rtf,
             "tick_rate": tick_rate,

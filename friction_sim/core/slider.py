@@ -323,6 +323,34 @@ class Slider:
         the new forces).  No combination of valid values is refused."""
         self._rebase(params, inputs)
 
+    def restart(self) -> None:
+        """Start again from the initial state at the current time: at rest on
+        the track at x = 0, the excitation at phase 0, under the plant and
+        inputs in force (what a simulator's reset does; the ``~/reset``
+        service).  Time goes on (it never runs backwards), so the motion from
+        here is the motion from the start shifted by the current time.  The
+        period count goes on too: the period in progress ends here, a new one
+        starts (a :class:`CycleMark` at x = 0 when marks are kept), and the
+        event counts and logs keep what happened before."""
+        seg = self._seg
+        tau = self._t - seg.t0
+        if seg.direction == 0:
+            self._stuck_time += tau
+        elif seg.direction == FLIGHT:
+            self._flight_time += tau
+        cycles = reduce_phase(seg.phase0 + seg.omega * tau, seg.cycles)[1] + 1
+        self._at_instant = 0
+        self._set_plant(self._params, self._inputs, in_flight=False)
+        self._next_mark_n = cycles
+        if self._marks is not None:
+            self._marks.append(CycleMark(cycles, self._t, 0.0, self._stuck_time, self._flight_time))
+            self._next_mark_n = cycles + 1
+        self._set_anchor(self._t, cycles, 0.0)
+        if self._general:
+            self._start_motion(self._t, 0.0, 0.0, 0.0, 0.0, 0.0, cycles, STUCK)
+        else:
+            self._start_stuck(self._t, 0.0, 0.0, 0.0, 0.0, cycles)
+
     def checkpoint(self) -> _Checkpoint:
         """The state as it is now, for :meth:`restore` (about a microsecond)."""
         return _Checkpoint(self)

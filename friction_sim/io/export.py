@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from friction_sim.core.events import Event, Trajectory
-from friction_sim.core.realtime import NS_PER_S
+from friction_sim.core.simclock import NS_PER_S
 from friction_sim.core.urelation import UMap
 from friction_sim.errors import RecordingError
 

@@ -25,6 +25,8 @@ topic                       type                             content
 ``rejected_commands``       diagnostic_msgs/msg/DiagnosticStatus  refused commands, level WARN
 ``parameters``              rcl_interfaces/msg/ParameterEvent     parameters at start (new_parameters)
                                                              and every change (changed_parameters)
+``sim_control``             diagnostic_msgs/msg/DiagnosticStatus  ~/pause, ~/resume, ~/step, ~/reset calls
+                                                             (name; a step's duration [s] in values)
 ==========================  ===============================  ==========================================
 
 Header stamps and the recording's log times are simulation time, in whole
@@ -49,9 +51,21 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rcl_interfaces.msg import Parameter, ParameterEvent, ParameterType, ParameterValue
 
-from friction_sim.core.commands import COMMANDS, PARAMETERS, Command, Outcome, float_values
+from friction_sim.core.commands import (
+    COMMANDS,
+    CONTROLS,
+    PARAMETERS,
+    PAUSE,
+    RESET,
+    RESUME,
+    STEP,
+    Command,
+    Outcome,
+    float_values,
+)
 from friction_sim.core.events import Event, EventKind, Mode, SliderState
-from friction_sim.core.realtime import NS_PER_S, PeriodSummary
+from friction_sim.core.realtime import PeriodSummary
+from friction_sim.core.simclock import NS_PER_S
 from friction_sim.errors import RecordingError
 
 #: The state topics, sampled on the recording's uniform grid.
@@ -67,9 +81,12 @@ TOPIC_TYPES: dict[str, str] = {
     "events": "diagnostic_msgs/msg/DiagnosticStatus",
     "rejected_commands": "diagnostic_msgs/msg/DiagnosticStatus",
     PARAMETERS: "rcl_interfaces/msg/ParameterEvent",
+    "sim_control": "diagnostic_msgs/msg/DiagnosticStatus",
 }
+#: The topic of the simulation controls (pause, resume, step, reset) in a recording.
+SIM_CONTROL = "sim_control"
 #: Topics that hold accepted commands (``parameters`` holds other changes too).
-COMMAND_TOPICS = (*COMMANDS, PARAMETERS)
+COMMAND_TOPICS = (*COMMANDS, PARAMETERS, SIM_CONTROL)
 
 
 @functools.cache
@@ -164,6 +181,9 @@ def command_message(command: Command, frame_id: str = "") -> Any:
     carry the field names and values."""
     if command.name == PARAMETERS:
         return parameters_message(command.values, command.t, changed=True)
+    if command.is_control:
+        return DiagnosticStatus(level=DiagnosticStatus.OK, name=command.name, message=_CONTROL_TEXT[command.name],
+                                values=key_values({"t": float(command.t), **command.values}))
     entry = COMMANDS[command.name]
     msg = message_class(entry.message_type)()
     if hasattr(msg, "header"):
@@ -178,13 +198,23 @@ def command_message(command: Command, frame_id: str = "") -> Any:
     return msg
 
 
+def command_topic(name: str) -> str:
+    """The topic command ``name`` is recorded on: its own, or ``sim_control``
+    for pause, resume, step and reset."""
+    return SIM_CONTROL if name in CONTROLS else name
+
+
 def command_from_message(name: str, msg: Any, t: float) -> Command:
     """The command that message ``msg`` on command topic ``name`` carries, at
     simulation time ``t`` (a ParameterEvent on ``parameters``: its changed
-    plant and input fields)."""
+    plant and input fields; a DiagnosticStatus on ``sim_control``: the
+    control it names)."""
     if name == PARAMETERS:
         new, changed = parameter_event_values(msg)
         return Command(t, PARAMETERS, float_values({**new, **changed}))
+    if name == SIM_CONTROL:
+        fields = CONTROLS.get(msg.name, ())
+        return Command(t, msg.name, {kv.key: float(kv.value) for kv in msg.values if kv.key in fields})
     entry = COMMANDS[name]
     values = {}
     for field, path in zip(entry.fields, entry.message_fields):
@@ -193,6 +223,12 @@ def command_from_message(name: str, msg: Any, t: float) -> Command:
             value = getattr(value, part)
         values[field] = float(value)
     return Command(t, name, values)
+
+
+#: The ``message`` of a recorded simulation control.
+_CONTROL_TEXT = {PAUSE: "simulation time stopped", RESUME: "simulation time runs again",
+                 STEP: "advanced while paused by duration [s]",
+                 RESET: "back to the initial state (x = 0 at rest, phase 0): a discontinuity"}
 
 
 def rejection_message(outcome: Outcome) -> DiagnosticStatus:
@@ -340,8 +376,9 @@ def key_values(values: Mapping[str, Any]) -> list[KeyValue]:
 
 
 __all__ = [
-    "COMMAND_TOPICS", "FLIGHT_EVENTS", "NS_PER_S", "STATE_TOPICS", "TOPIC_TYPES", "command_from_message",
-    "command_message", "event_message", "fill_state_messages", "mean_velocity_message", "message_class",
+    "COMMAND_TOPICS", "FLIGHT_EVENTS", "NS_PER_S", "SIM_CONTROL", "STATE_TOPICS", "TOPIC_TYPES",
+    "command_from_message", "command_message", "command_topic", "event_message", "fill_state_messages",
+    "mean_velocity_message", "message_class",
     "ns_to_seconds", "parameter_event_values", "parameter_python_value", "parameter_value", "parameters_message",
     "rejection_message", "seconds_to_ns", "stamp_ns", "state_messages", "time_msg",
 ]

@@ -35,6 +35,7 @@ from friction_sim.io.cdr import FixedLayout, fixed_layouts
 from friction_sim.io.messages import (
     STATE_TOPICS,
     command_message,
+    command_topic,
     event_message,
     fill_state_messages,
     mean_velocity_message,
@@ -234,7 +235,8 @@ def _messages(item: Item) -> list[tuple[str, Any, int]]:
     if kind == "command":
         outcome: Outcome = item[1]
         if outcome.accepted:
-            return [(outcome.name, command_message(outcome.command, item[2]), seconds_to_ns(outcome.t))]
+            return [(command_topic(outcome.name), command_message(outcome.command, item[2]),
+                     seconds_to_ns(outcome.t))]
         return [("rejected_commands", rejection_message(outcome), seconds_to_ns(outcome.t))]
     if kind == "parameters":
         return [("parameters", parameters_message(item[1], item[2], changed=item[3]), seconds_to_ns(item[2]))]

@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from friction_sim.core import spec
-from friction_sim.core.commands import PARAMETERS, Command, apply
+from friction_sim.core.commands import PARAMETERS, RESET, Command, apply
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.slider import Slider
 from friction_sim.errors import ParameterError, RecordingError
@@ -157,8 +157,9 @@ def recorded_commands(recording: Recording) -> list[Command]:
     """Every accepted command in the recording, at its log time, sorted by
     time (ties in file order): the command topics (target_speed included,
     which changes no slider) and every ParameterEvent on ``parameters`` after
-    the initial one that changes a plant or input field; ``external_force_z``
-    in today's convention (> 0 lifts; an old file's is turned round)."""
+    the initial one that changes a plant or input field, and every reset
+    (pause, resume and step move no slider); ``external_force_z`` in today's
+    convention (> 0 lifts; an old file's is turned round)."""
     sign = recording.external_force_z_sign
     stored = {topic: recording.topic_name(topic) for topic in COMMAND_TOPICS}
     topics = {name: topic for topic, name in stored.items() if name is not None}
@@ -173,7 +174,7 @@ def recorded_commands(recording: Recording) -> list[Command]:
         command = command_from_message(topic, msg, ns_to_seconds(raw.log_time))
         if sign < 0.0 and _EXTERNAL_Z in command.values:
             command = Command(command.t, command.name, _turned(dict(command.values), sign))
-        if command.values:
+        if (command.values and not command.is_control) or command.name == RESET:
             found.append((raw.log_time, order, command))
     return [command for _, _, command in sorted(found, key=lambda item: item[:2])]
 
@@ -319,6 +320,12 @@ def _apply_batch(slider: Slider, batch: list[Command], problems: list[str]) -> N
     params, inputs = slider.params, slider.inputs
     took_any = False
     for command in batch:
+        if command.name == RESET:  # the commands before it in the batch took effect before it, as in the node
+            if took_any:
+                slider.set_plant(params, inputs)
+                took_any = False
+            slider.restart()
+            continue
         try:
             params, inputs = apply(command, params, inputs)
             took_any = True

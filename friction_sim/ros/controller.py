@@ -62,7 +62,7 @@ from typing import Any, TypeVar
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TwistStamped
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.clock import Clock, ClockType
+from rclpy.clock import Clock, ClockType, ROSClock
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -383,12 +383,21 @@ class ControllerNode(Node):
         if not (self.ready and self.active):
             return
         if output.amplitude != self._last_published:
-            self._control.clock.note_change(wall_ns())
+            self._control.clock.note_change(wall_ns(), 1.0 / self._control.frequency, self._sim_time())
             self._last_published = output.amplitude
         self._amplitude_pub.publish(Float64(data=output.amplitude))
         self._warn_on_conditions(output)
         for listener in self.output_listeners:
             listener(output)
+
+    def _sim_time(self) -> float | None:
+        """The simulation time [s] of the node's clock under ``use_sim_time``
+        once /clock has come (a paused slider's /clock stands still), else None."""
+        clock = self.get_clock()
+        if not (isinstance(clock, ROSClock) and clock.ros_time_is_active):
+            return None
+        now = clock.now().nanoseconds
+        return now / 1e9 if now > 0 else None
 
     def _warn_on_conditions(self, output: ControlOutput) -> None:
         """Warn once each time the target becomes unreachable or the drive runs away."""

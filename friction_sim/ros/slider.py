@@ -44,6 +44,7 @@ diagnostics; a lock keeps it and the tick thread apart.
 from __future__ import annotations
 
 import contextlib
+import functools
 import sys
 import threading
 import time
@@ -59,10 +60,23 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.subscription import Subscription
 from rosgraph_msgs.msg import Clock as ClockMsg
+from std_srvs.srv import Trigger
 
 from friction_sim.core import spec
+from friction_sim.core.commands import (
+    CONTROLS,
+    PAUSE,
+    PHYSICS_FIELDS,
+    RESET,
+    RESUME,
+    SLIDER,
+    STEP,
+    Command,
+    Outcome,
+    consumed_by,
+)
 from friction_sim.core.commands import PARAMETERS as PARAMETER_COMMAND
-from friction_sim.core.commands import PHYSICS_FIELDS, SLIDER, Command, Outcome, consumed_by
+from friction_sim.core.events import SliderState
 from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.realtime import RealtimeSlider
 from friction_sim.errors import SimulationFault, one_line
@@ -142,6 +156,10 @@ class SliderNode(Node):
         self._fault = FaultSignal(self)
         self._make_publishers(values["publish_clock"])
         self._make_subscriptions()
+        self._published = threading.Condition()  # the tick thread's count of ticks published, for ~/step
+        self._ticks_computed = self._ticks_published = 0
+        self._last_published: SliderState | None = None
+        self._make_services()
         self.names = NameWatch(self)
         self.create_timer(1.0, self._on_diagnostics, clock=Clock(clock_type=ClockType.STEADY_TIME))
         watch_parameter_refusals(self, PARAMETERS, self._parameter_refused)
@@ -238,13 +256,56 @@ class SliderNode(Node):
         for outcome in outcomes:
             self._report(outcome)
 
+    def _make_services(self) -> None:
+        """``~/pause``, ``~/resume``, ``~/step`` and ``~/reset`` (std_srvs/Trigger)."""
+        for name in CONTROLS:
+            self.create_service(Trigger, f"~/{name}", functools.partial(self._on_control, name))
+
+    # -- simulation control -----------------------------------------------------
+
+    def _on_control(self, name: str, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        """A ``~/pause``, ``~/resume``, ``~/step`` or ``~/reset`` call: done on
+        the core under the lock, recorded and counted like any command; a step
+        or reset answers once the tick thread has published the state it left."""
+        try:
+            with self._lock:
+                outcome = self._control(name, wall_ns())
+                state, published = self._rt.slider.state(), self._ticks_computed + 1
+        except SimulationFault as fault:  # the run cannot go on: say so, answer, stop
+            self._fail(fault)
+            response.success, response.message = False, str(fault)
+            return response
+        self._report(outcome, self.get_logger().warning)  # each refused call is warned
+        if outcome.accepted and name in (STEP, RESET):
+            self._wait_published(published)
+        response.success = outcome.accepted
+        response.message = outcome.reason or _control_text(outcome, state)
+        if outcome.accepted:
+            self.get_logger().info(response.message)
+        return response
+
+    def _control(self, name: str, now: int) -> Outcome:
+        """Pause, resume, step (by step_time, or step_periods periods) or reset the core (lock held)."""
+        if name == STEP:
+            duration = self._rt.step_length(self.get_parameter("step_periods").value,
+                                            self.get_parameter("step_time").value)
+            return self._rt.step(duration, now)
+        act: Callable[[int], Outcome] = getattr(self._rt, name)
+        return act(now)
+
+    def _wait_published(self, tick: int, timeout: float = 2.0) -> None:
+        """Wait until the tick thread has published tick number ``tick`` (or the node stops)."""
+        with self._published:
+            self._published.wait_for(lambda: self._ticks_published >= tick or self._stop.is_set(), timeout)
+
     # -- commands ---------------------------------------------------------------
 
     def _report(self, outcome: Outcome, warn: Callable[[str], Any] | None = None) -> None:
         """Hand a handled command to the sinks; warn about a refusal (by default
         on the node's throttle: a flood of bad commands costs a clock read each)."""
         if not outcome.accepted:
-            (warn or self._warn)(f"{outcome.reason}; last valid value kept")
+            kept = "nothing changed" if outcome.command.is_control else "last valid value kept"
+            (warn or self._warn)(f"{outcome.reason}; {kept}")
         for sink in self.sinks:
             sink.on_command(outcome, self._frame_id)
 
@@ -300,19 +361,30 @@ class SliderNode(Node):
         self._fault.fire()
 
     def _on_tick(self) -> None:
+        """Advance, then publish the state (and /clock).  While paused nothing
+        is published unless something changed (a step, a reset, a command):
+        simulation time, and /clock with it, stands still."""
         with self._lock:
             tick = self._rt.tick(wall_ns())
-            if self._clock_pub is not None:
-                time_msg(seconds_to_ns(tick.state.t), self._clock_msg.clock)
+            self._ticks_computed += 1
+            number = self._ticks_computed
+            state = tick.state
+            fresh = not tick.paused or state != self._last_published or tick.events or tick.periods
+            if fresh and self._clock_pub is not None:
+                time_msg(seconds_to_ns(state.t), self._clock_msg.clock)
                 self._clock_pub.publish(self._clock_msg)
-        state = tick.state
-        fill_state_messages(state, self._frame_id, self._pose, self._velocity, self._friction)
-        self._pose_pub.publish(self._pose)
-        self._velocity_pub.publish(self._velocity)
-        self._friction_pub.publish(self._friction)
-        for period in tick.periods:
-            self._mean_pub.publish(mean_velocity_message(period, self._frame_id))
-        deliver_tick(self.sinks, tick, self._frame_id)
+        if fresh:
+            fill_state_messages(state, self._frame_id, self._pose, self._velocity, self._friction)
+            self._pose_pub.publish(self._pose)
+            self._velocity_pub.publish(self._velocity)
+            self._friction_pub.publish(self._friction)
+            for period in tick.periods:
+                self._mean_pub.publish(mean_velocity_message(period, self._frame_id))
+            self._last_published = state
+            deliver_tick(self.sinks, tick, self._frame_id)
+        with self._published:
+            self._ticks_published = number
+            self._published.notify_all()
 
     def _hold_for_recorder(self) -> None:
         """The recorder makes a producer wait rather than drop a message; the
@@ -389,6 +461,14 @@ class SliderNode(Node):
                 sink.on_parameters({n: self.get_parameter(n).value for n in others}, t, changed=True)
 
 
+def _control_text(outcome: Outcome, state: SliderState) -> str:
+    """The answer to an accepted call: what was done, and where the slider is now."""
+    where = f"t = {state.t:.9f} s, x = {state.x:.9g} m, v = {state.v:.9g} m/s"
+    if outcome.name == STEP:
+        return f"stepped {outcome.values['duration']:.9g} s: {where}"
+    return {PAUSE: "paused at ", RESUME: "resumed at ", RESET: "reset to rest at x = 0: "}[outcome.name] + where
+
+
 def _unused(msg: Any) -> None:
     """The callback of a polled subscription: never called (the tick thread takes its messages)."""
 
@@ -438,7 +518,7 @@ def _health(report: dict[str, Any], fault: str = "", name_problem: str = "") -> 
     if report["commands_rejected_in_interval"]:
         problems.append(f"{report['commands_rejected_in_interval']} commands rejected ({report['last_rejection']})")
     if not problems:
-        return DiagnosticStatus.OK, "running"
+        return DiagnosticStatus.OK, "paused" if report.get("paused") else "running"
     return DiagnosticStatus.WARN, "; ".join(problems)
 
 
