@@ -5,7 +5,9 @@ Blocks fenced as ```sh are run here, line by line, from the repository root
 command that runs this very test, so it is the one line not run again.  Blocks
 fenced as ```sh ros2 need a ROS 2 install (ros2, colcon); they are checked
 instead against the nodes' real interface: every topic, message type, node
-and parameter they name must exist, and the values must be accepted.
+and parameter they name must exist, and the values must be accepted; a
+`ros2 launch` line must name a launch file of launch/ and only its declared
+arguments, with values the settings behind them accept.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from test_launch_file import launch_arguments
 
 from friction_sim.core.commands import COMMANDS
 from friction_sim.core.spec import CONTROLLER_NODE, SLIDER_NODE
@@ -47,6 +50,7 @@ def test_the_readme_has_runnable_and_ros2_blocks() -> None:
     assert "make demo" in commands("sh") and "make test" in commands("sh")
     assert any(c.startswith("ros2 run friction_sim slider") for c in commands("sh ros2"))
     assert any(c.startswith("ros2 run friction_sim controller") for c in commands("sh ros2"))
+    assert any(c.startswith("ros2 launch friction_sim feeder.launch.py") for c in commands("sh ros2"))
 
 
 @pytest.mark.parametrize("command", [c for c in commands("sh") if c not in NOT_RUN_HERE])
@@ -112,8 +116,30 @@ def test_ros2_command_matches_the_real_interface(command: str) -> None:
     elif words[:3] == ["ros2", "param", "set"]:
         node, name, value = words[3:6]
         assert isinstance(yaml.safe_load(value), NODES[node][name].kind)
+    elif words[:2] == ["ros2", "launch"]:
+        _check_launch(words[2], words[3], words[4:])
     elif words[0] == "rosdep":
         assert words[:2] == ["rosdep", "install"] and words[words.index("--from-paths") + 1] == "src"
         assert {"--ignore-src", "-y"} <= set(words)
     else:
         assert words[0] in ("colcon", "source"), f"unchecked command: {command}"
+
+
+def _check_launch(package: str, launch_file: str, arguments: list[str]) -> None:
+    """``ros2 launch PACKAGE FILE name:=value ...``: a launch file of launch/ (setup.py
+    installs them in share/friction_sim/launch) and only arguments it declares,
+    each value one the setting behind it accepts."""
+    path = ROOT / "launch" / launch_file
+    assert package == "friction_sim" and path.is_file(), f"no launch file launch/{launch_file}"
+    declared = launch_arguments(path)
+    for argument in arguments:
+        name, separator, value = argument.partition(":=")
+        assert separator and name in declared, f"{argument}: {launch_file} declares {sorted(declared)}"
+        if name in SLIDER_NODE:  # log_path, foxglove_port: set on the slider as they are
+            SLIDER_NODE[name].check(value if SLIDER_NODE[name].kind is str else yaml.safe_load(value))
+        elif name == "use_sim_time":
+            assert value in ("true", "false"), argument
+        elif name == "namespace":
+            assert re.fullmatch(r"/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*", value), argument
+        else:  # the parameter files
+            assert (ROOT / value).is_file(), f"{argument}: no such file"
