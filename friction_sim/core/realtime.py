@@ -332,7 +332,11 @@ class RealtimeSlider:
             return self._refuse(command, f"step: duration = {duration!r} s rejected: at log_rate {self.log_rate:g} Hz "
                                          f"that is {samples:.3g} recorded states, at most {MAX_STEP_SAMPLES} per step")
         self.clock.step(step_ns)
-        self._advance_sim(self.clock.now_ns(wall_ns) / NS_PER_S, chunked=True)
+        end = self.clock.now_ns(wall_ns) / NS_PER_S
+        mark = self.slider.next_mark_time
+        if end < mark <= end + 0.5 / NS_PER_S:  # a period that ends at this nanosecond ends in this step
+            end = mark
+        self._advance_sim(end, chunked=True)
         return Outcome(Command(t, STEP, {"duration": step_ns / NS_PER_S}))
 
     def reset(self, wall_ns: int) -> Outcome:

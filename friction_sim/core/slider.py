@@ -239,6 +239,11 @@ class Slider:
         return newer
 
     @property
+    def next_mark_time(self) -> float:
+        """When the next excitation period starts (inf when marks are not kept)."""
+        return self._next_mark_t if self._marks is not None else NEVER
+
+    @property
     def next_event_time(self) -> float:
         """When the next event happens under the present inputs (inf: never)."""
         return self._next_t
