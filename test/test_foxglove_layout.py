@@ -20,22 +20,17 @@ from typing import Any
 
 import pytest
 
+from friction_sim.core.commands import CONTROLS
 from friction_sim.core.events import EventKind
-from friction_sim.io.messages import TOPIC_TYPES
+from friction_sim.io.messages import SIM_CONTROL, TOPIC_TYPES
 
 ROOT = Path(__file__).resolve().parents[1]
 LAYOUT_FILE = ROOT / "config" / "friction_sim.foxglove_layout.json"
 
-#: Topics outside a recording's table that the nodes publish: the 1 Hz status of
-#: both nodes, and the simulation control calls (~/pause, ~/resume, ~/step,
-#: ~/reset) as the slider records them.  io.messages.TOPIC_TYPES wins where it
-#: names them too.
-TOPICS: dict[str, str] = {
-    "diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
-    "sim_control": "diagnostic_msgs/msg/DiagnosticStatus",
-    **TOPIC_TYPES,
-}
-SIM_CONTROL_CALLS = {"pause", "resume", "step", "reset"}
+#: Every topic of a recording (the simulation control calls ~/pause, ~/resume,
+#: ~/step and ~/reset included, on sim_control), and the 1 Hz status both nodes
+#: publish, which recordings do not hold.
+TOPICS: dict[str, str] = {"diagnostics": "diagnostic_msgs/msg/DiagnosticArray", **TOPIC_TYPES}
 #: The panel types the layout uses, and the config key holding their message paths.
 PANEL_TYPES = {"Plot", "StateTransitions", "RawMessages"}
 NUMERIC = {"double", "float", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64", "octet"}
@@ -195,8 +190,8 @@ def test_state_colours_cover_every_event_kind_and_control_call() -> None:
               if "customStates" in str(c) for s in c["paths"]}
     events = {state["value"] for state in series["/events.name"]["customStates"]["states"]}
     assert events == {kind.value for kind in EventKind}
-    calls = {state["value"] for state in series["/sim_control.name"]["customStates"]["states"]}
-    assert calls == SIM_CONTROL_CALLS
+    calls = {state["value"] for state in series[f"/{SIM_CONTROL}.name"]["customStates"]["states"]}
+    assert calls == set(CONTROLS)
 
 
 @pytest.mark.parametrize("path", [
