@@ -21,7 +21,7 @@ checks that, and that every argument is declared and used.
 
 # ruff takes this repository's launch/ folder for the `launch` package (first party) and would split
 # the block; both are ROS 2 packages from the install.
-from launch import LaunchDescription  # noqa: I001
+from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node

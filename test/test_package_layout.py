@@ -145,6 +145,8 @@ ROSDEP_KEYS = {
     # Live view only: rosdep has no key for the PyPI foxglove-sdk (requirements.txt says to pip-install it).
     'foxglove-sdk': set(),
 }
+#: Exec dependencies that only `ros2 launch` on a real install needs (launch/feeder.launch.py); PyPI has neither.
+LAUNCH_ONLY = {'launch', 'launch_ros'}
 
 
 def _requirements() -> set:
@@ -165,5 +167,6 @@ def test_package_xml_declares_every_runtime_requirement_by_a_rosdep_key():
     for requirement in sorted(requirements):
         missing = ROSDEP_KEYS[requirement] - exec_deps
         assert not missing, f'{requirement} (requirements.txt) needs <exec_depend> {sorted(missing)}'
-    declared = set().union(*ROSDEP_KEYS.values())
+    assert exec_deps >= LAUNCH_ONLY, 'the launch file needs <exec_depend> launch and launch_ros'
+    declared = set().union(*ROSDEP_KEYS.values(), LAUNCH_ONLY)
     assert exec_deps <= declared, f'package.xml declares what requirements.txt lacks: {exec_deps - declared}'

@@ -53,7 +53,8 @@ class Feeder:
         for _ in range(n):
             seen = len(self.outputs)
             self.call("step")
-            assert self.probe.spin_until(lambda: len(self.outputs) > seen, 5.0), "the controller did not answer"
+            answered = self.probe.spin_until(lambda seen=seen: len(self.outputs) > seen, 5.0)
+            assert answered, "the controller did not answer"
             self.probe.spin_for(0.01)  # its Pa reaches the paused slider, which takes it at the paused time
 
     def speeds(self) -> list[float]:
