@@ -439,7 +439,7 @@ def _apex(h: Harmonic, lo: float, v_lo: float) -> float:
         return lo
     hi = lo + 1.0 / h.omega
     while h.speed(hi) > 0.0:
-        hi = lo + 2.0 * (hi - lo)
+        hi = lo + 2.0 * max(hi - lo, math.ulp(lo))  # never 0: 1/omega may be below lo's rounding
     return _polish(h.speed, h.rate, lo, hi, v_lo, h.speed(hi))
 
 
@@ -449,7 +449,7 @@ def _fall_from(h: Harmonic, apex: float) -> float:
         return 0.0
     hi = apex + 1.0 / h.omega
     while h.travel(hi) > 0.0:
-        hi = apex + 2.0 * (hi - apex)
+        hi = apex + 2.0 * max(hi - apex, math.ulp(apex))  # never 0: 1/omega may be below apex's rounding
     return _polish(h.travel, h.speed, apex, hi, h.travel(apex), h.travel(hi))
 
 

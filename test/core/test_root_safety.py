@@ -306,3 +306,20 @@ def test_a_change_high_in_a_huge_flight_lands_within_rounding(phase: float) -> N
     slider.advance_to(32.659475578712505)
     state = slider.state()
     assert state.z >= 0.0 and math.isfinite(state.x) and math.isfinite(state.vz)
+
+
+def test_a_landing_far_beyond_the_rounding_of_its_apex_time_is_found() -> None:
+    """A flight whose apex is 4.7e13 s away (g = 1e-6, thrown at 4.7e7 m/s:
+    found by the fuzz test above) hung the landing search: apex + 1/omega
+    rounds to apex there, so doubling the bracket never widened it.  The
+    landing is found, at once, where z = 0."""
+    from friction_sim.core.roots import Harmonic, landing_delay
+
+    args = (47052513.009696074, -1e-6, 5.922808296637097e-09, 4.472895919311327, 125663.70614359173,
+            7671491218.478284)
+    started = time.process_time()
+    tau = landing_delay(*args)
+    assert time.process_time() - started < 1.0
+    assert 9e13 < tau < 1e14
+    height = Harmonic(*args)
+    assert height.travel(tau) <= 0.0 < height.travel(tau * (1.0 - 1e-9))
