@@ -45,6 +45,20 @@ class RecordingPathError(RecordingError):
         super().__init__(f"{field} = {_quote(value)} rejected: {reason}")
 
 
+class LiveViewError(FrictionSimError):
+    """The live view cannot serve where ``field`` (``foxglove_port`` or
+    ``foxglove_address``) says: the port is taken, the address is not one
+    of this machine's, the value is out of range.  ``reason`` is the
+    server's or the OS's reason (``Address already in use (os error 98)``)
+    or the rule."""
+
+    def __init__(self, field: str, value: Any, reason: str) -> None:
+        self.field = field
+        self.value = value
+        self.reason = reason
+        super().__init__(f"{field} = {_quote(value)} rejected: {reason}")
+
+
 class SimulationFault(FrictionSimError):
     """The exact core failed while advancing under inputs it had taken, or its
     state stopped being finite: the run cannot go on.  The message says when

@@ -1,0 +1,531 @@
+"""Live view: a run served to Foxglove over the Foxglove SDK's WebSocket server.
+
+:class:`LiveView` is a :class:`~friction_sim.io.sinks.Sink` beside the
+recorder.  It serves the same topics with the same messages as a recording
+(:mod:`friction_sim.io.recorder`), so Foxglove shows a live run exactly as
+it shows the file afterwards:
+
+* one channel per topic, fully qualified in the node's namespace (``/pose``,
+  ``/feeder1/pose``: :func:`~friction_sim.io.recordwriter.qualified_topic`).
+  The topics of :data:`ADVERTISED` (those of every run: the states, the mean
+  velocity, events, refused commands, parameters) are advertised at start,
+  so a client that is already watching subscribes before the first slip
+  rather than missing it; any other topic when its first record arrives
+  (that first message reaches only clients subscribed by then: none);
+* schema ``pkg/msg/Type``, encoding ``ros2msg``, the full definition rosbag2
+  stores (:func:`~friction_sim.io.typesupport.message_definition`);
+* messages ``cdr``, the bytes :func:`friction_sim.io.cdr.serialize` gives
+  (those a recording holds), built by :mod:`friction_sim.io.messages`;
+* log time = the record's simulation time in whole nanoseconds.
+
+The server is the SDK's (``foxglove.start_server``) in a context of its
+own, so several live views in one process never share channels.  It binds
+to ``127.0.0.1`` unless told otherwise; port 0 lets the OS choose (tests).
+
+Cost to the caller (the node's 1 kHz tick thread): the sink methods never
+block and never encode.  A record for topics no client subscribes to is
+counted (:attr:`LiveView.skipped`) and forgotten at once, once its channels
+are advertised (a dictionary look-up and a set test; the SDK's subscribe and
+unsubscribe callbacks keep the set).  Anything else goes on a bounded queue;
+a background thread builds, encodes and logs it, and encodes a message only
+if its channel has a subscriber then (``Channel.has_sinks``).
+
+Decimation, when a client cannot keep up, happens in two places, both counted
+or documented, neither slowing the simulation:
+
+* Our queue (``queue_size`` messages, a state is three): when it is full the
+  record being offered is dropped (the newest), counted in
+  :attr:`LiveView.dropped`.  Nothing queued is evicted, so a plot shows a
+  gap, never reordered data; events, commands and parameter changes (few)
+  may use :data:`URGENT_HEADROOM` messages beyond the capacity.
+* The SDK's per-client queue (``backlog``, ``message_backlog_size``, SDK
+  default 1024): when a client reads too slowly the SDK drops that client's
+  oldest data message; if its control queue (advertisements, status) fills,
+  the SDK disconnects the client.  These drops are the SDK's and not counted
+  here.
+
+A background thread that fails does not fail silently: :attr:`LiveView.error`
+holds one line, it is logged once and sent to the clients as an error status,
+and later records are refused (counted in :attr:`LiveView.dropped`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ipaddress
+import logging
+import re
+import socket
+import threading
+import time
+from collections import deque
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import foxglove
+from foxglove.websocket import ChannelView, Client, ServerListener
+
+from friction_sim.core.commands import Outcome
+from friction_sim.core.events import Event, Mode, SliderState
+from friction_sim.core.realtime import PeriodSummary
+from friction_sim.errors import LiveViewError, one_line
+from friction_sim.io import cdr
+from friction_sim.io.bagfile import MAX_STAMP_NS
+from friction_sim.io.messages import (
+    STATE_TOPICS,
+    TOPIC_TYPES,
+    command_message,
+    event_message,
+    fill_state_messages,
+    mean_velocity_message,
+    parameters_message,
+    rejection_message,
+    seconds_to_ns,
+    state_messages,
+)
+from friction_sim.io.recordwriter import Item, qualified_topic
+from friction_sim.io.typesupport import message_definition, message_type_name
+
+_log = logging.getLogger("friction_sim.io.live")
+
+#: Messages an event, command or parameter change may queue beyond the capacity.
+URGENT_HEADROOM = 1024
+#: Topics advertised at start (relative names; see the module docstring).
+ADVERTISED = (*STATE_TOPICS, "mean_velocity", "events", "rejected_commands", "parameters")
+#: Records the background thread takes from the queue at once.
+BATCH = 256
+_PORT_FIELD, _ADDRESS_FIELD = "foxglove_port", "foxglove_address"
+_HOST_LABEL = re.compile(r"(?!-)[A-Za-z0-9-]{1,63}(?<!-)")
+
+
+class LiveView:
+    """Serves a run to Foxglove clients while it runs (see the module docstring); a Sink.
+
+    >>> view = LiveView(8765, namespace="/feeder1")    # doctest: +SKIP
+    >>> view.url                                         # doctest: +SKIP
+    'ws://127.0.0.1:8765'
+
+    ``port`` 0 lets the OS choose (:attr:`port` says which).  ``namespace``
+    qualifies relative topic names; ``advertise`` names the topics (of
+    :data:`~friction_sim.io.messages.TOPIC_TYPES`) advertised at start.  ``queue_size`` bounds our queue in
+    messages; ``backlog`` is the SDK's per-client queue.  A port that is
+    taken or an address that is not this machine's raises
+    :class:`~friction_sim.errors.LiveViewError` (field ``foxglove_port`` or
+    ``foxglove_address``) and leaves nothing running.  Every method is
+    thread-safe and never blocks; :meth:`close` is idempotent.
+    """
+
+    def __init__(self, port: int = 8765, address: str = "127.0.0.1", *, namespace: str = "/",
+                 advertise: Sequence[str] = ADVERTISED, queue_size: int = 4096, backlog: int = 4096,
+                 name: str = "friction_sim") -> None:
+        _check_port(port)
+        _check_address(address)
+        if not (isinstance(namespace, str) and namespace.startswith("/")):
+            raise LiveViewError("namespace", namespace, "must be an absolute ROS namespace such as / or /feeder1")
+        if not (isinstance(queue_size, int) and queue_size >= 1):
+            raise LiveViewError("queue_size", queue_size, "must be >= 1 message")
+        unknown = [topic for topic in advertise if topic not in TOPIC_TYPES]
+        if unknown:
+            raise LiveViewError("advertise", unknown, f"not topics of a recording: {sorted(TOPIC_TYPES)}")
+        self.address = address
+        self.namespace = namespace
+        self._capacity = queue_size
+        self._lock = threading.Lock()
+        self._wake = threading.Condition(self._lock)
+        self._items: deque[tuple[Item, int]] = deque()
+        self._pending = 0
+        self._stopping = False
+        self._closed = False
+        self._close_lock = threading.Lock()
+        self._error: str | None = None
+        self._counts = {"skipped": 0, "dropped": 0, "bad": 0, "encoded": 0, "sent": 0}
+        self._topics: dict[str, str] = {}
+        self._state_topics = tuple(self._topic(topic) for topic in STATE_TOPICS)
+        self._advertised: frozenset[str] = frozenset()  # topics with a channel (replaced whole: read lock-free)
+        self._live: frozenset[str] = frozenset()  # topics some client subscribes to (likewise)
+        self._subscriptions: dict[int, set[str]] = {}  # client id -> topics
+        self._channels: dict[str, tuple[foxglove.Channel, str]] = {}  # topic -> (channel, type name)
+        self._templates = state_messages(SliderState(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, Mode.STUCK))  # refilled
+        self._warned: set[str] = set()
+        self._context = foxglove.Context()
+        self._server = _start_server(self._context, name, address, port, backlog, _Listener(self))
+        self._port = self._server.port
+        try:
+            for topic in advertise:
+                self._channel(self._topic(topic), TOPIC_TYPES[topic])
+        except BaseException:
+            self._server.stop()  # leave nothing running
+            raise
+        self._thread = threading.Thread(target=self._run, name="foxglove_live_view", daemon=True)
+        self._thread.start()
+
+    # -- the caller's side: the sink ---------------------------------------------------
+
+    def on_states(self, states: Sequence[SliderState], frame_id: str) -> None:
+        """Offer states as pose, velocity and friction_force at their own times."""
+        if states and self._wanted(self._state_topics, 3 * len(states)):
+            self._put(("states", tuple(states), frame_id), 3 * len(states))
+
+    def on_event(self, event: Event) -> None:
+        """Offer a stick/slip/flight event on ``events``."""
+        if self._wanted((self._topic("events"),), 1):
+            self._put(("event", event), 1, urgent=True)
+
+    def on_period(self, period: PeriodSummary, frame_id: str) -> None:
+        """Offer a period's mean velocity on ``mean_velocity``."""
+        if self._wanted((self._topic("mean_velocity"),), 1):
+            self._put(("period", period, frame_id), 1)
+
+    def on_command(self, outcome: Outcome, frame_id: str) -> None:
+        """Offer a handled command: accepted on its own topic, refused on ``rejected_commands``."""
+        topic = outcome.name if outcome.accepted else "rejected_commands"
+        if self._wanted((self._topic(topic),), 1):
+            self._put(("command", outcome, frame_id), 1, urgent=True)
+
+    def on_parameters(self, values: Mapping[str, Any], t: float, *, changed: bool) -> None:
+        """Offer parameter values on ``parameters`` (new at start, or changed)."""
+        if self._wanted((self._topic("parameters"),), 1):
+            self._put(("parameters", dict(values), t, changed), 1, urgent=True)
+
+    def write(self, topic: str, msg: Any, log_time_ns: int) -> bool:
+        """Offer any ROS 2 message ``msg`` on ``topic`` at ``log_time_ns``
+        (simulation time, ns): diagnostics, /clock, target_speed.  Encoded
+        later, on the background thread: do not change ``msg`` afterwards.
+        False if it was dropped (queue full, failed or closed; counted);
+        True if it was queued or nobody watches the topic."""
+        if not self._wanted((self._topic(topic),), 1):
+            return True
+        return self._put(("msg", topic, msg, log_time_ns), 1)
+
+    def close(self) -> None:
+        """Stop the thread and the server (the port is free when it returns);
+        records still queued are counted as dropped.  Idempotent, thread-safe."""
+        with self._close_lock:
+            if self._closed:
+                return
+            with self._lock:
+                self._stopping = True
+                self._wake.notify_all()
+            self._thread.join(timeout=10.0)
+            if self._thread.is_alive():
+                _log.warning("live view %s: the background thread did not end within 10 s", self.url)
+            with self._lock:
+                self._counts["dropped"] += self._pending
+                self._items.clear()
+                self._pending = 0
+            for channel, _ in list(self._channels.values()):
+                channel.close()
+            self._server.stop()
+            _wait_until_free(self.address, self._port)
+            self._closed = True
+
+    def __enter__(self) -> LiveView:
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self.close()
+
+    # -- state for diagnostics -----------------------------------------------------------
+
+    @property
+    def url(self) -> str:
+        """Where clients connect: ``ws://address:port``."""
+        host = f"[{self.address}]" if ":" in self.address else self.address
+        return f"ws://{host}:{self._port}"
+
+    @property
+    def port(self) -> int:
+        """The TCP port the server listens on (the OS's choice for port 0)."""
+        return self._port
+
+    @property
+    def clients(self) -> int:
+        """Clients subscribed to at least one channel (the SDK tells of
+        subscriptions, not of connections: a client that subscribes to
+        nothing is not counted)."""
+        with self._lock:
+            return sum(1 for topics in self._subscriptions.values() if topics)
+
+    @property
+    def sent(self) -> int:
+        """Messages handed to the server (to every subscribed client)."""
+        return self._counts["sent"]
+
+    @property
+    def encoded(self) -> int:
+        """Messages serialized to CDR (only for channels with a subscriber)."""
+        return self._counts["encoded"]
+
+    @property
+    def skipped(self) -> int:
+        """Messages not built because no client subscribed to their topic."""
+        return self._counts["skipped"]
+
+    @property
+    def dropped(self) -> int:
+        """Messages lost: our queue was full, the view had failed or was
+        closed, or no message could hold the record (a topic reused with
+        another type, a time no ROS stamp holds)."""
+        return self._counts["dropped"] + self._counts["bad"]
+
+    @property
+    def error(self) -> str | None:
+        """Why the live view stopped serving (one line), or None while it works."""
+        return self._error
+
+    def stats(self) -> dict[str, Any]:
+        """The figures a node merges into its diagnostics (error "" while it works)."""
+        return {"live_view_url": self.url, "live_view_clients": self.clients, "live_view_sent": self.sent,
+                "live_view_dropped": self.dropped, "live_view_error": self._error or ""}
+
+    # -- the caller's side: queueing ---------------------------------------------------
+
+    def _topic(self, topic: str) -> str:
+        """The fully qualified name of ``topic`` (cached)."""
+        name = self._topics.get(topic)
+        if name is None:
+            name = self._topics[topic] = qualified_topic(self.namespace, topic)
+        return name
+
+    def _wanted(self, topics: tuple[str, ...], size: int) -> bool:
+        """Whether a record for ``topics`` must be queued: some client
+        subscribes to one of them, or one is not advertised yet (its first
+        record makes the channel).  Otherwise count it as skipped."""
+        if self._live.isdisjoint(topics) and self._advertised.issuperset(topics):
+            with self._lock:
+                self._counts["skipped"] += size
+            return False
+        return True
+
+    def _put(self, item: Item, size: int, *, urgent: bool = False) -> bool:
+        """Queue ``item`` (``size`` messages) unless the queue is full, the view
+        failed or is closing (then count it dropped); never waits."""
+        with self._lock:
+            capacity = self._capacity + (URGENT_HEADROOM if urgent else 0)
+            if self._stopping or self._error is not None or (self._pending and self._pending + size > capacity):
+                self._counts["dropped"] += size
+                return False
+            self._items.append((item, size))
+            self._pending += size
+            self._wake.notify()
+            return True
+
+    # -- the SDK's side: subscriptions ---------------------------------------------------
+
+    def _subscribed(self, client: int, topic: str, subscribed: bool) -> None:
+        """Note a client's (un)subscription (called on the SDK's threads)."""
+        with self._lock:
+            topics = self._subscriptions.setdefault(client, set())
+            if subscribed:
+                topics.add(topic)
+            else:
+                topics.discard(topic)
+                if not topics:
+                    del self._subscriptions[client]
+            self._live = frozenset().union(*self._subscriptions.values())
+
+    # -- the background thread -------------------------------------------------------------
+
+    def _run(self) -> None:
+        """Take records off the queue and serve them until closed; a failure is
+        recorded in :attr:`error`, logged once and shown to the clients."""
+        batch: list[tuple[Item, int]] = []
+        try:
+            while True:
+                with self._lock:
+                    while not self._items and not self._stopping:
+                        self._wake.wait()
+                    if self._stopping:
+                        return
+                    batch = [self._items.popleft() for _ in range(min(BATCH, len(self._items)))]
+                    self._pending -= sum(size for _, size in batch)
+                while batch:
+                    item, size = batch[0]
+                    self._serve(item, size)
+                    del batch[0]
+        except BaseException as error:  # noqa: BLE001 - a dying thread must say why (then it ends)
+            self._fail(error, sum(size for _, size in batch))
+
+    def _fail(self, error: BaseException, unserved: int) -> None:
+        """Record why the thread stopped (``unserved`` messages taken but not
+        served are counted dropped), refuse later records, tell the log and the clients."""
+        text = f"live view stopped: {one_line(error, with_type=True)}"
+        with self._lock:
+            self._error = text
+            self._counts["dropped"] += self._pending + unserved
+            self._items.clear()
+            self._pending = 0
+        _log.error("%s (%s)", text, self.url)
+        with contextlib.suppress(Exception):  # a courtesy to the clients; the error is already recorded
+            self._server.publish_status(text, foxglove.StatusLevel.Error)
+
+    def _serve(self, item: Item, size: int) -> None:
+        """Build, encode and log the messages of one record."""
+        if item[0] == "states":
+            self._serve_states(item[1], item[2])
+            return
+        try:
+            messages = record_messages(item)
+        except Exception as error:  # noqa: BLE001 - one bad record must not end the live view
+            self._count_bad(size, item[0], one_line(error, with_type=True))
+            return
+        for topic, msg, log_time_ns in messages:
+            self._log_message(self._topic(topic), msg, log_time_ns)
+
+    def _serve_states(self, states: Sequence[SliderState], frame_id: str) -> None:
+        """Log states as pose, velocity and friction_force, encoding only the watched ones."""
+        templates = self._templates
+        for state in states:
+            try:
+                fill_state_messages(state, frame_id, *templates)
+                ns = seconds_to_ns(state.t)
+            except Exception as error:  # noqa: BLE001 - one bad record must not end the live view
+                self._count_bad(3, "state", one_line(error, with_type=True))
+                continue
+            for topic, msg in zip(self._state_topics, templates):
+                self._log_message(topic, msg, ns)
+
+    def _log_message(self, topic: str, msg: Any, log_time_ns: int) -> None:
+        """Encode ``msg`` and log it on ``topic``'s channel if a client
+        subscribes to it (made on first use); a record no message can hold is
+        counted bad, a failure of the server ends the thread."""
+        try:
+            channel = self._channel(topic, message_type_name(type(msg)))
+            if not 0 <= log_time_ns <= MAX_STAMP_NS:
+                raise ValueError(f"log time {log_time_ns} ns is outside ROS time")
+            if not channel.has_sinks():
+                with self._lock:
+                    self._counts["skipped"] += 1
+                return
+            data = cdr.serialize(msg)
+        except Exception as error:  # noqa: BLE001 - one bad record must not end the live view
+            self._count_bad(1, topic, one_line(error, with_type=True))
+            return
+        self._counts["encoded"] += 1
+        channel.log(data, log_time=log_time_ns)  # an SDK failure here ends the thread (_run)
+        self._counts["sent"] += 1
+
+    def _channel(self, topic: str, type_name: str) -> foxglove.Channel:
+        """The channel of ``topic``, advertised on first use with ``type_name``'s schema."""
+        entry = self._channels.get(topic)
+        if entry is None:
+            schema = foxglove.Schema(name=type_name, encoding="ros2msg",
+                                     data=message_definition(type_name).encode("utf-8"))
+            channel = foxglove.Channel(topic, schema=schema, message_encoding="cdr", context=self._context)
+            entry = self._channels[topic] = (channel, type_name)
+            with self._lock:
+                self._advertised = self._advertised | {topic}
+        elif entry[1] != type_name:
+            raise ValueError(f"topic {topic} carries {entry[1]}, not {type_name}")
+        return entry[0]
+
+    def _count_bad(self, messages: int, what: str, why: str) -> None:
+        """Count messages no message could hold (warned once per kind)."""
+        with self._lock:
+            self._counts["bad"] += messages
+        if what not in self._warned:
+            self._warned.add(what)
+            _log.warning("live view %s: dropped a %s record: %s", self.url, what, why)
+
+
+def record_messages(item: Item) -> list[tuple[str, Any, int]]:
+    """(topic, message, log time [ns]) of a queued record other than states,
+    as a recording holds them (the mapping of recordwriter's ``_messages``)."""
+    kind = item[0]
+    if kind == "msg":
+        return [(item[1], item[2], int(item[3]))]
+    if kind == "period":
+        return [("mean_velocity", mean_velocity_message(item[1], item[2]), seconds_to_ns(item[1].t))]
+    if kind == "event":
+        return [("events", event_message(item[1]), seconds_to_ns(item[1].t))]
+    if kind == "command":
+        outcome: Outcome = item[1]
+        if outcome.accepted:
+            return [(outcome.name, command_message(outcome.command, item[2]), seconds_to_ns(outcome.t))]
+        return [("rejected_commands", rejection_message(outcome), seconds_to_ns(outcome.t))]
+    if kind == "parameters":
+        return [("parameters", parameters_message(item[1], item[2], changed=item[3]), seconds_to_ns(item[2]))]
+    raise ValueError(f"unknown record kind {kind!r}")
+
+
+class _Listener(ServerListener):
+    """Tells a :class:`LiveView` which client subscribes to which topic."""
+
+    def __init__(self, view: LiveView) -> None:
+        self._view = view
+
+    def on_subscribe(self, client: Client, channel: ChannelView) -> None:
+        self._view._subscribed(client.id, channel.topic, True)  # noqa: SLF001 - the view's own listener
+
+    def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
+        self._view._subscribed(client.id, channel.topic, False)  # noqa: SLF001 - the view's own listener
+
+
+def _check_port(port: Any) -> None:
+    """``port`` must be a TCP port number (0: any free one)."""
+    if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+        raise LiveViewError(_PORT_FIELD, port, "must be a TCP port in 0..65535 (0: any free port)")
+
+
+def _check_address(address: Any) -> None:
+    """``address`` must be an IP address or a well-formed host name; checked
+    here, so that text that is neither is refused without a DNS look-up."""
+    if isinstance(address, str) and address:
+        try:
+            ipaddress.ip_address(address)
+            return
+        except ValueError:
+            labels = address.rstrip(".").split(".")
+            if len(address) <= 253 and all(_HOST_LABEL.fullmatch(label) for label in labels) \
+                    and not labels[-1].isdigit():
+                return
+    raise LiveViewError(_ADDRESS_FIELD, address, "must be an IP address or a host name, e.g. 127.0.0.1 "
+                        "(this machine only) or 0.0.0.0 (every interface)")
+
+
+def _wait_until_free(address: str, port: int, timeout: float = 2.0) -> None:
+    """Wait until nothing listens on ``address``:``port`` (the SDK's stop
+    returns before its listener is closed, about a millisecond later), so a
+    new live view may take the port at once.  Host names are not looked up:
+    then this returns at once."""
+    try:
+        family = socket.AF_INET6 if ipaddress.ip_address(address).version == 6 else socket.AF_INET
+    except ValueError:
+        return
+    deadline = time.monotonic() + timeout
+    while True:
+        with socket.socket(family, socket.SOCK_STREAM) as probe:
+            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as servers bind: TIME_WAIT is no listener
+            try:
+                probe.bind((address, port))
+                return
+            except OSError:
+                if time.monotonic() > deadline:
+                    _log.warning("live view: port %d on %s still taken %.0f s after stop", port, address, timeout)
+                    return
+        time.sleep(0.001)
+
+
+def _start_server(context: foxglove.Context, name: str, address: str, port: int, backlog: int,
+                  listener: ServerListener) -> foxglove.WebSocketServer:
+    """The SDK's server, or one LiveViewError naming the field to blame.
+
+    The SDK raises RuntimeError("FoxgloveError: Failed to bind port: <reason>"):
+    ``Address already in use (os error 98)`` for a port something listens
+    on (another live view: choose another foxglove_port), ``Cannot assign
+    requested address (os error 99)`` for an address not of this machine,
+    ``failed to lookup address information`` for an unknown host name."""
+    try:
+        return foxglove.start_server(name=name, host=address, port=port, context=context,
+                                     server_listener=listener, message_backlog_size=backlog)
+    except (RuntimeError, OSError, ValueError, OverflowError) as error:
+        reason = one_line(error).removeprefix("FoxgloveError: ").removeprefix("Failed to bind port: ")
+        if "in use" in reason:
+            raise LiveViewError(_PORT_FIELD, port, f"port {port} on {address} is already in use (another "
+                                f"live view or program listens there; choose another port): {reason}") from None
+        if "Permission denied" in reason:
+            raise LiveViewError(_PORT_FIELD, port, f"not allowed to listen on port {port}: {reason}") from None
+        raise LiveViewError(_ADDRESS_FIELD, address, f"cannot listen there: {reason}") from None
+
+
+__all__ = ["ADVERTISED", "BATCH", "URGENT_HEADROOM", "LiveView", "record_messages"]
