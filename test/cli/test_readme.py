@@ -23,7 +23,7 @@ import pytest
 import yaml
 from test_launch_file import launch_arguments
 
-from friction_sim.core.commands import COMMANDS
+from friction_sim.core.commands import COMMANDS, CONTROLS
 from friction_sim.core.spec import CONTROLLER_NODE, SLIDER_NODE
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -118,6 +118,10 @@ def test_ros2_command_matches_the_real_interface(command: str) -> None:
         assert isinstance(yaml.safe_load(value), NODES[node][name].kind)
     elif words[:2] == ["ros2", "launch"]:
         _check_launch(words[2], words[3], words[4:])
+    elif words[:3] == ["ros2", "service", "call"]:
+        service, type_name = words[3:5]  # the slider's control services: /slider/<pause|resume|step|reset>
+        node, name = service.rsplit("/", 1)
+        assert node == "/slider" and name in CONTROLS and type_name == "std_srvs/srv/Trigger", command
     elif words[0] == "rosdep":
         assert words[:2] == ["rosdep", "install"] and words[words.index("--from-paths") + 1] == "src"
         assert {"--ignore-src", "-y"} <= set(words)
