@@ -73,7 +73,9 @@ class FoxgloveClient:
         self._decoders = DecoderFactory()
 
     def __enter__(self) -> FoxgloveClient:
-        self._ws = connect(self.url, subprotocols=[SUBPROTOCOL], open_timeout=self.timeout, max_size=None)
+        # close_timeout: a server with a backlog of data for us may answer the closing handshake late
+        self._ws = connect(self.url, subprotocols=[SUBPROTOCOL], open_timeout=self.timeout, max_size=None,
+                           close_timeout=0.5)
         self._ws.__enter__()  # (websockets wants its connection used as a context manager)
         if self._ws.subprotocol != SUBPROTOCOL:
             raise AssertionError(f"server chose subprotocol {self._ws.subprotocol!r}")

@@ -356,7 +356,7 @@ def test_a_record_no_message_holds_is_dropped_and_counted(view: LiveView, caplog
     view.write("mixed", Float64(data=1.0), 0)
     advertised(view, f"{NS}/mixed")
     with FoxgloveClient(view.url) as client:
-        subscribed(client, view, f"{NS}/mixed", f"{NS}/pose")
+        subscribed(client, view, f"{NS}/mixed", *STATE_TOPICS)
         view.write("mixed", String(data="other type"), 1)  # a topic keeps its first type
         view.write("mixed", Float64(data=2.0), -5)  # before time 0: no ROS stamp
         view.on_states([SliderState(math.nan, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, Mode.STUCK)], "slideway")
