@@ -28,7 +28,11 @@ counted (:attr:`LiveView.skipped`) and forgotten at once, once its channels
 are advertised (a dictionary look-up and a set test; the SDK's subscribe and
 unsubscribe callbacks keep the set).  Anything else goes on a bounded queue;
 a background thread builds, encodes and logs it, and encodes a message only
-if its channel has a subscriber then (``Channel.has_sinks``).
+if its channel has a subscriber then (``Channel.has_sinks``).  The thread
+wakes once per ``interval`` (20 ms: a display's rate) and sends everything
+queued since, so the caller neither wakes it on every call nor competes
+with it for the GIL a thousand times a second; a message reaches the
+clients at most that much later.
 
 Decimation, when a client cannot keep up, happens in two places, both counted
 or documented, neither slowing the simulation:
@@ -92,8 +96,6 @@ _log = logging.getLogger("friction_sim.io.live")
 URGENT_HEADROOM = 1024
 #: Topics advertised at start (relative names; see the module docstring).
 ADVERTISED = (*STATE_TOPICS, "mean_velocity", "events", "rejected_commands", "parameters")
-#: Records the background thread takes from the queue at once.
-BATCH = 256
 _PORT_FIELD, _ADDRESS_FIELD = "foxglove_port", "foxglove_address"
 _HOST_LABEL = re.compile(r"(?!-)[A-Za-z0-9-]{1,63}(?<!-)")
 
@@ -107,8 +109,10 @@ class LiveView:
 
     ``port`` 0 lets the OS choose (:attr:`port` says which).  ``namespace``
     qualifies relative topic names; ``advertise`` names the topics (of
-    :data:`~friction_sim.io.messages.TOPIC_TYPES`) advertised at start.  ``queue_size`` bounds our queue in
-    messages; ``backlog`` is the SDK's per-client queue.  A port that is
+    :data:`~friction_sim.io.messages.TOPIC_TYPES`) advertised at start.
+    ``queue_size`` bounds our queue in messages; ``backlog`` is the SDK's
+    per-client queue; the thread sends what was queued every ``interval``
+    seconds (or when the queue is half full).  A port that is
     taken or an address that is not this machine's raises
     :class:`~friction_sim.errors.LiveViewError` (field ``foxglove_port`` or
     ``foxglove_address``) and leaves nothing running.  Every method is
@@ -121,19 +125,22 @@ class LiveView:
 
     def __init__(self, port: int = 8765, address: str = "127.0.0.1", *, namespace: str = "/",
                  advertise: Sequence[str] = ADVERTISED, queue_size: int = 4096, backlog: int = 4096,
-                 name: str = "friction_sim") -> None:
+                 interval: float = 0.02, name: str = "friction_sim") -> None:
         _check_port(port)
         _check_address(address)
         if not (isinstance(namespace, str) and namespace.startswith("/")):
             raise LiveViewError("namespace", namespace, "must be an absolute ROS namespace such as / or /feeder1")
         if not (isinstance(queue_size, int) and queue_size >= 1):
             raise LiveViewError("queue_size", queue_size, "must be >= 1 message")
+        if not 0.0 <= interval <= 1.0:
+            raise LiveViewError("interval", interval, "must be in 0..1 s")
         unknown = [topic for topic in advertise if topic not in TOPIC_TYPES]
         if unknown:
             raise LiveViewError("advertise", unknown, f"not topics of a recording: {sorted(TOPIC_TYPES)}")
         self.address = address
         self.namespace = namespace
         self._capacity = queue_size
+        self._interval = float(interval)
         self._lock = threading.Lock()
         self._wake = threading.Condition(self._lock)
         self._items: deque[tuple[Item, int]] = deque()
@@ -312,7 +319,8 @@ class LiveView:
                 return False
             self._items.append((item, size))
             self._pending += size
-            self._wake.notify()
+            if len(self._items) == 1 or self._capacity // 2 <= self._pending < self._capacity // 2 + size:
+                self._wake.notify()  # the first of a batch, or half full: not every call (a futex wake costs)
             return True
 
     # -- the SDK's side: subscriptions ---------------------------------------------------
@@ -340,10 +348,13 @@ class LiveView:
                 with self._lock:
                     while not self._items and not self._stopping:
                         self._wake.wait()
+                    if not self._stopping and self._pending < self._capacity // 2:
+                        self._wake.wait(self._interval)  # gather: one wake-up (and GIL hand-over) a batch
                     if self._stopping:
                         return
-                    batch = [self._items.popleft() for _ in range(min(BATCH, len(self._items)))]
-                    self._pending -= sum(size for _, size in batch)
+                    batch = list(self._items)
+                    self._items.clear()
+                    self._pending = 0
                 while batch:
                     item, size = batch[0]
                     self._serve(item, size)
@@ -567,4 +578,4 @@ def _start_server(context: foxglove.Context, name: str, address: str, port: int,
         raise LiveViewError(_ADDRESS_FIELD, address, f"cannot listen there: {reason}") from None
 
 
-__all__ = ["ADVERTISED", "BATCH", "URGENT_HEADROOM", "LiveView", "record_messages"]
+__all__ = ["ADVERTISED", "URGENT_HEADROOM", "LiveView", "record_messages"]
