@@ -14,8 +14,10 @@ it shows the file afterwards:
   (that first message reaches only clients subscribed by then: none);
 * schema ``pkg/msg/Type``, encoding ``ros2msg``, the full definition rosbag2
   stores (:func:`~friction_sim.io.typesupport.message_definition`);
-* messages ``cdr``, the bytes :func:`friction_sim.io.cdr.serialize` gives
-  (those a recording holds), built by :mod:`friction_sim.io.messages`;
+* messages ``cdr``, the bytes a recording holds: built by
+  :mod:`friction_sim.io.messages` and serialized by :func:`friction_sim.io.cdr.serialize`,
+  the states written into the fixed layouts the recording's writer uses
+  (:func:`~friction_sim.io.cdr.fixed_layouts`, checked against rosbags);
 * log time = the record's simulation time in whole nanoseconds.
 
 The server is the SDK's (``foxglove.start_server``) in a context of its
