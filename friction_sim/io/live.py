@@ -211,6 +211,12 @@ class LiveView:
             return True
         return self._put(("msg", topic, msg, log_time_ns), 1)
 
+    def wants(self, topic: str) -> bool:
+        """Whether :meth:`write` on ``topic`` would queue a message (a client
+        subscribes to it, or it has no channel yet): build one only then."""
+        name = self._topic(topic)
+        return name in self._live or name not in self._advertised
+
     def close(self) -> None:
         """Stop the thread and the server (the port is free when it returns);
         records still queued are counted as dropped.  Idempotent, thread-safe."""

@@ -22,6 +22,7 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from foxglove_client import FoxgloveClient, Received
 from mcap.reader import make_reader
+from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64, String
 
 from friction_sim.core.commands import Command, Outcome
@@ -143,11 +144,15 @@ def test_states_reach_a_client_with_their_values_and_times(view: LiveView) -> No
 def test_events_commands_parameters_and_written_messages_arrive_decoded(view: LiveView) -> None:
     view.write("diagnostics", diagnostics(0.0), 0)  # first use: advertises /feeder1/diagnostics
     view.on_command(ACCEPTED, "slideway")  # likewise /feeder1/drive_force
-    advertised(view, f"{NS}/diagnostics", f"{NS}/drive_force")
+    assert view.wants("/clock")  # no channel yet: the first message makes it
+    view.write("/clock", Clock(), 0)  # absolute: not in the namespace
+    advertised(view, f"{NS}/diagnostics", f"{NS}/drive_force", "/clock")
+    assert not view.wants("/clock")  # nobody subscribes: the node need not build one
     topics = [f"{NS}/{name}" for name in ("events", "drive_force", "rejected_commands", "mean_velocity",
-                                          "parameters", "diagnostics")]
+                                          "parameters", "diagnostics")] + ["/clock"]
     with FoxgloveClient(view.url) as client:
         subscribed(client, view, *topics)
+        assert view.wants("/clock")
         assert client.channels[f"{NS}/diagnostics"]["schemaName"] == "diagnostic_msgs/msg/DiagnosticArray"
         view.on_event(EVENT)
         view.on_command(ACCEPTED, "slideway")
@@ -155,6 +160,9 @@ def test_events_commands_parameters_and_written_messages_arrive_decoded(view: Li
         view.on_period(PERIOD, "slideway")
         view.on_parameters(PARAMETERS, 0.016, changed=True)
         assert view.write("diagnostics", diagnostics(0.017), seconds_to_ns(0.017))
+        clock = Clock()
+        clock.clock.sec, clock.clock.nanosec = 0, 18_000_000
+        view.write("/clock", clock, 18_000_000)
         received = {m.topic: m for m in client.collect(until=lambda got: len(got) >= len(topics))}
     assert sorted(received) == sorted(topics)
 
@@ -180,6 +188,9 @@ def test_events_commands_parameters_and_written_messages_arrive_decoded(view: Li
     assert parameters.log_time_ns == seconds_to_ns(0.016) and not parameters.message.new_parameters
     changed = {p.name: p.value for p in parameters.message.changed_parameters}
     assert changed["mass"].double_value == 1.25 and changed["landing_friction"].string_value == "coulomb"
+
+    assert received["/clock"].log_time_ns == 18_000_000 and received["/clock"].message.clock.nanosec == 18_000_000
+    assert client.channels["/clock"]["schemaName"] == "rosgraph_msgs/msg/Clock"
 
     diag = received[f"{NS}/diagnostics"]
     assert diag.log_time_ns == seconds_to_ns(0.017)
