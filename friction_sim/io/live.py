@@ -80,16 +80,11 @@ from friction_sim.io.bagfile import MAX_STAMP_NS
 from friction_sim.io.messages import (
     STATE_TOPICS,
     TOPIC_TYPES,
-    command_message,
-    event_message,
     fill_state_messages,
-    mean_velocity_message,
-    parameters_message,
-    rejection_message,
     seconds_to_ns,
     state_messages,
 )
-from friction_sim.io.recordwriter import Item, qualified_topic
+from friction_sim.io.recordwriter import Item, qualified_topic, record_messages
 from friction_sim.io.typesupport import message_definition, message_type_name
 
 _log = logging.getLogger("friction_sim.io.live")
@@ -351,6 +346,7 @@ class LiveView:
         """Take records off the queue and serve them until closed; a failure is
         recorded in :attr:`error`, logged once and shown to the clients."""
         batch: list[tuple[Item, int]] = []
+        served = 0
         try:
             while True:
                 with self._lock:
@@ -360,15 +356,14 @@ class LiveView:
                         self._wake.wait(self._interval)  # gather: one wake-up (and GIL hand-over) a batch
                     if self._stopping:
                         return
-                    batch = list(self._items)
+                    batch, served = list(self._items), 0
                     self._items.clear()
                     self._pending = 0
-                while batch:
-                    item, size = batch[0]
+                for item, size in batch:
                     self._serve(item, size)
-                    del batch[0]
+                    served += 1
         except BaseException as error:  # noqa: BLE001 - a dying thread must say why (then it ends)
-            self._fail(error, sum(size for _, size in batch))
+            self._fail(error, sum(size for _, size in batch[served:]))
 
     def _fail(self, error: BaseException, unserved: int) -> None:
         """Record why the thread stopped (``unserved`` messages taken but not
@@ -486,26 +481,6 @@ class LiveView:
             _log.warning("live view %s: dropped a %s record: %s", self.url, what, why)
 
 
-def record_messages(item: Item) -> list[tuple[str, Any, int]]:
-    """(topic, message, log time [ns]) of a queued record other than states,
-    as a recording holds them (the mapping of recordwriter's ``_messages``)."""
-    kind = item[0]
-    if kind == "msg":
-        return [(item[1], item[2], int(item[3]))]
-    if kind == "period":
-        return [("mean_velocity", mean_velocity_message(item[1], item[2]), seconds_to_ns(item[1].t))]
-    if kind == "event":
-        return [("events", event_message(item[1]), seconds_to_ns(item[1].t))]
-    if kind == "command":
-        outcome: Outcome = item[1]
-        if outcome.accepted:
-            return [(outcome.name, command_message(outcome.command, item[2]), seconds_to_ns(outcome.t))]
-        return [("rejected_commands", rejection_message(outcome), seconds_to_ns(outcome.t))]
-    if kind == "parameters":
-        return [("parameters", parameters_message(item[1], item[2], changed=item[3]), seconds_to_ns(item[2]))]
-    raise ValueError(f"unknown record kind {kind!r}")
-
-
 class _Listener(ServerListener):
     """Tells a :class:`LiveView` which client subscribes to which topic."""
 
@@ -586,4 +561,4 @@ def _start_server(context: foxglove.Context, name: str, address: str, port: int,
         raise LiveViewError(_ADDRESS_FIELD, address, f"cannot listen there: {reason}") from None
 
 
-__all__ = ["ADVERTISED", "URGENT_HEADROOM", "LiveView", "record_messages"]
+__all__ = ["ADVERTISED", "URGENT_HEADROOM", "LiveView"]
