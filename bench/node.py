@@ -13,8 +13,12 @@ publish_rate 1000 Hz and measures from this process, over DDS on localhost:
     valid ones and then invalid ones (half NaN or inf, half finite but out
     of range): the node's tick rate during each flood, the commands it
     handled, and its memory before and after;
-  * all of the above twice in the same run: without and with recording to
-    MCAP (log_rate 1000 Hz), and the recording's size per simulated minute.
+  * all of the above four times in the same run: without and with recording
+    to MCAP (log_rate 1000 Hz), and the recording's size per simulated
+    minute; then with the Foxglove live view on (foxglove_port) and no
+    client, and with a client in a third process subscribed to every
+    channel (a websockets client speaking the SDK's protocol, decoding
+    every message), which reports the messages per second it received.
 
 Prints figures only; nothing here passes or fails on timing.
 Run: make bench   (or .venv/bin/python bench/node.py [--duration 60])
@@ -115,10 +119,11 @@ def steady_window(listener: Listener, pid: int, seconds: float) -> dict[str, flo
     drift = np.median(offset[-n:]) - np.median(offset[:n])
     print(f"    drift of simulation time against wall time over the window: {drift:+.3f} ms "
           "(median of first vs last 5 % of samples; target < 1 ms)")
-    return {"cpu": 100 * (cpu1 - cpu0) / elapsed, "rate": len(listener.log["pose"]) / elapsed}
+    return {"cpu": 100 * (cpu1 - cpu0) / elapsed, "rate": len(listener.log["pose"]) / elapsed,
+            "p99": float(np.percentile(intervals, 99))}
 
 
-def latency(listener: Listener, samples: int) -> None:
+def latency(listener: Listener, samples: int) -> dict[str, float]:
     """Excitation off, so R = m*g + Fz exactly; toggle Fz and time the change."""
     listener.amplitude.publish(Float64(data=0.0))
     listener.spin_for(0.5)
@@ -148,6 +153,7 @@ def latency(listener: Listener, samples: int) -> None:
     d = np.array(delays)
     print(f"command-to-effect latency over {d.size}/{samples} commands: p50 {np.percentile(d, 50):.3f} ms, "
           f"p99 {np.percentile(d, 99):.3f} ms (target p50 < 2 ms)")
+    return {"latency_p50": float(np.percentile(d, 50)), "latency_p99": float(np.percentile(d, 99))}
 
 
 def flood(listener: Listener, pid: int, rate: int, seconds: float, kind: str) -> dict[str, float]:
@@ -188,49 +194,64 @@ def main() -> int:
     rclpy.init()
     listener = Listener()
     figures = {}
+    passes = {"recording off": (False, False), "recording on": (True, False),
+              "live view, no client": (False, None), "live view, a client on every channel": (False, True)}
     try:
         with tempfile.TemporaryDirectory() as folder:
-            for logging in (False, True):
+            for label, (logging, client) in passes.items():
                 log = Path(folder) / "bench.mcap"
-                state = 'ON (log_rate 1000 Hz)' if logging else 'off'
-                print(f"\n=== slider at publish_rate 1000 Hz, recording {state}")
-                figures[logging] = run_node_pass(listener, args.duration, log if logging else None)
+                print(f"\n=== slider at publish_rate 1000 Hz, {label}" + (" (log_rate 1000 Hz)" if logging else ""))
+                figures[label] = run_node_pass(listener, args.duration, log if logging else None, client)
                 if logging:
                     size = log.stat().st_size
-                    print(f"    recording: {size / 1e6:.2f} MB for {figures[logging]['simulated']:.1f} s simulated = "
-                          f"{size / 1e6 * 60 / figures[logging]['simulated']:.2f} MB per simulated minute")
+                    print(f"    recording: {size / 1e6:.2f} MB for {figures[label]['simulated']:.1f} s simulated = "
+                          f"{size / 1e6 * 60 / figures[label]['simulated']:.2f} MB per simulated minute")
     finally:
         listener.node.destroy_node()
         rclpy.try_shutdown()
-    off, on = figures[False], figures[True]
-    print(f"\nrecording on vs off, same run: CPU {on['cpu']:.1f} % vs {off['cpu']:.1f} % of one core "
-          f"(ratio {on['cpu'] / off['cpu']:.2f}); pose rate {on['rate']:.1f} vs {off['rate']:.1f} msg/s")
-    for logging, label in ((False, "recording off"), (True, "recording on")):
-        row = figures[logging]
+    off = figures["recording off"]
+    print()
+    for label, row in figures.items():
+        print(f"{label:38s} CPU {row['cpu']:5.1f} % of one core (x{row['cpu'] / off['cpu']:.2f} of recording off), "
+              f"pose {row['rate']:.1f} msg/s, tick p99 {row['p99']:.3f} ms, latency p50 {row['latency_p50']:.3f} ms")
+    for label, row in figures.items():
         print(f"tick rate under 10,000 commands/s, {label}: valid median {row['valid_median']:.0f} Hz "
               f"(min {row['valid_min']:.0f}), invalid median {row['invalid_median']:.0f} Hz "
               f"(min {row['invalid_min']:.0f}); invalid/valid {row['invalid_median'] / row['valid_median']:.2f}")
     return 0
 
 
-def run_node_pass(listener: Listener, duration: float, log: Path | None) -> dict[str, float]:
-    """Start a slider, measure it, stop it with SIGINT; return the steady figures."""
+def run_node_pass(listener: Listener, duration: float, log: Path | None, client: bool | None) -> dict[str, float]:
+    """Start a slider, measure it, stop it with SIGINT; return the steady figures.
+    ``client``: None no live view; False a live view nobody watches; True
+    watched by a client process subscribed to every channel."""
     extra = ["-p", f"log_path:={log}"] if log else []
+    port = _free_port()
+    if client is not None:
+        extra += ["-p", f"foxglove_port:={port}"]
     node = subprocess.Popen(
         [str(BIN / "slider"), "--ros-args", "-r", f"__ns:={NAMESPACE}", "-p", "publish_rate:=1000.0", *extra],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    watcher = None
     started = time.monotonic()
     try:
         listener.clear()
         if not _wait_for_node(listener):
             raise RuntimeError("the slider node never published")
+        if client:
+            watcher = subprocess.Popen([sys.executable, "-c", WATCHER, str(CLIENT.parent), f"ws://127.0.0.1:{port}"],
+                                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         listener.spin_for(2.0)  # let discovery and the first periods settle
         figures = steady_window(listener, node.pid, duration)
-        latency(listener, 200)
+        figures.update(latency(listener, 200))
         for kind in ("valid", "invalid"):
             result = flood(listener, node.pid, 10_000, 5.0, kind)
             figures[f"{kind}_median"], figures[f"{kind}_min"] = result["median"], result["min"]
     finally:
+        if watcher is not None:
+            watcher.send_signal(2)
+            out, err = watcher.communicate(timeout=20)
+            print(f"    live-view client: {out.strip() or err.strip()[-300:]}")
         node.send_signal(2)
         try:
             node.wait(timeout=10)
@@ -239,6 +260,38 @@ def run_node_pass(listener: Listener, duration: float, log: Path | None) -> dict
     figures["simulated"] = time.monotonic() - started
     print(f"    node exit code after SIGINT: {node.returncode}")
     return figures
+
+
+CLIENT = Path(__file__).resolve().parents[1] / "test" / "foxglove_client.py"
+#: The live-view client process: subscribe to every channel (as they are
+#: advertised), read and decode every frame as a viewer would, and say on SIGINT how
+#: many state messages per second arrived.
+WATCHER = """
+import signal, sys, time
+sys.path.insert(0, sys.argv[1])
+from foxglove_client import FoxgloveClient
+stop = []
+signal.signal(signal.SIGINT, lambda *_: stop.append(1))
+with FoxgloveClient(sys.argv[2]) as client:
+    subscribed, start, counts = set(), time.monotonic(), {}
+    while not stop:
+        fresh = set(client.channels) - subscribed
+        if fresh:
+            client.subscribe(*fresh)
+            subscribed |= fresh
+        for item in client.collect(0.2):
+            counts[item.topic] = counts.get(item.topic, 0) + 1
+    elapsed = time.monotonic() - start
+print(f"{len(subscribed)} channels, " + ", ".join(f"{t} {n / elapsed:.1f}/s" for t, n in sorted(counts.items())))
+"""
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
 
 
 def _wait_for_node(listener: Listener) -> bool:

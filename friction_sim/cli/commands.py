@@ -21,6 +21,8 @@ from friction_sim.core.params import Inputs, SliderParams, throw_number
 from friction_sim.errors import FrictionSimError, ParameterError
 
 MAX_GRID = 2001
+#: The port ``--foxglove`` without a number serves on: Foxglove's usual one.
+FOXGLOVE_DEFAULT_PORT = 8765
 MAX_SAMPLES = 10_000_000
 #: ``simulate`` covers at most this many excitation periods (about a minute
 #: of wall time at ~130,000 periods/s); more is a typo, not a question.
@@ -374,6 +376,8 @@ def ros_args(prog: str, args: argparse.Namespace) -> list[str]:
     ros: list[str] = []
     if getattr(args, "log", None) is not None:
         ros += ["-p", f"log_path:={args.log}"]
+    if getattr(args, "foxglove", None) is not None:
+        ros += ["-p", f"foxglove_port:={args.foxglove}"]
     if getattr(args, "params", None) is not None:
         if not args.params.is_file():
             raise FrictionSimError(f"--params: no such file: {args.params}")
@@ -389,7 +393,10 @@ def experiment(args: argparse.Namespace) -> int:
     """``experiment``: run a scenario over real topics, record it, report it."""
     from friction_sim.cli.jobs import run_scenario
 
-    run_scenario(args.scenario, output=args.output, attach=args.attach)
+    if args.foxglove is not None and args.attach is not None:
+        raise FrictionSimError("--foxglove with --attach: the slider runs elsewhere; start it with "
+                               "--foxglove (or foxglove_port) instead")
+    run_scenario(args.scenario, output=args.output, attach=args.attach, foxglove_port=args.foxglove)
     return 0
 
 
@@ -409,8 +416,9 @@ def replay(args: argparse.Namespace) -> int:
 
 
 __all__ = [
-    "AMPLITUDE_RATIO", "DURATION", "GRID", "MAX_GRID", "MAX_PERIODS", "MAX_SAMPLES", "MAX_TRACE_PERIODS",
-    "MODEL_OPTIONS", "NEVER_MOVES", "PERIODS", "PHI", "PLANT_OPTIONS", "SAMPLE_RATE", "SETTLE", "SLIPS_ALWAYS",
+    "AMPLITUDE_RATIO", "DURATION", "FOXGLOVE_DEFAULT_PORT", "GRID", "MAX_GRID", "MAX_PERIODS", "MAX_SAMPLES",
+    "MAX_TRACE_PERIODS", "MODEL_OPTIONS", "NEVER_MOVES", "PERIODS", "PHI", "PLANT_OPTIONS", "SAMPLE_RATE", "SETTLE",
+    "SLIPS_ALWAYS",
     "STICK_SLIP", "add_flag", "add_model_options", "add_plant_options", "controller", "conveyor", "experiment",
     "feeder", "flag_of", "flag_type", "general_motion", "model", "motion_regime", "plant", "replay", "report",
     "ros_args", "simulate", "slider", "trace", "umap",

@@ -40,9 +40,11 @@ class JobOutput:
 
 
 def run_scenario(path: Path, *, output: Path | None = None, attach: str | None = None,
-                 stream: TextIO = sys.stdout, status: TextIO | None = sys.stderr) -> JobOutput:
+                 foxglove_port: int | None = None, stream: TextIO = sys.stdout,
+                 status: TextIO | None = sys.stderr) -> JobOutput:
     """Run a scenario file end to end (see the module docstring); with
-    ``attach``, drive nodes already running in that namespace."""
+    ``attach``, drive nodes already running in that namespace; with
+    ``foxglove_port``, the slider serves a Foxglove live view there."""
     from friction_sim.experiment.runner import run_standalone
 
     scenario = load_scenario(path)
@@ -50,6 +52,8 @@ def run_scenario(path: Path, *, output: Path | None = None, attach: str | None =
     folder.mkdir(parents=True, exist_ok=True)
     recording = folder / f"{scenario.name}.mcap"
     spec = dataclasses.replace(scenario.spec(), log_path=recording)
+    if foxglove_port is not None:
+        spec = dataclasses.replace(spec, slider_parameters={**spec.slider_parameters, "foxglove_port": foxglove_port})
     live = _StatusLine(status) if status is not None else None
     print(f"running {path} ({scenario.duration:g} s simulated at {scenario.real_time_factor:g}x real time)",
           file=stream)

@@ -8,10 +8,10 @@ Subcommands::
     friction-sim trace --png fig2.png [--periods 2] [plant options]
     friction-sim simulate [plant options] --duration 2 [--settle 0.2] [--csv out.csv] [--json]
     friction-sim conveyor --png conveyor.png [--csv conveyor.csv] [--points 101]
-    friction-sim slider [--params FILE] [--log run.mcap] [--ros-args ...]
+    friction-sim slider [--params FILE] [--log run.mcap] [--foxglove [PORT]] [--ros-args ...]
     friction-sim controller [--params FILE] [--ros-args ...]
-    friction-sim feeder [--slider-params FILE] [--controller-params FILE] [--ros-args ...]
-    friction-sim experiment SCENARIO.yaml [--output DIR] [--attach NAMESPACE]
+    friction-sim feeder [--slider-params FILE] [--controller-params FILE] [--foxglove [PORT]] [--ros-args ...]
+    friction-sim experiment SCENARIO.yaml [--output DIR] [--attach NAMESPACE] [--foxglove [PORT]]
     friction-sim report run.mcap [--output DIR]
     friction-sim replay run.mcap [--verify] [--publish ...] [--csv DIR] [--plot PNG]
     friction-sim sweep SWEEP.yaml [--workers N | --scheduler tcp://HOST:8786] [--output FILE.parquet]
@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any, NoReturn, TypeAlias
 
 from friction_sim.cli import commands
+from friction_sim.core import spec
 from friction_sim.errors import FrictionSimError, ParameterError
 
 EXIT_USAGE = 2
@@ -126,11 +127,21 @@ def _add_conveyor(sub: Subcommands) -> None:
     conveyor.set_defaults(handler=commands.conveyor)
 
 
+def _add_foxglove(parser: argparse.ArgumentParser) -> None:
+    """``--foxglove [PORT]``: serve a Foxglove live view (foxglove_port; PORT
+    defaults to Foxglove's usual 8765), checked like the parameter."""
+    parser.add_argument("--foxglove", nargs="?", const=commands.FOXGLOVE_DEFAULT_PORT, default=None,
+                        type=commands.flag_type(spec.FOXGLOVE_PORT), metavar="PORT",
+                        help="serve a Foxglove live view on ws://127.0.0.1:PORT (default PORT "
+                             f"{commands.FOXGLOVE_DEFAULT_PORT}; foxglove_address sets another address)")
+
+
 def _add_nodes(sub: Subcommands) -> None:
     """slider, controller and feeder: the nodes, with --ros-args passed through."""
     slider = sub.add_parser("slider", help="run the real-time slider node (as `ros2 run friction_sim slider`)")
     slider.add_argument("--params", type=Path, help="ROS 2 parameters file, e.g. config/slider.yaml")
     slider.add_argument("--log", type=Path, metavar="FILE.mcap", help="record the run to an MCAP file")
+    _add_foxglove(slider)
     slider.set_defaults(handler=commands.slider, ros_args=[])
 
     controller = sub.add_parser("controller", help="run the mean-speed controller node "
@@ -141,6 +152,7 @@ def _add_nodes(sub: Subcommands) -> None:
     feeder = sub.add_parser("feeder", help="run slider and controller in one process (one executor)")
     feeder.add_argument("--slider-params", type=Path, help="parameters file for the slider")
     feeder.add_argument("--controller-params", type=Path, help="parameters file for the controller")
+    _add_foxglove(feeder)
     feeder.set_defaults(handler=commands.feeder, ros_args=[])
 
 
@@ -151,6 +163,7 @@ def _add_experiment(sub: Subcommands) -> None:
     experiment.add_argument("--output", type=Path, help="output folder (default: the scenario's output)")
     experiment.add_argument("--attach", metavar="NAMESPACE",
                             help="drive a slider (and controller) already running in NAMESPACE")
+    _add_foxglove(experiment)
     experiment.set_defaults(handler=commands.experiment)
 
     report = sub.add_parser("report", help="rebuild an experiment's report from its recording alone")

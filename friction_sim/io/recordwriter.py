@@ -201,7 +201,7 @@ class RecordWriter:
         elif kind == "state":
             self._add_state(item[1], item[2])
         else:
-            for topic, msg, log_time_ns in _messages(item):
+            for topic, msg, log_time_ns in record_messages(item):
                 self._add(self.topic(topic), msg, log_time_ns)
 
     def _add_state(self, state: SliderState, frame_id: str) -> None:
@@ -227,9 +227,14 @@ class RecordWriter:
             _log.warning("recording %s: dropped a %s record: %s", self.path, what, why)
 
 
-def _messages(item: Item) -> list[tuple[str, Any, int]]:
-    """(topic, message, log time [ns]) of a queued sink record."""
+def record_messages(item: Item) -> list[tuple[str, Any, int]]:
+    """(topic, message, log time [ns]) of a queued sink record other than
+    states, as a recording holds them (the live view serves the same)."""
     kind = item[0]
+    if kind == "msg":
+        return [(item[1], item[2], int(item[3]))]
+    if kind == "period":
+        return [("mean_velocity", mean_velocity_message(item[1], item[2]), seconds_to_ns(item[1].t))]
     if kind == "event":
         return [("events", event_message(item[1]), seconds_to_ns(item[1].t))]
     if kind == "command":
@@ -243,4 +248,4 @@ def _messages(item: Item) -> list[tuple[str, Any, int]]:
     raise ValueError(f"unknown record kind {kind!r}")
 
 
-__all__ = ["ROWS_PER_PASS", "STATE_VALUES", "RecordWriter", "qualified_topic"]
+__all__ = ["ROWS_PER_PASS", "STATE_VALUES", "RecordWriter", "qualified_topic", "record_messages"]

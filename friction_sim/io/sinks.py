@@ -44,10 +44,12 @@ class Sink(Protocol):
 
 def deliver_tick(sinks: Sequence[Sink], tick: Tick, frame_id: str) -> None:
     """Hand what a real-time tick passed to every sink: the states on the log
-    grid, the events and the period means."""
+    grid (a sink whose ``published_states`` is true, a live view, gets the
+    state the tick published instead), the events and the period means."""
     for sink in sinks:
-        if tick.samples:
-            sink.on_states(tick.samples, frame_id)
+        states = (tick.state,) if getattr(sink, "published_states", False) else tick.samples
+        if states:
+            sink.on_states(states, frame_id)
         for event in tick.events:
             sink.on_event(event)
         for period in tick.periods:

@@ -23,6 +23,16 @@ then).  The states' and mean velocities' header stamps are simulation time
 ``diagnostic_updater`` stamps it (wall time, or /clock with ``use_sim_time``),
 the same rule the controller follows on the same topic.
 
+Services (std_srvs/Trigger): ``~/pause``, ``~/resume``, ``~/step`` and
+``~/reset`` (see :class:`~friction_sim.core.realtime.RealtimeSlider`); each
+call is handed to the sinks as a command, so a recording holds it.  While
+paused a tick publishes only what changed (a step, a reset, a command).
+
+With ``foxglove_port`` set, a :class:`~friction_sim.io.live.LiveView` serves
+the run to Foxglove: the published states, events, period means, commands and
+refusals, parameters, ``/clock``, and what it sees on ``diagnostics`` and
+``target_speed`` (the controller's too).
+
 Bad input is refused, counted and warned about at most once a second (the
 rest cost a clock read).  If the exact core cannot take a command, it is
 refused and the state stays as it was; if the simulation itself fails, the
@@ -64,6 +74,7 @@ from std_srvs.srv import Trigger
 
 from friction_sim.core import spec
 from friction_sim.core.commands import (
+    COMMANDS,
     CONTROLS,
     PAUSE,
     PHYSICS_FIELDS,
@@ -81,6 +92,7 @@ from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.realtime import RealtimeSlider
 from friction_sim.errors import SimulationFault, one_line
 from friction_sim.io.messages import (
+    SIM_CONTROL,
     command_from_message,
     fill_state_messages,
     key_values,
@@ -149,13 +161,25 @@ class SliderNode(Node):
         self._recorder_waited_reported = 0.0
         if self.recorder is not None:
             self.sinks.append(self.recorder)
-            self.recorder.on_parameters(_recorded(values), 0.0, changed=False)
+        try:
+            self.live = _open_live_view(values, self.get_namespace())
+        except BaseException:
+            if self.recorder is not None:
+                self.recorder.finish()  # a taken port must not leave a recording open
+            raise
+        if self.live is not None:
+            self.sinks.append(self.live)
+            self.get_logger().info(f"live view: open {self.live.url} in Foxglove (config/"
+                                   "friction_sim.foxglove_layout.json is the layout)")
+        for sink in self.sinks:
+            sink.on_parameters(_recorded(values), 0.0, changed=False)
         self._frame_id: str = values["frame_id"]
         self._lock = threading.Lock()
         self._warn = ThrottledWarning(self.get_logger())
         self._fault = FaultSignal(self)
         self._make_publishers(values["publish_clock"])
         self._make_subscriptions()
+        self._watch_for_live_view()
         self._published = threading.Condition()  # the tick thread's count of ticks published, for ~/step
         self._ticks_computed = self._ticks_published = 0
         self._last_published: SliderState | None = None
@@ -242,6 +266,22 @@ class SliderNode(Node):
                 event_callbacks=_QUIET_SUBSCRIPTION))
             for entry in consumed_by(SLIDER)
         ]
+
+    def _watch_for_live_view(self) -> None:
+        """With a live view: forward what other nodes put on this namespace's
+        ``diagnostics`` (the controller's, and this node's own) and
+        ``target_speed``, so the view shows the whole feeder."""
+        live = self.live
+        if live is None:
+            return
+        for topic, kind in (("diagnostics", DiagnosticArray), ("target_speed", message_class("std_msgs/msg/Float64"))):
+            self.create_subscription(kind, topic, functools.partial(self._forward, topic), QOS_DEPTH,
+                                     event_callbacks=_QUIET_SUBSCRIPTION)
+
+    def _forward(self, topic: str, msg: Any) -> None:
+        """Hand a message seen on ``topic`` to the live view, at the simulation time now."""
+        if self.live is not None:
+            self.live.write(topic, msg, seconds_to_ns(self._rt.now(wall_ns())))
 
     def _take_commands(self) -> None:
         """Apply every command waiting on the command topics (tick thread)."""
@@ -373,6 +413,8 @@ class SliderNode(Node):
             if fresh and self._clock_pub is not None:
                 time_msg(seconds_to_ns(state.t), self._clock_msg.clock)
                 self._clock_pub.publish(self._clock_msg)
+                if self.live is not None:  # a message of its own: the live view encodes it later
+                    self.live.write("/clock", ClockMsg(clock=self._clock_msg.clock), seconds_to_ns(state.t))
         if fresh:
             fill_state_messages(state, self._frame_id, self._pose, self._velocity, self._friction)
             self._pose_pub.publish(self._pose)
@@ -405,8 +447,9 @@ class SliderNode(Node):
         prediction = self._rt.prediction(params, inputs)  # outside the lock: it may simulate
         with self._lock:
             report = self._rt.diagnostics(wall_ns(), prediction)
-        recording = self._recording_report()
-        report.update(recording)
+        report.update(self._recording_report())
+        if self.live is not None:
+            report.update(self.live.stats())
         status = DiagnosticStatus(name="slider", hardware_id=self.get_fully_qualified_name())
         status.level, status.message = _health(report, self.fault, self.names.problem)
         status.values = key_values(report)
@@ -485,6 +528,19 @@ def _open_recorder(values: dict[str, Any], namespace: str) -> Any:
     return Recorder(values["log_path"], metadata=_recorded(values), namespace=namespace, block_when_full=True)
 
 
+def _open_live_view(values: dict[str, Any], namespace: str) -> Any:
+    """A LiveView on ``foxglove_port`` (None when it is 0): the Foxglove SDK's
+    server on ``foxglove_address``, topics qualified in the node's namespace.
+    A port that is taken raises LiveViewError naming it (the node does not start)."""
+    if not values["foxglove_port"]:
+        return None
+    from friction_sim.io.live import ADVERTISED, LiveView
+
+    # Advertised at start, so a viewer that connects first can subscribe before the first one comes.
+    topics = (*ADVERTISED, SIM_CONTROL, *COMMANDS)
+    return LiveView(values["foxglove_port"], values["foxglove_address"], namespace=namespace, advertise=topics)
+
+
 def _recorded(values: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in values.items() if k not in ("log_path",)}
 
@@ -505,6 +561,8 @@ def _health(report: dict[str, Any], fault: str = "", name_problem: str = "") -> 
     if report.get("recording_error"):
         return DiagnosticStatus.ERROR, report["recording_error"]
     problems = [name_problem] if name_problem else []
+    if report.get("live_view_error"):
+        problems.append(f"live view: {report['live_view_error']}")
     if report.get("recording_waited_in_interval_s", 0.0) > 0.0:
         problems.append(f"the recorder held the simulation back {report['recording_waited_in_interval_s']:.3f} s "
                         f"(achieved real-time factor {report['achieved_real_time_factor']:.3g})")
@@ -526,7 +584,10 @@ def help_text() -> str:
     """What ``slider --help`` prints after the usage line."""
     return node_help("The exact stick-slip slider in real time: advances the event-driven core to the "
                      "present at publish_rate and publishes its state; takes commands on topics and "
-                     "parameters.", PARAMETERS, SLIDER, PUBLICATIONS)
+                     "parameters.  Services (std_srvs/srv/Trigger): ~/pause and ~/resume (simulation time "
+                     "stops exactly, /clock too), ~/step (while paused: step_periods periods, or step_time "
+                     "seconds), ~/reset (back to rest at x = 0, phase 0, under the parameters in force).",
+                     PARAMETERS, SLIDER, PUBLICATIONS)
 
 
 def main(args: Sequence[str] | None = None) -> int:

@@ -1,0 +1,180 @@
+"""The Foxglove live view of the nodes, seen by a real WebSocket client.
+
+``foxglove_port`` on the slider (``--foxglove`` on the command line) serves
+every published topic, the events, diagnostics, refused commands and the
+simulation controls; a client that speaks the SDK's protocol and decodes
+with mcap-ros2-support (not our code) receives exactly what the node
+published.  A taken port stops the node at start with one line naming it."""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from rclpy.parameter import Parameter
+from std_srvs.srv import Trigger
+
+from friction_sim.errors import LiveViewError
+from friction_sim.ros.slider import SliderNode
+
+from foxglove_client import FoxgloveClient, Received
+from ros_harness import Probe, kill_if_running, namespace, stamp_ns
+
+
+def free_port() -> int:
+    """A TCP port nothing listens on now (the OS's choice)."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+class LiveRig:
+    """A slider serving a live view, a probe, and a client subscribed to ``topics``."""
+
+    def __init__(self, tmp_path: Path) -> None:
+        self.ns = namespace()
+        self.port = free_port()
+        self.node = SliderNode(namespace=self.ns, parameter_overrides=[
+            Parameter("foxglove_port", value=self.port), Parameter("log_path", value=str(tmp_path / "run.mcap"))])
+        assert self.node.live is not None and self.node.live.url == f"ws://127.0.0.1:{self.port}"
+        self.probe = Probe(self.ns, self.node)
+        self.probe.wait_for_connection()
+        self.client = FoxgloveClient(self.node.live.url).__enter__()
+
+    def topic(self, name: str) -> str:
+        return f"{self.ns}/{name}"
+
+    def call(self, name: str) -> Any:
+        client = self.probe.node.create_client(Trigger, f"{self.ns}/slider/{name}")
+        assert client.wait_for_service(10.0)
+        future = client.call_async(Trigger.Request())
+        assert self.probe.spin_until(future.done, 10.0)
+        return future.result()
+
+    def collect(self, seconds: float) -> list[Received]:
+        """Spin the nodes and read the socket for ``seconds`` (the client's reads are short)."""
+        got: list[Received] = []
+        for _ in range(max(1, round(seconds / 0.05))):
+            self.probe.spin_for(0.03)
+            got.extend(self.client.collect(0.02))
+        return got
+
+    def close(self) -> None:
+        self.client.close()
+        self.probe.close()
+        self.node.destroy_node()
+
+
+@pytest.fixture
+def live(ros: None, tmp_path: Path) -> Iterator[LiveRig]:
+    rig = LiveRig(tmp_path)
+    yield rig
+    rig.close()
+
+
+def test_a_client_receives_what_the_node_publishes(live: LiveRig) -> None:
+    names = ("pose", "velocity", "friction_force", "mean_velocity", "events", "rejected_commands", "diagnostics",
+             "sim_control", "excitation_amplitude")
+    at_start = [live.topic(n) for n in names if n != "diagnostics"]  # advertised before anything happens
+    channels = live.client.wait_for_channels(*at_start, timeout=5.0)
+    assert channels[live.topic("pose")]["schemaName"] == "geometry_msgs/msg/PoseStamped"
+    assert all(c["encoding"] == "cdr" and c["schemaEncoding"] == "ros2msg" for c in channels.values())
+    live.client.subscribe(*at_start)
+    got = live.collect(0.6)
+    live.probe.send("excitation_amplitude", 6.0)
+    live.probe.send("drive_force", math.nan)
+    got += live.collect(1.2)  # a diagnostics message (1 Hz) comes too: its channel with it
+    live.client.subscribe(live.topic("diagnostics"))
+    assert live.call("pause").success and live.call("step").success
+    got += live.collect(1.2)
+    by_topic: dict[str, list[Received]] = {}
+    for item in got:
+        by_topic.setdefault(item.topic.removeprefix(live.ns + "/"), []).append(item)
+    # The states: each one the client got is the one the node published with that stamp.
+    published = {stamp_ns(m): m for m in live.probe.received["pose"]}
+    poses = by_topic["pose"]
+    assert len(poses) > 300, "the 1 kHz state stream arrives at its rate"
+    matched = [p for p in poses if p.log_time_ns in published]
+    assert len(matched) > 0.9 * len(poses)
+    for item in matched:
+        sent = published[item.log_time_ns]
+        assert item.message.pose.position.x == sent.pose.position.x
+        assert stamp_ns(item.message) == item.log_time_ns
+    assert {e.message.name for e in by_topic["events"]} <= {"slip_start", "stick", "reversal", "lift_off", "landing"}
+    assert by_topic["events"] and by_topic["mean_velocity"]
+    refused = by_topic["rejected_commands"]
+    assert any(r.message.name == "drive_force" and "nan" in r.message.message for r in refused)
+    assert any(s.message.status[0].name == "slider" for s in by_topic.get("diagnostics", [])), by_topic.keys()
+    assert [c.message.name for c in by_topic.get("sim_control", [])] == ["pause", "step"]
+    assert [a.message.data for a in by_topic["excitation_amplitude"]] == [6.0]
+    # While paused, the step's end is the last state sent.
+    assert max(p.log_time_ns for p in poses) == round(live.node.realtime.slider.t * 1e9)
+    stats = live.node.live.stats()  # type: ignore[union-attr]
+    assert stats["live_view_clients"] == 1 and stats["live_view_sent"] > 0 and not stats["live_view_error"]
+
+
+def test_a_taken_port_stops_the_node_at_start_naming_it(ros: None) -> None:
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        with pytest.raises(LiveViewError, match=f"foxglove_port = {port} rejected"):
+            SliderNode(namespace=namespace(), parameter_overrides=[Parameter("foxglove_port", value=port)])
+
+
+def _feeder(port: int, ns: str) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [sys.executable, "-m", "friction_sim", "feeder", "--foxglove", str(port), "--ros-args", "-r", f"__ns:={ns}"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy())
+
+
+def test_friction_sim_feeder_foxglove_serves_both_nodes_and_a_taken_port_is_one_line(ros: None) -> None:
+    port, ns = free_port(), namespace()
+    feeder = _feeder(port, ns)
+    try:
+        client = _connect(f"ws://127.0.0.1:{port}", feeder)
+        try:
+            client.wait_for_channels(f"{ns}/pose", timeout=10.0)
+            client.subscribe(f"{ns}/pose")
+            got = client.collect(3.0)
+            client.subscribe(*(t for t in (f"{ns}/diagnostics", f"{ns}/target_speed") if t in client.channels))
+            got += client.collect(2.5)
+        finally:
+            client.close()
+        statuses = {s.name for r in got if r.topic == f"{ns}/diagnostics" for s in r.message.status}
+        assert sum(r.topic == f"{ns}/pose" for r in got) > 500
+        assert {"slider", "controller"} <= statuses, statuses
+        second = _feeder(port, namespace())
+        out, err = second.communicate(timeout=60)
+        assert second.returncode == 2, err
+        assert f"foxglove_port = {port} rejected" in err and "Traceback" not in err
+    finally:
+        if feeder.poll() is None:
+            feeder.send_signal(signal.SIGINT)
+            try:
+                feeder.communicate(timeout=20)
+            finally:
+                kill_if_running(feeder)
+    assert feeder.returncode == 0
+
+
+def _connect(url: str, process: subprocess.Popen[str]) -> FoxgloveClient:
+    """A client connected to a server that a starting process will open."""
+    import time
+
+    deadline = time.monotonic() + 30.0
+    while True:
+        try:
+            return FoxgloveClient(url).__enter__()
+        except OSError:
+            if process.poll() is not None or time.monotonic() > deadline:
+                raise AssertionError(f"the server never opened: {process.communicate()[1][-2000:]}") from None
+            time.sleep(0.2)
