@@ -20,7 +20,6 @@ from pathlib import Path
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from foxglove_client import FoxgloveClient, Received
 from mcap.reader import make_reader
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64, String
@@ -34,6 +33,8 @@ from friction_sim.io.live import ADVERTISED, LiveView
 from friction_sim.io.messages import TOPIC_TYPES, seconds_to_ns, state_messages
 from friction_sim.io.recorder import Recorder
 from friction_sim.io.typesupport import message_definition
+
+from foxglove_client import FoxgloveClient, Received
 
 NS = "/feeder1"
 STATE_TOPICS = [f"{NS}/pose", f"{NS}/velocity", f"{NS}/friction_force"]

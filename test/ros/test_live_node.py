@@ -153,7 +153,7 @@ def test_friction_sim_feeder_foxglove_serves_both_nodes_and_a_taken_port_is_one_
         assert sum(r.topic == f"{ns}/pose" for r in got) > 500
         assert {"slider", "controller"} <= statuses, statuses
         second = _feeder(port, namespace())
-        out, err = second.communicate(timeout=60)
+        _, err = second.communicate(timeout=60)
         assert second.returncode == 2, err
         assert f"foxglove_port = {port} rejected" in err and "Traceback" not in err
     finally:
@@ -178,3 +178,34 @@ def _connect(url: str, process: subprocess.Popen[str]) -> FoxgloveClient:
             if process.poll() is not None or time.monotonic() > deadline:
                 raise AssertionError(f"the server never opened: {process.communicate()[1][-2000:]}") from None
             time.sleep(0.2)
+
+
+def test_friction_sim_experiment_foxglove_serves_the_in_process_run(tmp_path: Path) -> None:
+    """The in-process experiment (slider and controller in the job's process)
+    serves its run; with --attach the slider is elsewhere and the flag is refused."""
+    scenario = tmp_path / "short.yaml"
+    scenario.write_text("name: short\nduration: 4.0\noutput: out\nplant: {excitation_amplitude: 5.0}\ncontroller: {}\n"
+                        "schedule:\n  - {t: 1.0, excitation_amplitude: 6.0}\n  - {t: 2.0, target_speed: 0.0002}\n")
+    port = free_port()
+    job = subprocess.Popen([sys.executable, "-m", "friction_sim", "experiment", str(scenario), "--output",
+                            str(tmp_path / "out"), "--foxglove", str(port)],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy())
+    try:
+        client = _connect(f"ws://127.0.0.1:{port}", job)
+        try:
+            client.collect(until=lambda _: any(t.endswith("/pose") for t in client.channels), timeout=10.0)
+            poses = [t for t in client.channels if t.endswith("/pose")]  # in the experiment's own namespace
+            client.subscribe(*poses, *(t for t in client.channels if t.endswith("/excitation_amplitude")))
+            got = client.collect(2.0)
+        finally:
+            client.close()
+        _, err = job.communicate(timeout=120)
+    finally:
+        kill_if_running(job)
+    assert job.returncode == 0, err[-2000:]
+    assert len(poses) == 1 and sum(r.topic in poses for r in got) > 300
+    assert (tmp_path / "out" / "short.mcap").is_file()
+    attached = subprocess.run([sys.executable, "-m", "friction_sim", "experiment", str(scenario), "--attach", "/x",
+                               "--foxglove"], capture_output=True, text=True, env=os.environ.copy(), timeout=60)
+    assert attached.returncode != 0 and "--foxglove with --attach" in attached.stderr
+    assert "Traceback" not in attached.stderr
