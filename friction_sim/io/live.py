@@ -105,8 +105,10 @@ class LiveView:
     'ws://127.0.0.1:8765'
 
     ``port`` 0 lets the OS choose (:attr:`port` says which).  ``namespace``
-    qualifies relative topic names; ``advertise`` names the topics (of
-    :data:`~friction_sim.io.messages.TOPIC_TYPES`) advertised at start.
+    qualifies relative topic names; ``advertise`` names the topics
+    advertised at start: names of :data:`~friction_sim.io.messages.TOPIC_TYPES`,
+    or (topic, ``pkg/msg/Type``) pairs for others (``("/clock",
+    "rosgraph_msgs/msg/Clock")``).
     ``queue_size`` bounds our queue in messages; ``backlog`` is the SDK's
     per-client queue; the thread sends what was queued every ``interval``
     seconds (or when the queue is half full).  A port that is
@@ -121,7 +123,7 @@ class LiveView:
     published_states = True
 
     def __init__(self, port: int = 8765, address: str = "127.0.0.1", *, namespace: str = "/",
-                 advertise: Sequence[str] = ADVERTISED, queue_size: int = 4096, backlog: int = 4096,
+                 advertise: Sequence[str | tuple[str, str]] = ADVERTISED, queue_size: int = 4096, backlog: int = 4096,
                  interval: float = 0.02, name: str = "friction_sim") -> None:
         _check_port(port)
         _check_address(address)
@@ -131,9 +133,10 @@ class LiveView:
             raise LiveViewError("queue_size", queue_size, "must be >= 1 message")
         if not 0.0 <= interval <= 1.0:
             raise LiveViewError("interval", interval, "must be in 0..1 s")
-        unknown = [topic for topic in advertise if topic not in TOPIC_TYPES]
+        unknown = [topic for topic in advertise if isinstance(topic, str) and topic not in TOPIC_TYPES]
         if unknown:
-            raise LiveViewError("advertise", unknown, f"not topics of a recording: {sorted(TOPIC_TYPES)}")
+            raise LiveViewError("advertise", unknown, f"not topics of a recording: {sorted(TOPIC_TYPES)} "
+                                "(give others as (topic, type) pairs)")
         self.address = address
         self.namespace = namespace
         self._capacity = queue_size
@@ -160,8 +163,8 @@ class LiveView:
         self._server = _start_server(self._context, name, address, port, backlog, _Listener(self))
         self._port = self._server.port
         try:
-            for topic in advertise:
-                self._channel(self._topic(topic), TOPIC_TYPES[topic])
+            for topic, type_name in ((e, TOPIC_TYPES[e]) if isinstance(e, str) else e for e in advertise):
+                self._channel(self._topic(topic), type_name)
         except BaseException:
             self._server.stop()  # leave nothing running
             raise

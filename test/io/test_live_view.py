@@ -108,6 +108,8 @@ def by_topic(received: list[Received]) -> dict[str, list[Received]]:
 def test_channels_are_advertised_as_a_recording_names_and_types_them(view: LiveView) -> None:
     with FoxgloveClient(view.url) as client:
         channels = client.wait_for_channels(*(f"{NS}/{topic}" for topic in ADVERTISED))
+        client.collect(0.1)
+        assert sorted(client.channels) == sorted(channels)  # nothing else until its first record
     assert view.url == f"ws://127.0.0.1:{view.port}" and view.port > 0
     for topic, channel in channels.items():
         type_name = TOPIC_TYPES[topic.rsplit("/", 1)[1]]
@@ -297,6 +299,18 @@ def test_an_address_of_another_machine_is_refused_with_the_os_reason() -> None:
         LiveView(0, "192.0.2.1")
     assert caught.value.field == "foxglove_address" and caught.value.value == "192.0.2.1"
     assert "Cannot assign requested address" in str(caught.value)
+
+
+def test_other_topics_can_be_advertised_at_start_too() -> None:
+    with LiveView(0, namespace=NS, advertise=["events", ("/clock", "rosgraph_msgs/msg/Clock"),
+                                              ("diagnostics", "diagnostic_msgs/msg/DiagnosticArray")]) as view, \
+            FoxgloveClient(view.url) as client:
+        client.wait_for_channels(f"{NS}/events", "/clock", f"{NS}/diagnostics")
+        client.collect(0.1)
+        assert sorted(client.channels) == ["/clock", f"{NS}/diagnostics", f"{NS}/events"]
+        assert client.channels["/clock"]["schemaName"] == "rosgraph_msgs/msg/Clock"
+    with pytest.raises(LiveViewError, match=r"^advertise = \['clock'\] rejected: not topics of a recording"):
+        LiveView(0, advertise=["clock"])
 
 
 @pytest.mark.parametrize("port", [-1, 65536, 1.5, True, "8765"])
