@@ -124,7 +124,7 @@ def steady_window(listener: Listener, pid: int, seconds: float) -> dict[str, flo
 
 
 def latency(listener: Listener, samples: int) -> dict[str, float]:
-    """Excitation off, so R = m*g + Fz exactly; toggle Fz and time the change."""
+    """Excitation off, so R = m*g - Fz exactly (Fz > 0 lifts); toggle Fz and time the change."""
     listener.amplitude.publish(Float64(data=0.0))
     listener.spin_for(0.5)
     delays = []
@@ -141,7 +141,7 @@ def latency(listener: Listener, samples: int) -> dict[str, float]:
         while found is None and time.monotonic() < deadline:
             listener.executor.spin_once(timeout_sec=0.001)
             for received, message in log[start_index:]:
-                if abs(message.wrench.force.z - (10.0 + value)) < 1e-9:
+                if abs(message.wrench.force.z - (10.0 - value)) < 1e-9:  # Fz > 0 lifts: R = m g - Fz
                     found = received
                     break
             start_index = len(log) if found is None else start_index

@@ -81,6 +81,8 @@ class Probe:
 
     def __init__(self, namespace: str, *nodes: Node, outputs: dict[str, type] | None = None) -> None:
         self.node = rclpy.create_node("probe", namespace=namespace)
+        self.namespace = namespace
+        self._services: dict[str, Any] = {}
         self.received: dict[str, list[Any]] = defaultdict(list)
         for topic, kind in (outputs or OUTPUTS).items():
             self.node.create_subscription(kind, topic, self._keeper(topic), 100)
@@ -146,6 +148,19 @@ class Probe:
         assert self.spin_until(future.done, 15.0), f"{node} did not answer the atomic set"
         result = future.result().result
         return result.successful, result.reason
+
+    def control(self, name: str, node: str = "slider") -> Any:
+        """Call ``node``'s simulation-control service ``~/name`` (pause, resume,
+        step, reset: std_srvs/Trigger); the response (success, message)."""
+        from std_srvs.srv import Trigger
+
+        service = f"{self.namespace}/{node}/{name}"
+        if service not in self._services:
+            self._services[service] = self.node.create_client(Trigger, service)
+            assert self._services[service].wait_for_service(10.0), f"no service {service}"
+        future = self._services[service].call_async(Trigger.Request())
+        assert self.spin_until(future.done, 10.0), f"{service} did not answer"
+        return future.result()
 
     def close(self) -> None:
         self.executor.shutdown(timeout_sec=0.0)

@@ -84,7 +84,14 @@ from friction_sim.io.messages import (
     seconds_to_ns,
     state_messages,
 )
-from friction_sim.io.recordwriter import Item, qualified_topic, record_messages
+from friction_sim.io.recordwriter import (
+    STATE_VALUES,
+    Item,
+    qualified_topic,
+    record_messages,
+    state_row_builder,
+    state_values,
+)
 from friction_sim.io.typesupport import message_definition, message_type_name
 
 _log = logging.getLogger("friction_sim.io.live")
@@ -412,7 +419,7 @@ class LiveView:
                 if not 0 <= ns <= MAX_STAMP_NS:
                     raise ValueError(f"time {state.t!r} s is outside ROS time")
                 if layouts is not None:
-                    values = (state.x, state.z, state.v, state.vz, state.friction_force, state.normal_force)
+                    values = state_values(state)
                     payloads = [layouts[index].encode_one(ns, values) for index in watched]
                 else:
                     fill_state_messages(state, frame_id, *self._templates)
@@ -429,13 +436,8 @@ class LiveView:
         """The fixed layouts of the three state messages in ``frame_id`` (cached;
         None: none, serialize one at a time), as the recording's writer finds them."""
         if frame_id not in self._layouts:
-            def make(ns: int, values: Sequence[float]) -> Sequence[Any]:
-                x, z, v, vz, friction, normal = values
-                return state_messages(SliderState(ns / 1e9, x, v, 0.0, friction, normal, 0.0, Mode.STUCK, z, vz),
-                                      frame_id)
-
             try:
-                layouts = cdr.fixed_layouts(make, 6)
+                layouts = cdr.fixed_layouts(state_row_builder(frame_id), len(STATE_VALUES))
             except Exception:  # noqa: BLE001 - no layout: the slower path serializes each message
                 layouts = None
             self._layouts[frame_id] = layouts if layouts is not None and len(layouts) == 3 else None

@@ -20,7 +20,7 @@ ROS stamp holds, a value of no parameter type) is dropped, counted in
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -58,9 +58,20 @@ ROWS_PER_PASS = 2048
 STATE_VALUES = ("x", "z", "v", "vz", "friction_force", "normal_force")
 
 
-def _state_values(state: SliderState) -> tuple[float, ...]:
+def state_values(state: SliderState) -> tuple[float, ...]:
     """The :data:`STATE_VALUES` of ``state``."""
     return state.x, state.z, state.v, state.vz, state.friction_force, state.normal_force
+
+
+def state_row_builder(frame_id: str) -> Callable[[int, Sequence[float]], Sequence[Any]]:
+    """The three state messages in ``frame_id`` from a log time [ns] and a row
+    of :data:`STATE_VALUES`: what :func:`~friction_sim.io.cdr.fixed_layouts`
+    probes to find where each number sits (the recorder and the live view)."""
+    def make(ns: int, values: Sequence[float]) -> Sequence[Any]:
+        x, z, v, vz, friction, normal = values
+        return state_messages(SliderState(ns / 1e9, x, v, 0.0, friction, normal, 0.0, Mode.STUCK, z, vz), frame_id)
+
+    return make
 
 
 def qualified_topic(namespace: str, topic: str) -> str:
@@ -138,7 +149,7 @@ class RecordWriter:
                     self._write_safely(("state", state, frame_id))
                 continue
             try:
-                table = np.array([(s.t, *_state_values(s)) for s in part], dtype=np.float64)
+                table = np.array([(s.t, *state_values(s)) for s in part], dtype=np.float64)
                 ns = np.rint(table[:, 0] * 1e9)  # = seconds_to_ns(t): round half to even, as round()
                 ok = (ns >= 0.0) & (ns <= MAX_STAMP_NS)  # False for NaN too
                 if not ok.all():
@@ -153,13 +164,8 @@ class RecordWriter:
     def _state_group(self, frame_id: str) -> RowGroup | None:
         """The fixed layouts of a state's three messages in ``frame_id`` (cached)."""
         if frame_id not in self._state_groups:
-            def make(ns: int, values: Sequence[float]) -> Sequence[Any]:
-                x, z, v, vz, friction, normal = values
-                return state_messages(SliderState(ns / 1e9, x, v, 0.0, friction, normal, 0.0, Mode.STUCK, z, vz),
-                                      frame_id)
-
             topics = [self.topic(topic) for topic in STATE_TOPICS]
-            self._state_groups[frame_id] = self.file.row_group(topics, make, len(STATE_VALUES))
+            self._state_groups[frame_id] = self.file.row_group(topics, state_row_builder(frame_id), len(STATE_VALUES))
         return self._state_groups[frame_id]
 
     def _write_period(self, period: PeriodSummary, frame_id: str) -> None:
@@ -248,4 +254,5 @@ def record_messages(item: Item) -> list[tuple[str, Any, int]]:
     raise ValueError(f"unknown record kind {kind!r}")
 
 
-__all__ = ["ROWS_PER_PASS", "STATE_VALUES", "RecordWriter", "qualified_topic", "record_messages"]
+__all__ = ["ROWS_PER_PASS", "STATE_VALUES", "RecordWriter", "qualified_topic", "record_messages", "state_row_builder",
+           "state_values"]

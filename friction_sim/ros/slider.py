@@ -413,7 +413,7 @@ class SliderNode(Node):
             if fresh and self._clock_pub is not None:
                 time_msg(seconds_to_ns(state.t), self._clock_msg.clock)
                 self._clock_pub.publish(self._clock_msg)
-                if self.live is not None:  # a message of its own: the live view encodes it later
+                if self.live is not None and self.live.wants("/clock"):  # a message of its own: encoded later
                     self.live.write("/clock", ClockMsg(clock=self._clock_msg.clock), seconds_to_ns(state.t))
         if fresh:
             fill_state_messages(state, self._frame_id, self._pose, self._velocity, self._friction)
@@ -537,7 +537,9 @@ def _open_live_view(values: dict[str, Any], namespace: str) -> Any:
     from friction_sim.io.live import ADVERTISED, LiveView
 
     # Advertised at start, so a viewer that connects first can subscribe before the first one comes.
-    topics = (*ADVERTISED, SIM_CONTROL, *COMMANDS)
+    topics: list[Any] = [*ADVERTISED, SIM_CONTROL, *COMMANDS, ("diagnostics", "diagnostic_msgs/msg/DiagnosticArray")]
+    if values["publish_clock"]:
+        topics.append(("/clock", "rosgraph_msgs/msg/Clock"))
     return LiveView(values["foxglove_port"], values["foxglove_address"], namespace=namespace, advertise=topics)
 
 

@@ -15,7 +15,6 @@ from typing import Any
 import pytest
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
-from std_srvs.srv import Trigger
 
 from friction_sim.core.control import ControlOutput
 from friction_sim.ros.controller import ControllerNode
@@ -38,15 +37,10 @@ class Feeder:
         self.probe = Probe(ns, self.slider, self.controller, outputs={**OUTPUTS, "/clock": ClockMsg})
         self.probe.wait_for_connection(count=1, topic="mean_velocity")
         assert self.probe.spin_until(lambda: self.controller.ready and bool(self.outputs), 15.0)
-        self.clients = {name: self.probe.node.create_client(Trigger, f"{ns}/slider/{name}")
-                        for name in ("pause", "resume", "step", "reset")}
-        for client in self.clients.values():
-            assert client.wait_for_service(10.0)
 
     def call(self, name: str) -> None:
-        future = self.clients[name].call_async(Trigger.Request())
-        assert self.probe.spin_until(future.done, 10.0)
-        assert future.result().success, future.result().message
+        answer = self.probe.control(name)
+        assert answer.success, answer.message
 
     def step_periods(self, n: int) -> None:
         """``n`` steps of one period, each answered by the controller before the next."""

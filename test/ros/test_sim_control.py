@@ -17,7 +17,6 @@ import numpy as np
 import pytest
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
-from std_srvs.srv import Trigger
 
 from friction_sim.core.commands import Outcome
 from friction_sim.core.params import Inputs, SliderParams
@@ -42,15 +41,9 @@ class Rig:
         self.node.sinks.append(CommandLog(self.outcomes))
         self.probe = Probe(self.ns, self.node, outputs={**OUTPUTS, "/clock": ClockMsg})
         self.probe.wait_for_connection()
-        self.clients = {name: self.probe.node.create_client(Trigger, f"{self.ns}/slider/{name}")
-                        for name in ("pause", "resume", "step", "reset")}
-        for client in self.clients.values():
-            assert client.wait_for_service(10.0)
 
     def call(self, name: str) -> Any:
-        future = self.clients[name].call_async(Trigger.Request())
-        assert self.probe.spin_until(future.done, 10.0), f"~/{name} did not answer"
-        return future.result()
+        return self.probe.control(name)
 
     def poses_after(self, first: int) -> list[Any]:
         return self.probe.received["pose"][first:]
