@@ -272,7 +272,16 @@ sys.path.insert(0, sys.argv[1])
 from foxglove_client import FoxgloveClient
 stop = []
 signal.signal(signal.SIGINT, lambda *_: stop.append(1))
-with FoxgloveClient(sys.argv[2]) as client:
+deadline = time.monotonic() + 20.0
+while True:  # the node is up (it published); give its server a moment if the machine is busy
+    try:
+        client = FoxgloveClient(sys.argv[2]).__enter__()
+        break
+    except OSError:
+        if time.monotonic() > deadline:
+            raise
+        time.sleep(0.2)
+with client:
     subscribed, start, counts = set(), time.monotonic(), {}
     while not stop:
         fresh = set(client.channels) - subscribed

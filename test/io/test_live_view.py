@@ -419,9 +419,24 @@ def test_a_thread_that_dies_says_why_and_the_view_refuses_records(
 
 def test_stats_for_the_diagnostics(view: LiveView) -> None:
     assert view.stats() == {"live_view_url": view.url, "live_view_clients": 0, "live_view_sent": 0,
-                            "live_view_dropped": 0, "live_view_error": ""}
+                            "live_view_dropped": 0, "live_view_thinned": 0, "live_view_error": ""}
     with FoxgloveClient(view.url) as client:
         subscribed(client, view, f"{NS}/pose", f"{NS}/events")
         view.on_states([state(1)], "slideway")
         client.collect(until=lambda got: got)
         assert view.stats()["live_view_clients"] == 1 and view.stats()["live_view_sent"] == 1
+
+
+def test_a_flood_of_commands_is_thinned_for_the_viewer_and_counted() -> None:
+    """10,000 refused commands in a burst: a subscribed client gets at most
+    COMMANDS_PER_SECOND of them a second, the rest are counted as thinned."""
+    from friction_sim.io.live import COMMANDS_PER_SECOND
+
+    with LiveView(0, namespace=NS) as view, FoxgloveClient(view.url) as client:
+        subscribed(client, view, f"{NS}/rejected_commands")
+        for k in range(10_000):
+            view.on_command(Outcome(Command(k * 1e-4, "drive_force", {"drive_force": math.nan}), "nan"), "slideway")
+        got = client.collect(1.0)
+        assert 0 < len(got) <= COMMANDS_PER_SECOND * 2
+        assert view.thinned >= 10_000 - 2 * COMMANDS_PER_SECOND
+        assert view.stats()["live_view_thinned"] == view.thinned

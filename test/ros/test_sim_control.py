@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
 
@@ -212,3 +214,54 @@ def test_reset_while_running_keeps_the_parameters_in_force(rig: Rig) -> None:
     assert slider.state().x < 1e-4
     rig.probe.spin_for(0.1)
     assert rig.node.realtime.paused is False and slider.t > 0.0
+
+
+CALLS = st.one_of(st.sampled_from(["pause", "resume", "step", "reset", "wait"]),
+                  st.tuples(st.just("step_periods"), st.integers(1, 12)),
+                  st.tuples(st.just("step_time"), st.sampled_from([0.0, 1e-9, 0.0123, 0.1])))
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(calls=st.lists(CALLS, min_size=1, max_size=10))
+def test_any_sequence_of_calls_keeps_time_exact_and_the_recording_verifies(
+        ros: None, tmp_path_factory: pytest.TempPathFactory, calls: list[Any]) -> None:
+    """Over real ROS: whatever the order of pause, resume, step, reset and
+    step-size changes, a call succeeds exactly when it can, simulation time
+    never goes back and moves while paused only by the steps, every accepted
+    call is on sim_control in order, and replay --verify reproduces the run."""
+    path = tmp_path_factory.mktemp("calls") / "run.mcap"
+    rig = Rig(path)
+    accepted: list[str] = []
+    try:
+        paused, periods, step_time = False, 1, 0.0
+        for call in calls:
+            before = _t(rig)
+            if isinstance(call, tuple):
+                name, value = call
+                assert rig.probe.set_parameter("slider", name, value) == (True, "")
+                periods, step_time = (value, step_time) if name == "step_periods" else (periods, value)
+                continue
+            if call == "wait":
+                rig.probe.spin_for(0.05)
+                assert (_t(rig) == before) if paused else True
+                continue
+            was_paused = paused
+            answer = rig.call(call)
+            expected = {"pause": not paused, "resume": paused, "step": paused, "reset": True}[call]
+            assert answer.success == expected, (call, answer.message)
+            if answer.success:
+                accepted.append(call)
+                paused = {"pause": True, "resume": False}.get(call, paused)
+            after = _t(rig)
+            assert after >= before
+            if call == "step" and answer.success:
+                length = step_time if step_time > 0.0 else periods / 50.0
+                assert after - before == pytest.approx(length, abs=1e-9)
+            elif was_paused and paused:  # a pause itself advances to the instant it stops
+                assert after == before
+    finally:
+        rig.close()
+    recording = read_recording(path)
+    assert [m.name for _, m in recording.decoded("sim_control")] == accepted
+    result = verify(recording)
+    assert result.passed, result.lines()
