@@ -55,6 +55,9 @@ MAX_SAMPLES_PER_ADVANCE = 1000
 #: Log samples one ``~/step`` may make at most (they are kept in memory until
 #: the next tick hands them to the recorder): 100 s at the default log rate.
 MAX_STEP_SAMPLES = 100_000
+#: Excitation periods one ``~/step`` may cover at most: it is computed at once,
+#: with the node's tick waiting (about a second of work in the general model).
+MAX_STEP_PERIODS = 100_000
 
 
 def _non_finite(state: SliderState) -> str:
@@ -331,6 +334,11 @@ class RealtimeSlider:
         if samples > MAX_STEP_SAMPLES:
             return self._refuse(command, f"step: duration = {duration!r} s rejected: at log_rate {self.log_rate:g} Hz "
                                          f"that is {samples:.3g} recorded states, at most {MAX_STEP_SAMPLES} per step")
+        periods = step_ns / NS_PER_S * self.slider.inputs.excitation_frequency
+        if periods > MAX_STEP_PERIODS:
+            return self._refuse(command, f"step: duration = {duration!r} s rejected: at "
+                                         f"{self.slider.inputs.excitation_frequency:g} Hz that is {periods:.3g} "
+                                         f"excitation periods, at most {MAX_STEP_PERIODS} per step")
         self.clock.step(step_ns)
         end = self.clock.now_ns(wall_ns) / NS_PER_S
         mark = self.slider.next_mark_time

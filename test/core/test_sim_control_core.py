@@ -91,5 +91,9 @@ def test_step_is_refused_while_running_and_beyond_the_sample_limit() -> None:
     assert rt.pause(5 * MS).accepted and not rt.pause(6 * MS).accepted
     too_long = rt.step(1e3, 7 * MS)
     assert not too_long.accepted and "duration = 1000.0 s" in too_long.reason and "at most" in too_long.reason
+    fast = _realtime(SliderParams(), Inputs(excitation_frequency=20_000.0))
+    assert fast.pause(0).accepted
+    too_many = fast.step(100.0, MS)
+    assert not too_many.accepted and "2e+06 excitation periods, at most 100000" in too_many.reason
     assert rt.rejected == 3 and rt.slider.t == pytest.approx(0.005)
     assert rt.step_length(3, 0.0) == pytest.approx(0.06) and rt.step_length(3, 0.25) == 0.25
