@@ -7,22 +7,33 @@ tree and configById name the same panels, and every message path names a
 topic the slider, the controller or a recording has and fields that exist in
 that topic's ROS 2 message type (walked through the generated message
 classes, with Foxglove's message-path syntax: ``/topic.field.field``,
-``[:]`` slices and ``{field=="value"}`` filters).
+``[:]`` slices and ``{field=="value"}`` filters).  The Pause, Resume, Step
+and Reset buttons are Service Call panels: each control of the slider once,
+by its service name, with a request std_srvs/srv/Trigger accepts, and config
+keys and values that the Foxglove SDK's own ``ServiceCallConfig``
+(foxglove.layouts) takes.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
+import inspect
 import json
 import re
+import typing
+from collections import Counter
 from pathlib import Path
 from typing import Any
 
+import foxglove.layouts as fl
 import pytest
+from std_srvs.srv import Trigger
 
 from friction_sim.core.commands import CONTROLS
 from friction_sim.core.events import EventKind
 from friction_sim.io.messages import SIM_CONTROL, TOPIC_TYPES
+from friction_sim.ros.slider import SliderNode
 
 ROOT = Path(__file__).resolve().parents[1]
 LAYOUT_FILE = ROOT / "config" / "friction_sim.foxglove_layout.json"
@@ -31,8 +42,10 @@ LAYOUT_FILE = ROOT / "config" / "friction_sim.foxglove_layout.json"
 #: ~/step and ~/reset included, on sim_control), and the 1 Hz status both nodes
 #: publish, which recordings do not hold.
 TOPICS: dict[str, str] = {"diagnostics": "diagnostic_msgs/msg/DiagnosticArray", **TOPIC_TYPES}
-#: The panel types the layout uses, and the config key holding their message paths.
-PANEL_TYPES = {"Plot", "StateTransitions", "RawMessages"}
+#: The Service Call panel's type id, as the Foxglove SDK writes it into a layout.
+SERVICE_CALL: str = json.loads(fl.ServiceCallPanel().to_json())["panelType"]
+#: The panel types the layout uses.
+PANEL_TYPES = {"Plot", "StateTransitions", "RawMessages", SERVICE_CALL}
 NUMERIC = {"double", "float", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64", "octet"}
 
 
@@ -56,6 +69,8 @@ def panel_paths(panel_id: str, config: dict[str, Any]) -> list[str]:
     kind = panel_id.split("!", 1)[0]
     if kind in ("Plot", "StateTransitions"):
         return [series["value"] for series in config["paths"]]
+    if kind == SERVICE_CALL:  # calls a service, reads no topic
+        return []
     assert kind == "RawMessages", panel_id
     return [config["topicPath"]]
 
@@ -201,3 +216,74 @@ def test_state_colours_cover_every_event_kind_and_control_call() -> None:
 def test_the_path_checker_refuses_what_foxglove_would_show_empty(path: str) -> None:
     with pytest.raises(AssertionError):
         resolve(path)
+
+
+# -- the simulation control buttons ------------------------------------------------
+
+
+def service_call_panels() -> dict[str, dict[str, Any]]:
+    return {panel_id: config for panel_id, config in load_layout()["configById"].items()
+            if panel_id.startswith(f"{SERVICE_CALL}!")}
+
+
+def _snake(key: str) -> str:
+    return re.sub(r"(?<!^)(?=[A-Z])", "_", key).lower()
+
+
+def _accepts(hint: Any, value: Any) -> bool:
+    """Whether ``value`` is of the (str, bool, float, Literal, optional) type ``hint``."""
+    if typing.get_origin(hint) is typing.Literal:
+        return value in typing.get_args(hint)
+    if typing.get_origin(hint) in (typing.Union, type(str | None)):
+        return any(_accepts(arm, value) for arm in typing.get_args(hint))
+    if hint is float:
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    return hint is not type(None) and isinstance(value, hint)
+
+
+def test_a_button_for_each_control_service_of_the_slider() -> None:
+    """One Service Call panel per ~/pause, ~/resume, ~/step and ~/reset, each
+    once, named as the slider node (in the root namespace) serves them, with a
+    request std_srvs/srv/Trigger accepts (it has no fields: ``{}``)."""
+    node = inspect.signature(SliderNode.__init__).parameters["node_name"].default
+    panels = service_call_panels()
+    called = Counter(config["serviceName"] for config in panels.values())
+    assert called == Counter(f"/{node}/{name}" for name in CONTROLS), called
+    assert Trigger.Request.get_fields_and_field_types() == {}
+    for panel_id, config in panels.items():
+        name = config["serviceName"].rsplit("/", 1)[1]
+        assert panel_id == f"{SERVICE_CALL}!{name}" and config["buttonText"] == name.capitalize(), panel_id
+        assert json.loads(config["requestPayload"]) == {}, f"{panel_id}: Trigger takes an empty request"
+        assert config["editingMode"] is False, f"{panel_id}: a button only (refusals show in Rejected commands)"
+
+
+def test_button_configs_are_what_the_sdk_service_call_panel_takes() -> None:
+    """Every key (but the title every exported panel has) is a field of
+    foxglove.layouts.ServiceCallConfig with a value of its type, and the SDK
+    writes the same config back."""
+    fields = typing.get_type_hints(fl.ServiceCallConfig)
+    assert {field.name for field in dataclasses.fields(fl.ServiceCallConfig)} == set(fields)
+    for panel_id, config in service_call_panels().items():
+        settings = {_snake(key): value for key, value in config.items() if key != "foxglovePanelTitle"}
+        unknown = set(settings) - set(fields)
+        assert not unknown, f"{panel_id}: {sorted(unknown)} are no fields of ServiceCallConfig ({sorted(fields)})"
+        for key, value in settings.items():
+            assert _accepts(fields[key], value), f"{panel_id}: {key}={value!r} is not {fields[key]}"
+        written = json.loads(fl.ServiceCallConfig(**settings).to_json())
+        assert written == {key: value for key, value in config.items() if key != "foxglovePanelTitle"}
+
+
+def test_button_colours_are_the_timeline_colours_of_their_calls() -> None:
+    timeline = next(s for c in load_layout()["configById"].values() if "customStates" in str(c)
+                    for s in c["paths"] if s["value"] == f"/{SIM_CONTROL}.name")
+    colours = {state["value"]: state["color"] for state in timeline["customStates"]["states"]}
+    for config in service_call_panels().values():
+        name = config["serviceName"].rsplit("/", 1)[1]
+        assert config["buttonColor"] == colours[name], name
+
+
+@pytest.mark.parametrize(("hint", "value"), [
+    (bool | None, 1), (float | None, True), (str | None, None), (typing.Literal["vertical"], "diagonal"),
+])
+def test_the_config_type_checker_refuses_wrong_values(hint: Any, value: Any) -> None:
+    assert not _accepts(hint, value)
