@@ -40,6 +40,9 @@ SUBPROTOCOL = "foxglove.sdk.v1"
 #: Binary opcode of a message data frame (server to client).
 MESSAGE_DATA = 1
 _HEADER = struct.Struct("<BIQ")  # opcode, subscription id, log time [ns]
+#: Binary opcodes of a service call: request (client to server) and response (server to client).
+SERVICE_CALL_REQUEST, SERVICE_CALL_RESPONSE = 2, 3
+_SERVICE_HEADER = struct.Struct("<BIII")  # opcode, service id, call id, encoding length (then encoding, payload)
 
 
 @dataclass(frozen=True)
@@ -66,6 +69,8 @@ class FoxgloveClient:
         self.server_info: dict[str, Any] = {}
         self.channels: dict[str, dict[str, Any]] = {}
         self.statuses: list[dict[str, Any]] = []
+        self.services: dict[str, dict[str, Any]] = {}
+        self._responses: dict[int, bytes | Exception] = {}
         self._ws: ClientConnection | None = None
         self._subscriptions: dict[int, str] = {}  # subscription id -> topic
         self._by_topic: dict[str, int] = {}
@@ -159,8 +164,12 @@ class FoxgloveClient:
         if isinstance(frame, str):
             self._control(json.loads(frame))
             return None
+        if frame[0] == SERVICE_CALL_RESPONSE:
+            _, _, call, length = _SERVICE_HEADER.unpack_from(frame)
+            self._responses[call] = bytes(frame[_SERVICE_HEADER.size + length:])
+            return None
         if frame[0] != MESSAGE_DATA:
-            return None  # time and service frames: not used here
+            return None  # time frames: not used here
         _, subscription, log_time, = _HEADER.unpack_from(frame)
         payload = bytes(frame[_HEADER.size:])
         topic = self._subscriptions.get(subscription)
@@ -181,6 +190,42 @@ class FoxgloveClient:
             self.channels = {topic: ch for topic, ch in self.channels.items() if ch["id"] not in gone}
         elif op == "status":
             self.statuses.append(message)
+        elif op == "advertiseServices":
+            for service in message["services"]:
+                self.services[service["name"]] = service
+        elif op == "serviceCallFailure":
+            self._responses[message["callId"]] = RuntimeError(message.get("message", "service call failed"))
+
+    # -- services ------------------------------------------------------------------------
+
+    def call_service(self, name: str, payload: bytes = b"", timeout: float | None = None) -> Any:
+        """Call service ``name`` (waiting for its advertisement) with the CDR
+        ``payload``; the response decoded from its advertised schema
+        (RuntimeError with the server's reason if the call failed)."""
+        deadline = time.monotonic() + (self.timeout if timeout is None else timeout)
+        while name not in self.services:
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"service {name} not advertised; advertised: {sorted(self.services)}")
+            self._read(0.1)
+        service = self.services[name]
+        call, self._next_id = self._next_id, self._next_id + 1
+        encoding = b"cdr"
+        header = _SERVICE_HEADER.pack(SERVICE_CALL_REQUEST, service["id"], call, len(encoding))
+        self.ws.send(header + encoding + payload)
+        while call not in self._responses:
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"no answer from service {name}")
+            self._read(0.1)
+        answer = self._responses.pop(call)
+        if isinstance(answer, Exception):
+            raise answer
+        response = service.get("response") or {"encoding": "cdr", "schemaName": service["type"] + "_Response",
+                                               "schemaEncoding": "ros2msg", "schema": service["responseSchema"]}
+        schema = Schema(id=service["id"], name=response["schemaName"], encoding=response["schemaEncoding"],
+                        data=response["schema"].encode("utf-8"))
+        decoder = self._decoders.decoder_for(response["encoding"], schema)
+        assert decoder is not None, response
+        return decoder(answer)
 
     def _decode(self, channel: dict[str, Any], payload: bytes) -> Any:
         """The message in ``payload``, decoded from the channel's schema text
@@ -191,4 +236,4 @@ class FoxgloveClient:
         return decoder(payload) if decoder is not None else None
 
 
-__all__ = ["MESSAGE_DATA", "SUBPROTOCOL", "FoxgloveClient", "Received"]
+__all__ = ["MESSAGE_DATA", "SERVICE_CALL_REQUEST", "SERVICE_CALL_RESPONSE", "SUBPROTOCOL", "FoxgloveClient", "Received"]

@@ -65,10 +65,7 @@ and later records are refused (counted in :attr:`LiveView.dropped`).
 from __future__ import annotations
 
 import contextlib
-import ipaddress
 import logging
-import re
-import socket
 import threading
 import time
 from collections import deque
@@ -76,7 +73,11 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import foxglove
-from foxglove.websocket import ChannelView, Client, ServerListener
+from foxglove.websocket import (
+    ChannelView,
+    Client,
+    ServerListener,
+)
 
 from friction_sim.core.commands import Outcome
 from friction_sim.core.events import Event, Mode, SliderState
@@ -84,6 +85,14 @@ from friction_sim.core.realtime import PeriodSummary
 from friction_sim.errors import LiveViewError, one_line
 from friction_sim.io import cdr
 from friction_sim.io.bagfile import MAX_STAMP_NS
+from friction_sim.io.liveserver import (
+    LiveService,
+    check_address,
+    check_port,
+    sdk_service,
+    start_server,
+    wait_until_free,
+)
 from friction_sim.io.messages import (
     STATE_TOPICS,
     TOPIC_TYPES,
@@ -110,8 +119,6 @@ COMMANDS_PER_SECOND = 100
 URGENT_HEADROOM = 1024
 #: Topics advertised at start (relative names; see the module docstring).
 ADVERTISED = (*STATE_TOPICS, "mean_velocity", "events", "rejected_commands", "parameters")
-_PORT_FIELD, _ADDRESS_FIELD = "foxglove_port", "foxglove_address"
-_HOST_LABEL = re.compile(r"(?!-)[A-Za-z0-9-]{1,63}(?<!-)")
 
 
 class LiveView:
@@ -141,9 +148,9 @@ class LiveView:
 
     def __init__(self, port: int = 8765, address: str = "127.0.0.1", *, namespace: str = "/",
                  advertise: Sequence[str | tuple[str, str]] = ADVERTISED, queue_size: int = 4096, backlog: int = 4096,
-                 interval: float = 0.02, name: str = "friction_sim") -> None:
-        _check_port(port)
-        _check_address(address)
+                 interval: float = 0.02, name: str = "friction_sim", services: Sequence[LiveService] = ()) -> None:
+        check_port(port)
+        check_address(address)
         if not (isinstance(namespace, str) and namespace.startswith("/")):
             raise LiveViewError("namespace", namespace, "must be an absolute ROS namespace such as / or /feeder1")
         if not (isinstance(queue_size, int) and queue_size >= 1):
@@ -178,7 +185,8 @@ class LiveView:
         self._templates = state_messages(SliderState(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, Mode.STUCK))  # refilled
         self._warned: set[str] = set()
         self._context = foxglove.Context()
-        self._server = _start_server(self._context, name, address, port, backlog, _Listener(self))
+        self._server = start_server(self._context, name, address, port, backlog, _Listener(self),
+                                     [sdk_service(service) for service in services])
         self._port = self._server.port
         try:
             for topic, type_name in ((e, TOPIC_TYPES[e]) if isinstance(e, str) else e for e in advertise):
@@ -254,7 +262,7 @@ class LiveView:
             for channel, _ in list(self._channels.values()):
                 channel.close()
             self._server.stop()
-            _wait_until_free(self.address, self._port)
+            wait_until_free(self.address, self._port)
             self._closed = True
 
     def __enter__(self) -> LiveView:
@@ -534,71 +542,4 @@ class _Listener(ServerListener):
         self._view._subscribed(client.id, channel.topic, False)  # noqa: SLF001 - the view's own listener
 
 
-def _check_port(port: Any) -> None:
-    """``port`` must be a TCP port number (0: any free one)."""
-    if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
-        raise LiveViewError(_PORT_FIELD, port, "must be a TCP port in 0..65535 (0: any free port)")
-
-
-def _check_address(address: Any) -> None:
-    """``address`` must be an IP address or a well-formed host name; checked
-    here, so that text that is neither is refused without a DNS look-up."""
-    if isinstance(address, str) and address:
-        try:
-            ipaddress.ip_address(address)
-            return
-        except ValueError:
-            labels = address.rstrip(".").split(".")
-            if len(address) <= 253 and all(_HOST_LABEL.fullmatch(label) for label in labels) \
-                    and not labels[-1].isdigit():
-                return
-    raise LiveViewError(_ADDRESS_FIELD, address, "must be an IP address or a host name, e.g. 127.0.0.1 "
-                        "(this machine only) or 0.0.0.0 (every interface)")
-
-
-def _wait_until_free(address: str, port: int, timeout: float = 2.0) -> None:
-    """Wait until nothing listens on ``address``:``port`` (the SDK's stop
-    returns before its listener is closed, about a millisecond later), so a
-    new live view may take the port at once.  Host names are not looked up:
-    then this returns at once."""
-    try:
-        family = socket.AF_INET6 if ipaddress.ip_address(address).version == 6 else socket.AF_INET
-    except ValueError:
-        return
-    deadline = time.monotonic() + timeout
-    while True:
-        with socket.socket(family, socket.SOCK_STREAM) as probe:
-            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as servers bind: TIME_WAIT is no listener
-            try:
-                probe.bind((address, port))
-                return
-            except OSError:
-                if time.monotonic() > deadline:
-                    _log.warning("live view: port %d on %s still taken %.0f s after stop", port, address, timeout)
-                    return
-        time.sleep(0.001)
-
-
-def _start_server(context: foxglove.Context, name: str, address: str, port: int, backlog: int,
-                  listener: ServerListener) -> foxglove.WebSocketServer:
-    """The SDK's server, or one LiveViewError naming the field to blame.
-
-    The SDK raises RuntimeError("FoxgloveError: Failed to bind port: <reason>"):
-    ``Address already in use (os error 98)`` for a port something listens
-    on (another live view: choose another foxglove_port), ``Cannot assign
-    requested address (os error 99)`` for an address not of this machine,
-    ``failed to lookup address information`` for an unknown host name."""
-    try:
-        return foxglove.start_server(name=name, host=address, port=port, context=context,
-                                     server_listener=listener, message_backlog_size=backlog)
-    except (RuntimeError, OSError, ValueError, OverflowError) as error:
-        reason = one_line(error).removeprefix("FoxgloveError: ").removeprefix("Failed to bind port: ")
-        if "in use" in reason:
-            raise LiveViewError(_PORT_FIELD, port, f"port {port} on {address} is already in use (another "
-                                f"live view or program listens there; choose another port): {reason}") from None
-        if "Permission denied" in reason:
-            raise LiveViewError(_PORT_FIELD, port, f"not allowed to listen on port {port}: {reason}") from None
-        raise LiveViewError(_ADDRESS_FIELD, address, f"cannot listen there: {reason}") from None
-
-
-__all__ = ["ADVERTISED", "COMMANDS_PER_SECOND", "URGENT_HEADROOM", "LiveView"]
+__all__ = ["ADVERTISED", "COMMANDS_PER_SECOND", "URGENT_HEADROOM", "LiveService", "LiveView"]

@@ -140,20 +140,48 @@ def message_definition(type_name: str) -> str:
 @cache
 def _message_definition(type_name: str) -> str:
     """:func:`message_definition` of a normalized name (cached)."""
+    return _with_dependencies(_msg_text(type_name)[0], type_name)
+
+
+def _with_dependencies(text: str, type_name: str) -> str:
+    """``text`` (of ``type_name``) with every dependency appended, as rosbag2 does."""
     seen: set[str] = set()
 
-    def append(name: str, depth: int) -> str:
+    def append(body: str, package: str, depth: int) -> str:
         if depth <= 0:
             raise RecordingError(f"message definition of {type_name} nests too deeply")
-        text, _ = _msg_text(normalized(name))
-        result = text
-        for dependency in _dependencies(text, name.split("/", 1)[0]):
+        result = body
+        for dependency in _dependencies(body, package):
             if dependency not in seen:
                 seen.add(dependency)
-                result += "\n" + _SEPARATOR + f"MSG: {dependency}\n" + append(dependency, depth - 1)
+                dependency_text, _ = _msg_text(normalized(dependency))
+                result += "\n" + _SEPARATOR + f"MSG: {dependency}\n" + append(
+                    dependency_text, dependency.split("/", 1)[0], depth - 1)
         return result
 
-    return append(type_name, 50)
+    return append(text, type_name.split("/", 1)[0], 50)
+
+
+@cache
+def service_definitions(type_name: str) -> tuple[str, str]:
+    """The ``ros2msg`` texts of a service's request and response
+    (``pkg/srv/Type``): the halves of its installed ``.srv`` file, each with
+    its dependencies appended as :func:`message_definition` appends them."""
+    match = _TYPE_NAME.match(type_name)
+    share = share_directory(match.group(1)) if match and match.group(2) == "srv/" else None
+    path = share / "srv" / f"{match.group(3)}.srv" if share is not None and match else None
+    if path is None or not path.is_file():
+        raise RecordingError(f"service type {type_name!r} is not installed (want pkg/srv/Type)")
+    request, _, response = _halves(path.read_text("utf-8"))
+    return _with_dependencies(request, type_name), _with_dependencies(response, type_name)
+
+
+def _halves(text: str) -> tuple[str, str, str]:
+    """A .srv text split at its ``---`` line: (request, separator, response)."""
+    parts = re.split(r"^---[ \t]*\n?", text, maxsplit=1, flags=re.MULTILINE)
+    if len(parts) != 2:
+        raise RecordingError("a .srv file without its --- line")
+    return parts[0], "---", parts[1]
 
 
 def _dependencies(text: str, package: str) -> list[str]:
@@ -253,5 +281,5 @@ DEFAULT_QOS = offered_qos_profiles()
 
 __all__ = [
     "DEFAULT_QOS", "definitions_from_files", "message_definition", "message_type_name", "normalized",
-    "offered_qos_profiles", "plain_yaml", "qos_yaml", "share_directory", "type_hash",
+    "offered_qos_profiles", "plain_yaml", "qos_yaml", "service_definitions", "share_directory", "type_hash",
 ]

@@ -68,18 +68,16 @@ from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
 from rclpy.subscription import Subscription
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_srvs.srv import Trigger
 
 from friction_sim.core import spec
 from friction_sim.core.commands import (
-    COMMANDS,
     CONTROLS,
-    PAUSE,
     PHYSICS_FIELDS,
     RESET,
-    RESUME,
     SLIDER,
     STEP,
     Command,
@@ -92,7 +90,6 @@ from friction_sim.core.params import Inputs, SliderParams
 from friction_sim.core.realtime import RealtimeSlider
 from friction_sim.errors import SimulationFault, one_line
 from friction_sim.io.messages import (
-    SIM_CONTROL,
     command_from_message,
     fill_state_messages,
     key_values,
@@ -116,6 +113,7 @@ from friction_sim.ros.common import (
     wall_ns,
     watch_parameter_refusals,
 )
+from friction_sim.ros.slider_outputs import control_text, health, open_live_view, open_recorder, recorded
 
 QOS_DEPTH = 10
 COMMANDS_PER_TICK = QOS_DEPTH
@@ -156,13 +154,13 @@ class SliderNode(Node):
         self.exit_code = 0
         #: Consumers of the run (the recorder, a live view, a test's probe).
         self.sinks: list[Sink] = []
-        self.recorder = _open_recorder(values, self.get_namespace())
+        self.recorder = open_recorder(values, self.get_namespace())
         self._recorder_waited_ns = 0
         self._recorder_waited_reported = 0.0
         if self.recorder is not None:
             self.sinks.append(self.recorder)
         try:
-            self.live = _open_live_view(values, self.get_namespace())
+            self.live = open_live_view(values, self.get_namespace(), self._live_services())
         except BaseException:
             if self.recorder is not None:
                 self.recorder.finish()  # a taken port must not leave a recording open
@@ -172,7 +170,7 @@ class SliderNode(Node):
             self.get_logger().info(f"live view: open {self.live.url} in Foxglove (config/"
                                    "friction_sim.foxglove_layout.json is the layout)")
         for sink in self.sinks:
-            sink.on_parameters(_recorded(values), 0.0, changed=False)
+            sink.on_parameters(recorded(values), 0.0, changed=False)
         self._frame_id: str = values["frame_id"]
         self._lock = threading.Lock()
         self._warn = ThrottledWarning(self.get_logger())
@@ -296,6 +294,20 @@ class SliderNode(Node):
         for outcome in outcomes:
             self._report(outcome)
 
+    def _live_services(self) -> list[Any]:
+        """The control services again, for Foxglove clients of the live view
+        (its Call Service panel): same names, type and answers as over ROS."""
+        from friction_sim.io.live import LiveService
+
+        return [LiveService(f"{self.get_fully_qualified_name()}/{name}", "std_srvs/srv/Trigger",
+                            functools.partial(self._on_live_control, name)) for name in CONTROLS]
+
+    def _on_live_control(self, name: str, request: bytes) -> bytes:
+        """A control call from a Foxglove client: answered as the ROS service answers (CDR)."""
+        if not hasattr(self, "_published"):
+            raise RuntimeError("the slider is still starting; call again")
+        return bytes(serialize_message(self._on_control(name, Trigger.Request(), Trigger.Response())))
+
     def _make_services(self) -> None:
         """``~/pause``, ``~/resume``, ``~/step`` and ``~/reset`` (std_srvs/Trigger)."""
         for name in CONTROLS:
@@ -319,7 +331,7 @@ class SliderNode(Node):
         if outcome.accepted and name in (STEP, RESET):
             self._wait_published(published)
         response.success = outcome.accepted
-        response.message = outcome.reason or _control_text(outcome, state)
+        response.message = outcome.reason or control_text(outcome, state)
         if outcome.accepted:
             self.get_logger().info(response.message)
         return response
@@ -451,7 +463,7 @@ class SliderNode(Node):
         if self.live is not None:
             report.update(self.live.stats())
         status = DiagnosticStatus(name="slider", hardware_id=self.get_fully_qualified_name())
-        status.level, status.message = _health(report, self.fault, self.names.problem)
+        status.level, status.message = health(report, self.fault, self.names.problem)
         status.values = key_values(report)
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = self.get_clock().now().to_msg()
@@ -504,47 +516,8 @@ class SliderNode(Node):
                 sink.on_parameters({n: self.get_parameter(n).value for n in others}, t, changed=True)
 
 
-def _control_text(outcome: Outcome, state: SliderState) -> str:
-    """The answer to an accepted call: what was done, and where the slider is now."""
-    where = f"t = {state.t:.9f} s, x = {state.x:.9g} m, v = {state.v:.9g} m/s"
-    if outcome.name == STEP:
-        return f"stepped {outcome.values['duration']:.9g} s: {where}"
-    return {PAUSE: "paused at ", RESUME: "resumed at ", RESET: "reset to rest at x = 0: "}[outcome.name] + where
-
-
 def _unused(msg: Any) -> None:
     """The callback of a polled subscription: never called (the tick thread takes its messages)."""
-
-
-def _open_recorder(values: dict[str, Any], namespace: str) -> Any:
-    """A Recorder for ``log_path`` (None when it is empty), with the run's
-    parameters as the file's metadata, the node's namespace (topics are
-    stored fully qualified, as rosbag2 does) and waiting rather than dropping
-    when the writer falls behind (the tick thread then holds simulation time)."""
-    if not values["log_path"]:
-        return None
-    from friction_sim.io.recorder import Recorder
-
-    return Recorder(values["log_path"], metadata=_recorded(values), namespace=namespace, block_when_full=True)
-
-
-def _open_live_view(values: dict[str, Any], namespace: str) -> Any:
-    """A LiveView on ``foxglove_port`` (None when it is 0): the Foxglove SDK's
-    server on ``foxglove_address``, topics qualified in the node's namespace.
-    A port that is taken raises LiveViewError naming it (the node does not start)."""
-    if not values["foxglove_port"]:
-        return None
-    from friction_sim.io.live import ADVERTISED, LiveView
-
-    # Advertised at start, so a viewer that connects first can subscribe before the first one comes.
-    topics: list[Any] = [*ADVERTISED, SIM_CONTROL, *COMMANDS, ("diagnostics", "diagnostic_msgs/msg/DiagnosticArray")]
-    if values["publish_clock"]:
-        topics.append(("/clock", "rosgraph_msgs/msg/Clock"))
-    return LiveView(values["foxglove_port"], values["foxglove_address"], namespace=namespace, advertise=topics)
-
-
-def _recorded(values: dict[str, Any]) -> dict[str, Any]:
-    return {k: v for k, v in values.items() if k not in ("log_path",)}
 
 
 def _load_blame(values: dict[str, Any]) -> str:
@@ -552,34 +525,6 @@ def _load_blame(values: dict[str, Any]) -> str:
     real-time factor if it was set (differs from its default), else the frequency."""
     return "real_time_factor" if values["real_time_factor"] != spec.REAL_TIME_FACTOR.default \
         else "excitation_frequency"
-
-
-def _health(report: dict[str, Any], fault: str = "", name_problem: str = "") -> tuple[bytes, str]:
-    """ERROR with the reason when the simulation stopped; else OK, or WARN with
-    the reasons: the timer falls behind, commands were refused, the node's
-    name is taken twice."""
-    if fault:
-        return DiagnosticStatus.ERROR, fault
-    if report.get("recording_error"):
-        return DiagnosticStatus.ERROR, report["recording_error"]
-    problems = [name_problem] if name_problem else []
-    if report.get("live_view_error"):
-        problems.append(f"live view: {report['live_view_error']}")
-    if report.get("recording_waited_in_interval_s", 0.0) > 0.0:
-        problems.append(f"the recorder held the simulation back {report['recording_waited_in_interval_s']:.3f} s "
-                        f"(achieved real-time factor {report['achieved_real_time_factor']:.3g})")
-    if report.get("ticks_behind_in_interval", 0):
-        problems.append(f"the simulation cannot keep up with real_time_factor {report['real_time_factor']:g} "
-                        f"while recording (achieved {report['achieved_real_time_factor']:.3g})")
-    if report["tick_rate"] < 0.8 * report["publish_rate"]:
-        problems.append(f"tick rate {report['tick_rate']:.0f} Hz < 80% of {report['publish_rate']:g} Hz")
-    if report["late_ticks"]:
-        problems.append(f"{report['late_ticks']} late ticks")
-    if report["commands_rejected_in_interval"]:
-        problems.append(f"{report['commands_rejected_in_interval']} commands rejected ({report['last_rejection']})")
-    if not problems:
-        return DiagnosticStatus.OK, "paused" if report.get("paused") else "running"
-    return DiagnosticStatus.WARN, "; ".join(problems)
 
 
 def help_text() -> str:

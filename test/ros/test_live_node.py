@@ -203,3 +203,26 @@ def test_friction_sim_experiment_foxglove_serves_the_in_process_run(tmp_path: Pa
                                "--foxglove"], capture_output=True, text=True, env=os.environ.copy(), timeout=60)
     assert attached.returncode != 0 and "--foxglove with --attach" in attached.stderr
     assert "Traceback" not in attached.stderr
+
+
+def test_a_foxglove_client_pauses_steps_and_resets_the_slider(live: LiveRig) -> None:
+    """The live view offers the control services to Foxglove clients (its Call
+    Service panel): same names, type and answers as over ROS, counted like those."""
+    name = f"{live.ns}/slider"
+
+    def call(service: str) -> Any:
+        return live.client.call_service(f"{name}/{service}")
+
+    paused = call("pause")
+    assert live.client.services[f"{name}/pause"]["type"] == "std_srvs/srv/Trigger"
+    assert paused.success and paused.message.startswith("paused at t = ")
+    t_paused = live.node.realtime.slider.t
+    stepped = call("step")
+    assert stepped.success and "stepped 0.02 s" in stepped.message
+    assert live.node.realtime.slider.t == pytest.approx(t_paused + 0.02, abs=1e-9)
+    first, second = call("resume"), call("resume")
+    assert first.success and not second.success and "not paused" in second.message
+    reset = call("reset")
+    assert reset.success and "x = 0 m" in reset.message
+    assert live.node.realtime.slider.state().x < 1e-5 and not live.node.realtime.paused
+    assert live.node.realtime.rejected == 1  # the second resume, counted like any refusal

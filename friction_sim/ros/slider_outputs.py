@@ -1,0 +1,90 @@
+"""Where the slider node's run goes besides its topics, and what it says
+about itself: the recorder and the live view it opens from its parameters,
+the health line of its diagnostics, and the answer to a control call.
+
+Kept apart from :mod:`friction_sim.ros.slider` (the node's wiring and tick)
+so each stays short; nothing here holds state.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticStatus
+
+from friction_sim.core.commands import COMMANDS, PAUSE, RESET, RESUME, STEP, Outcome
+from friction_sim.core.events import SliderState
+from friction_sim.io.messages import SIM_CONTROL
+
+
+def control_text(outcome: Outcome, state: SliderState) -> str:
+    """The answer to an accepted call: what was done, and where the slider is now."""
+    where = f"t = {state.t:.9f} s, x = {state.x:.9g} m, v = {state.v:.9g} m/s"
+    if outcome.name == STEP:
+        return f"stepped {outcome.values['duration']:.9g} s: {where}"
+    return {PAUSE: "paused at ", RESUME: "resumed at ", RESET: "reset to rest at x = 0: "}[outcome.name] + where
+
+
+def open_recorder(values: dict[str, Any], namespace: str) -> Any:
+    """A Recorder for ``log_path`` (None when it is empty), with the run's
+    parameters as the file's metadata, the node's namespace (topics are
+    stored fully qualified, as rosbag2 does) and waiting rather than dropping
+    when the writer falls behind (the tick thread then holds simulation time)."""
+    if not values["log_path"]:
+        return None
+    from friction_sim.io.recorder import Recorder
+
+    return Recorder(values["log_path"], metadata=recorded(values), namespace=namespace, block_when_full=True)
+
+
+def open_live_view(values: dict[str, Any], namespace: str, services: list[Any]) -> Any:
+    """A LiveView on ``foxglove_port`` (None when it is 0): the Foxglove SDK's
+    server on ``foxglove_address``, topics qualified in the node's namespace,
+    with ``services``.  A port that is taken raises LiveViewError naming it
+    (the node does not start)."""
+    if not values["foxglove_port"]:
+        return None
+    from friction_sim.io.live import ADVERTISED, LiveView
+
+    # Advertised at start, so a viewer that connects first can subscribe before the first one comes.
+    topics: list[Any] = [*ADVERTISED, SIM_CONTROL, *COMMANDS, ("diagnostics", "diagnostic_msgs/msg/DiagnosticArray")]
+    if values["publish_clock"]:
+        topics.append(("/clock", "rosgraph_msgs/msg/Clock"))
+    return LiveView(values["foxglove_port"], values["foxglove_address"], namespace=namespace, advertise=topics,
+                    services=services)
+
+
+def recorded(values: dict[str, Any]) -> dict[str, Any]:
+    """The parameter values a recording keeps: all but log_path (a file name, not a setting of the run)."""
+    return {k: v for k, v in values.items() if k not in ("log_path",)}
+
+
+def health(report: dict[str, Any], fault: str = "", name_problem: str = "") -> tuple[bytes, str]:
+    """ERROR with the reason when the simulation stopped; else OK, or WARN with
+    the reasons: the timer falls behind, commands were refused, the node's
+    name is taken twice."""
+    if fault:
+        return DiagnosticStatus.ERROR, fault
+    if report.get("recording_error"):
+        return DiagnosticStatus.ERROR, report["recording_error"]
+    problems = [name_problem] if name_problem else []
+    if report.get("live_view_error"):
+        problems.append(f"live view: {report['live_view_error']}")
+    if report.get("recording_waited_in_interval_s", 0.0) > 0.0:
+        problems.append(f"the recorder held the simulation back {report['recording_waited_in_interval_s']:.3f} s "
+                        f"(achieved real-time factor {report['achieved_real_time_factor']:.3g})")
+    if report.get("ticks_behind_in_interval", 0):
+        problems.append(f"the simulation cannot keep up with real_time_factor {report['real_time_factor']:g} "
+                        f"while recording (achieved {report['achieved_real_time_factor']:.3g})")
+    if report["tick_rate"] < 0.8 * report["publish_rate"]:
+        problems.append(f"tick rate {report['tick_rate']:.0f} Hz < 80% of {report['publish_rate']:g} Hz")
+    if report["late_ticks"]:
+        problems.append(f"{report['late_ticks']} late ticks")
+    if report["commands_rejected_in_interval"]:
+        problems.append(f"{report['commands_rejected_in_interval']} commands rejected ({report['last_rejection']})")
+    if not problems:
+        return DiagnosticStatus.OK, "paused" if report.get("paused") else "running"
+    return DiagnosticStatus.WARN, "; ".join(problems)
+
+
+__all__ = ["control_text", "health", "open_live_view", "open_recorder", "recorded"]
