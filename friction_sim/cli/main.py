@@ -10,7 +10,8 @@ Subcommands::
     friction-sim conveyor --png conveyor.png [--csv conveyor.csv] [--points 101]
     friction-sim slider [--params FILE] [--log run.mcap] [--foxglove [PORT]] [--ros-args ...]
     friction-sim controller [--params FILE] [--ros-args ...]
-    friction-sim feeder [--slider-params FILE] [--controller-params FILE] [--foxglove [PORT]] [--ros-args ...]
+    friction-sim feeder [--slider-params FILE] [--controller-params FILE] [--log run.mcap] [--foxglove [PORT]]
+                        [--ros-args ...]
     friction-sim experiment SCENARIO.yaml [--output DIR] [--attach NAMESPACE] [--foxglove [PORT]]
     friction-sim report run.mcap [--output DIR]
     friction-sim replay run.mcap [--verify] [--publish ...] [--csv DIR] [--plot PNG]
@@ -152,6 +153,8 @@ def _add_nodes(sub: Subcommands) -> None:
     feeder = sub.add_parser("feeder", help="run slider and controller in one process (one executor)")
     feeder.add_argument("--slider-params", type=Path, help="parameters file for the slider")
     feeder.add_argument("--controller-params", type=Path, help="parameters file for the controller")
+    feeder.add_argument("--log", type=Path, metavar="FILE.mcap", help="record the run to an MCAP file (the slider's "
+                        "log_path)")
     _add_foxglove(feeder)
     feeder.set_defaults(handler=commands.feeder, ros_args=[])
 
