@@ -199,10 +199,11 @@ class SampleClock:
     (``use_sim_time`` with the slider's ``/clock``: exact, paused or not);
     otherwise it is estimated from the last sample: its stamp plus the wall
     time since it arrived times the plant's pace, but never more than one
-    period plus the delivery jitter past it, since a running plant would have
-    sent the next sample by then (a plant that paused or stalled meanwhile has
-    not moved on).  So a pause, a run of ``~/step`` calls or a reset on the
-    slider never makes a window that mixes old and new motion look clean.
+    period (the samples' spacing, or the new period if longer) plus the
+    delivery jitter past it, since a running plant would have sent the next
+    sample by then (a plant that paused or stalled meanwhile has not moved
+    on).  So a pause, a run of ``~/step`` calls or a reset on the slider
+    never makes a window that mixes old and new motion look clean.
     """
 
     def __init__(self) -> None:
@@ -218,7 +219,10 @@ class SampleClock:
         elif self._samples:
             stamp, arrived = self._samples[-1]
             since = max(0, wall_ns - arrived) / NS_PER_S * self.rate()
-            self._change, self._change_pending = stamp + min(since, period + self.jitter()), False
+            # The next sample comes one period of the samples' own spacing later (the
+            # frequency may just have changed: the longer of the two bounds it).
+            spacing = stamp - self._samples[-2][0] if len(self._samples) >= 2 else period
+            self._change, self._change_pending = stamp + min(since, max(period, spacing) + self.jitter()), False
         else:
             self._change, self._change_pending = None, True
 

@@ -269,3 +269,19 @@ def test_back_to_kostek_a_target_against_the_drive_becomes_zero() -> None:
     still = MeanSpeedController(ControllerConfig(model=TILTED), drive_force=0.0, frequency=50.0, target_speed=1e-3)
     still.config = ControllerConfig()  # no drive at all: nothing to creep along
     assert still.target_speed == 0.0
+
+
+def test_a_change_right_after_a_frequency_step_is_timed_by_the_samples_spacing() -> None:
+    """The frequency doubles (50 -> 100 Hz) and the controller answers 19 ms
+    of simulation after the last 50 Hz sample: the change is timed there,
+    not capped one new (10 ms) period after that sample, so the window
+    [0.10, 0.11], which begins 1 ms after the change (less than the margin),
+    is not taken for clean (acceptance case 5 overshot when it was)."""
+    ms = 1_000_000
+    clock = SampleClock()
+    for n in range(5):
+        clock.observe(0.02 * n, 20 * ms * n)
+    clock.note_change(80 * ms + 19 * ms, period=0.01)  # at 0.099 s of simulation
+    assert not clock.add(0.10, 100 * ms, 0.01, 1, 0.25), "its window [0.09, 0.10] began before the change"
+    assert not clock.add(0.11, 110 * ms, 0.01, 1, 0.25), "its window began 1 ms after the change: within the margin"
+    assert clock.add(0.12, 120 * ms, 0.01, 1, 0.25)
