@@ -68,6 +68,8 @@ from friction_sim.core.realtime import PeriodSummary
 from friction_sim.core.simclock import NS_PER_S
 from friction_sim.errors import RecordingError
 
+#: The topic of the simulation controls (pause, resume, step, reset) in a recording.
+SIM_CONTROL = "sim_control"
 #: The state topics, sampled on the recording's uniform grid.
 STATE_TOPICS = ("pose", "velocity", "friction_force")
 #: topic -> message type name of every topic a recording can hold (the
@@ -81,10 +83,8 @@ TOPIC_TYPES: dict[str, str] = {
     "events": "diagnostic_msgs/msg/DiagnosticStatus",
     "rejected_commands": "diagnostic_msgs/msg/DiagnosticStatus",
     PARAMETERS: "rcl_interfaces/msg/ParameterEvent",
-    "sim_control": "diagnostic_msgs/msg/DiagnosticStatus",
+    SIM_CONTROL: "diagnostic_msgs/msg/DiagnosticStatus",
 }
-#: The topic of the simulation controls (pause, resume, step, reset) in a recording.
-SIM_CONTROL = "sim_control"
 #: Topics that hold accepted commands (``parameters`` holds other changes too).
 COMMAND_TOPICS = (*COMMANDS, PARAMETERS, SIM_CONTROL)
 

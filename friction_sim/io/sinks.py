@@ -21,7 +21,9 @@ from friction_sim.core.realtime import PeriodSummary, Tick
 
 
 class Sink(Protocol):
-    """A consumer of a run.  Times are simulation time [s]."""
+    """A consumer of a run.  Times are simulation time [s].  A sink that sets
+    ``published_states = True`` (the live view) is handed the states the node
+    published, one per tick, instead of the recording's log grid."""
 
     def on_states(self, states: Sequence[SliderState], frame_id: str) -> None:
         """Exact states on the log grid, in time order."""
