@@ -55,7 +55,7 @@ demo: $(STAMP)
 
 bench: $(STAMP)
 	@set -e; found=0; \
-	for f in bench/*.py; do \
+	for f in bench/[!_]*.py; do \
 	  [ -e "$$f" ] || continue; \
 	  found=1; \
 	  echo "=== $$f"; \

@@ -34,8 +34,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
-import time
 import tracemalloc
 from collections.abc import Callable
 from typing import Any
@@ -45,6 +43,8 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 import numpy as np
 
 from friction_sim.core.batch import run_batch
+
+from _timing import median_time
 
 SCALAR_SLIDERS = 200
 
@@ -60,15 +60,6 @@ def flight_case(n: int) -> dict[str, Any]:
     rng = np.random.default_rng(2)
     return {"mu": 0.5, "excitation_angle": 30.0, "drive_force": 0.0,
             "excitation_amplitude": rng.uniform(1.9, 2.1, n) * 10.0}
-
-
-def median_time(function: Callable[[], Any], repeats: int) -> float:
-    samples = []
-    for _ in range(repeats):
-        started = time.perf_counter()
-        function()
-        samples.append(time.perf_counter() - started)
-    return statistics.median(samples)
 
 
 def rate(case: Callable[[int], dict[str, Any]], n: int, settle: int, periods: int, repeats: int,

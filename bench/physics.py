@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import sys
 import time
 from pathlib import Path
@@ -44,20 +43,11 @@ from friction_sim.core.slider import Slider
 from friction_sim.core.urelation import dimensional_speed, u_grid, u_map
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "test"))  # the test-only reference
+from _timing import median_time
 from reference import ReferenceInputs, paper_case_slip, reference_solution, ulps_from_exact
 
 PARAMS = SliderParams()
 FREQUENCY = 50.0
-
-
-def median_time(function, repeats: int) -> float:
-    """Median wall time of ``repeats`` calls of ``function``."""
-    samples = []
-    for _ in range(repeats):
-        started = time.perf_counter()
-        function()
-        samples.append(time.perf_counter() - started)
-    return statistics.median(samples)
 
 
 def at_once(schedule: list[Command]) -> list[tuple[float, dict[str, float]]]:
