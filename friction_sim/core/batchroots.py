@@ -46,6 +46,25 @@ def _settled(newton: Floats, tau: Floats) -> Bools:
     return result
 
 
+def _step(newton: Floats, tau: Floats, lo: Floats, hi: Floats) -> Floats:
+    """The next iterate of a safeguarded Newton search: the Newton step where
+    it stays inside the bracket (or has settled), else the bisection."""
+    step: Floats = np.where(_settled(newton, tau) | ((lo < newton) & (newton < hi)), newton, 0.5 * (lo + hi))
+    return step
+
+
+def _retire(out: Floats, act: NDArray[np.intp], tau: Floats, step: Floats, zero: Bools) -> Bools | None:
+    """Write the roots of the entries that are done (an exact zero at tau, or a
+    step that no longer moves) into ``out`` at their indices ``act``; the mask
+    of those that go on, or None when none is done."""
+    finished = zero | (~zero & ((step == tau) | (np.abs(step - tau) <= 2.2e-16 * np.abs(tau))))
+    if not finished.any():
+        return None
+    out[act[finished]] = np.where(zero[finished], tau[finished], step[finished])
+    keep: Bools = ~finished
+    return keep
+
+
 def from_rest_b0(w0: Floats, b0: Floats, b1: Floats, sin0: Floats) -> Floats:
     """:func:`roots.from_rest_b0` for arrays."""
     result: Floats = np.where((w0 == 0.0) & (b0 + b1 * sin0 < 0.0), -b1 * sin0, b0)
@@ -197,13 +216,9 @@ def falling_root(w0: Floats, b0: Floats, b1: Floats, phase0: Floats, omega: Floa
             hi = np.where(w < 0.0, tau, hi)
             slope = b0 + b1 * np.sin(phase0 + psi)
             newton = np.where(slope < 0.0, tau - w / slope, np.nan)
-            step = np.where(_settled(newton, tau) | ((lo < newton) & (newton < hi)), newton, 0.5 * (lo + hi))
-            zero = w == 0.0
-            conv = ~zero & ((step == tau) | (np.abs(step - tau) <= 2.2e-16 * np.abs(tau)))
-            finished = zero | conv
-            if finished.any():
-                out[act[finished]] = np.where(zero[finished], tau[finished], step[finished])
-                keep = ~finished
+            step = _step(newton, tau, lo, hi)
+            keep = _retire(out, act, tau, step, w == 0.0)
+            if keep is not None:
                 if not keep.any():
                     return out
                 act, tau, step = act[keep], tau[keep], step[keep]
@@ -278,15 +293,13 @@ def polish(h: Harmonic, name: str, i: NDArray[np.intp], lo: Floats, hi: Floats, 
             lo = np.where(up, lo, tau)
             slope = df(tau)
             newton = np.where(slope != 0.0, tau - value / slope, np.nan)
-            step = np.where(_settled(newton, tau) | ((lo < newton) & (newton < hi)), newton, 0.5 * (lo + hi))
-            conv = ~zero & ((step == tau) | (np.abs(step - tau) <= 2.2e-16 * np.abs(tau)))
-            finished = zero | conv
-            if finished.any():
-                out[act[finished]] = np.where(zero[finished], tau[finished], step[finished])
-                keep = ~finished
+            step = _step(newton, tau, lo, hi)
+            keep = _retire(out, act, tau, step, zero)
+            if keep is not None:
                 if not keep.any():
                     return out
-                act, tau, step, lo, hi, rising = (a[keep] for a in (act, tau, step, lo, hi, rising))
+                act, rising = act[keep], rising[keep]
+                tau, step, lo, hi = (a[keep] for a in (tau, step, lo, hi))
                 part = part.take(np.flatnonzero(keep))
                 f, df = getattr(part, name), getattr(part, slope_name)
             tau = step
