@@ -152,6 +152,7 @@ class SliderNode(Node):
         )
         #: The exit code run_node ends with (0, or EXIT_RECORDING_FAILED after a failed recording).
         self.exit_code = 0
+        self._serving = threading.Event()  # set once the node is whole: the live view may call in before
         #: Consumers of the run (the recorder, a live view, a test's probe).
         self.sinks: list[Sink] = []
         self.recorder = open_recorder(values, self.get_namespace())
@@ -193,6 +194,7 @@ class SliderNode(Node):
         sys.setswitchinterval(min(sys.getswitchinterval(), TICK_SWITCH_INTERVAL))
         self._ticker = threading.Thread(target=self._tick_loop, name="slider_tick", daemon=True)
         self._ticker.start()
+        self._serving.set()
 
     def destroy_node(self) -> None:
         """Stop the tick thread before the publishers go away; close the sinks
@@ -304,7 +306,7 @@ class SliderNode(Node):
 
     def _on_live_control(self, name: str, request: bytes) -> bytes:
         """A control call from a Foxglove client: answered as the ROS service answers (CDR)."""
-        if not hasattr(self, "_published"):
+        if not self._serving.is_set():
             raise RuntimeError("the slider is still starting; call again")
         return bytes(serialize_message(self._on_control(name, Trigger.Request(), Trigger.Response())))
 
