@@ -28,9 +28,10 @@ something to compare that core against which does *not* share its code or
 its closed-form reasoning.  This module therefore solves the same physics in
 the most pedestrian way that is still highly accurate:
 
-* slip phases are integrated with :func:`scipy.integrate.solve_ivp`
-  (``DOP853``, dense output, ``max_step`` = excitation period / 20) with a
-  terminal event on ``v = 0``.  solve_ivp sees an event only as a sign change
+* slip phases are integrated with SciPy's ``DOP853`` (as
+  :func:`scipy.integrate.solve_ivp` does it, step loop in test/stepping.py:
+  dense output, ``max_step`` = excitation period / 20) with a
+  terminal event on ``v = 0``.  An event is seen only as a sign change
   between step ends, so a slip is integrated in sections that end at the
   minima of ``s*v`` (``s`` the slip direction): there the state-independent
   acceleration ``s*a(t)`` turns positive, found like the slip start (scan
@@ -69,6 +70,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from stepping import integrate
 
 __all__ = [
     'ReferenceInputs',
@@ -397,7 +399,7 @@ def _integrate_slip(
 ) -> _Slip:
     """Integrate one slip phase in direction ``s`` from ``t_s`` until v = 0 or ``piece.t_end``.
 
-    solve_ivp only sees a zero of the terminal event ``v`` as a sign change between
+    The integrator only sees a zero of the terminal event ``v`` as a sign change between
     the ends of a step, so a velocity that touches zero and turns back within one
     step would be integrated straight through (through a stick).  The slip is
     therefore integrated in sections that end at minima of ``s*v`` (zeros of the
@@ -408,7 +410,7 @@ def _integrate_slip(
     it stays <= 0 up to the end of the section and the sign change between step
     ends cannot be missed.
     """
-    from scipy.integrate import OdeSolution, solve_ivp
+    from scipy.integrate import OdeSolution
 
     ft = piece.tangential
     mu_s = mu * s
@@ -443,25 +445,15 @@ def _integrate_slip(
         t_safe = t0 + 0.5 * speed / -a_low if (a_low < 0.0 and speed > 0.0) else t0
         t_min = _next_velocity_minimum(piece, s, t_safe, mu)
         t_bound = piece.t_end if t_min is None else t_min
-        sol = solve_ivp(
-            rhs,
-            (t0, t_bound),
-            y0,
-            method='DOP853',
-            dense_output=True,
-            events=velocity_zero,
-            rtol=rtol,
-            atol=atol,
-            max_step=max_step,
-        )
+        sol = integrate(rhs, t0, t_bound, y0, velocity_zero, rtol=rtol, atol=atol, max_step=max_step)
         if sol.status == -1:
             raise RuntimeError(
-                f'solve_ivp failed in slip phase starting at t={t_s!r}: {sol.message}'
+                f'DOP853 failed in slip phase starting at t={t_s!r}: {sol.message}'
             )
-        sections.append(sol.sol)
+        sections.append(sol.dense)
         if sol.status == 1 or t_min is None:
             break
-        t0, y0 = float(sol.t[-1]), sol.y[:, -1]
+        t0, y0 = sol.t_end, sol.y_end
 
     if len(sections) == 1:
         dense = sections[0]
@@ -469,8 +461,8 @@ def _integrate_slip(
         ts = np.concatenate([sections[0].ts] + [sec.ts[1:] for sec in sections[1:]])
         dense = OdeSolution(ts, [ip for sec in sections for ip in sec.interpolants])
     if sol.status == 1:  # velocity reached zero
-        return _Slip(True, float(sol.t_events[0][0]), float(sol.y_events[0][0][0]), 0.0, dense)
-    return _Slip(False, float(sol.t[-1]), float(sol.y[0, -1]), float(sol.y[1, -1]), dense)
+        return _Slip(True, sol.t_end, float(sol.y_end[0]), 0.0, dense)
+    return _Slip(False, sol.t_end, float(sol.y_end[0]), float(sol.y_end[1]), dense)
 
 
 class _Sampler:

@@ -2,7 +2,7 @@
 
 What it is
 ----------
-A numerical solution, built on :func:`scipy.integrate.solve_ivp`, of the
+A numerical solution, built on SciPy's DOP853 integrator, of the
 point-mass model of vibratory conveying that ``friction_sim.core`` solves in
 closed form: flight, inclined vibration, a sloped track, static friction and
 landings with restitution.  Track frame: x along the track, z normal to it
@@ -41,12 +41,13 @@ The core evaluates closed forms and brackets their roots analytically.  This
 module uses none of that reasoning and imports nothing of
 ``friction_sim.core``:
 
-* Every motion segment is integrated with ``solve_ivp(method="DOP853")`` at
+* Every motion segment is integrated with SciPy's DOP853 (the stepper of
+  ``solve_ivp(method="DOP853")``, its loop written out in test/stepping.py) at
   ``rtol`` (default 1e-12) and a tiny ``atol``, ``max_step`` = T/20, dense
   output, from a zero displacement (so the tolerance is relative to the
   segment's own travel).  Slip stops (v crosses 0) and landings (z crosses 0
-  downwards) are terminal solve_ivp events: solve_ivp brackets them between
-  step ends and polishes them with brentq on the dense output (xtol 4 eps), so
+  downwards) are terminal events, bracketed between step ends and polished
+  with brentq on the dense output (xtol 4 eps), as solve_ivp does, so
   an event time is as good as the dense output, ~rtol.
 * Transitions that depend on time only (slip start: |Ft| - mu_s*R > 0; lift-off:
   -R > 0) are found by :func:`first_positive`: a scan of 64 points per period,
@@ -78,6 +79,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from stepping import Section, integrate
 
 __all__ = ["GeneralModel", "GeneralResult", "RefEvent", "first_positive", "solve"]
 
@@ -222,8 +224,24 @@ class GeneralResult:
     model: GeneralModel
     phase0: float
     t_final: float
+    rtol: float = 1e-12
+    atol: tuple[float, float] = (0.0, 0.0)  # (of a position, of a speed)
     events: list[RefEvent] = field(default_factory=list)
     segments: list[_Segment] = field(default_factory=list)
+    steps: int = 0
+
+    def speed_error(self, speed: float) -> float:
+        """A bound of the reference's error in a speed of size <= ``speed``: DOP853 keeps
+        each step's local error within atol + rtol*|y|, and the accelerations are
+        functions of time alone within a segment (nothing feeds back), so the errors of
+        ``steps`` steps at most add up."""
+        return self.steps * (self.atol[1] + self.rtol * speed)
+
+    def position_error(self, length: float, speed: float) -> float:
+        """A bound of its error in a position at most ``length`` from its section's start,
+        of a motion whose speeds stay within ``speed``: the positions' own local errors
+        added up, plus the speed error integrated over the run (x' = v)."""
+        return self.steps * (self.atol[0] + self.rtol * length) + self.t_final * self.speed_error(speed)
 
     def times(self, kind: str) -> NDArray[np.float64]:
         """Times of the events of one kind."""
@@ -332,7 +350,7 @@ class _Runner:
         self.t_final = t_final
         self.rtol = rtol
         self.mu_s = model.static_ratio * model.mu
-        self.result = GeneralResult(model, phase0, t_final)
+        self.result = GeneralResult(model, phase0, t_final, rtol)
         self.max_step = model.period / STEPS_PER_PERIOD
         # R >= normal_load - |Pa| everywhere: a trivial bound that spares the lift-off scan.
         self.never_lifts = model.normal_load - abs(model.excitation_amplitude) > 0.0
@@ -341,6 +359,7 @@ class _Runner:
                                     + abs(model.tangential_constant) + abs(model.normal_load)) / model.mass)
         speed, length = accel / model.omega, accel / model.omega**2
         self.atol = [1e-16 * length, 1e-16 * speed, 1e-16 * length, 1e-16 * speed]
+        self.result.atol = (self.atol[0], self.atol[1])
 
     # forces
     def R(self, t: Any) -> Any:
@@ -364,11 +383,10 @@ class _Runner:
         st.mode = after
 
     def _ivp(self, rhs: Callable[[float, Any], Any], t0: float, t1: float, y0: list[float],
-             events: list[Any]) -> Any:
-        from scipy.integrate import solve_ivp
-
-        return solve_ivp(rhs, (t0, t1), y0, method="DOP853", rtol=self.rtol, atol=self.atol[:len(y0)],
-                         max_step=self.max_step, dense_output=True, events=events or None)
+             event: Callable[[float, Any], float]) -> Section:
+        section = integrate(rhs, t0, t1, y0, event, rtol=self.rtol, atol=self.atol[:len(y0)], max_step=self.max_step)
+        self.result.steps += section.steps
+        return section
 
     # -- phases ---------------------------------------------------------------------
     def stuck(self, st: _State) -> None:
@@ -414,14 +432,14 @@ class _Runner:
             if t_end <= st.t:
                 sol = None
             else:
-                sol = self._ivp(rhs, st.t, t_end, [0.0, st.v], [stop])
+                sol = self._ivp(rhs, st.t, t_end, [0.0, st.v], stop)
                 if sol.status < 0:
-                    raise RuntimeError(f"solve_ivp failed in a slip: {sol.message}")
+                    raise RuntimeError(f"DOP853 failed in a slip: {sol.message}")
             if sol is not None:
-                self.result.segments.append(_Segment(st.t, float(sol.t[-1]), s, st.x, sol.sol))
-            if sol is not None and sol.t_events[0].size:
-                t_stop = float(sol.t_events[0][0])
-                st.x, st.t, st.v = st.x + float(sol.y_events[0][0][0]), t_stop, 0.0
+                self.result.segments.append(_Segment(st.t, sol.t_end, s, st.x, sol.dense))
+            if sol is not None and sol.event_t is not None:
+                t_stop = sol.event_t
+                st.x, st.t, st.v = st.x + float(sol.y_end[0]), t_stop, 0.0
                 ft, r = float(self.Ft(t_stop)), float(self.R(t_stop))
                 if abs(ft) <= self.mu_s * r:
                     self.event(st, "stick", STUCK)
@@ -432,7 +450,7 @@ class _Runner:
                     self.event(st, "reversal", new)
                 return
             if sol is not None:
-                st.x, st.v, st.t = st.x + float(sol.y[0][-1]), float(sol.y[1][-1]), t_end
+                st.x, st.v, st.t = st.x + float(sol.y_end[0]), float(sol.y_end[1]), t_end
             if st.t >= limit:
                 if t_lift is not None and t_lift <= self.t_final:
                     self.event(st, "lift_off", FLIGHT, v_before=st.v, v_after=st.v)
@@ -474,31 +492,31 @@ class _Runner:
                 t_change = first_positive(lambda u: -self.R(u), st.t, self.t_final, period)
             t_end = self.t_final if t_change is None else t_change
             x_start = st.x
-            sol = self._ivp(rhs, st.t, t_end, [0.0, st.v, st.z, st.vz], [apex if rising_from_track else land])
+            sol = self._ivp(rhs, st.t, t_end, [0.0, st.v, st.z, st.vz], apex if rising_from_track else land)
             if sol.status < 0:
-                raise RuntimeError(f"solve_ivp failed in a flight: {sol.message}")
-            dense = sol.sol
+                raise RuntimeError(f"DOP853 failed in a flight: {sol.message}")
+            dense = sol.dense
             if rising_from_track:
-                t_top = float(sol.t[-1])
+                t_top = sol.t_end
                 self.result.segments.append(_Segment(st.t, t_top, FLIGHT, x_start, dense))
                 y = dense(t_top)
                 st.t, st.x, st.v, st.z, st.vz = t_top, x_start + float(y[0]), float(y[1]), float(y[2]), float(y[3])
                 if not st.z > 0.0:  # pragma: no cover - a rebound is above the track until its apex
                     raise RuntimeError(f"rebound below the track at {t_top!r}")
                 continue
-            t_land: float | None = float(sol.t_events[0][0]) if sol.t_events[0].size else None
-            if t_land is None and convex and st.vz < 0.0 < float(sol.y[3][-1]):
+            t_land: float | None = sol.event_t
+            if t_land is None and convex and st.vz < 0.0 < float(sol.y_end[3]):
                 # the one minimum of a convex stretch of z: below the track means a landing before it
                 t_low = float(brentq(lambda u, d=dense: float(d(u)[3]), st.t, t_end, xtol=4e-16))
                 if float(dense(t_low)[2]) <= 0.0:
                     t_land = float(brentq(lambda u, d=dense: float(d(u)[2]), st.t, t_low, xtol=4e-16))
-            if t_land is None and float(sol.y[2][-1]) < 0.0:
+            if t_land is None and float(sol.y_end[2]) < 0.0:
                 raise RuntimeError("flight ended below the track without a landing event")
-            seg_end = t_land if t_land is not None else float(sol.t[-1])
+            seg_end = t_land if t_land is not None else sol.t_end
             self.result.segments.append(_Segment(st.t, seg_end, FLIGHT, x_start, dense))
             if t_land is None:
-                st.x, st.v, st.z, st.vz = (x_start + float(sol.y[0][-1]), float(sol.y[1][-1]),
-                                           float(sol.y[2][-1]), float(sol.y[3][-1]))
+                st.x, st.v, st.z, st.vz = (x_start + float(sol.y_end[0]), float(sol.y_end[1]),
+                                           float(sol.y_end[2]), float(sol.y_end[3]))
                 st.t = t_end
                 continue
             y = dense(t_land)
