@@ -1,11 +1,34 @@
-# friction_sim developer entry points.  Everything runs through .venv/bin/python
+# friction_sim developer entry points.  Everything runs through $(VENV)/bin/python
 # explicitly; no virtualenv activation is needed or assumed.
+#
+# Two platforms, one recipe each for the venv, the tests and the demo:
+#   PLATFORM=pinned (default): .venv, this machine's python3, constraints.txt;
+#   PLATFORM=jazzy: .venv-jazzy, Python 3.12 with what Ubuntu 24.04 (ROS 2 Jazzy's
+#     platform) has from apt: NumPy 1.26.4, SciPy 1.11.4, ... (constraints-jazzy.txt
+#     in place of those lines of constraints.txt).  `make test-jazzy` runs the suite there.
 
+PLATFORM ?= pinned
+PYTEST_ARGS ?=
+ifeq ($(PLATFORM),jazzy)
+# pyenv's newest 3.12, else a python3.12 on PATH that runs (a pyenv shim may not);
+# JAZZY_PYTHON=/path/to/python3.12 chooses another.
+JAZZY_PYTHON ?= $(shell for p in $$(ls -d "$$(pyenv root 2>/dev/null)"/versions/3.12*/bin/python3.12 2>/dev/null \
+                  | sort -V | tail -n 1) python3.12; do \
+                  "$$p" -c 'import sys; sys.exit(sys.version_info[:2] != (3, 12))' 2>/dev/null \
+                  && { command -v "$$p"; break; }; done)
+PYTHON := $(JAZZY_PYTHON)
+VENV   := .venv-jazzy
+CONSTRAINTS := $(VENV)/constraints.txt
+else ifeq ($(PLATFORM),pinned)
 PYTHON ?= python3
 VENV   := .venv
+CONSTRAINTS := constraints.txt
+else
+$(error PLATFORM = $(PLATFORM): must be pinned or jazzy)
+endif
 VPY    := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
-PYTEST_ARGS ?=
+export PLATFORM
 
 # Keep all DDS traffic on this machine, and give each `make` invocation its own
 # random domain so parallel runs (tests, demos, benches) never cross-talk.
@@ -18,20 +41,30 @@ MPLBACKEND := Agg
 export ROS_DOMAIN_ID ROS_AUTOMATIC_DISCOVERY_RANGE MPLBACKEND
 
 .DEFAULT_GOAL := test
-.PHONY: venv .venv lint test demo bench clean distclean
+.PHONY: venv .venv lint test suite test-jazzy demo bench margins clean distclean
 
 venv .venv: $(STAMP)
 
-$(STAMP): requirements.txt requirements-dev.txt constraints.txt setup.py setup.cfg
+$(STAMP): requirements.txt requirements-dev.txt $(CONSTRAINTS) setup.py setup.cfg
+	@[ -n "$(PYTHON)" ] || { echo "PLATFORM=$(PLATFORM) needs Python 3.12: python3.12 on PATH, pyenv install 3.12, or JAZZY_PYTHON=/path/to/python3.12" >&2; exit 2; }
 	$(PYTHON) -m venv $(VENV)
 	$(VPY) -m pip install --disable-pip-version-check -q -U pip
-	$(VPY) -m pip install --disable-pip-version-check -c constraints.txt -r requirements-dev.txt
+	$(VPY) -m pip install --disable-pip-version-check -c $(CONSTRAINTS) -r requirements-dev.txt
 	# Editable install of friction_sim itself: puts the console scripts
-	# (friction-sim, slider, controller) in .venv/bin.  No build isolation, so the
-	# pinned setuptools from constraints.txt is the one that builds it.
-	$(VPY) -m pip install --disable-pip-version-check -c constraints.txt --no-deps --no-build-isolation -e .
+	# (friction-sim, slider, controller) in $(VENV)/bin.  No build isolation, so the
+	# pinned setuptools from the constraints is the one that builds it.
+	$(VPY) -m pip install --disable-pip-version-check -c $(CONSTRAINTS) --no-deps --no-build-isolation -e .
 	touch $(VENV)/COLCON_IGNORE
 	touch $@
+
+# The Jazzy platform's constraints: constraints.txt with the lines that
+# constraints-jazzy.txt names replaced by its own (pip refuses two pins of one package).
+.venv-jazzy/constraints.txt: constraints.txt constraints-jazzy.txt
+	@mkdir -p $(@D)
+	awk 'function key(line,  parts) { split(line, parts, "=="); k = tolower(parts[1]); gsub(/_/, "-", k); return k } \
+	     NR == FNR { if ($$0 ~ /==/ && $$0 !~ /^#/) over[key($$0)] = 1; next } \
+	     !($$0 ~ /==/ && $$0 !~ /^#/ && (key($$0) in over))' constraints-jazzy.txt constraints.txt > $@
+	cat constraints-jazzy.txt >> $@
 
 # Static checks; configuration in pyproject.toml ([tool.ruff], [tool.mypy]).
 # Both always run, so one pass shows every finding; either one failing fails lint.
@@ -42,8 +75,21 @@ lint: $(STAMP)
 	exit $$status
 
 # Lint first: a lint failure fails `make test` before any test runs.
-test: $(STAMP) lint
+test: lint
+	$(MAKE) --no-print-directory suite
+
+# The whole suite on this platform's venv (lint runs once, on the pinned platform).
+suite: $(STAMP)
 	$(VPY) -m pytest -q test $(PYTEST_ARGS)
+
+# The whole suite on the Jazzy platform (.venv-jazzy; see the top of this file).
+test-jazzy:
+	$(MAKE) --no-print-directory PLATFORM=jazzy suite
+
+# How close each numeric test sits to its tolerance under several CPU settings
+# (OpenBLAS kernels, NumPy's AVX-512 paths): test/margins_survey.py.
+margins: $(STAMP)
+	$(VPY) test/margins_survey.py $(PYTEST_ARGS)
 
 demo: $(STAMP)
 	mkdir -p out
@@ -68,4 +114,4 @@ clean:
 	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
 
 distclean: clean
-	rm -rf $(VENV)
+	rm -rf .venv .venv-jazzy

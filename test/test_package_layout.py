@@ -170,3 +170,32 @@ def test_package_xml_declares_every_runtime_requirement_by_a_rosdep_key():
     assert exec_deps >= LAUNCH_ONLY, 'the launch file needs <exec_depend> launch and launch_ros'
     declared = set().union(*ROSDEP_KEYS.values(), LAUNCH_ONLY)
     assert exec_deps <= declared, f'package.xml declares what requirements.txt lacks: {exec_deps - declared}'
+
+
+def _setup_requirements() -> list:
+    """install_requires and every extra of setup.py (read as literals: setup.py itself runs setup())."""
+    import ast
+
+    call = next(node for node in ast.walk(ast.parse((REPO / 'setup.py').read_text()))
+                if isinstance(node, ast.Call) and getattr(node.func, 'id', '') == 'setup')
+    wanted = ('install_requires', 'extras_require')
+    options = {k.arg: ast.literal_eval(k.value) for k in call.keywords if k.arg in wanted}
+    return options['install_requires'] + [r for extra in options['extras_require'].values() for r in extra]
+
+
+def test_setup_py_declares_the_ranges_of_requirements_txt():
+    """Each Python requirement of setup.py (install_requires and extras) has the range
+    requirements.txt gives it; together they cover every non-ROS entry of requirements.txt."""
+    from packaging.requirements import Requirement
+
+    declared = {}
+    for line in (REPO / 'requirements.txt').read_text().splitlines():
+        line = line.split('#', 1)[0].strip()
+        if line:
+            requirement = Requirement(line)
+            declared[requirement.name.lower()] = requirement.specifier
+    in_setup = {Requirement(r).name.lower(): Requirement(r).specifier for r in _setup_requirements()}
+    in_setup.pop('setuptools')
+    assert set(in_setup) == {name for name in declared if not name.startswith('ros-jazzy-')}
+    for name, specifier in in_setup.items():
+        assert specifier == declared[name], f'setup.py says {name}{specifier}, requirements.txt {name}{declared[name]}'

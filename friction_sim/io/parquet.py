@@ -42,7 +42,9 @@ def _pyarrow() -> tuple[Any, Any]:
         import pyarrow
         import pyarrow.parquet
     except ImportError as error:  # pragma: no cover - pyarrow is a requirement; this is the message if it is not
-        raise ParquetError(f"Parquet needs pyarrow: pip install -r requirements.txt ({error})") from error
+        # pyarrow 26 refuses NumPy 1.x (Ubuntu 24.04's is 1.26): name the range that works with this NumPy.
+        wanted = "pyarrow>=25" if int(np.__version__.split(".")[0]) >= 2 else "pyarrow>=25,<26"
+        raise ParquetError(f"Parquet needs pyarrow: pip install '{wanted}' ({error})") from error
     return pyarrow, pyarrow.parquet
 
 

@@ -21,7 +21,10 @@ from pathlib import Path
 
 import pytest
 import yaml
+from packaging.requirements import Requirement
+from packaging.utils import canonicalize_name
 from test_launch_file import launch_arguments
+from test_package_layout import ROSDEP_KEYS
 
 from friction_sim.core.commands import COMMANDS, CONTROLS
 from friction_sim.core.spec import CONTROLLER_NODE, SLIDER_NODE
@@ -53,8 +56,19 @@ def test_the_readme_has_runnable_and_ros2_blocks() -> None:
     assert any(c.startswith("ros2 launch friction_sim feeder.launch.py") for c in commands("sh ros2"))
 
 
+def on_this_platform(command: str) -> str:
+    """``command`` as it runs on the venv running these tests: under `make test-jazzy`
+    (.venv-jazzy) the README's ``.venv/bin/`` is that venv's bin (and `make` builds
+    and uses it, since PLATFORM=jazzy is in the environment)."""
+    venv = Path(sys.prefix)
+    if venv.parent == ROOT and venv.name != ".venv":
+        return command.replace(".venv/bin/", f"{venv.name}/bin/")
+    return command
+
+
 @pytest.mark.parametrize("command", [c for c in commands("sh") if c not in NOT_RUN_HERE])
 def test_readme_command_runs(command: str) -> None:
+    command = on_this_platform(command)
     env = dict(os.environ)
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env['PATH']}"
     done = subprocess.run(command, shell=True, cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
@@ -122,11 +136,47 @@ def test_ros2_command_matches_the_real_interface(command: str) -> None:
         service, type_name = words[3:5]  # the slider's control services: /slider/<pause|resume|step|reset>
         node, name = service.rsplit("/", 1)
         assert node == "/slider" and name in CONTROLS and type_name == "std_srvs/srv/Trigger", command
+    elif words[0] == "pip":
+        _check_ros_pip_line(words)
     elif words[0] == "rosdep":
         assert words[:2] == ["rosdep", "install"] and words[words.index("--from-paths") + 1] == "src"
         assert {"--ignore-src", "-y"} <= set(words)
     else:
         assert words[0] in ("colcon", "source"), f"unchecked command: {command}"
+
+
+def _pins(path: Path) -> dict[str, str]:
+    """name -> pinned version of a constraints file (names normalised as pip does)."""
+    pins = {}
+    for line in path.read_text().splitlines():
+        line = line.split("#", 1)[0].strip()
+        if "==" in line:
+            name, version = line.split("==", 1)
+            pins[canonicalize_name(name)] = version.strip()
+    return pins
+
+
+def _check_ros_pip_line(words: list[str]) -> None:
+    """The ROS 2 route's pip line installs exactly the requirements rosdep has no key
+    for (test_package_layout.ROSDEP_KEYS), each in a range that holds the version the
+    Jazzy platform tests (constraints-jazzy.txt over constraints.txt) and is at least
+    as strict as requirements.txt's."""
+    assert words[:2] == ["pip", "install"] and {"--user", "--break-system-packages"} <= set(words)
+    wanted = {Requirement(w) for w in words[2:] if not w.startswith("-")}
+    declared = {canonicalize_name(r.name): r for r in _requirements()}
+    pip_only = {name for name, keys in ROSDEP_KEYS.items() if not keys}
+    assert {canonicalize_name(r.name) for r in wanted} == pip_only
+    jazzy = _pins(ROOT / "constraints.txt") | _pins(ROOT / "constraints-jazzy.txt")
+    for requirement in wanted:
+        name = canonicalize_name(requirement.name)
+        assert requirement.specifier.contains(jazzy[name]), f"{requirement} excludes the tested {name} {jazzy[name]}"
+        assert set(declared[name].specifier) <= set(requirement.specifier), \
+            f"{requirement} is looser than requirements.txt's {declared[name]}"
+
+
+def _requirements() -> list[Requirement]:
+    lines = (line.split("#", 1)[0].strip() for line in (ROOT / "requirements.txt").read_text().splitlines())
+    return [Requirement(line) for line in lines if line]
 
 
 def _check_launch(package: str, launch_file: str, arguments: list[str]) -> None:
