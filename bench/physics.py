@@ -36,11 +36,11 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 import numpy as np
 
-from friction_sim.core.commands import Command
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.simulation import random_schedule, run_schedule, simulate
-from friction_sim.core.slider import Slider
-from friction_sim.core.urelation import dimensional_speed, u_grid, u_map
+from friction_sim.core.engine.single import Slider
+from friction_sim.core.meanspeed.urelation import dimensional_speed, u_grid, u_map
+from friction_sim.core.model.commands import Command
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.runtime.simulation import random_schedule, run_schedule, simulate
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "test"))  # the test-only reference
 from _timing import median_time
@@ -170,7 +170,7 @@ def mean_speed_accuracy(quick: bool) -> None:
 
 
 def long_run_phase_error(quick: bool) -> None:
-    from friction_sim.core.events import EventKind
+    from friction_sim.core.model.events import EventKind
 
     periods = 100_000 if quick else 1_000_000
     fraction, _, travel = paper_case_slip()
@@ -197,8 +197,8 @@ FLIGHT_INPUTS = Inputs(drive_force=0.0, excitation_amplitude=2.0 * FLIGHT_PARAMS
 
 
 def flight_throughput(quick: bool) -> None:
-    from friction_sim.core.events import EventKind
-    from friction_sim.core.params import throw_number
+    from friction_sim.core.model.events import EventKind
+    from friction_sim.core.model.params import throw_number
 
     from reference_general import GeneralModel
     from reference_general import solve as reference_general_solve

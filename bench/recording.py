@@ -41,9 +41,10 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 import numpy as np
 
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.realtime import RealtimeSlider, Tick
-from friction_sim.core.simulation import random_schedule
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.model.records import Tick
+from friction_sim.core.runtime.realtime import RealtimeSlider
+from friction_sim.core.runtime.simulation import random_schedule
 from friction_sim.io import cdr
 from friction_sim.io.messages import STATE_TOPICS, fill_state_messages, seconds_to_ns, state_messages
 from friction_sim.io.offline import record_offline
@@ -273,7 +274,7 @@ def reading(folder: Path, seconds: float) -> None:
     own reader in the same run."""
     import subprocess
 
-    from friction_sim.core.commands import Command
+    from friction_sim.core.model.commands import Command
 
     path = folder / "long.mcap"
     schedule = [Command(seconds * k / 4, "drive_force", {"drive_force": 0.7 + 0.05 * k}) for k in (1, 2, 3)]

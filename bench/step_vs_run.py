@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from friction_sim.core.events import SliderState
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.realtime import RealtimeSlider
+from friction_sim.core.model.events import SliderState
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.runtime.realtime import RealtimeSlider
 
 REGIMES = {
     "kostek (paper Fig. 2)": (SliderParams(), Inputs()),

@@ -59,6 +59,14 @@ class LiveViewError(FrictionSimError):
         super().__init__(f"{field} = {_quote(value)} rejected: {reason}")
 
 
+class ScenarioError(FrictionSimError):
+    """A scenario file that cannot be run, with where and why."""
+
+
+class ExperimentError(FrictionSimError):
+    """An experiment cannot start (its nodes do not answer or refuse settings)."""
+
+
 class SimulationFault(FrictionSimError):
     """The exact core failed while advancing under inputs it had taken, or its
     state stopped being finite: the run cannot go on.  The message says when
@@ -67,7 +75,7 @@ class SimulationFault(FrictionSimError):
 
 class NodeFault(FrictionSimError):
     """A node cannot go on; it has logged why (one line).  The node's ``main``
-    ends with exit code 3 (``friction_sim.ros.common.EXIT_FAULT``)."""
+    ends with exit code 3 (``friction_sim.ros.run.EXIT_FAULT``)."""
 
 
 def one_line(error: BaseException, *, with_type: bool = False) -> str:

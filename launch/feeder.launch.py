@@ -15,7 +15,7 @@ Arguments (``ros2 launch friction_sim feeder.launch.py --show-args`` lists them)
 
 log_path, foxglove_port and use_sim_time are set after the parameter files, so
 they win over what the files say.  Every parameter name here is one of
-``friction_sim.core.spec`` (or ROS's own ``use_sim_time``); test/test_launch_file.py
+``friction_sim.core.model.spec`` (or ROS's own ``use_sim_time``); test/test_launch_file.py
 checks that, and that every argument is declared and used.
 """
 

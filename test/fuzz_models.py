@@ -1,7 +1,7 @@
 """What a node under fuzzing must do with each input: the test's model of it.
 
 The slider's model validates through the core's one gate
-(:func:`friction_sim.core.commands.apply` and the real-time load rule), the
+(:func:`friction_sim.core.model.commands.apply` and the real-time load rule), the
 rule the node promises to apply to every command and parameter set; the
 controller's follows the documented rules of its inputs (ranges from the
 spec, a target agrees in sign with the drive force).  Type, read-only and
@@ -19,9 +19,9 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from friction_sim.core import spec
-from friction_sim.core.commands import PARAMETERS, Command, apply
-from friction_sim.core.params import Inputs, SliderParams, check_load
+from friction_sim.core.model import spec
+from friction_sim.core.model.commands import PARAMETERS, Command, apply
+from friction_sim.core.model.params import Inputs, SliderParams, check_load
 from friction_sim.errors import ParameterError
 
 from fuzz_strategies import USE_SIM_TIME

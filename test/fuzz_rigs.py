@@ -30,10 +30,11 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from std_msgs.msg import Float64
 
-from friction_sim.core import spec
-from friction_sim.core.commands import COMMANDS, CONTROLLER, SLIDER, consumed_by
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.urelation import predict, u_map
+from friction_sim.core.meanspeed.predict import predict
+from friction_sim.core.meanspeed.urelation import u_map
+from friction_sim.core.model import spec
+from friction_sim.core.model.commands import COMMANDS, CONTROLLER, SLIDER, consumed_by
+from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.errors import ParameterError
 from friction_sim.io.messages import message_class
 

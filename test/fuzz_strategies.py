@@ -1,6 +1,6 @@
 """Hypothesis strategies for the fuzz suite (test/ros/test_fuzz.py), derived
-from the one vocabulary: every setting of :mod:`friction_sim.core.spec` with
-its range, and every command topic of :data:`friction_sim.core.commands.COMMANDS`
+from the one vocabulary: every setting of :mod:`friction_sim.core.model.spec` with
+its range, and every command topic of :data:`friction_sim.core.model.commands.COMMANDS`
 with the fields of its message.
 
 Numbers are drawn from classes rather than uniformly, so that a few hundred
@@ -23,8 +23,8 @@ from typing import Any
 
 from hypothesis import strategies as st
 
-from friction_sim.core import spec
-from friction_sim.core.commands import COMMANDS, consumed_by
+from friction_sim.core.model import spec
+from friction_sim.core.model.commands import COMMANDS, consumed_by
 
 NAN, INF = math.nan, math.inf
 #: Finite but absurd: the largest and smallest doubles, subnormals, signed zeros.

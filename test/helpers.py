@@ -9,7 +9,7 @@ import signal
 from collections.abc import Iterator
 from typing import Any
 
-from friction_sim.core.commands import Command
+from friction_sim.core.model.commands import Command
 
 
 class EndlessLoop(AssertionError):
@@ -74,7 +74,7 @@ def fail_on_poison(monkeypatch: Any) -> None:
     """Make ``Slider.set_plant`` really take drive_force :data:`POISON`, then
     raise, as a root finder overflowing half-way through a new segment did:
     only a full restore undoes it."""
-    from friction_sim.core.slider import Slider
+    from friction_sim.core.engine.single import Slider
 
     real = Slider.set_plant
 

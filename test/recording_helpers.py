@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from friction_sim.core.commands import Command
-from friction_sim.core.simulation import random_schedule
+from friction_sim.core.model.commands import Command
+from friction_sim.core.runtime.simulation import random_schedule
 from friction_sim.io.reader import read_recording
 from friction_sim.io.recorder import METADATA_NAME, Recorder
 

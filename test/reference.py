@@ -46,7 +46,7 @@ the most pedestrian way that is still highly accurate:
 * only the excitation phase ``theta(t)`` is evaluated in closed form (it is
   linear in time on every schedule piece).
 
-It must not import ``friction_sim.core.slider`` or ``friction_sim.core.urelation``.
+It must not import ``friction_sim.core.engine.single`` or ``friction_sim.core.meanspeed.urelation``.
 
 scipy is a development/test dependency only, so it is imported lazily inside
 the functions that need it; importing this module needs numpy alone.

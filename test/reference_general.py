@@ -15,7 +15,7 @@ and away from it.  With theta(t) = phase0 + 2*pi*f*t::
     slipping  (z = 0, v != 0): m*x'' = Ft - mu*R*sign(v)
     flight    (z > 0):         m*x'' = Ft,  m*z'' = -R     (no friction)
 
-Transitions (event kinds, the strings of ``friction_sim.core.events.EventKind``):
+Transitions (event kinds, the strings of ``friction_sim.core.model.events.EventKind``):
 
 * ``slip_start``: stuck and |Ft| rises above mu_s*R; the slip takes the
   direction of Ft.
@@ -84,7 +84,7 @@ from stepping import Section, integrate
 __all__ = ["GeneralModel", "GeneralResult", "RefEvent", "first_positive", "solve"]
 
 TWO_PI = 2.0 * math.pi
-STUCK, FORWARD, BACKWARD, FLIGHT = 0, 1, -1, 2  # the values of friction_sim.core.events.Mode
+STUCK, FORWARD, BACKWARD, FLIGHT = 0, 1, -1, 2  # the values of friction_sim.core.model.events.Mode
 #: Grid points per period of the time-only scans.
 SCAN_POINTS = 64
 #: max_step of the integration, as a fraction of the period.
@@ -192,7 +192,7 @@ class GeneralModel:
 
 @dataclass(frozen=True)
 class RefEvent:
-    """One transition (mode values as in ``friction_sim.core.events.Mode``)."""
+    """One transition (mode values as in ``friction_sim.core.model.events.Mode``)."""
 
     t: float
     kind: str

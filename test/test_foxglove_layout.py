@@ -30,8 +30,8 @@ import foxglove.layouts as fl
 import pytest
 from std_srvs.srv import Trigger
 
-from friction_sim.core.commands import CONTROLS
-from friction_sim.core.events import EventKind
+from friction_sim.core.model.commands import CONTROLS
+from friction_sim.core.model.events import EventKind
 from friction_sim.io.messages import SIM_CONTROL, TOPIC_TYPES
 from friction_sim.ros.slider import SliderNode
 

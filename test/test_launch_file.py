@@ -9,7 +9,7 @@ ros2/launch_ros, branch jazzy) and evaluate substitutions the way launch does
 with its value_type coercion).  Then every executable is a console script of
 this package, every argument is declared and used, and each node's parameters
 (its parameter file, then the launch file's overrides, the last one winning as
-in ROS 2) are parameters of that node in ``friction_sim.core.spec``, each
+in ROS 2) are parameters of that node in ``friction_sim.core.model.spec``, each
 accepted by its ``Setting.check``, for the default arguments and for the
 README's example.
 """
@@ -29,7 +29,7 @@ from typing import Any
 import pytest
 import yaml
 
-from friction_sim.core.spec import CONTROLLER_NODE, SLIDER_NODE, Setting
+from friction_sim.core.model.spec import CONTROLLER_NODE, SLIDER_NODE, Setting
 from friction_sim.errors import ParameterError
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -24,15 +24,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from friction_sim.core.events import EventKind, Mode
-from friction_sim.core.simulation import SimulationResult
-from friction_sim.core.urelation import UMap
+from friction_sim.core.meanspeed.urelation import UMap
+from friction_sim.core.model.events import EventKind, Mode
+from friction_sim.core.runtime.simulation import SimulationResult
 from friction_sim.experiment.report import RunData, SegmentRow, inputs_at
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from friction_sim.cli.conveyor import ConveyorSweep
+    from friction_sim.core.meanspeed.conveyor import ConveyorSweep
 
 
 #: The resolution of every saved figure [dots per inch]: print quality, and
@@ -284,7 +284,7 @@ def conveyor_figure(sweep: ConveyorSweep) -> Figure:
     track inclination at a fixed Gamma and angle, the reversal marked.  Hollow
     markers: motion not periodic within the settling periods (the mean is over
     the stated window after them)."""
-    from friction_sim.cli.conveyor import MARKED_GAMMAS
+    from friction_sim.core.meanspeed.conveyor import MARKED_GAMMAS
 
     fig = pyplot_free_figure(figsize=(8.0, 9.0), layout="constrained")
     top, bottom = fig.subplots(2, 1)

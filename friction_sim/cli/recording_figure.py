@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from friction_sim.core.commands import PARAMETERS
+from friction_sim.core.model.commands import PARAMETERS
 from friction_sim.io.messages import (
     COMMAND_TOPICS,
     NS_PER_S,

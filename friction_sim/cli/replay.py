@@ -18,8 +18,9 @@ import argparse
 import sys
 from pathlib import Path
 
-from friction_sim.cli.commands import add_flag
-from friction_sim.core import spec
+from friction_sim.cli.options import Verb, add_flag
+from friction_sim.cli.progress import TerminalProgress
+from friction_sim.core.model import spec
 from friction_sim.errors import RecordingError
 from friction_sim.io.reader import Recording, read_recording
 from friction_sim.io.verify import DEFAULT_TOLERANCE, verify
@@ -107,10 +108,13 @@ def _publish(recording: Recording, args: argparse.Namespace) -> None:
     from friction_sim.ros.republisher import publish
 
     result = publish(recording, rate=args.rate, loop=args.loop, topics=args.topics,
-                     namespace=args.namespace, delay=getattr(args, "delay", 0.0), progress=sys.stderr)
+                     namespace=args.namespace, delay=getattr(args, "delay", 0.0),
+                     progress=TerminalProgress(tty_interval=0.1))
     print(f"published {result.messages} messages"
           + (f" in {result.loops} loops" if args.loop else "")
           + (" (interrupted)" if result.interrupted else ""))
 
 
-__all__ = ["EXIT_ERROR", "EXIT_MISMATCH", "EXIT_OK", "add_arguments", "run"]
+VERBS = (Verb("replay", "verify, republish, export or plot a recording", add_arguments, run),)
+
+__all__ = ["VERBS", "add_arguments", "run"]

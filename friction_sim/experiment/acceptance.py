@@ -13,12 +13,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from friction_sim.core.commands import in_force
-from friction_sim.core.control import ControllerConfig, MeanSpeedController
-from friction_sim.core.params import Inputs
+from friction_sim.core.control.law import ControllerConfig, MeanSpeedController
+from friction_sim.core.model.commands import in_force
+from friction_sim.core.model.params import Inputs
+from friction_sim.experiment.job import ExperimentResult
 from friction_sim.experiment.metrics import StepMetrics, step_metrics
 from friction_sim.experiment.scenario import Expectation, Scenario, load_scenario
-from friction_sim.experiment.spec import ExperimentResult
 
 
 def config_dir() -> Path:

@@ -16,10 +16,10 @@ scheduled commands):
 
 This module is pure (no ROS, no matplotlib): the picture is
 :func:`friction_sim.cli.figures.report_figure`, and writing the files is
-:mod:`friction_sim.cli.jobs`.  The recording is read only through
+:mod:`friction_sim.cli.experiments`.  The recording is read only through
 :mod:`friction_sim.io`; what the experiment was (its schedule, duration and
 initial target) comes from the scenario metadata record the runner wrote
-(:mod:`friction_sim.experiment.spec`).
+(:mod:`friction_sim.experiment.job`).
 
 A recording is streamed (:func:`run_data_from_recording`): one pass reads
 the commands, a second the mean speeds and the events chunk by chunk,
@@ -37,12 +37,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from friction_sim.core import spec as settings
-from friction_sim.core.commands import COMMANDS, Command, in_force
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.urelation import predict
+from friction_sim.core.meanspeed.predict import predict
+from friction_sim.core.model.commands import COMMANDS, Command, in_force
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.experiment.job import SCENARIO_METADATA, ScenarioRecord, read_scenario_metadata
 from friction_sim.experiment.metrics import settling_periods
-from friction_sim.experiment.spec import SCENARIO_METADATA, ScenarioRecord, read_scenario_metadata
 
 TOLERANCE = 0.01
 #: About how many mean-speed samples a report read from a recording keeps for its picture.
@@ -249,14 +248,14 @@ def run_data_from_recording(path: Path, tolerance: float = TOLERANCE) -> RunData
     recorder dropped messages.
     """
     from friction_sim.io.reader import read_recording
-    from friction_sim.io.verify import initial_parameters, recorded_commands
+    from friction_sim.io.verify import initial_plant, recorded_commands
 
     recording = read_recording(path)
     recording.refuse_dropped("summarised")
     meta = recording.metadata.get(SCENARIO_METADATA, {})
     start_ns = int(meta.get("start_ns", recording.start_ns))
     start = start_ns / 1e9
-    params, inputs = _initial_state(initial_parameters(recording))
+    params, inputs = initial_plant(recording)
     every = [c.at(c.t - start) for c in recorded_commands(recording)]
     recorded = [c for c in every if c.inputs]
     params, inputs = in_force([c for c in recorded if c.t < 0.0], params, inputs, 0.0)
@@ -312,7 +311,8 @@ class _Keeper:
 
     def read(self, recording: Any, start_ns: int) -> None:
         """One pass over mean_velocity and events (velocity if no events were recorded)."""
-        from friction_sim.io.series import VELOCITY, stamps_ns, state_values, status_names
+        from friction_sim.io.cdr import stamps_ns
+        from friction_sim.io.series import VELOCITY, state_values, status_names
 
         topics = ["mean_velocity", "events"] if recording.count("events") else ["mean_velocity", "velocity"]
         relative = {recording.topic_name(topic): topic for topic in topics}
@@ -322,7 +322,7 @@ class _Keeper:
             for raw in block:
                 groups[relative[raw.topic]].append(raw)
             if groups["mean_velocity"]:
-                stamps = stamps_ns(groups["mean_velocity"])
+                stamps = stamps_ns([raw.data for raw in groups["mean_velocity"]])
                 _, values = state_values(recording, groups["mean_velocity"], VELOCITY)
                 for stamp, v in zip(stamps.tolist(), values[:, 0].tolist()):
                     if stamp >= start_ns:
@@ -391,15 +391,6 @@ def _landing_kind(recording: Any, raw: Any) -> str:
     most one landing a period, so the cost stays a fraction of the read."""
     message = str(recording.decode(raw).message)
     return LANDING_STUCK if message.endswith("-> stuck") else "landing"
-
-
-def _initial_state(initial: dict[str, Any]) -> tuple[SliderParams, Inputs]:
-    """The plant and inputs a recording started with (defaults for what it lacks)."""
-    plant: dict[str, Any] = {k: initial[k] if isinstance(initial[k], str) else float(initial[k])
-                             for k in settings.PLANT if k in initial}
-    params = SliderParams(**plant)
-    inputs = Inputs(**{k: float(initial[k]) for k in settings.INPUTS if k in initial})
-    return params, inputs
 
 
 def _scenario_record(meta: dict[str, str]) -> ScenarioRecord | None:

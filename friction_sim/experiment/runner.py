@@ -3,11 +3,11 @@ a slider (and optionally a controller) running in this process, or already
 running elsewhere.
 
 The nodes run exactly as they would under ``ros2 run``; a driver node
-publishes each scheduled :class:`~friction_sim.core.commands.Command` on its
+publishes each scheduled :class:`~friction_sim.core.model.commands.Command` on its
 topic (as :func:`friction_sim.io.messages.command_message`) when the slider's
 simulation time reaches it, and listens to what the nodes publish.  The
 result holds the time series a report or a test needs
-(:class:`~friction_sim.experiment.spec.ExperimentResult`);
+(:class:`~friction_sim.experiment.job.ExperimentResult`);
 :mod:`friction_sim.experiment.metrics` turns them into settling time,
 overshoot and steady error.  This is the one module of the package outside
 ``friction_sim.ros`` that imports rclpy (lazily, inside the functions).
@@ -22,13 +22,12 @@ import uuid
 from collections.abc import Callable
 from typing import Any
 
-from friction_sim.core import spec as settings
-from friction_sim.core.commands import COMMANDS, CONTROLLER, SLIDER, Command, Outcome, apply, consumed_by
-from friction_sim.core.params import Inputs
-from friction_sim.errors import ParameterError
-from friction_sim.experiment.spec import (
+from friction_sim.core.model import spec as settings
+from friction_sim.core.model.commands import COMMANDS, CONTROLLER, SLIDER, Command, Outcome, apply, consumed_by
+from friction_sim.core.model.params import Inputs
+from friction_sim.errors import ExperimentError, ParameterError
+from friction_sim.experiment.job import (
     SCENARIO_METADATA,
-    ExperimentError,
     ExperimentResult,
     ExperimentSpec,
     Status,
@@ -158,8 +157,8 @@ class _InProcess:
     """Slider (and controller) nodes in this process; the slider records."""
 
     def __init__(self, spec: ExperimentSpec, ns: str, executor: Any, result: ExperimentResult) -> None:
-        from friction_sim.ros.common import wall_ns
         from friction_sim.ros.controller import ControllerNode
+        from friction_sim.ros.run import wall_ns
         from friction_sim.ros.slider import SliderNode
 
         values = _plant_values(spec)
@@ -328,4 +327,4 @@ def _shift(result: ExperimentResult, start: float) -> None:
     result.amplitude = [(t - start, a) for t, a in result.amplitude if t >= start]
 
 
-__all__ = ["ExperimentError", "ExperimentResult", "ExperimentSpec", "Status", "run_experiment", "run_standalone"]
+__all__ = ["ExperimentResult", "ExperimentSpec", "Status", "run_experiment", "run_standalone"]

@@ -43,12 +43,12 @@ from typing import Any
 
 import yaml
 
-from friction_sim.core import spec as settings
-from friction_sim.core.commands import COMMANDS, Command, apply
-from friction_sim.core.control import ControllerConfig, MeanSpeedController
-from friction_sim.core.params import Inputs, SliderParams, check_load
-from friction_sim.errors import FrictionSimError, ParameterError
-from friction_sim.experiment.spec import ExperimentSpec
+from friction_sim.core.control.law import ControllerConfig, MeanSpeedController
+from friction_sim.core.model import spec as settings
+from friction_sim.core.model.commands import COMMANDS, Command, apply
+from friction_sim.core.model.params import Inputs, SliderParams, check_load, plant_from
+from friction_sim.errors import FrictionSimError, ParameterError, ScenarioError
+from friction_sim.experiment.job import ExperimentSpec
 from friction_sim.io.paramfile import read_params_file
 
 #: Keys of ``plant:``: the plant and those inputs the slider takes as parameters.
@@ -74,10 +74,6 @@ class Expectation:
     within: float
     periods: int
     overshoot: float = math.inf
-
-
-class ScenarioError(FrictionSimError):
-    """A scenario file that cannot be run, with where and why."""
 
 
 @dataclass(frozen=True)
@@ -244,8 +240,7 @@ class YamlParser:
         elif "plant_params" in top:
             values = self.params_file(top["plant_params"])
         try:
-            params = SliderParams(**{k: v for k, v in values.items() if k in settings.PLANT})
-            inputs = Inputs(**{k: v for k, v in values.items() if k in settings.INPUTS})
+            params, inputs = plant_from(values)
             check_load(inputs.excitation_frequency, rate)
         except ParameterError as error:
             raise self.plant_error(top, error) from error
@@ -381,7 +376,7 @@ class _Schedule:
 
 
 __all__ = [
-    "CONTROLLER_KEYS", "PLANT_KEYS", "Expectation", "Scenario", "ScenarioError", "YamlParser", "compose_mapping",
+    "CONTROLLER_KEYS", "PLANT_KEYS", "Expectation", "Scenario", "YamlParser", "compose_mapping",
     "load_scenario",
     "parse_scenario",
 ]

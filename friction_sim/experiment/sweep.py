@@ -1,6 +1,6 @@
 """Sweep files for ``friction-sim sweep``: parsing, validation and the points.
 
-A sweep runs the batch core (:func:`friction_sim.core.batch.run_batch`) over
+A sweep runs the batch core (:func:`friction_sim.core.engine.population.run_batch`) over
 many points of the general model.  It is a YAML file::
 
     name: parts                     # optional; names the output file
@@ -55,8 +55,8 @@ from typing import Any
 import numpy as np
 import yaml
 
-from friction_sim.core import spec as settings
-from friction_sim.core.spec import Setting
+from friction_sim.core.model import spec as settings
+from friction_sim.core.model.spec import Setting
 from friction_sim.errors import FrictionSimError, ParameterError
 from friction_sim.experiment.scenario import Entry, compose_mapping
 from friction_sim.experiment.scenario import YamlParser as ScenarioParser

@@ -2,7 +2,7 @@
 
 A validated :class:`~friction_sim.experiment.sweep.Sweep` is cut into chunks
 of ``chunk_size`` points.  Each chunk is one call of
-:func:`friction_sim.core.batch.run_batch` (:func:`run_chunk`, a plain function
+:func:`friction_sim.core.engine.population.run_batch` (:func:`run_chunk`, a plain function
 of the sweep and the chunk's index, so any Dask worker with friction_sim
 installed can run it: it needs no ROS and no file system shared with the
 client).  The client alone writes: each finished chunk becomes one part file
@@ -30,18 +30,18 @@ import json
 import logging
 import os
 import shutil
-import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import Any, Protocol, TextIO
+from typing import Any, Protocol
 
 import numpy as np
 
-from friction_sim.core.batch import run_batch
-from friction_sim.core.spec import Setting
+from friction_sim.core.engine.population import run_batch
+from friction_sim.core.model.spec import Setting
+from friction_sim.core.runtime.progress import Progress
 from friction_sim.errors import FrictionSimError, one_line
 from friction_sim.experiment.sweep import BLOCK, DERIVED, FIELDS, Sweep, materialize
 from friction_sim.io.parquet import Columns, combine, read_metadata, write_table
@@ -63,14 +63,16 @@ def model_version() -> str:
     return str(__version__)
 
 
-def run_chunk(sweep: Sweep, index: int, engine: str = "numpy") -> Columns:
-    """Chunk ``index`` of ``sweep``: its points' input columns and the batch core's
-    outputs (one row per point).  Runs on a Dask worker: needs no ROS."""
+def run_chunk(sweep: Sweep, index: int, engine: str = "compiled", threads: int | None = None) -> Columns:
+    """Chunk ``index`` of ``sweep``: its points' input columns and the population
+    engine's outputs (one row per point), on ``threads`` cores (None: all; a Dask
+    worker process is one core).  Runs on a Dask worker: needs no ROS."""
     start, stop = sweep.chunk_range(index)
     columns = materialize(sweep, start, stop)
     values = {name: columns[name].astype(str) if FIELDS[name].kind is str else columns[name] for name in FIELDS}
     try:
-        result = run_batch(values, settle_periods=sweep.settle_periods, periods=sweep.periods, engine=engine)
+        result = run_batch(values, settle_periods=sweep.settle_periods, periods=sweep.periods, engine=engine,
+                           threads=threads)
     except FrictionSimError as error:  # one picklable error type, whatever the core raised, with the chunk named
         raise SweepRunError(f"chunk {index} (points {start}..{stop - 1}): {one_line(error)}") from None
     columns["mean_velocity"] = np.asarray(result.mean_velocity, dtype=float)
@@ -158,7 +160,7 @@ class DaskExecutor:
         """Submit every chunk; yield each result as it arrives (each once)."""
         from distributed import as_completed
 
-        futures = {self.client.submit(run_chunk, sweep, index, engine, key=f"friction-sim-{sweep.identity}-{index}",
+        futures = {self.client.submit(run_chunk, sweep, index, engine, 1, key=f"friction-sim-{sweep.identity}-{index}",
                                       pure=False): index for index in indices}
         try:
             for future in as_completed(list(futures)):
@@ -191,39 +193,33 @@ class SweepOutcome:
     executor: str
 
 
-class Progress:
-    """A text progress bar on ``stream``: chunks and points done, rate, time left.
-    On a terminal it redraws one line; otherwise it prints a line at most every
-    ``interval`` seconds (and the last one)."""
+class SweepProgress:
+    """A sweep's bar, ``name [#####.....]  12/40 chunks  24000/80000 points  3.1 s  ETA 7 s``,
+    on a progress line (:class:`~friction_sim.core.runtime.progress.Progress`: the
+    command line's, which redraws it on a terminal)."""
 
-    def __init__(self, name: str, chunks: int, points: int, stream: TextIO | None = None,
-                 interval: float = 2.0) -> None:
-        self.name, self.chunks, self.points = name, chunks, points
-        self.stream = stream if stream is not None else sys.stderr
-        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
-        self.interval = interval
+    def __init__(self, name: str, chunks: int, points: int, line: Progress) -> None:
+        self.name, self.chunks, self.points, self.line = name, chunks, points, line
         self.start = time.monotonic()
-        self.shown = -1.0
         self.done_chunks = self.done_points = self.new_points = 0
 
     def restart(self) -> None:
         """Count the time from now (the cluster is up, the work starts)."""
         self.start = time.monotonic()
 
+    def note(self, message: str) -> None:
+        """A line of its own (the engine compiling, say)."""
+        self.line.note(f"{self.name}: {message}")
+
     def advance(self, points: int, *, new: bool = True) -> None:
         """One more chunk of ``points`` done (``new``: computed now, not reused)."""
         self.done_chunks += 1
         self.done_points += points
         self.new_points += points if new else 0
-        now = time.monotonic()
-        if self.tty or now - self.shown >= self.interval or self.done_chunks == self.chunks:
-            self.shown = now
-            self.stream.write(("\r" if self.tty else "") + self.line(now - self.start)
-                              + ("" if self.tty else "\n"))
-            self.stream.flush()
+        self.line.show(self.text(time.monotonic() - self.start), final=self.done_chunks == self.chunks)
 
-    def line(self, elapsed: float) -> str:
-        """The bar: ``name [#####.....]  12/40 chunks  24000/80000 points  3.1 s  ETA 7 s``."""
+    def text(self, elapsed: float) -> str:
+        """The bar after ``elapsed`` seconds."""
         share = self.done_points / self.points if self.points else 1.0
         bar = "#" * round(30 * share) + "." * (30 - round(30 * share))
         rate = self.new_points / elapsed if elapsed > 0 else 0.0
@@ -233,10 +229,8 @@ class Progress:
                 f"{self.done_points}/{self.points} points  {elapsed:.1f} s  {eta}")
 
     def close(self) -> None:
-        """End the terminal line."""
-        if self.tty and self.done_chunks:
-            self.stream.write("\n")
-            self.stream.flush()
+        """End the line."""
+        self.line.close()
 
 
 def parts_dir(output: Path) -> Path:
@@ -288,8 +282,8 @@ def _prepare(sweep: Sweep, output: Path, fresh: bool) -> set[int]:
     return {index for index in range(sweep.chunks) if part_path(output, index).exists()}
 
 
-def run_sweep(sweep: Sweep, executor: Executor, *, output: Path | None = None, engine: str = "numpy",
-              fresh: bool = False, progress: Progress | None = None,
+def run_sweep(sweep: Sweep, executor: Executor, *, output: Path | None = None, engine: str = "compiled",
+              fresh: bool = False, progress: SweepProgress | None = None,
               on_chunk: Callable[[int], None] | None = None) -> SweepOutcome:
     """Run ``sweep`` (resuming from its parts), write ``output`` (default: the
     sweep's), and return what was done.  ``on_chunk(index)`` is called after
@@ -308,6 +302,10 @@ def run_sweep(sweep: Sweep, executor: Executor, *, output: Path | None = None, e
             start, stop = sweep.chunk_range(index)
             progress.advance(stop - start, new=False)
     todo = [index for index in range(sweep.chunks) if index not in done]
+    if todo and engine == "compiled":  # compile (or load) once here, before workers would each compile
+        from friction_sim.core.engine.compiled import prepare
+
+        prepare(progress.note if progress is not None else None)
     meta = metadata(sweep, engine)
     for index, columns in executor.run(sweep, todo, engine):
         start, stop = sweep.chunk_range(index)
@@ -339,6 +337,6 @@ def settings_of(name: str) -> Setting | None:
 
 
 __all__ = [
-    "OUTPUTS", "DaskExecutor", "Executor", "Progress", "SerialExecutor", "SweepOutcome", "SweepRunError",
+    "OUTPUTS", "DaskExecutor", "Executor", "SerialExecutor", "SweepProgress", "SweepOutcome", "SweepRunError",
     "metadata", "model_version", "part_path", "parts_dir", "result_columns", "run_chunk", "run_sweep", "settings_of",
 ]

@@ -12,9 +12,10 @@ from contextlib import ExitStack
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from friction_sim.core.events import Event, Trajectory
-from friction_sim.core.simclock import NS_PER_S
-from friction_sim.core.urelation import UMap
+from friction_sim.core.meanspeed.conveyor import ConveyorSweep, Curve
+from friction_sim.core.meanspeed.urelation import UMap
+from friction_sim.core.model.events import Event, Trajectory
+from friction_sim.core.model.spec import NS_PER_S
 from friction_sim.errors import RecordingError
 
 if TYPE_CHECKING:  # the offline jobs write CSV without loading the ROS message packages
@@ -35,6 +36,35 @@ def write_umap_csv(umap: UMap, path: Path) -> Path:
             for j, phi in enumerate(umap.phi):
                 writer.writerow((repr(float(phi)), repr(float(ratio)), repr(float(umap.u[i, j]))))
     return path
+
+
+#: The conveyor CSV's columns: one row per point of either panel.
+CONVEYOR_COLUMNS = ("panel", "excitation_angle", "throw_number", "track_inclination", "U", "periodic",
+                    "period_multiple", "flight_fraction", "stick_fraction")
+
+
+def write_conveyor_csv(sweep: ConveyorSweep, path: Path) -> Path:
+    """One CSV for both panels of the conveyor figure: ``panel`` is ``gamma`` (U
+    against Gamma, level track) or ``inclination`` (U against alpha at the fixed
+    Gamma and beta); angles in degrees; ``periodic`` 1/0 (0: the mean over a window)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as stream:
+        writer = csv.writer(stream)
+        writer.writerow(CONVEYOR_COLUMNS)
+        for angle, c in sweep.gamma_curves.items():
+            for k in range(c.x.size):
+                writer.writerow(_conveyor_row("gamma", angle, float(c.x[k]), 0.0, c, k))
+        for k in range(sweep.slope.x.size):
+            writer.writerow(_conveyor_row("inclination", sweep.slope_angle, sweep.slope_gamma,
+                                          float(sweep.slope.x[k]), sweep.slope, k))
+    return path
+
+
+def _conveyor_row(panel: str, angle: float, gamma: float, inclination: float, c: Curve, k: int) -> list[object]:
+    speeds = c.speeds
+    return [panel, repr(angle), repr(gamma), repr(inclination), repr(float(speeds.u[k])), int(speeds.periodic[k]),
+            int(speeds.period_multiple[k]), repr(float(speeds.flight_fraction[k])),
+            repr(float(speeds.stick_fraction[k]))]
 
 
 def write_trajectory_csv(trajectory: Trajectory, events: list[Event], path: Path) -> Path:

@@ -79,9 +79,9 @@ from foxglove.websocket import (
     ServerListener,
 )
 
-from friction_sim.core.commands import Outcome
-from friction_sim.core.events import Event, Mode, SliderState
-from friction_sim.core.realtime import PeriodSummary
+from friction_sim.core.model.commands import Outcome
+from friction_sim.core.model.events import Event, Mode, SliderState
+from friction_sim.core.model.records import PeriodSummary
 from friction_sim.errors import LiveViewError, one_line
 from friction_sim.io import cdr
 from friction_sim.io.bagfile import MAX_STAMP_NS
@@ -106,8 +106,8 @@ from friction_sim.io.recordwriter import (
     Item,
     qualified_topic,
     record_messages,
+    state_row,
     state_row_builder,
-    state_values,
 )
 from friction_sim.io.typesupport import message_definition, message_type_name
 
@@ -462,7 +462,7 @@ class LiveView:
                 if not 0 <= ns <= MAX_STAMP_NS:
                     raise ValueError(f"time {state.t!r} s is outside ROS time")
                 if layouts is not None:
-                    values = state_values(state)
+                    values = state_row(state)
                     payloads = [layouts[index].encode_one(ns, values) for index in watched]
                 else:
                     fill_state_messages(state, frame_id, *self._templates)

@@ -51,7 +51,7 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rcl_interfaces.msg import Parameter, ParameterEvent, ParameterType, ParameterValue
 
-from friction_sim.core.commands import (
+from friction_sim.core.model.commands import (
     COMMANDS,
     CONTROLS,
     PARAMETERS,
@@ -63,9 +63,9 @@ from friction_sim.core.commands import (
     Outcome,
     float_values,
 )
-from friction_sim.core.events import Event, EventKind, Mode, SliderState
-from friction_sim.core.realtime import PeriodSummary
-from friction_sim.core.simclock import NS_PER_S
+from friction_sim.core.model.events import Event, EventKind, Mode, SliderState
+from friction_sim.core.model.records import PeriodSummary
+from friction_sim.core.model.spec import NS_PER_S
 from friction_sim.errors import RecordingError
 
 #: The topic of the simulation controls (pause, resume, step, reset) in a recording.
@@ -73,7 +73,7 @@ SIM_CONTROL = "sim_control"
 #: The state topics, sampled on the recording's uniform grid.
 STATE_TOPICS = ("pose", "velocity", "friction_force")
 #: topic -> message type name of every topic a recording can hold (the
-#: command topics come from the one table, :data:`friction_sim.core.commands.COMMANDS`).
+#: command topics come from the one table, :data:`friction_sim.core.model.commands.COMMANDS`).
 TOPIC_TYPES: dict[str, str] = {
     "pose": "geometry_msgs/msg/PoseStamped",
     "velocity": "geometry_msgs/msg/TwistStamped",

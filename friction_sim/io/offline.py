@@ -1,6 +1,6 @@
 """Recording a run without a clock: what the slider node would record, as fast as it computes.
 
-:func:`record_offline` drives :class:`~friction_sim.core.realtime.RealtimeSlider`
+:func:`record_offline` drives :class:`~friction_sim.core.runtime.realtime.RealtimeSlider`
 with a counter instead of a wall clock and hands what it produces to a
 :class:`~friction_sim.io.recorder.Recorder` through the same sink calls as
 the node (:func:`~friction_sim.io.sinks.deliver_tick`, ``on_command``,
@@ -15,9 +15,9 @@ from collections.abc import Mapping, Sequence
 from itertools import groupby
 from typing import Any
 
-from friction_sim.core.commands import Command
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.realtime import RealtimeSlider
+from friction_sim.core.model.commands import Command
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import ParameterError
 from friction_sim.io.messages import seconds_to_ns
 from friction_sim.io.recorder import Recorder, RecordingStats, plant_parameters, recording_metadata
@@ -33,7 +33,7 @@ def record_offline(
     """Run the exact core for ``duration`` s of simulation time without a
     clock and record what the slider node records.
 
-    Each :class:`~friction_sim.core.commands.Command` of ``schedule`` reaches
+    Each :class:`~friction_sim.core.model.commands.Command` of ``schedule`` reaches
     the slider at its time (in whole nanoseconds, as the node stamps it);
     commands at the same time arrive together, as one batch, in schedule
     order; each is recorded accepted or refused.  States are logged on the

@@ -77,11 +77,11 @@ from pathlib import Path
 from types import TracebackType
 from typing import IO, Any
 
-from friction_sim.core import spec
-from friction_sim.core.commands import Outcome
-from friction_sim.core.events import Event, SliderState
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.realtime import PeriodSummary
+from friction_sim.core.model import spec
+from friction_sim.core.model.commands import Outcome
+from friction_sim.core.model.events import Event, SliderState
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.model.records import PeriodSummary
 from friction_sim.errors import ParameterError, RecordingPathError, one_line
 from friction_sim.io import cdr
 from friction_sim.io.bagfile import BagFile, RecordingStats

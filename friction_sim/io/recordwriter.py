@@ -26,9 +26,9 @@ from typing import Any
 
 import numpy as np
 
-from friction_sim.core.commands import Outcome
-from friction_sim.core.events import Mode, SliderState
-from friction_sim.core.realtime import PeriodSummary
+from friction_sim.core.model.commands import Outcome
+from friction_sim.core.model.events import Mode, SliderState
+from friction_sim.core.model.records import PeriodSummary
 from friction_sim.errors import one_line
 from friction_sim.io.bagfile import MAX_STAMP_NS, BagFile, RowGroup
 from friction_sim.io.cdr import FixedLayout, fixed_layouts
@@ -58,7 +58,7 @@ ROWS_PER_PASS = 2048
 STATE_VALUES = ("x", "z", "v", "vz", "friction_force", "normal_force")
 
 
-def state_values(state: SliderState) -> tuple[float, ...]:
+def state_row(state: SliderState) -> tuple[float, ...]:
     """The :data:`STATE_VALUES` of ``state``."""
     return state.x, state.z, state.v, state.vz, state.friction_force, state.normal_force
 
@@ -149,7 +149,7 @@ class RecordWriter:
                     self._write_safely(("state", state, frame_id))
                 continue
             try:
-                table = np.array([(s.t, *state_values(s)) for s in part], dtype=np.float64)
+                table = np.array([(s.t, *state_row(s)) for s in part], dtype=np.float64)
                 ns = np.rint(table[:, 0] * 1e9)  # = seconds_to_ns(t): round half to even, as round()
                 ok = (ns >= 0.0) & (ns <= MAX_STAMP_NS)  # False for NaN too
                 if not ok.all():
@@ -255,4 +255,4 @@ def record_messages(item: Item) -> list[tuple[str, Any, int]]:
 
 
 __all__ = ["ROWS_PER_PASS", "STATE_VALUES", "RecordWriter", "qualified_topic", "record_messages", "state_row_builder",
-           "state_values"]
+           "state_row"]

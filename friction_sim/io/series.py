@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from friction_sim.io.cdr import FRAME_ID_OFFSET, STAMP_OFFSET, header_end, stamped_body_offset
 from friction_sim.io.reader import RawMessage, Recording
 
 FloatArray = npt.NDArray[np.float64]
@@ -46,18 +47,16 @@ def stamped_floats(datas: Sequence[bytes], count: int) -> FloatArray | None:
         return np.empty((0, count))
     first = datas[0]
     length = len(first)
-    if length < 16 or first[:2] != b"\x00\x01":  # CDR little endian
-        return None
-    frame_length = int.from_bytes(first[12:16], "little")  # with its NUL
-    offset = 4 + ((12 + frame_length + 7) & ~7)  # body offsets count from byte 4
-    if offset + 8 * count > length:
+    offset = stamped_body_offset(first)
+    if offset is None or offset + 8 * count > length:
         return None
     joined = b"".join(datas)
     if len(joined) != n * length:
         return None
     rows = np.frombuffer(joined, dtype=np.uint8).reshape(n, length)
-    head = rows[:, 0:16 + frame_length]  # encapsulation, stamp, frame_id: all but the stamp must match
-    if not ((head[:, :4] == head[0, :4]).all() and (head[:, 12:] == head[0, 12:]).all()):
+    head = rows[:, 0:header_end(first)]  # encapsulation, stamp, frame_id: all but the stamp must match
+    if not ((head[:, :STAMP_OFFSET] == head[0, :STAMP_OFFSET]).all()
+            and (head[:, FRAME_ID_OFFSET:] == head[0, FRAME_ID_OFFSET:]).all()):
         return None
     values: FloatArray = rows[:, offset:offset + 8 * count].copy().view("<f8").astype(np.float64)
     return values
@@ -87,16 +86,6 @@ def state_blocks(recording: Recording, topics: Mapping[str, Fields]) -> Iterator
         for raw in block:
             by_topic[names[raw.topic]].append(raw)
         yield {name: state_values(recording, raws, topics[name]) for name, raws in by_topic.items()}
-
-
-def stamps_ns(raws: Sequence[RawMessage]) -> IntArray:
-    """The header stamps [ns] of CDR little-endian *Stamped messages (read
-    where std_msgs/Header puts them: sec, nanosec after the encapsulation)."""
-    if not raws:
-        return np.empty(0, np.int64)
-    joined = np.frombuffer(b"".join(r.data[4:12] for r in raws), dtype="<i4").reshape(-1, 2).astype(np.int64)
-    stamps: IntArray = joined[:, 0] * 1_000_000_000 + (joined[:, 1] & 0xFFFFFFFF)
-    return stamps
 
 
 def status_names(recording: Recording, raws: Sequence[RawMessage]) -> list[str]:
@@ -178,4 +167,4 @@ def thinned_series(recording: Recording, topics: Mapping[str, Fields], points: i
 
 
 __all__ = ["FORCE", "POSITION", "POSITION_XZ", "VELOCITY", "VELOCITY_XZ", "Fields", "Thinner", "stamped_floats",
-           "stamps_ns", "state_blocks", "state_values", "status_names", "thinned_series"]
+           "state_blocks", "state_values", "status_names", "thinned_series"]

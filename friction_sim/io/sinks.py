@@ -15,9 +15,9 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any, Protocol
 
-from friction_sim.core.commands import Outcome
-from friction_sim.core.events import Event, SliderState
-from friction_sim.core.realtime import PeriodSummary, Tick
+from friction_sim.core.model.commands import Outcome
+from friction_sim.core.model.events import Event, SliderState
+from friction_sim.core.model.records import PeriodSummary, Tick
 
 
 class Sink(Protocol):

@@ -3,7 +3,7 @@
 :func:`verify` rebuilds the simulation from the recorded parameters
 (:func:`initial_parameters`) and the accepted commands
 (:func:`recorded_commands`, applied at their recorded simulation times
-through :func:`friction_sim.core.commands.apply`, the one gate) and compares
+through :func:`friction_sim.core.model.commands.apply`, the one gate) and compares
 it with every recorded pose and velocity sample: position x, velocity v, and
 in flight the height z and its rate vz.  It passes when each differs by at
 most 1e-9 relative to the largest recorded magnitude of its quantity (a run
@@ -34,10 +34,10 @@ from typing import Any
 
 import numpy as np
 
-from friction_sim.core import spec
-from friction_sim.core.commands import PARAMETERS, RESET, Command, apply
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.slider import Slider
+from friction_sim.core.engine.single import Slider
+from friction_sim.core.model import spec
+from friction_sim.core.model.commands import PARAMETERS, RESET, Command, apply
+from friction_sim.core.model.params import Inputs, SliderParams, plant_from
 from friction_sim.errors import ParameterError, RecordingError
 from friction_sim.io.messages import (
     COMMAND_TOPICS,
@@ -186,7 +186,7 @@ def verify(recording: Recording, tolerance: float = DEFAULT_TOLERANCE) -> Verify
     external_wrench convention is not known."""
     recording.refuse_dropped("verified")
     values = initial_parameters(recording)
-    slider = _initial_slider(recording, values)
+    slider = Slider(*initial_plant(recording, values), event_log_size=0)
     commands = [command for command in recorded_commands(recording) if command.for_slider]
     replay = _Replay(slider, commands, _log_rate(recording, values))
     x, v, z, vz = _Largest(), _Largest(), _Largest(), _Largest()
@@ -213,24 +213,19 @@ def verify(recording: Recording, tolerance: float = DEFAULT_TOLERANCE) -> Verify
     )
 
 
-def _initial_slider(recording: Recording, values: dict[str, Any]) -> Slider:
-    """The slider the run started with; RecordingError if the values are missing or invalid."""
+def initial_plant(recording: Recording, values: dict[str, Any] | None = None) -> tuple[SliderParams, Inputs]:
+    """The plant and inputs the run started with (``values``: its initial values,
+    default :func:`initial_parameters`), what verify and the report re-simulate
+    from; RecordingError, naming the file, if the values are missing or invalid."""
+    values = initial_parameters(recording) if values is None else values
     missing = [name for name in REQUIRED_FIELDS if name not in values]
     if missing:
         raise RecordingError(f"{recording.path}: no initial value of {', '.join(missing)} "
                              f"(neither on 'parameters' nor in the friction_sim metadata)")
     try:
-        params = SliderParams(**{name: _value(values.get(name, spec.PLANT[name].default))
-                                 for name in PLANT_FIELDS})
-        inputs = Inputs(**{name: float(values.get(name, 0.0)) for name in INPUT_FIELDS})
-        return Slider(params, inputs, event_log_size=0)
+        return plant_from(values)
     except ParameterError as error:
         raise RecordingError(f"{recording.path}: recorded initial parameters are invalid: {error}") from None
-
-
-def _value(value: Any) -> Any:
-    """A recorded parameter as the core takes it: text stays text, numbers become floats."""
-    return value if isinstance(value, str) else float(value)
 
 
 class _Replay:

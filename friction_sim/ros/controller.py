@@ -1,6 +1,6 @@
 """The mean-speed controller node: ``ros2 run friction_sim controller``.
 
-A thin ROS 2 adapter around :class:`friction_sim.core.control.MeanSpeedController`.
+A thin ROS 2 adapter around :class:`friction_sim.core.control.law.MeanSpeedController`.
 All names are relative, so it runs in the same namespace as its slider.
 
 Subscriptions: ``target_speed`` (std_msgs/Float64, m/s), ``mean_velocity``
@@ -23,7 +23,7 @@ costs one small batch per 20 ms (at most the queue depth, 10, per topic),
 not an executor wake-up and a control decision per message.  Refused
 commands, parameter values (rclpy's own checks included) and mean_velocity
 samples (not finite, or faster than any plant in force can creep: see
-:mod:`friction_sim.core.control`) are counted in diagnostics
+:mod:`friction_sim.core.control.law`) are counted in diagnostics
 (``commands_rejected``, all of them; ``samples_rejected``, the samples among
 them) with the latest reason, and warned about at most once a second (the
 others cost a clock read).  An unexpected error in a callback is logged
@@ -40,7 +40,7 @@ within 5 s it says so and keeps its own.  An initial ``target_speed`` that
 only the plant's model allows (a target without a drive force, for a
 tilted vibration) waits for that model and is judged then.  Beyond Kostek's model (or with
 max_amplitude_ratio >= 1) the law inverts the general mean speed on its
-rising branch (see :mod:`friction_sim.core.control`).  With ``active`` false it stands by, publishing
+rising branch (see :mod:`friction_sim.core.control.law`).  With ``active`` false it stands by, publishing
 nothing, until the first target_speed message (or parameter) arrives: an
 experiment can steer the slider open loop first.  It publishes nothing until
 the model is settled and
@@ -53,7 +53,6 @@ effect.
 from __future__ import annotations
 
 import contextlib
-import copy
 import functools
 import time
 from collections.abc import Callable, Sequence
@@ -68,23 +67,16 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from std_msgs.msg import Float64
 
-from friction_sim.core import spec
-from friction_sim.core.commands import CONTROLLER, consumed_by
-from friction_sim.core.control import ControllerConfig, ControlOutput, MeanSpeedController, uses_closed_form
-from friction_sim.core.params import SliderParams
+from friction_sim.core.control.law import ControlOutput, MeanSpeedController
+from friction_sim.core.model import spec
+from friction_sim.core.model.commands import CONTROLLER, consumed_by
+from friction_sim.core.runtime.controller import MODEL, RealtimeController
 from friction_sim.errors import ParameterError, one_line
 from friction_sim.io.messages import command_from_message, key_values, message_class, ns_to_seconds, stamp_ns
-from friction_sim.ros.common import (
-    NameWatch,
-    PolledGroup,
-    ThrottledWarning,
-    declare_settings,
-    node_help,
-    run_node,
-    take_with_info,
-    wall_ns,
-    watch_parameter_refusals,
-)
+from friction_sim.ros.graph import NameWatch
+from friction_sim.ros.intake import PolledGroup, ThrottledWarning, take_with_info
+from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
+from friction_sim.ros.run import node_help, run_node, wall_ns
 
 _T = TypeVar("_T")
 QOS_DEPTH = 10
@@ -94,11 +86,8 @@ COMMAND_HOLD_OFF = 0.02
 
 PLANT_TIMEOUT = 5.0
 DISCOVERY_SETTLE = 0.5
-MODEL = tuple(spec.PLANT)
 #: The node's parameters: declared once in the one vocabulary.
 PARAMETERS = spec.CONTROLLER_NODE
-#: Parameters that make up the ControllerConfig.
-CONFIG = {*MODEL, "integral_gain", "max_amplitude_ratio", "settle_margin", "mean_window_periods"}
 PUBLICATIONS = (
     ("excitation_amplitude", "std_msgs/msg/Float64",
      "data = Pa [N] for the plant, after each mean_velocity sample and each batch of commands"),
@@ -113,38 +102,11 @@ class ControllerNode(Node):
     def __init__(self, node_name: str = "controller", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         values = declare_settings(self, PARAMETERS)
-        #: A target_speed parameter the node's own model refuses but the plant's may take (a target with
-        #: no drive force, for a plant whose tilted vibration conveys): judged again once the model is settled.
-        self._pending_target: float | None = None
-        try:
-            self._control = MeanSpeedController(
-                _config(values), drive_force=values["drive_force"], frequency=values["excitation_frequency"],
-                target_speed=values["target_speed"],
-            )
-        except ParameterError:
-            if not values["plant_node"] or values["target_speed"] == 0.0:
-                raise
-            self._control = MeanSpeedController(_config(values), drive_force=values["drive_force"],
-                                                frequency=values["excitation_frequency"])
-            self._pending_target = values["target_speed"]
-        #: Commands on topics taken; inputs refused (commands, parameter values, samples).
-        self.accepted = 0
-        self.rejected = 0
-        self.last_rejection = ""
-        self.command_batches = 0
-        #: mean_velocity samples judged (while regulating) and refused.
-        self.samples_accepted = 0
-        self.samples_rejected = 0
-        self.last_sample_rejection = ""
-        self._refused_before_interval = 0
-        #: Unexpected errors in callbacks (each refused its input; the first of each kind is logged).
-        self.internal_errors = 0
-        self.last_internal_error = ""
+        #: The law with its counters, pending target and reports (core/runtime/controller.py).
+        self.runtime = RealtimeController(values)
+        #: The first of each kind of unexpected error is logged.
         self._reported_errors: set[str] = set()
-        self.model_source = "own parameters"
         self._last_published: float | None = None
-        self._warned_unreachable = False
-        self._warned_runaway = False
         self.output_listeners: list[Callable[[ControlOutput], None]] = []
         self._warn = ThrottledWarning(self.get_logger())
         self._amplitude_pub = self.create_publisher(Float64, "excitation_amplitude", QOS_DEPTH)
@@ -171,7 +133,6 @@ class ControllerNode(Node):
         self.add_on_set_parameters_callback(self._set_parameters_guarded)
         self.add_post_set_parameters_callback(self._guarded("parameter update", self._parameters_set))
         self.ready = False
-        self.active: bool = values["active"]
         self._plant_settled = not values["plant_node"]
         self._deadline = time.monotonic() + PLANT_TIMEOUT
         if not self._plant_settled:
@@ -182,7 +143,8 @@ class ControllerNode(Node):
 
     @property
     def control(self) -> MeanSpeedController:
-        return self._control
+        """The law in force."""
+        return self.runtime.control
 
     @property
     def polling(self) -> bool:
@@ -208,7 +170,7 @@ class ControllerNode(Node):
             return  # both ends of a new connection need a moment to match
         self.destroy_timer(self._startup_timer)
         self.ready = True
-        self._publish(self._control.output)
+        self._publish(self.runtime.control.output)
 
     def _poll_plant(self) -> None:
         if self._plant_future is None and self._plant.services_are_ready():
@@ -236,26 +198,23 @@ class ControllerNode(Node):
         if not result.successful:
             self._settle(f"plant parameters unusable ({result.reason}): using this node's own", warn=True)
             return
-        model = self._control.config.model
-        self.model_source = f"plant node '{self.get_parameter('plant_node').value}'"
+        model = self.runtime.control.config.model
+        self.runtime.model_source = f"plant node '{self.get_parameter('plant_node').value}'"
         shape = "" if model.is_kostek else (
             f", static_ratio {model.static_ratio:g}, excitation_angle {model.excitation_angle:g} deg, "
             f"excitation_phase {model.excitation_phase:g} deg, track_inclination {model.track_inclination:g} deg")
         flight = "" if model == model.replace(restitution=0.0, landing_friction="impulsive") else (
             f", restitution {model.restitution:g}, landing_friction {model.landing_friction}")
-        self._settle(f"model from {self.model_source}: mass {model.mass:g} kg, mu {model.mu:g}, "
+        self._settle(f"model from {self.runtime.model_source}: mass {model.mass:g} kg, mu {model.mu:g}, "
                      f"gravity {model.gravity:g} m/s^2{shape}{flight}")
 
     def _settle(self, message: str, warn: bool = False) -> None:
         (self.get_logger().warning if warn else self.get_logger().info)(message)
         self._plant_settled = True
         self._deadline = time.monotonic() + PLANT_TIMEOUT
-        pending, self._pending_target = self._pending_target, None
-        if pending is not None:
-            try:
-                self._control.set_target(pending)
-            except ParameterError as error:
-                self._refuse(str(error), "target 0 kept")
+        refusal = self.runtime.settle()
+        if refusal:
+            self._warn(f"{refusal}; target 0 kept")
 
     # -- commands -----------------------------------------------------------------
 
@@ -300,50 +259,30 @@ class ControllerNode(Node):
         """The commands of a batch in order, each judged against the state the
         ones before it left (as if they came one by one); the law decides once
         and the batch is answered with one excitation_amplitude message."""
-        self.command_batches += 1
         changes = []
         for name, msg in batch:
-            command = command_from_message(name, msg, 0.0)
-            (field, value), = command.values.items()
+            (field, value), = command_from_message(name, msg, 0.0).values.items()
             changes.append((field, value))
-        accepted = False
-        for (field, _), verdict in zip(changes, self._control.take(changes)):
-            if verdict is not None:
-                self._refuse(str(verdict))
-                continue
-            self.accepted += 1
-            accepted = True
-            if field == "target_speed":
-                self.active = True  # a target makes a standing-by controller active
-        if accepted:
-            self._publish(self._control.output)
-
-    def _refuse(self, reason: str, consequence: str = "last valid value kept") -> None:
-        """Count a refused input (a command, or a sample), keep the reason, warn (throttled)."""
-        self.rejected += 1
-        self.last_rejection = reason
-        self._warn(f"{reason}; {consequence}")
+        refusals = self.runtime.take_batch(changes)
+        for reason in refusals:
+            self._warn(f"{reason}; last valid value kept")
+        if len(refusals) < len(changes):
+            self._publish(self.runtime.control.output)
 
     def _parameter_refused(self, name: str, value: Any, why: str) -> None:
         """rclpy refused a parameter value before our callbacks (range, type,
-        read-only, undeclared): counted like any refusal (common has warned)."""
-        self.rejected += 1
-        self.last_rejection = f"parameter {why}"
+        read-only, undeclared): counted like any refusal (the watch has warned)."""
+        self.runtime.refuse(f"parameter {why}")
 
     def _on_mean_velocity(self, msg: TwistStamped) -> None:
         t, now = ns_to_seconds(stamp_ns(msg.header.stamp)), wall_ns()
-        if not (self.ready and self.active):
-            self._control.clock.observe(t, now)  # learn the plant's pace while standing by
-            return
         try:
-            output = self._control.on_mean_velocity(msg.twist.linear.x, t, now)
+            output = self.runtime.take_sample(msg.twist.linear.x, t, now, self.ready and self.runtime.active)
         except ParameterError as error:
-            self.samples_rejected += 1
-            self.last_sample_rejection = str(error)
-            self._refuse(str(error), "sample ignored")
+            self._warn(f"{error}; sample ignored")
             return
-        self.samples_accepted += 1
-        self._publish(output)
+        if output is not None:
+            self._publish(output)
 
     # -- unexpected errors ------------------------------------------------------------
 
@@ -365,8 +304,7 @@ class ControllerNode(Node):
         each distinct error once.  The law's state is as before the input (each change
         of it is a transaction), so the input is refused and the node goes on."""
         reason = f"{where}: {one_line(error, with_type=True)}"
-        self.internal_errors += 1
-        self.last_internal_error = reason
+        self.runtime.internal_error(reason)
         kind = f"{type(error).__name__}: {error}"  # the same bug, whichever callback met it
         if kind in self._reported_errors:
             return
@@ -380,10 +318,11 @@ class ControllerNode(Node):
     # -- publishing ---------------------------------------------------------------
 
     def _publish(self, output: ControlOutput) -> None:
-        if not (self.ready and self.active):
+        if not (self.ready and self.runtime.active):
             return
+        control = self.runtime.control
         if output.amplitude != self._last_published:
-            self._control.clock.note_change(wall_ns(), 1.0 / self._control.frequency, self._sim_time())
+            control.clock.note_change(wall_ns(), 1.0 / control.frequency, self._sim_time())
             self._last_published = output.amplitude
         self._amplitude_pub.publish(Float64(data=output.amplitude))
         self._warn_on_conditions(output)
@@ -401,62 +340,19 @@ class ControllerNode(Node):
 
     def _warn_on_conditions(self, output: ControlOutput) -> None:
         """Warn once each time the target becomes unreachable or the drive runs away."""
-        if output.unreachable and not self._warned_unreachable:
-            config = self._control.config
-            if uses_closed_form(config.model, config.max_amplitude_ratio):
-                where = f"with Pa <= {config.max_amplitude_ratio:g} m g"
-            else:
-                where = (f"on the rising branch of the mean speed for Pa <= {config.max_amplitude_ratio:g} m g "
-                         "(it ends where U stops rising with Pa)")
-            self.get_logger().warning(
-                f"target {output.target_speed!r} m/s is unreachable {where}: Pa set to {output.amplitude:g} N")
+        warnings, publish = self.runtime.news(output)
+        for text in warnings:
+            self.get_logger().warning(text)
+        if publish:
             self._publish_diagnostics()
-        if output.runaway and not self._warned_runaway:
-            self.get_logger().warning(
-                f"phi = {output.phi:.3f}: the drive force (with the slope's pull) exceeds friction, the slider "
-                "slides on whatever the excitation; Pa set to 0")
-        if output.unreachable != self._warned_unreachable and not output.unreachable:
-            self._publish_diagnostics()
-        self._warned_unreachable, self._warned_runaway = output.unreachable, output.runaway
 
     def _publish_diagnostics(self) -> None:
         """The controller's status on ``diagnostics``, stamped by the node's
         clock (wall time, or /clock under use_sim_time) as the slider's is."""
-        out = self._control.output
-        status = DiagnosticStatus(name="controller", hardware_id=self.get_fully_qualified_name())
-        refused_now, self._refused_before_interval = self.rejected - self._refused_before_interval, self.rejected
-        problems = [text for flag, text in (
-            (bool(self.names.problem), self.names.problem),
-            (out.unreachable, "target unreachable"),
-            (out.saturated and not out.unreachable, "saturated"),
-            (out.runaway, "the drive beats friction (phi >= 1): no control over the speed"),
-            (not self.ready, "waiting for the plant's parameters"),
-            (self.ready and not self.active, "standing by for a target"),
-            (refused_now > 0, f"{refused_now} inputs refused ({self.last_rejection})"),
-        ) if flag]
-        if self.internal_errors:
-            status.level = DiagnosticStatus.ERROR
-            status.message = "; ".join([f"{self.internal_errors} internal errors, the last in "
-                                        f"{self.last_internal_error} (input refused, controller goes on)",
-                                        *problems])
-        else:
-            status.level = DiagnosticStatus.WARN if problems else DiagnosticStatus.OK
-            status.message = "; ".join(problems) if problems else "regulating"
-        values = {
-            "target_speed": out.target_speed, "measured_mean_speed": self._control.measured_speed,
-            "u_target": out.u_target, "phi": out.phi, "feedforward_ratio": out.feedforward_ratio,
-            "applied_ratio": out.applied_ratio, "excitation_amplitude": out.amplitude,
-            "integral": out.integral, "saturated": out.saturated, "unreachable": out.unreachable,
-            "runaway": out.runaway, "drive_force": self._control.drive_force,
-            "excitation_frequency": self._control.frequency, "model_source": self.model_source,
-            "commands_accepted": self.accepted, "commands_rejected": self.rejected,
-            "command_batches": self.command_batches,
-            "last_rejection": self.last_rejection,
-            "samples_accepted": self.samples_accepted, "samples_rejected": self.samples_rejected,
-            "last_sample_rejection": self.last_sample_rejection, "sample_limit": self._control.sample_limit,
-            "internal_errors": self.internal_errors, "last_internal_error": self.last_internal_error,
-        }
-        status.values = key_values(values)
+        report = self.runtime.status(namesake=self.names.problem, ready=self.ready)
+        status = DiagnosticStatus(name="controller", hardware_id=self.get_fully_qualified_name(),
+                                  level=bytes([report.level]), message=report.message,
+                                  values=key_values(report.values))
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = self.get_clock().now().to_msg()
         self._diag_pub.publish(msg)
@@ -469,49 +365,30 @@ class ControllerNode(Node):
             return self._set_parameters(changes)
         except Exception as error:  # noqa: BLE001 - answer the caller, report, go on
             self._internal_error("parameter set", error)
-            return SetParametersResult(successful=False, reason=f"internal error: {self.last_internal_error}")
+            return SetParametersResult(successful=False,
+                                       reason=f"internal error: {self.runtime.last_internal_error}")
 
     def _set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         """Cross-field rules, checked on a copy of the controller as it is now
         (drive force and frequency follow the topics): the change takes effect
         whole, or it is refused and nothing changes."""
         values = {p.name: p.value for p in changes}
-        candidate = copy.copy(self._control)
+        current = {name: self.get_parameter(name).value for name in PARAMETERS}
         try:
-            if values.keys() & CONFIG:
-                current = {name: self.get_parameter(name).value for name in PARAMETERS}
-                candidate.config = _config({**current, **values})
-            if "drive_force" in values:
-                candidate.set_drive_force(values["drive_force"])
-            if "excitation_frequency" in values:
-                candidate.set_frequency(values["excitation_frequency"])
-            if "target_speed" in values:
-                candidate.set_target(values["target_speed"])
+            candidate = self.runtime.with_parameters(values, current)
         except ParameterError as error:
-            self.rejected += 1
-            self.last_rejection = str(error)
             self.get_logger().warning(f"parameter {error}; value kept")  # one per set: a service call each
             return SetParametersResult(successful=False, reason=str(error))
-        self._control = candidate
-        if "active" in values or "target_speed" in values:
-            self.active = values.get("active", True) or "target_speed" in values
+        self.runtime.adopt(candidate, values)
         return SetParametersResult(successful=True)
 
     def _parameters_set(self, changes: list[Parameter]) -> None:
-        self._publish(self._control.output)
+        self._publish(self.runtime.control.output)
 
 
 def _arrival(info: Any) -> int:
     """When a message arrived (ns), from rclpy's message info."""
     return int(info.get("received_timestamp") or 0) if isinstance(info, dict) else 0
-
-
-def _config(values: dict[str, Any]) -> ControllerConfig:
-    return ControllerConfig(
-        model=SliderParams(**{name: values[name] for name in MODEL}),
-        integral_gain=values["integral_gain"], max_amplitude_ratio=values["max_amplitude_ratio"],
-        mean_window_periods=values["mean_window_periods"], settle_margin=values["settle_margin"],
-    )
 
 
 def _typed(setting: spec.Setting, value: Any) -> Any:

@@ -13,8 +13,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from friction_sim.io.paramfile import read_params_file
-from friction_sim.ros.common import EXIT_CODES, run_node
 from friction_sim.ros.controller import ControllerNode
+from friction_sim.ros.run import EXIT_CODES, run_node
 from friction_sim.ros.slider import SliderNode
 
 

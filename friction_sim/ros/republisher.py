@@ -24,13 +24,14 @@ import time
 import uuid
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any, NamedTuple, TextIO
+from typing import Any, NamedTuple
 
 import rclpy
 import yaml
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
+from friction_sim.core.runtime.progress import Progress
 from friction_sim.errors import ParameterError
 from friction_sim.io import cdr
 from friction_sim.io.export import select_topics
@@ -72,7 +73,7 @@ def qos(channel: Channel) -> QoSProfile:
 def publish(
     recording: Recording, *, rate: float = 1.0, loop: bool = False, topics: Sequence[str] | None = None,
     namespace: str = "", wait_for_subscribers: int = 0, wait_timeout: float = 5.0, delay: float = 0.0,
-    progress: TextIO | None = None, stop: threading.Event | None = None, node_name: str | None = None,
+    progress: Progress | None = None, stop: threading.Event | None = None, node_name: str | None = None,
 ) -> PublishResult:
     """Republish the recorded messages (as recorded, serialized) on their
     topics, the recorded log times scaled by 1/``rate``; with ``loop`` start
@@ -84,7 +85,7 @@ def publish(
     ``wait_for_subscribers`` it first waits (up to ``wait_timeout`` s) until
     every publisher has that many subscriptions, then waits ``delay`` s
     (discovery may need a moment to match both ends).  Progress goes to
-    ``progress`` (a one-line bar when it is a TTY, else a line a second).
+    ``progress`` (the command line's line: a bar redrawn on a terminal).
     rclpy is initialised here if the caller has not done so.
     """
     if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0.0):
@@ -211,7 +212,7 @@ def prefetched(messages: Iterator[RawMessage], size: int = PREFETCH) -> Iterator
 
 
 def _play(recording: Recording, topics: list[str], publishers: dict[str, Any], rate: float, loop: bool,
-          progress: TextIO | None, stop: threading.Event | None) -> PublishResult:
+          progress: Progress | None, stop: threading.Event | None) -> PublishResult:
     """Publish the messages of ``topics`` once, or in a loop until stopped."""
     result = PublishResult()
     bar = _Progress(progress, ns_to_seconds(recording.end_ns - recording.start_ns), rate)
@@ -270,39 +271,26 @@ def _sleep_until(target: float) -> None:
 
 
 class _Progress:
-    """``[#####.....]  12.3/60.0 s  x1.0  1234 msgs`` on a TTY (redrawn in
-    place), or one plain line per second of wall time otherwise."""
+    """``replay: [#####.....]  12.3/60.0 s  x1.0  1234 msgs`` on the caller's progress line."""
 
-    def __init__(self, stream: TextIO | None, total: float, rate: float) -> None:
-        self.stream, self.total, self.rate = stream, total, rate
-        self.tty = bool(stream is not None and getattr(stream, "isatty", lambda: False)())
-        self.last = 0.0
+    def __init__(self, line: Progress | None, total: float, rate: float) -> None:
+        self.line, self.total, self.rate = line, total, rate
 
     def update(self, t: float, count: int, *, force: bool = False) -> None:
-        """Show progress at recorded time ``t`` (at most 10 times a second on a TTY, else once)."""
-        if self.stream is None:
+        """Show progress at recorded time ``t`` (the line decides how often it is drawn)."""
+        if self.line is None:
             return
-        now = time.monotonic()
-        if not force and now - self.last < (0.1 if self.tty else 1.0):
-            return
-        self.last = now
         fraction = t / self.total if self.total > 0 else 1.0
-        text = f"{t:9.3f}/{self.total:.3f} s  x{self.rate:g}  {count} msgs"
-        if self.tty:
-            filled = round(30 * fraction)
-            self.stream.write(f"\r[{'#' * filled}{'.' * (30 - filled)}] {text}")
-        else:
-            self.stream.write(f"replay: {100 * fraction:5.1f}%  {text}\n")
-        self.stream.flush()
+        filled = round(30 * min(max(fraction, 0.0), 1.0))
+        self.line.show(f"replay: [{'#' * filled}{'.' * (30 - filled)}] {t:9.3f}/{self.total:.3f} s  x{self.rate:g}  "
+                       f"{count} msgs", final=force)
 
     def close(self, result: PublishResult) -> None:
         """The final line."""
-        if self.stream is None:
+        if self.line is None:
             return
         self.update(self.total, result.messages, force=True)
-        if self.tty:
-            self.stream.write("\n")
-        self.stream.flush()
+        self.line.close()
 
 
 __all__ = ["PublishResult", "in_time_order", "in_todays_convention", "publish", "qos"]

@@ -1,6 +1,6 @@
 """The slider node: ``ros2 run friction_sim slider``.
 
-A thin ROS 2 adapter around :class:`friction_sim.core.realtime.RealtimeSlider`:
+A thin ROS 2 adapter around :class:`friction_sim.core.runtime.realtime.RealtimeSlider`:
 it converts command messages into input changes, advances the exact core to
 the present on every tick, and publishes the state.  There is no physics here.
 
@@ -24,7 +24,7 @@ then).  The states' and mean velocities' header stamps are simulation time
 the same rule the controller follows on the same topic.
 
 Services (std_srvs/Trigger): ``~/pause``, ``~/resume``, ``~/step`` and
-``~/reset`` (see :class:`~friction_sim.core.realtime.RealtimeSlider`); each
+``~/reset`` (see :class:`~friction_sim.core.runtime.realtime.RealtimeSlider`); each
 call is handed to the sinks as a command, so a recording holds it.  While
 paused a tick publishes only what changed (a step, a reset, a command).
 
@@ -37,7 +37,7 @@ Bad input is refused, counted and warned about at most once a second (the
 rest cost a clock read).  If the exact core cannot take a command, it is
 refused and the state stays as it was; if the simulation itself fails, the
 node logs the reason once, reports ERROR on ``diagnostics`` and exits with
-code 3 (:data:`~friction_sim.ros.common.EXIT_FAULT`): it never keeps running
+code 3 (:data:`~friction_sim.ros.run.EXIT_FAULT`): it never keeps running
 without ticking.
 
 Ticks run in a dedicated thread rather than an executor timer: rclpy's
@@ -73,8 +73,8 @@ from rclpy.subscription import Subscription
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_srvs.srv import Trigger
 
-from friction_sim.core import spec
-from friction_sim.core.commands import (
+from friction_sim.core.model import spec
+from friction_sim.core.model.commands import (
     CONTROLS,
     PHYSICS_FIELDS,
     RESET,
@@ -84,10 +84,10 @@ from friction_sim.core.commands import (
     Outcome,
     consumed_by,
 )
-from friction_sim.core.commands import PARAMETERS as PARAMETER_COMMAND
-from friction_sim.core.events import SliderState
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.realtime import RealtimeSlider
+from friction_sim.core.model.commands import PARAMETERS as PARAMETER_COMMAND
+from friction_sim.core.model.events import SliderState
+from friction_sim.core.model.params import plant_from
+from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import SimulationFault, one_line
 from friction_sim.io.messages import (
     command_from_message,
@@ -99,20 +99,10 @@ from friction_sim.io.messages import (
     time_msg,
 )
 from friction_sim.io.sinks import Sink, deliver_tick
-from friction_sim.ros.common import (
-    EXIT_FAULT,
-    EXIT_RECORDING_FAILED,
-    FaultSignal,
-    NameWatch,
-    PolledGroup,
-    ThrottledWarning,
-    declare_settings,
-    node_help,
-    run_node,
-    take_all,
-    wall_ns,
-    watch_parameter_refusals,
-)
+from friction_sim.ros.graph import NameWatch
+from friction_sim.ros.intake import PolledGroup, ThrottledWarning, take_all
+from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
+from friction_sim.ros.run import EXIT_FAULT, EXIT_RECORDING_FAILED, FaultSignal, node_help, run_node, wall_ns
 from friction_sim.ros.slider_outputs import control_text, health, open_live_view, open_recorder, recorded
 
 QOS_DEPTH = 10
@@ -143,8 +133,7 @@ class SliderNode(Node):
     def __init__(self, node_name: str = "slider", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         values = declare_settings(self, PARAMETERS)
-        params = SliderParams(**{name: values[name] for name in spec.PLANT})
-        inputs = Inputs(**{name: values[name] for name in spec.INPUTS if name in values})
+        params, inputs = plant_from(values)
         self._rt = RealtimeSlider(
             params, inputs, wall_ns=wall_ns(), real_time_factor=values["real_time_factor"],
             publish_rate=values["publish_rate"], mean_window_periods=values["mean_window_periods"],

@@ -12,8 +12,8 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
 
-from friction_sim.core.commands import COMMANDS, PAUSE, RESET, RESUME, STEP, Outcome
-from friction_sim.core.events import SliderState
+from friction_sim.core.model.commands import COMMANDS, PAUSE, RESET, RESUME, STEP, Outcome
+from friction_sim.core.model.events import SliderState
 from friction_sim.io.messages import SIM_CONTROL
 
 

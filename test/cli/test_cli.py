@@ -13,12 +13,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from friction_sim.cli.commands import NEVER_MOVES, SLIPS_ALWAYS, STICK_SLIP, motion_regime
 from friction_sim.cli.main import build_parser, main
-from friction_sim.core import spec
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.simulation import simulate
-from friction_sim.core.urelation import dimensional_speed, u_map
+from friction_sim.cli.relation import NEVER_MOVES, SLIPS_ALWAYS, STICK_SLIP, motion_regime
+from friction_sim.core.meanspeed.urelation import dimensional_speed, u_map
+from friction_sim.core.model import spec
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.runtime.simulation import simulate
 
 SCRIPT = Path(sys.executable).parent / "friction-sim"
 #: Settings whose flags take a word (their choices), not a number.

@@ -18,14 +18,15 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from friction_sim.cli import commands
-from friction_sim.cli.conveyor import CSV_COLUMNS, point
+from friction_sim.cli import options as commands
 from friction_sim.cli.main import build_parser
-from friction_sim.core import spec
-from friction_sim.core.events import EventKind
-from friction_sim.core.meanspeed import mean_speed, u_general
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.slider import Slider
+from friction_sim.core.engine.single import Slider
+from friction_sim.core.meanspeed.conveyor import point
+from friction_sim.core.meanspeed.general import mean_speed, u_general
+from friction_sim.core.model import spec
+from friction_sim.core.model.events import EventKind
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.io.export import CONVEYOR_COLUMNS as CSV_COLUMNS
 
 SCRIPT = Path(sys.executable).parent / "friction-sim"
 

@@ -26,8 +26,8 @@ from packaging.utils import canonicalize_name
 from test_launch_file import launch_arguments
 from test_package_layout import ROSDEP_KEYS
 
-from friction_sim.core.commands import COMMANDS, CONTROLS
-from friction_sim.core.spec import CONTROLLER_NODE, SLIDER_NODE
+from friction_sim.core.model.commands import COMMANDS, CONTROLS
+from friction_sim.core.model.spec import CONTROLLER_NODE, SLIDER_NODE
 
 ROOT = Path(__file__).resolve().parents[2]
 README = (ROOT / "README.md").read_text()

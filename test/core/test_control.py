@@ -6,10 +6,10 @@ import math
 
 import pytest
 
-from friction_sim.core.control import ControllerConfig, MeanSpeedController, SampleClock
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.slider import Slider
-from friction_sim.core.urelation import amplitude_ratio_for, u_map
+from friction_sim.core.control.law import ControllerConfig, MeanSpeedController, SampleClock
+from friction_sim.core.engine.single import Slider
+from friction_sim.core.meanspeed.urelation import amplitude_ratio_for, u_map
+from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.errors import ParameterError
 
 # -- the law, offline -----------------------------------------------------------

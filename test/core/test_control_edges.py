@@ -17,9 +17,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from friction_sim.core import control, spec
-from friction_sim.core.commands import Command
-from friction_sim.core.control import (
+from friction_sim.core.control import law as control
+from friction_sim.core.control.law import (
     LIMIT_SLACK_SAMPLES,
     RATIO_LIMITS,
     ControllerConfig,
@@ -27,8 +26,10 @@ from friction_sim.core.control import (
     MeanSpeedController,
     speed_limit,
 )
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.realtime import RealtimeSlider
+from friction_sim.core.model import spec
+from friction_sim.core.model.commands import Command
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import ParameterError
 
 NS = 1_000_000_000

@@ -26,9 +26,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from friction_sim.core.events import EventKind
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.slider import Slider
+from friction_sim.core.engine.single import Slider
+from friction_sim.core.model.events import EventKind
+from friction_sim.core.model.params import Inputs, SliderParams
 
 import reference
 

@@ -35,8 +35,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.slider import Slider
+from friction_sim.core.engine.single import Slider
+from friction_sim.core.model.params import Inputs, SliderParams
 
 import reference
 import reference_general as rg

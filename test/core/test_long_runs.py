@@ -24,8 +24,8 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from friction_sim.core.events import EventKind
-from friction_sim.core.slider import Slider
+from friction_sim.core.engine.single import Slider
+from friction_sim.core.model.events import EventKind
 
 from reference import paper_case_slip, ulps_from_exact
 

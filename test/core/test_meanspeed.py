@@ -26,10 +26,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from friction_sim.core.meanspeed import MeanSpeed, MeanSpeedGrid, mean_speed, u_general
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.ubranch import amplitude_ratio_for_general, rising_branch
-from friction_sim.core.urelation import predict, u_map
+from friction_sim.core.meanspeed.general import MeanSpeed, MeanSpeedGrid, mean_speed, u_general
+from friction_sim.core.meanspeed.inverse import amplitude_ratio_for_general, rising_branch
+from friction_sim.core.meanspeed.predict import predict
+from friction_sim.core.meanspeed.urelation import u_map
+from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.errors import ParameterError
 
 from reference_general import GeneralModel, solve
@@ -213,7 +214,7 @@ def test_the_branch_ends_at_its_peak_before_the_top() -> None:
 
 
 def test_kostek_with_a_top_below_one_is_the_exact_inverse() -> None:
-    from friction_sim.core.urelation import amplitude_ratio_for
+    from friction_sim.core.meanspeed.urelation import amplitude_ratio_for
 
     params = SliderParams()
     for u in (1e-5, 0.005, 0.05):

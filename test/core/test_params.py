@@ -11,8 +11,9 @@ import math
 import numpy as np
 import pytest
 
-from friction_sim.core.events import EventKind, Mode
-from friction_sim.core.params import (
+from friction_sim.core.engine.single import Slider
+from friction_sim.core.model.events import EventKind, Mode
+from friction_sim.core.model.params import (
     Inputs,
     SliderParams,
     amplitude_ratio,
@@ -20,7 +21,6 @@ from friction_sim.core.params import (
     sin_degrees,
     throw_number,
 )
-from friction_sim.core.slider import Slider
 from friction_sim.errors import FrictionSimError, ParameterError
 
 NAN = float("nan")

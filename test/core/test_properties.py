@@ -14,10 +14,10 @@ import numpy as np
 from hypothesis import HealthCheck, Phase, assume, given, settings
 from hypothesis import strategies as st
 
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.simulation import random_schedule, run_schedule
-from friction_sim.core.slider import EventKind, Mode, Slider
-from friction_sim.core.urelation import u_map
+from friction_sim.core.engine.single import EventKind, Mode, Slider
+from friction_sim.core.meanspeed.urelation import u_map
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.runtime.simulation import random_schedule, run_schedule
 
 from helpers import grouped, mirrored, rescaled_drive, time_limit
 

@@ -10,10 +10,11 @@ import math
 
 import pytest
 
-from friction_sim.core.commands import Command
-from friction_sim.core.events import Event, EventKind, Mode
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.realtime import NS_PER_S, PeriodSummary, RealtimeSlider
+from friction_sim.core.model.commands import Command
+from friction_sim.core.model.events import Event, EventKind, Mode
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.model.records import PeriodSummary
+from friction_sim.core.runtime.realtime import NS_PER_S, RealtimeSlider
 
 HOP = Inputs(excitation_amplitude=15.0, drive_force=0.3)  # Gamma = 1.5: a flight every period
 TICK = NS_PER_S // 1000
@@ -129,7 +130,7 @@ def test_a_prediction_made_outside_the_lock_is_the_one_reported(monkeypatch: pyt
     """The node computes the prediction (a simulation outside Kostek's model)
     before it takes the tick's lock and hands it to diagnostics, which then
     does not simulate; a prediction that fails is NaN, not an exception."""
-    from friction_sim.core import realtime
+    from friction_sim.core.runtime import realtime
 
     params = SliderParams(excitation_angle=60.0)
     rt = RealtimeSlider(params, HOP, wall_ns=0)

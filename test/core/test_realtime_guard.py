@@ -9,11 +9,11 @@ from typing import Any
 
 import pytest
 
-from friction_sim.core.commands import PARAMETERS, Command
-from friction_sim.core.events import SliderState
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.realtime import RealtimeSlider
-from friction_sim.core.slider import Slider
+from friction_sim.core.engine.single import Slider
+from friction_sim.core.model.commands import PARAMETERS, Command
+from friction_sim.core.model.events import SliderState
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import SimulationFault
 
 from helpers import POISON

@@ -5,9 +5,9 @@ and exactly, instead of one tick holding the node for seconds."""
 
 from __future__ import annotations
 
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.realtime import MAX_SAMPLES_PER_ADVANCE, NS_PER_S, RealtimeSlider
-from friction_sim.core.slider import Slider
+from friction_sim.core.engine.single import Slider
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.runtime.realtime import MAX_SAMPLES_PER_ADVANCE, NS_PER_S, RealtimeSlider
 
 
 def test_an_advance_takes_at_most_its_share_of_samples_and_time_falls_behind() -> None:

@@ -25,11 +25,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from friction_sim.core.commands import Command
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.simulation import random_schedule, run_schedule
-from friction_sim.core.slider import Slider
-from friction_sim.core.urelation import dimensional_speed, u_map
+from friction_sim.core.engine.single import Slider
+from friction_sim.core.meanspeed.urelation import dimensional_speed, u_map
+from friction_sim.core.model.commands import Command
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.runtime.simulation import random_schedule, run_schedule
 
 import reference
 from helpers import grouped, rescaled_drive

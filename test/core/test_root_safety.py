@@ -23,11 +23,11 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from friction_sim.core import spec
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.roots import NEVER, TWO_PI, next_slip_start, slip_stop_delay
-from friction_sim.core.slider import MAX_POSITION, MAX_TIME, Slider
-from friction_sim.core.urelation import predict
+from friction_sim.core.engine.single import MAX_POSITION, MAX_TIME, Slider
+from friction_sim.core.meanspeed.predict import predict
+from friction_sim.core.model import spec
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.physics.roots import NEVER, TWO_PI, next_slip_start, slip_stop_delay
 from friction_sim.errors import ParameterError
 
 FUZZ = settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -171,7 +171,7 @@ omegas = spread(TWO_PI * spec.EXCITATION_FREQUENCY.low, TWO_PI * spec.EXCITATION
 def test_next_slip_start_is_safe(b0: float, negative: bool, b1: float, phase: float, closing: bool) -> None:
     b0 = -b0 if negative else b0
     phase = phase % TWO_PI
-    delta, start = next_slip_start(phase, b0, b1, closing=closing)
+    delta, start = next_slip_start(phase, b0, b1, closing)
     assert delta == NEVER or (0.0 <= delta <= TWO_PI and 0.0 <= start < TWO_PI), (delta, start)
 
 
@@ -266,7 +266,7 @@ def test_a_long_flight_skips_its_safe_stretch_and_lands_where_the_full_walk_does
     """landing_delay skips the stretch where a long flight is surely in the air;
     the landing is bit for bit the one the turning-point walk finds without
     the skip (the same final bracket), for flights of one to ~2000 periods."""
-    from friction_sim.core import roots
+    from friction_sim.core.physics import roots
 
     omega, g = TWO_PI * 50.0, 10.0
     b1 = throw * g
@@ -281,16 +281,16 @@ def test_a_long_flight_skips_its_safe_stretch_and_lands_where_the_full_walk_does
 def test_a_huge_throw_number_lands_without_walking_every_period() -> None:
     """Throw number 1e11 (the lightest slider, the largest amplitude): the flight
     lasts ~1e10 periods; its landing is found in milliseconds, and z is 0 there."""
-    from friction_sim.core.roots import Harmonic, landing_delay
+    from friction_sim.core.physics.roots import harmonic, harmonic_height, harmonic_speed, landing_delay
 
     omega, b1, b0 = TWO_PI * 50.0, 1e12, -10.0
     started = time.perf_counter()
-    delay = landing_delay(0.0, b0, b1, 1e-11, omega)
+    delay = landing_delay(0.0, b0, b1, 1e-11, omega, 0.0)
     assert time.perf_counter() - started < 0.05
     assert 1e7 < delay * 50.0 < 1e12
-    h = Harmonic(0.0, b0, b1, 1e-11, omega)
+    h = harmonic(0.0, b0, b1, 1e-11, omega, 0.0)
     scale = b1 / omega * delay
-    assert abs(h.travel(delay)) <= 1e-12 * scale and h.speed(delay) < 0.0
+    assert abs(harmonic_height(h, delay)) <= 1e-12 * scale and harmonic_speed(h, delay) < 0.0
 
 
 @pytest.mark.parametrize("phase", [-180.0, -90.0, 90.0, 180.0])
@@ -313,7 +313,7 @@ def test_a_landing_far_beyond_the_rounding_of_its_apex_time_is_found() -> None:
     found by the fuzz test above) hung the landing search: apex + 1/omega
     rounds to apex there, so doubling the bracket never widened it.  The
     landing is found, at once, where z = 0."""
-    from friction_sim.core.roots import Harmonic, landing_delay
+    from friction_sim.core.physics.roots import harmonic, harmonic_height, landing_delay
 
     args = (47052513.009696074, -1e-6, 5.922808296637097e-09, 4.472895919311327, 125663.70614359173,
             7671491218.478284)
@@ -321,5 +321,5 @@ def test_a_landing_far_beyond_the_rounding_of_its_apex_time_is_found() -> None:
     tau = landing_delay(*args)
     assert time.process_time() - started < 1.0
     assert 9e13 < tau < 1e14
-    height = Harmonic(*args)
-    assert height.travel(tau) <= 0.0 < height.travel(tau * (1.0 - 1e-9))
+    height = harmonic(*args)
+    assert harmonic_height(height, tau) <= 0.0 < harmonic_height(height, tau * (1.0 - 1e-9))

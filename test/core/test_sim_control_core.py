@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.realtime import RealtimeSlider
-from friction_sim.core.simclock import SimClock
-from friction_sim.core.slider import Slider
+from friction_sim.core.engine.single import Slider
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.runtime.realtime import RealtimeSlider
+from friction_sim.core.runtime.simclock import SimClock
 
 MS = 1_000_000
 #: The paper's case, a hopping tilted vibration, and mu_s > mu on a slope.

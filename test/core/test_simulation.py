@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from friction_sim.core.commands import Command
-from friction_sim.core.events import EventKind
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.simulation import random_schedule, run_schedule, simulate
-from friction_sim.core.slider import Slider
-from friction_sim.core.urelation import u_map
+from friction_sim.core.engine.single import Slider
+from friction_sim.core.meanspeed.urelation import u_map
+from friction_sim.core.model.commands import Command
+from friction_sim.core.model.events import EventKind
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.runtime.simulation import random_schedule, run_schedule, simulate
 
 
 def driven(schedule: list[Command], until: float) -> Slider:

@@ -21,10 +21,10 @@ import pytest
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
-from friction_sim.core.commands import Command
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.simulation import random_schedule, run_schedule
-from friction_sim.core.slider import EventKind, Mode, Slider
+from friction_sim.core.engine.single import EventKind, Mode, Slider
+from friction_sim.core.model.commands import Command
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.runtime.simulation import random_schedule, run_schedule
 from friction_sim.errors import FrictionSimError, ParameterError
 
 from helpers import EndlessLoop, grouped, mirrored, time_limit
@@ -737,16 +737,16 @@ def test_a_general_model_that_makes_no_progress_fails_loudly(monkeypatch):
     (zero-length events at one instant, for ever), advance_to raises a
     SimulationFault naming the instant instead of hanging, and the slider is
     left at its last good state."""
-    from friction_sim.core import slider as slider_module
-    from friction_sim.core.motion import FLIGHT, After, Step
+    from friction_sim.core.engine import single as slider_module
+    from friction_sim.core.physics.segment import FLIGHT, LANDING, Step
     from friction_sim.errors import SimulationFault
 
     slider = Slider(SliderParams(excitation_angle=60.0), Inputs())
     slider.advance_to(0.01)
     before = slider.state()
 
-    def stuck_in_place(seg, closing=0, grounded=False):
-        return Step(0.0, False, seg.phase0, 0, 0.0, 0.0, 0.0, After(EventKind.LANDING, FLIGHT, 0.0, 0.0))
+    def stuck_in_place(plant, mode, phase0, v0, vz0, z0, closing, grounded):
+        return Step(0.0, False, phase0, 0, 0.0, 0.0, 0.0, LANDING, FLIGHT, 0.0, 0.0, 0, False)
 
     monkeypatch.setattr(slider_module, "next_step", stuck_in_place)
     slider.set_inputs(drive_force=0.5)  # a new segment: its step comes from the stand-in

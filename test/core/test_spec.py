@@ -11,9 +11,9 @@ import yaml
 from hypothesis import given
 from hypothesis import strategies as st
 
-from friction_sim.core import spec
-from friction_sim.core.commands import COMMANDS, PARAMETERS, Command, apply
-from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.model import spec
+from friction_sim.core.model.commands import COMMANDS, PARAMETERS, Command, apply
+from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.errors import ParameterError
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -17,9 +17,7 @@ import pytest
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.simulation import simulate
-from friction_sim.core.urelation import (
+from friction_sim.core.meanspeed.urelation import (
     amplitude_ratio_for,
     dimensional_speed,
     motion_boundary,
@@ -29,6 +27,8 @@ from friction_sim.core.urelation import (
     stop_phase_advance,
     u_map,
 )
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.runtime.simulation import simulate
 from friction_sim.errors import FrictionSimError, ParameterError
 
 TWO_PI = 2.0 * math.pi
@@ -338,8 +338,8 @@ def test_simulate_predicts_with_the_external_force() -> None:
     """With an external force the exact U uses the effective groups, and the
     simulated mean speed agrees with it.  (Fz points away from the track since
     issue 11: -2 N presses the slider on, +2 N takes load off.)"""
-    from friction_sim.core.params import Inputs, SliderParams
-    from friction_sim.core.simulation import simulate
+    from friction_sim.core.model.params import Inputs, SliderParams
+    from friction_sim.core.runtime.simulation import simulate
 
     result = simulate(SliderParams(), Inputs(external_force_x=0.1, external_force_z=-2.0), 1.0, settle=0.1)
     assert result.u_exact == pytest.approx(my_u(0.8 / 1.2, 5.0 / 12.0), rel=1e-12)
@@ -370,7 +370,7 @@ def test_the_inverse_converges_in_a_handful_of_newton_steps(u: float, phi: float
     """The controller inverts once per change of its inputs, inside the loop:
     U's rounding noise once kept Newton stepping to and fro for 35 evaluations
     (30-50 ms, a period's delay at 100 Hz in acceptance case 5)."""
-    import friction_sim.core.urelation as relation
+    import friction_sim.core.meanspeed.urelation as relation
 
     calls = []
     real = relation._u_and_slope  # noqa: SLF001 - counting the evaluations

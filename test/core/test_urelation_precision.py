@@ -17,7 +17,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from friction_sim.core.urelation import amplitude_ratio_for, stop_phase_advance, u_grid, u_map
+from friction_sim.core.meanspeed.urelation import amplitude_ratio_for, stop_phase_advance, u_grid, u_map
 
 from reference import high_precision_slip, high_precision_u
 

@@ -10,9 +10,10 @@ from pathlib import Path
 
 import pytest
 
-from friction_sim.cli.jobs import report_recording, run_scenario
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.urelation import predict
+from friction_sim.cli.experiments import report_recording, run_scenario
+from friction_sim.cli.progress import TerminalProgress
+from friction_sim.core.meanspeed.predict import predict
+from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.io.reader import read_recording
 from friction_sim.io.verify import verify
 
@@ -41,7 +42,7 @@ def experiment(tmp_path_factory: pytest.TempPathFactory):  # type: ignore[no-unt
     scenario = folder / "short.yaml"
     scenario.write_text(SCENARIO)
     out = io.StringIO()
-    job = run_scenario(scenario, output=folder / "out", stream=out, status=io.StringIO())
+    job = run_scenario(scenario, output=folder / "out", stream=out, status=TerminalProgress(io.StringIO()))
     return job, out.getvalue()
 
 
@@ -120,7 +121,7 @@ def test_attach_drives_nodes_running_in_another_process(tmp_path: Path) -> None:
         scenario = tmp_path / "attach.yaml"
         scenario.write_text(SCENARIO.replace("name: short", "name: attached"))
         job = run_scenario(scenario, output=tmp_path / "out", attach=namespace, stream=io.StringIO(),
-                           status=io.StringIO())
+                           status=TerminalProgress(io.StringIO()))
     finally:
         feeder.send_signal(2)
         _, err = feeder.communicate(timeout=20)
@@ -139,9 +140,9 @@ def test_the_stick_fraction_of_a_hopping_run_counts_flights_as_moving(tmp_path: 
     """A recording of a slider thrown off the track: each row's stick fraction
     (its last whole period) equals the core's own stuck time over that window,
     with lift-offs ending stuck stretches and landings that stop it starting them."""
-    from friction_sim.core.commands import Command
-    from friction_sim.core.events import EventKind, Mode
-    from friction_sim.core.slider import Slider
+    from friction_sim.core.engine.single import Slider
+    from friction_sim.core.model.commands import Command
+    from friction_sim.core.model.events import EventKind, Mode
     from friction_sim.experiment.report import build_report, run_data_from_recording
     from friction_sim.io.offline import record_offline
 
@@ -170,7 +171,7 @@ def test_the_stick_fraction_of_a_hopping_run_counts_flights_as_moving(tmp_path: 
 def test_a_parameter_change_with_text_is_labelled_in_the_report() -> None:
     """A scheduled parameter change may carry text (landing_friction); the
     report's label shows it as it is, next to the numbers."""
-    from friction_sim.core.commands import Command
+    from friction_sim.core.model.commands import Command
     from friction_sim.experiment.report import command_label
 
     command = Command(1.0, "parameters", {"landing_friction": "none", "restitution": 0.25})

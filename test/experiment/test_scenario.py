@@ -7,10 +7,11 @@ from pathlib import Path
 
 import pytest
 
-from friction_sim.core.commands import Command
-from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.model.commands import Command
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.errors import ScenarioError
 from friction_sim.experiment.acceptance import acceptance_scenarios, config_dir
-from friction_sim.experiment.scenario import ScenarioError, load_scenario, parse_scenario
+from friction_sim.experiment.scenario import load_scenario, parse_scenario
 
 GOOD = """\
 name: good

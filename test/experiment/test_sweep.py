@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from friction_sim.core import spec
-from friction_sim.core.params import SliderParams, cos_degrees
+from friction_sim.core.model import spec
+from friction_sim.core.model.params import SliderParams, cos_degrees
 from friction_sim.experiment.sweep import BLOCK, SweepError, load_sweep, materialize, parse_sweep
 
 CONFIG = Path(__file__).resolve().parents[2] / "config"

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from friction_sim.core.commands import Command
-from friction_sim.core.simulation import random_schedule
+from friction_sim.core.model.commands import Command
+from friction_sim.core.runtime.simulation import random_schedule
 from friction_sim.io.offline import record_offline
 
 

@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from friction_sim.core.events import Mode, SliderState
-from friction_sim.core.realtime import PeriodSummary
+from friction_sim.core.model.events import Mode, SliderState
+from friction_sim.core.model.records import PeriodSummary
 from friction_sim.io import cdr
 from friction_sim.io import messages as M
 from friction_sim.io.reader import read_recording

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from friction_sim.cli.replay import run
-from friction_sim.core.commands import Command
-from friction_sim.core.params import Inputs, SliderParams
+from friction_sim.core.model.commands import Command
+from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.errors import RecordingError
 from friction_sim.io.offline import record_offline
 from friction_sim.io.reader import read_recording

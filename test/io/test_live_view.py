@@ -24,9 +24,9 @@ from mcap.reader import make_reader
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64, String
 
-from friction_sim.core.commands import Command, Outcome
-from friction_sim.core.events import Event, EventKind, Mode, SliderState
-from friction_sim.core.realtime import PeriodSummary
+from friction_sim.core.model.commands import Command, Outcome
+from friction_sim.core.model.events import Event, EventKind, Mode, SliderState
+from friction_sim.core.model.records import PeriodSummary
 from friction_sim.errors import LiveViewError
 from friction_sim.io import cdr
 from friction_sim.io.live import ADVERTISED, LiveView

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from friction_sim.core.commands import Command, Outcome
-from friction_sim.core.events import Event, EventKind, Mode, SliderState
+from friction_sim.core.model.commands import Command, Outcome
+from friction_sim.core.model.events import Event, EventKind, Mode, SliderState
 from friction_sim.io import messages as M
 
 STATE = SliderState(t=1.2345678901, x=1.5e-4, v=-2.5e-3, acceleration=0.3, friction_force=-0.95,

@@ -80,9 +80,9 @@ def test_a_file_cut_short_is_read_up_to_its_last_complete_chunk(real_recording: 
 
 CHILD = r"""
 import os, signal, sys, time
-from friction_sim.core.commands import Command
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.realtime import RealtimeSlider
+from friction_sim.core.model.commands import Command
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.io.recorder import Recorder, plant_parameters, recording_metadata
 from friction_sim.io.sinks import deliver_tick
 

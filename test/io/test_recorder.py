@@ -18,10 +18,11 @@ import pytest
 import yaml
 from mcap.reader import make_reader
 
-from friction_sim.core.commands import Command, Outcome
-from friction_sim.core.events import Event, EventKind, Mode, SliderState
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.realtime import PeriodSummary, RealtimeSlider
+from friction_sim.core.model.commands import Command, Outcome
+from friction_sim.core.model.events import Event, EventKind, Mode, SliderState
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.model.records import PeriodSummary
+from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import ParameterError, RecordingPathError
 from friction_sim.io import messages as M
 from friction_sim.io.offline import record_offline

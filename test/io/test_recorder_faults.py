@@ -21,7 +21,7 @@ from typing import Any
 
 import pytest
 
-from friction_sim.core.events import Mode, SliderState
+from friction_sim.core.model.events import Mode, SliderState
 from friction_sim.errors import RecordingPathError
 from friction_sim.io.reader import read_recording
 from friction_sim.io.recorder import Recorder
@@ -86,8 +86,8 @@ records = []
 handler = logging.Handler()
 handler.emit = records.append
 logging.getLogger("friction_sim").addHandler(handler)
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.realtime import RealtimeSlider
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import RecordingPathError
 from friction_sim.io.recorder import Recorder, plant_parameters, recording_metadata
 from friction_sim.io.sinks import deliver_tick

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from friction_sim.core.commands import Command
+from friction_sim.core.model.commands import Command
 from friction_sim.experiment.report import PICTURE_POINTS, build_report, run_data_from_recording
 from friction_sim.io.offline import record_offline
 from friction_sim.io.reader import read_recording

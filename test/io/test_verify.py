@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from friction_sim.cli.replay import run
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.simulation import random_schedule
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.runtime.simulation import random_schedule
 from friction_sim.io.offline import record_offline
 from friction_sim.io.reader import read_recording
 from friction_sim.io.verify import verify

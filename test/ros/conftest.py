@@ -6,7 +6,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from friction_sim.core.commands import Outcome
+from friction_sim.core.model.commands import Outcome
 from friction_sim.ros.slider import SliderNode
 
 from ros_harness import CommandLog, Probe, namespace

@@ -63,11 +63,11 @@ def test_a_flood_of_half_invalid_commands_is_taken_in_batches(ros: None) -> None
         assert sent > 0.5 * FLOOD_RATE * FLOOD_SECONDS
         most = elapsed / COMMAND_HOLD_OFF + 10  # one batch per hold-off at most, plus the quiet-time wake-ups
         assert len(probe.received["excitation_amplitude"]) - answers <= most, "one answer per batch"
-        assert controller.command_batches <= most  # (none before the flood: the target came as a parameter)
-        assert controller.rejected > 100 and controller.accepted > 100, "both kinds, all through"
-        assert "drive_force" in controller.last_rejection
-        assert any(word in controller.last_rejection for word in ("nan", "inf"))
-        assert controller.accepted + controller.rejected >= controller.command_batches, "every message was judged"
+        assert controller.runtime.command_batches <= most  # (none before the flood: the target came as a parameter)
+        assert controller.runtime.rejected > 100 and controller.runtime.accepted > 100, "both kinds, all through"
+        assert "drive_force" in controller.runtime.last_rejection
+        assert any(word in controller.runtime.last_rejection for word in ("nan", "inf"))
+        assert controller.runtime.accepted + controller.runtime.rejected >= controller.runtime.command_batches, "every message was judged"
         assert all(math.isfinite(m.data) for m in probe.received["excitation_amplitude"])
         assert probe.spin_until(lambda: not controller.polling, 2.0), "quiet again: commands wake the node at once"
     finally:
@@ -89,15 +89,15 @@ def test_a_lone_command_is_taken_at_once_and_the_polling_stops(ros: None) -> Non
         for value, batches in ((0.8, 1), (0.9, 2)):
             probe.send("drive_force", value)
             assert probe.spin_until(lambda v=value: controller.control.drive_force == v, 5.0)  # type: ignore[misc]
-            assert controller.command_batches == batches
+            assert controller.runtime.command_batches == batches
             assert controller.polling, "after a batch, the topics are polled for a hold-off"
             assert probe.spin_until(lambda: not controller.polling, 2.0), "and then no more"
         # Two topics in one batch: each command is judged in the order they came.
         probe.send("target_speed", -2e-4)  # against the drive force in force: refused
         probe.send("drive_force", -0.7)
         probe.send("target_speed", -3e-4)  # with the new drive force: taken
-        assert probe.spin_until(lambda: controller.control.target_speed == -3e-4, 5.0), controller.last_rejection
-        assert controller.rejected == 1 and "-0.0002" in controller.last_rejection
+        assert probe.spin_until(lambda: controller.control.target_speed == -3e-4, 5.0), controller.runtime.last_rejection
+        assert controller.runtime.rejected == 1 and "-0.0002" in controller.runtime.last_rejection
     finally:
         probe.close()
         controller.destroy_node()

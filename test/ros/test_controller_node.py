@@ -17,7 +17,7 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.parameter import Parameter
 
-from friction_sim.core.params import SliderParams
+from friction_sim.core.model.params import SliderParams
 from friction_sim.ros.controller import ControllerNode
 from friction_sim.ros.slider import SliderNode
 
@@ -40,9 +40,9 @@ def test_controller_reads_the_plant_and_reports_diagnostics(ros: None) -> None:
         assert controller.control.config.model == SliderParams(mass=2.0)
         assert controller.get_parameter("mass").value == 2.0
         probe.send("target_speed", -1e-4)  # wrong sign: rejected
-        assert probe.spin_until(lambda: controller.rejected == 1, 15.0)
+        assert probe.spin_until(lambda: controller.runtime.rejected == 1, 15.0)
         probe.send("target_speed", float("nan"))
-        assert probe.spin_until(lambda: controller.rejected == 2, 15.0)
+        assert probe.spin_until(lambda: controller.runtime.rejected == 2, 15.0)
         assert controller.control.target_speed == 0.0002
 
         def status() -> dict[str, str]:
@@ -79,7 +79,7 @@ def test_controller_without_its_plant_says_so_and_uses_its_own_model(ros: None) 
     try:
         assert probe.spin_until(lambda: controller.ready, 30.0)
         assert time.monotonic() - started >= 5.0, "it waited 5 s for the plant node"
-        assert controller.model_source == "own parameters"
+        assert controller.runtime.model_source == "own parameters"
         assert controller.control.config.model.mu == 0.2
     finally:
         probe.close()
@@ -147,8 +147,8 @@ def test_controller_reads_the_general_model_from_the_plant(ros: None) -> None:
         assert probe.spin_until(lambda: controller.ready, 10.0)
         assert controller.control.config.model == SliderParams(**plant)
         assert controller.get_parameter("landing_friction").value == "none"
-        assert controller.model_source == "plant node 'slider'"
-        assert controller.control.target_speed == 2e-3 and controller.rejected == 0
+        assert controller.runtime.model_source == "plant node 'slider'"
+        assert controller.control.target_speed == 2e-3 and controller.runtime.rejected == 0
         assert probe.set_parameter(f"{ns}/controller", "target_speed", 3e-3)[0]
         out = controller.control.output
         assert not (out.unreachable or out.saturated or out.runaway) and 0.0 < out.applied_ratio < 0.95

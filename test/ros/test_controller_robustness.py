@@ -18,7 +18,7 @@ from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import Float64
 
-from friction_sim.core import control
+from friction_sim.core.control import law as control
 from friction_sim.ros.controller import ControllerNode
 
 from ros_harness import Probe
@@ -66,9 +66,9 @@ def test_impossible_samples_are_refused_counted_and_reported(running: Any) -> No
         msg.header.stamp.sec = 100 + n
         msg.twist.linear.x = value
         publisher.publish(msg)
-    assert probe.spin_until(lambda: controller.samples_rejected + controller.samples_accepted == 4, 10.0)
-    assert controller.samples_rejected == 3 and controller.samples_accepted == 1
-    assert "mean_velocity" in controller.last_sample_rejection
+    assert probe.spin_until(lambda: controller.runtime.samples_rejected + controller.runtime.samples_accepted == 4, 10.0)
+    assert controller.runtime.samples_rejected == 3 and controller.runtime.samples_accepted == 1
+    assert "mean_velocity" in controller.runtime.last_sample_rejection
     assert probe.spin_until(lambda: values_of(probe).get("samples_rejected") == "3", 5.0)
     values = values_of(probe)
     assert values["sample_limit"] == repr(controller.control.sample_limit) or float(values["sample_limit"]) > 0
@@ -89,9 +89,9 @@ def test_parameter_values_rclpy_refuses_are_counted(running: Any, name: str, val
     ns, controller, probe = running
     successful, _ = probe.set_parameter(f"{ns}/controller", name, value)
     assert not successful
-    assert controller.rejected == 1
+    assert controller.runtime.rejected == 1
     for word in words:
-        assert word in controller.last_rejection
+        assert word in controller.runtime.last_rejection
     assert probe.spin_until(lambda: values_of(probe).get("commands_rejected") == "1", 5.0)
 
 
@@ -127,7 +127,7 @@ def test_an_unexpected_error_is_reported_once_and_the_node_goes_on(running: Any,
     target = controller.control.target_speed
     for n, value in enumerate((3e-4, 3.5e-4)):
         probe.send("target_speed", value)
-        assert probe.spin_until(lambda n=n: controller.internal_errors == n + 1, 10.0)  # type: ignore[misc]
+        assert probe.spin_until(lambda n=n: controller.runtime.internal_errors == n + 1, 10.0)  # type: ignore[misc]
     assert controller.control.target_speed == target, "refused: the state is as before"
     assert len(logger.errors) == 1 and "ZeroDivisionError" in logger.errors[0]
     successful, reason = probe.set_parameter(f"{ns}/controller", "target_speed", 4e-4)

@@ -32,8 +32,8 @@ import pytest
 from hypothesis import HealthCheck, Phase, example, given, settings
 from hypothesis import strategies as st
 
-from friction_sim.core import spec
-from friction_sim.core.commands import CONTROLLER, SLIDER
+from friction_sim.core.model import spec
+from friction_sim.core.model.commands import CONTROLLER, SLIDER
 from friction_sim.io.reader import read_recording
 
 from fuzz_rigs import ControllerRig, SliderRig, stop_cleanly

@@ -1,4 +1,4 @@
-"""What both nodes share (friction_sim/ros/common.py): the mirror of rclpy's
+"""What both nodes share (friction_sim/ros/{run,parameters,intake,graph}.py): the mirror of rclpy's
 own parameter checks agrees with rclpy, refused input is warned about on a
 cheap throttle, and run_node's exit codes."""
 
@@ -13,16 +13,12 @@ import pytest
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from friction_sim.core import spec
-from friction_sim.ros import common
-from friction_sim.ros.common import (
-    EXIT_BAD_PARAMETER,
-    EXIT_FAULT,
-    ThrottledWarning,
-    declare_settings,
-    descriptor_refusal,
-    run_node,
-)
+from friction_sim.core.model import spec
+from friction_sim.errors import FrictionSimError
+from friction_sim.ros import intake
+from friction_sim.ros.intake import ThrottledWarning
+from friction_sim.ros.parameters import declare_settings, descriptor_refusal
+from friction_sim.ros.run import EXIT_BAD_PARAMETER, EXIT_FAULT, FaultSignal, run_node
 
 from ros_harness import namespace
 
@@ -112,7 +108,7 @@ def test_the_throttled_warning_warns_once_per_interval_and_counts_the_rest(
             said.append(text)
 
     now = [100.0]
-    monkeypatch.setattr(common.time, "monotonic", lambda: now[0])
+    monkeypatch.setattr(intake.time, "monotonic", lambda: now[0])
     warn = ThrottledWarning(Logger(), interval=1.0)
     warn("first")
     for k in range(500):
@@ -127,7 +123,7 @@ def test_the_throttled_warning_warns_once_per_interval_and_counts_the_rest(
 
 def test_run_node_exit_codes(ros: None) -> None:
     def bad() -> Node:
-        raise common.FrictionSimError("mass = -1.0 rejected: must be > 0")
+        raise FrictionSimError("mass = -1.0 rejected: must be > 0")
 
     # run_node initialises and shuts rclpy down itself: leave the module's context alone.
     import rclpy
@@ -147,7 +143,7 @@ class _FaultyNode(Node):
 
     def __init__(self) -> None:
         super().__init__("faulty", namespace=namespace())
-        self.signal = common.FaultSignal(self)
+        self.signal = FaultSignal(self)
         self.create_timer(0.05, self._tick)
 
     def _tick(self) -> None:

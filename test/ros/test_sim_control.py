@@ -20,9 +20,9 @@ from hypothesis import strategies as st
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
 
-from friction_sim.core.commands import Outcome
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.slider import Slider
+from friction_sim.core.engine.single import Slider
+from friction_sim.core.model.commands import Outcome
+from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.io.reader import read_recording
 from friction_sim.io.verify import recorded_commands, verify
 from friction_sim.ros.slider import SliderNode

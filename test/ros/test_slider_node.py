@@ -19,11 +19,11 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
 
-from friction_sim.core import spec
-from friction_sim.core.params import Inputs, SliderParams
-from friction_sim.core.simulation import run_schedule
-from friction_sim.core.slider import Slider
-from friction_sim.core.urelation import predict
+from friction_sim.core.engine.single import Slider
+from friction_sim.core.meanspeed.predict import predict
+from friction_sim.core.model import spec
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.runtime.simulation import run_schedule
 from friction_sim.ros.slider import SliderNode
 
 from ros_harness import (

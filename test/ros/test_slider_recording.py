@@ -21,7 +21,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, WrenchStamped
 from rclpy.parameter import Parameter
 
-from friction_sim.ros.common import EXIT_RECORDING_FAILED
+from friction_sim.ros.run import EXIT_RECORDING_FAILED
 from friction_sim.ros.slider import SliderNode
 
 from ros_harness import Probe, diagnostics_values, kill_if_running, namespace, stamp_ns

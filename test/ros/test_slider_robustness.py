@@ -22,11 +22,11 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 
-from friction_sim.core import spec
-from friction_sim.core.slider import Slider
-from friction_sim.core.urelation import u_map
+from friction_sim.core.engine.single import Slider
+from friction_sim.core.meanspeed.urelation import u_map
+from friction_sim.core.model import spec
 from friction_sim.errors import NodeFault
-from friction_sim.ros.common import EXIT_FAULT
+from friction_sim.ros.run import EXIT_FAULT
 
 from helpers import POISON
 from ros_harness import Probe, diagnostics_values, kill_if_running, namespace, stamp_ns
@@ -105,7 +105,7 @@ def test_a_simulation_fault_stops_the_node_in_process_and_parameter_sets_still_a
 
 FAULTY_SLIDER = f"""
 import sys
-from friction_sim.core.slider import Slider
+from friction_sim.core.engine.single import Slider
 real = Slider.advance_to
 def advance_to(self, t):
     if self.inputs.drive_force == {POISON!r}:

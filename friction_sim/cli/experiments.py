@@ -1,0 +1,133 @@
+"""``friction-sim experiment`` and ``report``: a scenario run over real topics, and its report.
+
+``run_scenario``: validate the scenario (nothing starts on a bad file), bring
+up the nodes in this process, play the schedule over real topics with a live
+status line, record everything to ``<output>/<name>.mcap``, then write the
+report (``<name>.md`` and ``<name>.png``) from that recording alone, exactly
+as ``friction-sim report`` would.
+
+``report_recording``: that report, from any recording (``friction-sim report``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TextIO
+
+from friction_sim.cli.options import Verb, add_foxglove
+from friction_sim.cli.progress import TerminalProgress
+from friction_sim.core.runtime.progress import Progress
+from friction_sim.errors import FrictionSimError
+from friction_sim.experiment.report import (
+    RunData,
+    SegmentRow,
+    build_report,
+    report_markdown,
+    run_data_from_recording,
+    table_text,
+)
+from friction_sim.experiment.scenario import load_scenario
+
+
+@dataclass(frozen=True)
+class JobOutput:
+    """What a job wrote: the report's rows, the recording, the picture and the Markdown report."""
+
+    rows: list[SegmentRow]
+    recording: Path
+    picture: Path
+    report: Path
+
+
+def run_scenario(path: Path, *, output: Path | None = None, attach: str | None = None,
+                 foxglove_port: int | None = None, stream: TextIO = sys.stdout,
+                 status: Progress | None = None) -> JobOutput:
+    """Run a scenario file end to end (see the module docstring); with
+    ``attach``, drive nodes already running in that namespace; with
+    ``foxglove_port``, the slider serves a Foxglove live view there.  The live
+    status goes to ``status`` (default: the terminal's progress line), a line
+    per simulated second where it is not redrawn."""
+    from friction_sim.experiment.runner import run_standalone
+
+    scenario = load_scenario(path)
+    folder = output or scenario.output
+    folder.mkdir(parents=True, exist_ok=True)
+    recording = folder / f"{scenario.name}.mcap"
+    spec = dataclasses.replace(scenario.spec(), log_path=recording)
+    if foxglove_port is not None:
+        spec = dataclasses.replace(spec, slider_parameters={**spec.slider_parameters, "foxglove_port": foxglove_port})
+    live = status if status is not None else TerminalProgress()
+    print(f"running {path} ({scenario.duration:g} s simulated at {scenario.real_time_factor:g}x real time)",
+          file=stream)
+    try:
+        run_standalone(spec, namespace=attach or scenario.namespace, attach=attach is not None,
+                       progress=lambda now: live.show(now.line(), step=int(now.t)))
+    finally:
+        live.close()
+    return report_recording(recording, folder, stream=stream)
+
+
+def report_recording(recording: Path, folder: Path | None = None, *, stream: TextIO = sys.stdout) -> JobOutput:
+    """Build the report of a recording (``friction-sim report``) and print the table."""
+    data = run_data_from_recording(recording)
+    rows, markdown, picture = write_report(data, folder or recording.parent, recording.stem)
+    print(table_text(rows), file=stream)
+    print(f"recording: {recording}\npicture:   {picture}\nreport:    {markdown}", file=stream)
+    return JobOutput(rows, recording, picture, markdown)
+
+
+def write_report(data: RunData, folder: Path, stem: str) -> tuple[list[SegmentRow], Path, Path]:
+    """Write <stem>.md and <stem>.png into ``folder``; return rows and paths."""
+    from friction_sim.cli.figures import report_figure, save_figure
+
+    rows = build_report(data)
+    folder.mkdir(parents=True, exist_ok=True)
+    markdown = folder / f"{stem}.md"
+    markdown.write_text(report_markdown(data, rows, f"{stem}.png"))
+    picture = folder / f"{stem}.png"
+    save_figure(report_figure(data, rows), picture)
+    return rows, markdown, picture
+
+
+def add_experiment_arguments(parser: argparse.ArgumentParser) -> None:
+    """The ``experiment`` options."""
+    parser.add_argument("scenario", type=Path, help="scenario file, e.g. config/demo.yaml")
+    parser.add_argument("--output", type=Path, help="output folder (default: the scenario's output)")
+    parser.add_argument("--attach", metavar="NAMESPACE",
+                        help="drive a slider (and controller) already running in NAMESPACE")
+    add_foxglove(parser)
+
+
+def add_report_arguments(parser: argparse.ArgumentParser) -> None:
+    """The ``report`` options."""
+    parser.add_argument("recording", type=Path, help="the experiment's .mcap file")
+    parser.add_argument("--output", type=Path, help="output folder (default: beside the recording)")
+
+
+def experiment(args: argparse.Namespace) -> int:
+    """``experiment``: run a scenario over real topics, record it, report it."""
+    if args.foxglove is not None and args.attach is not None:
+        raise FrictionSimError("--foxglove with --attach: the slider runs elsewhere; start it with "
+                               "--foxglove (or foxglove_port) instead")
+    run_scenario(args.scenario, output=args.output, attach=args.attach, foxglove_port=args.foxglove)
+    return 0
+
+
+def report(args: argparse.Namespace) -> int:
+    """``report``: rebuild an experiment's report from its recording alone."""
+    report_recording(args.recording, args.output)
+    return 0
+
+
+VERBS = (
+    Verb("experiment", "run a scenario over real topics, record it, report it", add_experiment_arguments, experiment),
+    Verb("report", "rebuild an experiment's report from its recording alone", add_report_arguments, report),
+)
+
+
+
+__all__ = ["VERBS", "JobOutput", "experiment", "report", "report_recording", "run_scenario", "write_report"]

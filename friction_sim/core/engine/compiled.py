@@ -1,0 +1,376 @@
+"""The population engine: the single slider's physics, compiled with Numba.
+
+Every function of :mod:`friction_sim.core.physics` (and the exact angle
+helpers of :mod:`friction_sim.core.model.params`) is registered with Numba as
+it is (``register_jitable``: called from Python it stays the plain function
+the single slider runs), and one loop over sliders calls them compiled: each
+slider is advanced event by event to its own end, as
+:meth:`~friction_sim.core.engine.single.Slider.advance_to` advances one
+(period starts before an event at the same phase, then the samples, then the
+event and the step after it), in parallel over cores (``prange``).  There
+are no rounds: a bouncer never holds up the others.  The arithmetic is the
+same operations in the same order, and Numba calls the same libm as CPython
+(and never fuses a multiply-add), so a slider's window is the single
+slider's bit for bit; only its samples, which the single slider evaluates
+with numpy's sin, may differ in their last bits.
+
+Like the single slider it keeps a memo of worked-out steps (by segment start:
+a periodic motion repeats them bit for bit), and with ``shortcut`` it looks
+for a repeat of the state at a period start, bit for bit, up to ``RING``
+periods back: from there every later period start follows by adding the last
+repeat's increments, and the window is filled in without stepping through it.
+
+Importing this module imports Numba, which the nodes never do: compiling
+happens on a population's first run (tens of seconds), after that from the
+on-disk cache (:func:`cache_directory`), under a key that changes with every
+source file the compiled code depends on.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import os
+import tempfile
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numba
+import numpy as np
+from numba.extending import register_jitable
+
+from friction_sim.core.model import params as _params
+from friction_sim.core.physics import plant as _plant
+from friction_sim.core.physics import roots as _roots
+from friction_sim.core.physics import segment as _segment
+from friction_sim.core.physics.plant import kostek_applies, plant
+from friction_sim.core.physics.roots import NEVER
+from friction_sim.core.physics.segment import FLIGHT, STUCK, evaluate, next_step, to_cycle, travel
+
+#: Numba's run-time settings (untyped: set and read by name).
+_CONFIG: Any = numba.config
+
+#: Period starts remembered per slider for the periodic shortcut (longest repeat looked for).
+RING = 8
+#: Slots of the memo of worked-out steps per slider (by a hash of the segment start;
+#: a periodic motion has a handful of starts, a bouncer's rarely repeat).
+MEMO = 512
+#: As the single slider: more events than this at one instant means no progress.
+MAX_EVENTS_AT_ONE_INSTANT = 1000
+#: Event kinds (the count columns).
+KINDS = 5
+#: The columns of the per-slider inputs, in the order of ``plant``'s arguments.
+COLUMNS = ("mass", "mu", "gravity", "static_ratio", "excitation_angle", "excitation_phase", "track_inclination",
+           "restitution", "drive_force", "excitation_amplitude", "excitation_frequency", "external_force_x",
+           "external_force_z")
+#: The result codes of one slider (``status``).
+DONE, NO_PROGRESS = 0, 1
+
+#: The modules whose plain functions the compiled code calls: the physics, written once.
+PHYSICS = (_roots, _plant, _segment)
+
+
+def _register() -> None:
+    """Make every function of the physics modules (and the exact angle helpers of
+    the parameters) callable from compiled code, as it is: a new function of the
+    physics needs no entry anywhere (those that take dataclasses, such as
+    plant_of, are registered too, and simply never called from compiled code)."""
+    functions: list[Callable[..., Any]] = [value for module in PHYSICS for value in vars(module).values()
+                                           if inspect.isfunction(value) and value.__module__ == module.__name__]
+    for function in (*functions, _params.sin_degrees, _params.cos_degrees):
+        register_jitable(function)
+
+
+_register()
+
+
+def _sources() -> list[Path]:
+    """The files whose code the compiled engine is made of."""
+    return [Path(module.__file__) for module in (_params, *PHYSICS) if module.__file__] + [Path(__file__)]
+
+
+def cache_directory() -> Path:
+    """Where compiled code is kept: ``$NUMBA_CACHE_DIR``, else the user's cache
+    (``$XDG_CACHE_HOME``, else ~/.cache), under friction_sim/numba/<key>, where
+    the key hashes every source the code depends on and the Numba version (Numba
+    itself only notices a change of this file, not of the physics it calls).
+    A package installed read-only (a colcon install, a system prefix) compiles
+    into the user's cache; where that cannot be written, into the temporary
+    directory."""
+    digest = hashlib.sha256(numba.__version__.encode())
+    for source in _sources():
+        digest.update(source.read_bytes())
+    base = os.environ.get("NUMBA_CACHE_DIR") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "friction_sim", "numba")
+    for root in (Path(base), Path(tempfile.gettempdir()) / f"friction_sim-numba-{os.getuid()}"):
+        directory = root / digest.hexdigest()[:16]
+        try:
+            directory.mkdir(parents=True, exist_ok=True)
+            probe = directory / f".probe-{os.getpid()}"
+            probe.touch()
+            probe.unlink()
+            return directory
+        except OSError:
+            continue
+    raise OSError(f"no writable cache directory for compiled code (tried {base} and the temporary directory)")
+
+
+_CONFIG.CACHE_DIR = str(cache_directory())
+
+
+# -- one slider ------------------------------------------------------------------------------------
+
+
+@numba.njit(cache=True)
+def _memo_slot(phase0: float, v0: float, vz0: float, mode: int, closing: int) -> int:
+    """The memo slot of a segment start: a hash of its start (equal starts, equal slots)."""
+    bits = np.array([phase0, v0, vz0]).view(np.uint64)
+    mixed = (bits[0] * np.uint64(0x9E3779B97F4A7C15)) ^ (bits[1] * np.uint64(0xC2B2AE3D27D4EB4F)) ^ bits[2]
+    mixed ^= np.uint64(mode + 4 * closing + 16)
+    mixed ^= mixed >> np.uint64(29)
+    return int(mixed % np.uint64(MEMO))
+
+
+@numba.njit(cache=True)
+def _run_one(values: np.ndarray, impulsive: bool, can_slip: bool, settle: int, end: int, times: np.ndarray,
+             shortcut: bool, window: np.ndarray, counts: np.ndarray, samples: np.ndarray,
+             sample_modes: np.ndarray, memo_keys: np.ndarray, memo_steps: Any, memo_owner: np.ndarray,
+             owner: int) -> int:
+    """Advance one slider from rest at t = 0, phase 0, x = 0 to the start of period
+    ``end`` (and past the last sample time), exactly as the single slider does;
+    write x, stuck and flight time at period starts ``settle`` and ``end`` into
+    ``window`` (2, 3), the event counts between them into ``counts`` (5,), and the
+    state (x, v, z, vz) at ``times`` into ``samples`` (K, 4) and ``sample_modes``.
+    The memo of worked-out steps (``memo_*``, as the single slider keeps one) is a
+    thread's, reused slider after slider: a slot is this slider's where
+    ``memo_owner`` holds ``owner``."""
+    mass, mu, gravity, static_ratio, angle = values[0], values[1], values[2], values[3], values[4]
+    psi, inclination, restitution, drive, amplitude = values[5], values[6], values[7], values[8], values[9]
+    frequency, force_x, force_z = values[10], values[11], values[12]
+    kostek = kostek_applies(angle, inclination, static_ratio, amplitude, mass * gravity, force_z)
+    p = plant(mass, mu, gravity, static_ratio, angle, psi, inclination, restitution, impulsive, drive, amplitude,
+              frequency, force_x, force_z, kostek, kostek and can_slip)
+    omega = p.omega
+    # the segment (its start offset s0 is its time: the anchor is t = 0 at phase 0, period 0)
+    mode, s0, x0, xl, v0, vz0, z0, phase0 = STUCK, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    cycles, closing, grounded = 0, 0, False
+    stuck_time, flight_time = 0.0, 0.0
+    total = np.zeros(KINDS, np.int64)
+    at_instant = 0
+    step = next_step(p, mode, phase0, v0, vz0, z0, closing, grounded)
+    ring_keys = np.zeros((RING, 8))
+    ring_values = np.zeros((RING, 3))
+    ring_counts = np.zeros((RING, KINDS), np.int64)
+    got = np.zeros(2, np.bool_)
+    mark_n = settle if not shortcut else 0
+    mark_s = mark_n / frequency + (0.0 - 0.0) / omega
+    k_samples = times.size
+    k = 0
+    while True:
+        # when the current segment's event happens
+        if step.tied:
+            next_s = (cycles + step.whole - 0) / frequency + (step.phase - 0.0) / omega
+            if next_s < s0:
+                next_s = s0
+        else:
+            next_s = s0 + step.delay
+        t_next = 0.0 + next_s
+        if t_next < s0:
+            t_next = s0
+        # period starts that come first (by phase: a mark and an event may round to one t)
+        while mark_n <= end and mark_s <= next_s:
+            tau = to_cycle(mark_n, cycles, phase0, omega)
+            if mode == STUCK:
+                x, stuck_at, flight_at = x0, stuck_time + tau, flight_time
+            else:
+                x = x0 + (xl + travel(p, mode, v0, phase0, tau))
+                stuck_at, flight_at = stuck_time, flight_time + (tau if mode == FLIGHT else 0.0)
+            for side in range(2):
+                if mark_n == (settle if side == 0 else end):
+                    window[side, 0], window[side, 1], window[side, 2] = x, stuck_at, flight_at
+                    counts[side * KINDS:(side + 1) * KINDS] = total
+                    got[side] = True
+            periodic = False
+            if shortcut:
+                slot = mark_n % RING
+                key0, key7 = float(mode), float(mark_n - cycles)
+                period = 0
+                eligible = next_s != NEVER and k >= k_samples  # (samples are taken event by event)
+                for back in range(RING, 0, -1):  # the smallest repeat wins
+                    old = (mark_n - back) % RING
+                    if (eligible and mark_n - back >= 0 and ring_keys[old, 0] == key0 and ring_keys[old, 1] == phase0
+                            and ring_keys[old, 2] == v0 and ring_keys[old, 3] == vz0 and ring_keys[old, 4] == z0
+                            and ring_keys[old, 5] == closing and ring_keys[old, 6] == grounded
+                            and ring_keys[old, 7] == key7):
+                        period = back
+                if period > 0:
+                    base = mark_n - period
+                    first = base % RING
+                    for side in range(2):
+                        target = settle if side == 0 else end
+                        if not got[side]:
+                            q, r = divmod(target - base, period)
+                            at = (base + r) % RING
+                            window[side, 0] = ring_values[at, 0] + q * (x - ring_values[first, 0])
+                            window[side, 1] = ring_values[at, 1] + q * (stuck_at - ring_values[first, 1])
+                            window[side, 2] = ring_values[at, 2] + q * (flight_at - ring_values[first, 2])
+                            for kind in range(KINDS):
+                                counts[side * KINDS + kind] = (ring_counts[at, kind]
+                                                               + q * (total[kind] - ring_counts[first, kind]))
+                            got[side] = True
+                    periodic = True
+                ring_keys[slot, 0], ring_keys[slot, 1], ring_keys[slot, 2], ring_keys[slot, 3] = key0, phase0, v0, vz0
+                ring_keys[slot, 4], ring_keys[slot, 5], ring_keys[slot, 6], ring_keys[slot, 7] = (z0, closing,
+                                                                                                  grounded, key7)
+                ring_values[slot, 0], ring_values[slot, 1], ring_values[slot, 2] = x, stuck_at, flight_at
+                ring_counts[slot] = total
+            if periodic:
+                mark_n = end + 1
+            elif shortcut and next_s != NEVER and mark_n < end:
+                mark_n += 1
+            else:
+                mark_n = settle if mark_n < settle else (end if mark_n < end else end + 1)
+            mark_s = mark_n / frequency + (0.0 - 0.0) / omega if mark_n <= end else NEVER
+        # samples before the event
+        while k < k_samples and times[k] < next_s:
+            x, v, _, _, _, _, z, vz = evaluate(p, mode, x0, xl, v0, vz0, z0, phase0, times[k] - s0)
+            samples[k, 0], samples[k, 1], samples[k, 2], samples[k, 3] = x, v, z, vz
+            sample_modes[k] = mode
+            k += 1
+        if mark_n > end and k >= k_samples:
+            return DONE
+        if next_s == NEVER:  # an endless segment: every later period start is in it
+            continue
+        # the event
+        if t_next == s0:
+            at_instant += 1
+            if at_instant > MAX_EVENTS_AT_ONE_INSTANT:
+                return NO_PROGRESS
+        else:
+            at_instant = 0
+        part = xl + step.travel
+        x = x0 + part
+        bb = x - x0
+        xl = (x0 - (x - bb)) + (part - bb)
+        x0 = x
+        if mode == STUCK:
+            stuck_time += next_s - s0
+        elif mode == FLIGHT:
+            flight_time += next_s - s0
+        total[step.kind] += 1
+        mode, s0, v0, vz0, z0 = step.mode, t_next, step.v_after, step.vz_after, 0.0
+        phase0, cycles, closing, grounded = step.phase, cycles + step.whole, step.closing, step.grounded
+        slot = _memo_slot(phase0, v0, vz0, mode, closing)
+        key = memo_keys[slot]
+        if (memo_owner[slot] == owner and key[0] == mode and key[1] == phase0 and key[2] == v0 and key[3] == vz0
+                and key[4] == z0 and key[5] == closing and key[6] == grounded):
+            step = memo_steps[slot]
+        else:
+            step = next_step(p, mode, phase0, v0, vz0, z0, closing, grounded)
+            memo_steps[slot], memo_owner[slot] = step, owner
+            key[0], key[1], key[2], key[3], key[4], key[5], key[6] = mode, phase0, v0, vz0, z0, closing, grounded
+
+
+@numba.njit(parallel=True, cache=True)
+def _run_all(values: np.ndarray, impulsive: np.ndarray, can_slip: np.ndarray, settle: int, end: int,
+             times: np.ndarray, shortcut: bool, window: np.ndarray, counts: np.ndarray, samples: np.ndarray,
+             sample_modes: np.ndarray, status: np.ndarray, blocks: int) -> None:
+    """Every slider, in ``blocks`` blocks of neighbours handed to the cores (more
+    blocks than cores, so a block of bouncers does not leave a core idle at the
+    end); each block allocates its memo once."""
+    n = values.shape[0]
+    for block in numba.prange(blocks):
+        first, stop = block * n // blocks, (block + 1) * n // blocks
+        memo_keys = np.zeros((MEMO, 7))
+        memo_owner = np.full(MEMO, -1, np.int64)
+        memo_steps = [next_step(plant(1.0, 0.1, 10.0, 1.0, 90.0, 0.0, 0.0, 0.0, True, 0.7, 5.0, 50.0, 0.0, 0.0,
+                                      True, True), STUCK, 0.0, 0.0, 0.0, 0.0, 0, False)] * MEMO
+        for i in range(first, stop):
+            status[i] = _run_one(values[i], impulsive[i], can_slip[i], settle, end, times, shortcut, window[i],
+                                 counts[i], samples[i], sample_modes[i], memo_keys, memo_steps, memo_owner, i)
+
+
+@numba.njit(cache=True)
+def _margins(values: np.ndarray, margins: np.ndarray) -> None:
+    """slip_margin of every slider of Kostek's model (the others slip or not by their general onsets)."""
+    for i in range(values.shape[0]):
+        row = values[i]
+        weight = row[0] * row[2]
+        if kostek_applies(row[4], row[6], row[3], row[9], weight, row[12]):
+            margins[i] = _plant.slip_margin(abs(row[8] + row[11]), weight - row[12] - row[9], row[1])
+        else:
+            margins[i] = 1
+
+_LOCK = threading.Lock()
+#: Compile time [s] on the development machine, for the progress line's estimate.
+COMPILE_SECONDS = 30
+
+
+def cached() -> bool:
+    """Whether the compiled engine is in the cache already (else its first run compiles it)."""
+    return any(Path(_CONFIG.CACHE_DIR).glob("*_run_all*.nbi"))
+
+
+def prepare(progress: Callable[[str], None] | None = None) -> float:
+    """Load the compiled engine, compiling it first if the cache does not hold it
+    (saying so on ``progress``); the seconds it took.  A sweep calls it once before
+    it hands chunks to local workers, so they load the cache instead of compiling
+    side by side."""
+    started = time.perf_counter()
+    run({name: np.ones(1) for name in COLUMNS} | {"landing_friction": np.array(["none"])}, lambda i: True, 0, 1,
+        np.zeros(1), False, 1, progress)
+    return time.perf_counter() - started
+
+
+def run(columns: dict[str, np.ndarray], exact_can_slip: Callable[[int], bool], settle: int, count: int,
+        times: np.ndarray | None, shortcut: bool, threads: int | None,
+        progress: Callable[[str], None] | None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None,
+                                                        np.ndarray | None]:
+    """Run a validated population (``columns``: every field, one value per slider):
+    (window (N, 2, 3): x, stuck and flight time at the period starts ``settle``
+    and ``settle + count``; counts (N, 2, 5): the events before each; samples
+    (N, K, 4) of x, v, z, vz at ``times`` and their modes, or None).
+    ``exact_can_slip(i)``: can_ever_slip of slider i, asked for the few that
+    :func:`~friction_sim.core.physics.plant.slip_margin` cannot tell; ``threads``:
+    cores to use (None: all); ``progress`` hears when the engine compiles."""
+    n = len(columns["mass"])
+    values = np.ascontiguousarray(np.stack([np.asarray(columns[name], dtype=np.float64) for name in COLUMNS], axis=1))
+    impulsive = np.asarray(columns["landing_friction"] == "impulsive", dtype=np.bool_)
+    sample_times = np.zeros(0) if times is None else np.ascontiguousarray(times, dtype=np.float64)
+    k = sample_times.size
+    window = np.zeros((n, 2, 3))
+    counts = np.zeros((n, 2 * KINDS), np.int64)
+    samples = np.zeros((n, k, 4))
+    modes = np.zeros((n, k), np.int8)
+    status = np.zeros(n, np.int64)
+    margins = np.zeros(n, np.int64)
+    with _LOCK:  # (Numba's default thread pool takes one caller at a time)
+        compiling = not cached()
+        if progress is not None and compiling:
+            progress(f"compiling the population engine (first use of this version on this machine, about "
+                     f"{COMPILE_SECONDS} s; cached in {_CONFIG.CACHE_DIR})")
+        started = time.perf_counter()
+        numba.set_num_threads(max(1, min(threads or _CONFIG.NUMBA_NUM_THREADS, _CONFIG.NUMBA_NUM_THREADS)))
+        _margins(values, margins)
+        can_slip = margins > 0
+        for i in np.flatnonzero(margins == 0):
+            can_slip[i] = exact_can_slip(int(i))
+        blocks = min(n, 16 * _CONFIG.NUMBA_NUM_THREADS)
+        _run_all(values, impulsive, can_slip, settle, settle + count, sample_times, shortcut, window, counts, samples,
+                 modes, status, blocks)
+        if progress is not None and compiling:
+            progress(f"population engine compiled in {time.perf_counter() - started:.0f} s")
+    stalled = np.flatnonzero(status == NO_PROGRESS)
+    if stalled.size:
+        from friction_sim.errors import SimulationFault
+
+        raise SimulationFault(f"the general model made no progress: more than {MAX_EVENTS_AT_ONE_INSTANT} events at "
+                              f"one instant for slider {int(stalled[0])}")
+    return window, counts.reshape(n, 2, KINDS), (samples if times is not None else None), (
+        modes if times is not None else None)
+
+
+__all__ = ["COLUMNS", "RING", "cache_directory", "cached", "prepare", "run"]

@@ -1,0 +1,549 @@
+"""The exact, event-driven core (no ROS, numpy only).
+
+The slider acts on the physics of :mod:`friction_sim.core.physics`, written
+once for it and for the compiled population engine: the general model
+(flight, inclined vibration, a sloped track, static friction) and Kostek's
+model, the default special case described below, with its own fast onsets;
+it switches between them whenever a change of parameters or inputs makes the
+other apply.
+
+Model (R. Kostek): a rigid slider of mass m on a slideway with one Coulomb
+friction coefficient mu, pushed by a tangential force Ft = Fd + Fx and unloaded
+by a normal harmonic force, so that the normal reaction is
+
+    R(t) = m*g - Fz - Pa*sin(theta(t)),   d(theta)/dt = 2*pi*f   (Fz > 0 lifts).
+
+Stuck (v = 0) while |Ft| <= mu*R; slipping, m*dv/dt = Ft - mu*R*sign(v).
+
+Between two events every quantity has a closed form, because the acceleration
+is a constant plus a sinusoid.  Writing s = +-1 for the slip direction and
+w = s*v >= 0 for the speed, over a slip that starts at (t0, x0, w0, theta0):
+
+    w(tau)  = w0 + B0*tau + (B1/omega)*(cos(theta0) - cos(theta0 + omega*tau))
+    B0 = (s*Ft - mu*(m*g - Fz)) / m,   B1 = mu*Pa/m >= 0
+
+and x is its integral.  Events are the roots of simple equations:
+
+* stick -> slip: |Ft| rises above mu*R, i.e. Pa*sin(theta) > m*g - Fz - |Ft|/mu,
+  solved in closed form with asin;
+* slip -> stick or reversal: w returns to 0.  w is monotone between the zeros
+  of w' = B0 + B1*sin(theta), so the root is bracketed on the first falling
+  stretch that ends at or below zero (found in closed form, because the minima
+  of w grow by exactly B0*T from one period to the next) and polished with a
+  Newton iteration guarded by bisection.
+
+So there is no step size anywhere, a stuck slider does not creep (x is held,
+not integrated), and because a segment is evaluated from its own start, how the
+time axis is cut into :meth:`Slider.advance_to` calls does not change the
+result.  Every segment that starts alike (mode, phase, velocities, guards)
+under the same inputs has the same next event, which is why the periodic
+regime is cheap: its steps are kept in a memo.
+
+The design follows scipy's ``_ivp`` solvers: one object owns the state and
+advances it; detecting the next event (:func:`~friction_sim.core.physics.segment.next_step`)
+is kept apart from acting on it (:meth:`Slider._apply`); results come back as typed records
+(:class:`SliderState`, :class:`Event`, :class:`Trajectory`).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from friction_sim.core.model.events import MODES as _MODES
+from friction_sim.core.model.events import CycleMark, Event, EventKind, Mode, SliderState, Trajectory
+from friction_sim.core.model.params import Inputs, SliderParams, require_finite
+from friction_sim.core.physics.plant import Plant, plant_of
+from friction_sim.core.physics.roots import NEVER, TWO_PI, reduce_phase, remainders_many, two_sum
+from friction_sim.core.physics.segment import (
+    FLIGHT,
+    LANDING,
+    LIFT_OFF,
+    STUCK,
+    Step,
+    evaluate,
+    moved_and_velocities,
+    next_step,
+    offset,
+    to_cycle,
+    travel,
+    x_axis,
+    z_axis,
+)
+from friction_sim.errors import ParameterError, SimulationFault
+
+#: Steps kept in the memo (one per distinct segment start under the plant in force).
+_CACHE_LIMIT = 256
+#: The latest time [s] a slider runs to (2**53 s, 285 million years, far beyond
+#: the end of ROS 2 time at 2**31 s) and the largest |x0| [m]: together with the
+#: ranges of core/spec.py they keep every state finite (the fastest accepted
+#: slider, at 2e12 m/s^2, covers 1e44 m by then).
+MAX_TIME = 2.0**53
+#: More events than this at one instant means the general model made no
+#: progress (a rounding case its guards missed): the slider raises a
+#: SimulationFault instead of looping for ever.  A real instant has at most a
+#: handful (a landing, a lift-off at once, a slip onset).
+MAX_EVENTS_AT_ONE_INSTANT = 1000
+MAX_POSITION = 1e100
+#: Event kinds by the numbers of :mod:`friction_sim.core.physics.segment`.
+_KINDS = tuple(EventKind)
+
+
+class Segment(NamedTuple):
+    """The motion since the last event: its mode, its start (offset ``s0`` from the
+    phase anchor, time ``t0``, position ``x0 + xl`` as a double-double, velocities,
+    height, phase ``phase0`` in period ``cycles``) and the progress guards of its
+    next step (see :class:`~friction_sim.core.physics.segment.Step`)."""
+
+    mode: int
+    s0: float
+    t0: float
+    x0: float
+    xl: float
+    v0: float
+    vz0: float
+    z0: float
+    phase0: float
+    cycles: int
+    closing: int = 0
+    grounded: bool = False
+
+
+class _Checkpoint:
+    """A slider as it was (:meth:`Slider.checkpoint`), to put back if taking a change fails.
+
+    The core's attributes are saved by reference (its records are immutable);
+    its dicts are copied (a few entries); of its deques (the event and period
+    logs, thousands of entries) only the last entry is remembered, and on
+    restore whatever was appended after it is popped.  That costs about a
+    microsecond, where copying the logs would cost twenty at every command.
+    """
+
+    __slots__ = ("attributes", "tails")
+
+    def __init__(self, slider: Slider) -> None:
+        self.attributes = dict(vars(slider))
+        self.tails: dict[str, Any] = {}
+        for name, value in self.attributes.items():
+            if isinstance(value, (dict, list, set)):
+                self.attributes[name] = value.copy()
+            elif isinstance(value, deque):
+                self.tails[name] = value[-1] if value else None
+
+    def restore(self, slider: Slider) -> None:
+        for name, tail in self.tails.items():
+            log: deque[Any] = self.attributes[name]
+            while log and log[-1] is not tail:
+                log.pop()
+        vars(slider).clear()
+        vars(slider).update(self.attributes)
+
+
+def _axis_many(h: Any, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(w, start + integral of w, dw/dt) of a Harmonic at an array of times."""
+    c1, s2, c2 = remainders_many(h.omega * tau)
+    w = h.w0 + h.g0 * tau + h.k * (h.cos0 * c1 - h.sin0 * s2)
+    moved = h.start + (h.w0 * tau + 0.5 * h.g0 * tau * tau + h.kk * (h.cos0 * s2 - h.sin0 * c2))
+    return w, moved, h.b0 + h.b1 * np.sin(h.phase0 + h.omega * tau)
+
+
+def _evaluate_many(p: Plant, seg: Segment, tau: np.ndarray) -> tuple[np.ndarray, ...]:
+    """:func:`~friction_sim.core.physics.segment.evaluate` at an array of times (numpy's
+    sin: within an ulp or two of libm's, so a sampled state may differ from
+    :meth:`Slider.state` at the same time in its last bits)."""
+    mode = seg.mode
+    theta = seg.phase0 + p.omega * tau
+    zero = tau * 0.0
+    if mode == FLIGHT:
+        v, moved, rate = _axis_many(x_axis(p, mode, seg.v0, seg.phase0), tau)
+        vz, z, _ = _axis_many(z_axis(p, seg.phase0, seg.vz0, seg.z0), tau)
+        return seg.x0 + (seg.xl + moved), v, rate, zero, zero, theta, z, vz
+    sin_theta = np.sin(theta)
+    if p.kostek:
+        normal = p.n0 - p.pa * sin_theta
+        if mode == STUCK:
+            return seg.x0 + zero, zero, zero, -p.tangential.b0 + zero, normal, theta, zero, zero
+        h = x_axis(p, mode, seg.v0, seg.phase0)
+        w, moved, _ = _axis_many(h, tau)
+        return (seg.x0 + (seg.xl + mode * moved), mode * w, mode * (h.b0 + h.b1 * sin_theta), -mode * p.mu * normal,
+                normal, theta, zero, zero)
+    normal = p.n0 - p.pa * sin_theta if p.pa else p.n0 + zero
+    if mode == STUCK:
+        force = p.tangential.b0 + p.tangential.b1 * np.sin(theta + p.tangential.delta)
+        return seg.x0 + zero, zero, zero, -force, normal, theta, zero, zero
+    w, moved, rate = _axis_many(x_axis(p, mode, seg.v0, seg.phase0), tau)
+    return (seg.x0 + (seg.xl + mode * moved), mode * w, mode * rate, -mode * p.mu * normal, normal, theta, zero,
+            zero)
+# --------------------------------------------------------------------------
+# The slider: owns the state, advances it event by event.
+# --------------------------------------------------------------------------
+
+
+class Slider:
+    """One slider, advanced exactly in time.
+
+    >>> slider = Slider()                 # the paper's Fig. 2 case
+    >>> events = slider.advance_to(0.1)   # five excitation periods
+    >>> round(slider.state().x * 1e6, 2)  # micrometres travelled
+    19.97
+
+    Inputs and parameters may change between calls; the change takes effect at
+    the current time (:attr:`t`).  ``event_log_size`` bounds :attr:`events`
+    (``None``: unbounded) so a slider that runs for hours keeps constant memory;
+    :attr:`event_counts` always counts every event.  With ``cycle_log_size``
+    other than 0 the slider also keeps a :class:`CycleMark` at the start of every
+    excitation period (``None``: all of them), for per-period mean speeds.
+
+    Event times are anchored to the excitation phase: the slider keeps one
+    anchor (time ``t_a`` at total phase 2*pi*cycles_a + phase_a), set at the
+    start and whenever the frequency changes, and computes the time of every
+    event and period start afresh from it, as
+    t_a + (cycles - cycles_a)/f + (phase - phase_a)/omega (plus the slip's
+    duration for a stop).  Rounding errors therefore do not add up from one
+    event to the next: after a million periods a slip still starts within a
+    few units in the last place of t of its exact time, wherever the run
+    started.
+    """
+
+    def __init__(
+        self,
+        params: SliderParams | None = None,
+        inputs: Inputs | None = None,
+        *,
+        t0: float = 0.0,
+        x0: float = 0.0,
+        phase0: float = 0.0,
+        event_log_size: int | None = 100_000,
+        cycle_log_size: int | None = 0,
+    ) -> None:
+        self._params = params if params is not None else SliderParams()
+        self._inputs = inputs if inputs is not None else Inputs()
+        self._t = require_finite("t0", t0)
+        if abs(self._t) > MAX_TIME:
+            raise ParameterError("t0", self._t, f"must be within +-{MAX_TIME:g} s")
+        phase, _ = reduce_phase(require_finite("phase0", phase0), 0)  # -1e-300 % 2pi == 2pi
+        if event_log_size is not None and not (isinstance(event_log_size, int) and event_log_size >= 0):
+            raise ParameterError("event_log_size", event_log_size, "must be an integer >= 0 or None")
+        if cycle_log_size is not None and not (isinstance(cycle_log_size, int) and cycle_log_size >= 0):
+            raise ParameterError("cycle_log_size", cycle_log_size, "must be an integer >= 0 or None")
+        self._events: deque[Event] = deque(maxlen=event_log_size)
+        self._counts = {kind: 0 for kind in EventKind}
+        self._stuck_time = self._flight_time = 0.0
+        self._at_instant = 0
+        self._steps: dict[tuple[int, float, float, float, float, int, bool], Step] = {}
+        self._marks: deque[CycleMark] | None = None
+        self._next_mark_n, self._next_mark_t, self._next_mark_s = 1, NEVER, NEVER
+        x0 = require_finite("x0", x0)
+        if abs(x0) > MAX_POSITION:
+            raise ParameterError("x0", x0, f"must be within +-{MAX_POSITION:g} m")
+        if cycle_log_size != 0:
+            self._marks = deque(maxlen=cycle_log_size)
+            if phase == 0.0:
+                self._marks.append(CycleMark(0, self._t, x0, 0.0))
+        self._set_plant(self._params, self._inputs, in_flight=False)
+        self._set_anchor(self._t, 0, phase)
+        self._start(Segment(STUCK, 0.0, self._t, x0, 0.0, 0.0, 0.0, 0.0, phase, 0))
+
+    # -- read-only views -------------------------------------------------------
+
+    @property
+    def t(self) -> float:
+        """Current simulation time [s]."""
+        return self._t
+
+    @property
+    def params(self) -> SliderParams:
+        return self._params
+
+    @property
+    def inputs(self) -> Inputs:
+        return self._inputs
+
+    @property
+    def events(self) -> list[Event]:
+        """The most recent events, oldest first (bounded by ``event_log_size``)."""
+        return list(self._events)
+
+    @property
+    def event_counts(self) -> dict[EventKind, int]:
+        """How many events of each kind happened since the start."""
+        return dict(self._counts)
+
+    @property
+    def stuck_time(self) -> float:
+        """Total time [s] spent stuck since the start, up to :attr:`t`."""
+        seg = self._seg
+        return self._stuck_time + (self._t - seg.t0 if seg.mode == STUCK else 0.0)
+
+    @property
+    def flight_time(self) -> float:
+        """Total time [s] spent off the track since the start, up to :attr:`t`."""
+        seg = self._seg
+        return self._flight_time + (self._t - seg.t0 if seg.mode == FLIGHT else 0.0)
+
+    @property
+    def cycle_marks(self) -> list[CycleMark]:
+        """The most recent period starts, oldest first (empty unless enabled)."""
+        return list(self._marks) if self._marks is not None else []
+
+    def cycle_marks_after(self, n: int) -> list[CycleMark]:
+        """The kept period starts with a number above ``n``, oldest first."""
+        newer: list[CycleMark] = []
+        for mark in reversed(self._marks or ()):
+            if mark.n <= n:
+                break
+            newer.append(mark)
+        newer.reverse()
+        return newer
+
+    @property
+    def next_mark_time(self) -> float:
+        """When the next excitation period starts (inf when marks are not kept)."""
+        return self._next_mark_t if self._marks is not None else NEVER
+
+    @property
+    def next_event_time(self) -> float:
+        """When the next event happens under the present inputs (inf: never)."""
+        return self._next_t
+
+    def state(self) -> SliderState:
+        """The state at the current time :attr:`t`."""
+        seg = self._seg
+        x, v, acc, friction, normal, theta, z, vz = evaluate(self._plant, seg.mode, seg.x0, seg.xl, seg.v0, seg.vz0,
+                                                             seg.z0, seg.phase0, self._t - seg.t0)
+        return SliderState(self._t, x, v, acc, friction, normal, theta % TWO_PI, _MODES[seg.mode], z, vz)
+
+    # -- advancing -------------------------------------------------------------
+
+    def advance_to(self, t: float) -> list[Event]:
+        """Advance exactly to time ``t``; return the events that happened since the
+        previous call (a slip that an input change starts at once belongs to
+        the next call), up to and including ``t``."""
+        if not (self._t <= t <= MAX_TIME):
+            raise ParameterError("t", t, f"must be finite, >= the current time {self._t!r} s "
+                                         f"and <= {MAX_TIME:g} s")
+        happened: list[Event] = []
+        while True:
+            if self._next_mark_s <= self._next_s:  # by phase: a mark and an event may round to one t
+                if self._next_mark_t > t:
+                    break
+                self._mark_cycle()
+            elif self._next_t <= t:
+                happened.append(self._apply())
+            else:
+                break
+        self._t = float(t)
+        return happened
+
+    def sample(self, times: np.ndarray) -> Trajectory:
+        """Advance through ascending ``times`` (>= :attr:`t`) and return the exact
+        state at each, evaluated segment by segment with numpy."""
+        times = np.asarray(times, dtype=float)
+        if times.ndim != 1 or times.size == 0:
+            raise ParameterError("times", times.shape, "must be a non-empty 1-d array")
+        if times[0] < self._t or np.any(np.diff(times) < 0.0):
+            raise ParameterError("times", float(times[0]), f"must ascend from >= {self._t!r} s")
+        columns = [np.empty_like(times) for _ in range(9)]
+        happened: list[Event] = []
+        first = 0
+        while first < times.size:
+            last = int(np.searchsorted(times, self._next_t, side="left"))
+            if last > first:
+                seg = self._seg
+                values = _evaluate_many(self._plant, seg, times[first:last] - seg.t0)
+                for column, value in zip(columns, values):
+                    column[first:last] = value
+                columns[5][first:last] %= TWO_PI
+                columns[8][first:last] = seg.mode
+                first = last
+            if first < times.size:
+                happened.extend(self.advance_to(self._next_t))
+        happened.extend(self.advance_to(float(times[-1])))
+        x, v, acc, friction, normal, phase, z, vz, mode = columns
+        return Trajectory(times, x, v, acc, friction, normal, phase, mode.astype(np.int8), tuple(happened), z, vz)
+
+    # -- changing inputs and parameters ----------------------------------------
+
+    def set_inputs(self, inputs: Inputs | None = None, **changes: Any) -> Inputs:
+        """Change the inputs at the current time; the phase stays continuous.
+
+        Pass a whole :class:`Inputs` or field changes (validated as a new
+        :class:`Inputs`; a bad value is refused and nothing changes).  Every
+        valid combination is followed, including one that lifts the slider off.
+        """
+        new = (inputs if inputs is not None else self._inputs).replace(**changes)
+        self._rebase(self._params, new)
+        return new
+
+    def set_params(self, params: SliderParams) -> None:
+        """Change the plant's parameters at the current time."""
+        self.set_plant(params, self._inputs)
+
+    def set_plant(self, params: SliderParams, inputs: Inputs) -> None:
+        """Change parameters and inputs together at the current time: one new
+        segment from the present state (in the air, a flight goes on under
+        the new forces).  No combination of valid values is refused."""
+        self._rebase(params, inputs)
+
+    def restart(self) -> None:
+        """Start again from the initial state at the current time: at rest on
+        the track at x = 0, the excitation at phase 0, under the plant and
+        inputs in force (what a simulator's reset does; the ``~/reset``
+        service).  Time goes on (it never runs backwards), so the motion from
+        here is the motion from the start shifted by the current time.  The
+        period count goes on too: the period in progress ends here, a new one
+        starts (a :class:`CycleMark` at x = 0 when marks are kept), and the
+        event counts and logs keep what happened before."""
+        seg = self._seg
+        tau = self._t - seg.t0
+        self._spend(seg.mode, tau)
+        cycles = reduce_phase(seg.phase0 + self._plant.omega * tau, seg.cycles)[1] + 1
+        self._at_instant = 0
+        self._set_plant(self._params, self._inputs, in_flight=False)
+        self._next_mark_n = cycles
+        if self._marks is not None:
+            self._marks.append(CycleMark(cycles, self._t, 0.0, self._stuck_time, self._flight_time))
+            self._next_mark_n = cycles + 1
+        self._set_anchor(self._t, cycles, 0.0)
+        self._start(Segment(STUCK, 0.0, self._t, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, cycles))
+
+    def checkpoint(self) -> _Checkpoint:
+        """The state as it is now, for :meth:`restore` (about a microsecond)."""
+        return _Checkpoint(self)
+
+    def restore(self, checkpoint: _Checkpoint) -> None:
+        """Put back the state of ``checkpoint`` exactly (a change that failed
+        half-way leaves no trace)."""
+        checkpoint.restore(self)
+
+    # -- internals: acting on events -------------------------------------------
+
+    def _set_anchor(self, t: float, cycles: int, phase: float) -> None:
+        """Tie time ``t`` to total phase 2*pi*cycles + phase under the present
+        frequency; every later event time is computed from here."""
+        self._origin, self._origin_cycles, self._origin_phase = t, cycles, phase
+        self._frequency = self._inputs.excitation_frequency
+        self._omega = self._plant.omega
+        self._schedule_mark()
+
+    def _set_plant(self, params: SliderParams, inputs: Inputs, in_flight: bool) -> None:
+        """Take new parameters and inputs.  Kostek's model (normal excitation,
+        level track, one friction coefficient, never leaving the track) takes
+        its own fast onsets, everything else the general ones; a flight under
+        way at the change goes on in the general model until the next change."""
+        self._params, self._inputs = params, inputs
+        self._plant, self._steps = plant_of(params, inputs, in_flight), {}
+
+    def _spend(self, mode: int, duration: float) -> None:
+        """Book ``duration`` spent in ``mode`` (stuck, in flight)."""
+        if mode == STUCK:
+            self._stuck_time += duration
+        elif mode == FLIGHT:
+            self._flight_time += duration
+
+    def _rebase(self, params: SliderParams, inputs: Inputs) -> None:
+        """Start a new segment at the current time from the current state."""
+        seg, plant, t = self._seg, self._plant, self._t
+        tau = t - seg.t0
+        phase, cycles = reduce_phase(seg.phase0 + plant.omega * tau, seg.cycles)
+        mode = seg.mode
+        if mode == STUCK:  # (the common case: a controller's change between slips)
+            x, xl, v, vz, z = seg.x0, seg.xl, 0.0, 0.0, 0.0
+            self._stuck_time += tau
+        else:
+            moved, v, vz, z = moved_and_velocities(plant, mode, seg.v0, seg.vz0, seg.z0, seg.phase0, tau)
+            x, xl = two_sum(seg.x0, seg.xl + moved)
+            if mode == FLIGHT:
+                self._flight_time += tau
+            else:
+                mode, vz, z = (STUCK if v == 0.0 else (1 if v > 0.0 else -1)), 0.0, 0.0
+        self._set_plant(params, inputs, seg.mode == FLIGHT)
+        if inputs.excitation_frequency != self._frequency:
+            self._set_anchor(t, cycles, phase)
+        self._start(Segment(mode, t - self._origin, t, x, xl, v, vz, max(z, 0.0), phase, cycles))
+
+    def _start(self, seg: Segment) -> None:
+        """Start ``seg`` and schedule its next event (worked out once per distinct
+        start: see :class:`~friction_sim.core.physics.segment.Step`)."""
+        self._seg = seg
+        key = (seg.mode, seg.phase0, seg.v0, seg.vz0, seg.z0, seg.closing, seg.grounded)
+        step = self._steps.get(key)
+        if step is None:
+            if len(self._steps) >= _CACHE_LIMIT:
+                self._steps.clear()
+            step = self._steps[key] = next_step(self._plant, seg.mode, seg.phase0, seg.v0, seg.vz0, seg.z0,
+                                                seg.closing, seg.grounded)
+        self._step = step
+        s = seg.s0
+        if step.tied:  # tied to a phase: timed from the anchor (offset, inlined), never before the segment's start
+            next_s = ((seg.cycles + step.whole - self._origin_cycles) / self._frequency
+                      + (step.phase - self._origin_phase) / self._omega)
+            if next_s < s:
+                next_s = s
+        else:
+            next_s = s + step.delay
+        self._next_s = next_s
+        next_t = self._origin + next_s
+        self._next_t = next_t if next_t >= seg.t0 else seg.t0
+
+    def _apply(self) -> Event:
+        """Carry out the worked-out event of the segment and start the next."""
+        seg, step, t, s = self._seg, self._step, self._next_t, self._next_s
+        if t == seg.t0:
+            self._at_instant += 1
+            if self._at_instant > MAX_EVENTS_AT_ONE_INSTANT:
+                raise SimulationFault(f"the general model made no progress: more than {MAX_EVENTS_AT_ONE_INSTANT} "
+                                      f"events at t = {t!r} s (the last a {_KINDS[step.kind].value} at phase "
+                                      f"{step.phase!r})")
+        else:
+            self._at_instant = 0
+        x0, part = seg.x0, seg.xl + step.travel
+        x = x0 + part  # two_sum, inlined (every event)
+        bb = x - x0
+        xl = (x0 - (x - bb)) + (part - bb)
+        mode = seg.mode
+        if mode == STUCK:
+            self._stuck_time += s - seg.s0
+        elif mode == FLIGHT:
+            self._flight_time += s - seg.s0
+        self._start(Segment(step.mode, s, t, x, xl, step.v_after, step.vz_after, 0.0, step.phase,
+                            seg.cycles + step.whole, step.closing, step.grounded))
+        kind = _KINDS[step.kind]
+        if step.kind == LANDING or step.kind == LIFT_OFF:
+            event = Event(t, kind, x, step.phase, _MODES[seg.mode], _MODES[step.mode], step.v, step.v_after, step.vz,
+                          step.vz_after)
+        else:
+            event = Event(t, kind, x, step.phase, _MODES[seg.mode], _MODES[step.mode])
+        self._events.append(event)
+        self._counts[kind] += 1
+        return event
+
+    def _schedule_mark(self) -> None:
+        """Aim at the start of period ``_next_mark_n``, timed from the anchor."""
+        if self._marks is not None:
+            self._next_mark_s = offset(self._next_mark_n, 0.0, self._origin_cycles, self._origin_phase,
+                                       self._frequency, self._omega)
+            self._next_mark_t = self._origin + self._next_mark_s
+
+    def _mark_cycle(self) -> None:
+        """Record the start of period ``_next_mark_n`` and aim at the next."""
+        seg, n = self._seg, self._next_mark_n
+        t = max(self._next_mark_t, seg.t0)  # a start that rounding put before this segment's is at it
+        # Where the slider is when the phase passes 2*pi*n exactly (not at the rounded t).
+        tau = to_cycle(n, seg.cycles, seg.phase0, self._plant.omega)
+        stuck, flight = self._stuck_time, self._flight_time
+        if seg.mode == STUCK:  # only x is needed: no full state evaluation
+            x, stuck = seg.x0, stuck + tau
+        else:
+            x = seg.x0 + (seg.xl + travel(self._plant, seg.mode, seg.v0, seg.phase0, tau))
+            flight += tau if seg.mode == FLIGHT else 0.0
+        assert self._marks is not None
+        self._marks.append(CycleMark(n, t, x, stuck, flight))
+        self._next_mark_n += 1
+        self._schedule_mark()
+
+
+__all__ = ["MAX_POSITION", "MAX_TIME", "CycleMark", "Event", "EventKind", "Mode", "Segment", "Slider", "SliderState",
+           "Trajectory"]

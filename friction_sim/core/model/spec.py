@@ -1,0 +1,271 @@
+"""The one vocabulary of friction_sim: every parameter and input, declared once.
+
+Each :class:`Setting` names a value, its default (the paper's Fig. 2 case),
+unit, valid range and meaning.  Everything else derives from these tables:
+the validated core types (:mod:`friction_sim.core.model.params`), the ROS
+parameter descriptors of both nodes, the CLI flags, and the README tables
+and ``config/*.yaml`` files (a test checks those against this module).
+
+* :data:`PLANT`: mass, mu, gravity; what the plant is.
+* :data:`INPUTS`: what changes while it runs (drive force, excitation
+  amplitude and frequency, an external force).
+* :data:`SLIDER_NODE` and :data:`CONTROLLER_NODE`: the parameters of each
+  node, in the order they are declared.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import sys
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from friction_sim.errors import ParameterError
+
+Value = float | int | bool | str
+#: Nanoseconds per second: simulation and ROS time in integer nanoseconds (the one unit conversion).
+NS_PER_S = 1_000_000_000
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One parameter or input: its name, default, unit, range and meaning.
+
+    ``low`` and ``high`` bound a number inclusively (None: unbounded);
+    ``rule`` states a cross-field rule in words (checked elsewhere, shown in
+    the README); ``start_only`` marks a node parameter read at start-up only;
+    ``flag`` is the CLI option where it differs from ``--name-with-dashes``;
+    ``choices`` lists the values a string setting may take (empty: any).
+    """
+
+    name: str
+    default: Value
+    unit: str
+    description: str
+    low: float | None = None
+    high: float | None = None
+    rule: str = ""
+    start_only: bool = False
+    flag: str | None = None
+    choices: tuple[str, ...] = ()
+    _low: float = field(init=False, repr=False, compare=False, default=-math.inf)
+    _high: float = field(init=False, repr=False, compare=False, default=math.inf)
+
+    def __post_init__(self) -> None:
+        # The bounds as floats (+-inf when open), for the fast path of check().
+        # Open bounds are the largest finite floats, so the fast path below never lets +-inf through.
+        object.__setattr__(self, "_low", -sys.float_info.max if self.low is None else float(self.low))
+        object.__setattr__(self, "_high", sys.float_info.max if self.high is None else float(self.high))
+
+    @property
+    def kind(self) -> type:
+        """The value's type: float, int, bool or str (that of the default)."""
+        return type(self.default)
+
+    @property
+    def option(self) -> str:
+        """The CLI option for this setting."""
+        return self.flag or "--" + self.name.replace("_", "-")
+
+    def check(self, value: Any) -> Any:
+        """``value`` converted to this setting's type, or a :class:`ParameterError`
+        that names the field, quotes the value and states the limit."""
+        if type(value) is float and type(self.default) is float and self._low <= value <= self._high:
+            return value  # the common case, on the path of every input change (NaN fails the comparison)
+        kind = self.kind
+        if kind is bool:
+            if not isinstance(value, bool):
+                raise ParameterError(self.name, value, "must be true or false")
+            return value
+        if kind is str:
+            if not isinstance(value, str):
+                raise ParameterError(self.name, value, "must be a string")
+            if self.choices and value not in self.choices:
+                raise ParameterError(self.name, value, f"must be one of {', '.join(self.choices)}")
+            return value
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            raise ParameterError(self.name, value, f"must be {'an integer' if kind is int else 'a finite number'}"
+                                                   f"{self._range_words()}")
+        if kind is int:
+            if not isinstance(value, numbers.Integral):
+                raise ParameterError(self.name, value, f"must be an integer{self._range_words()}")
+            number: int | float = int(value)
+        else:
+            number = float(value)
+            if not math.isfinite(number):
+                raise ParameterError(self.name, number, f"must be finite{self._range_words()}")
+        if (self.low is not None and number < self.low) or (self.high is not None and number > self.high):
+            raise ParameterError(self.name, number, f"must be{self._range_words()}")
+        return number
+
+    def _range_words(self) -> str:
+        low, high, unit = self.low, self.high, f" {self.unit}" if self.unit and self.unit != "-" else ""
+        if low is not None and high is not None:
+            return f" in [{low:g}, {high:g}]{unit}"
+        if low is not None:
+            return f" >= {low:g}{unit}"
+        if high is not None:
+            return f" <= {high:g}{unit}"
+        return ""
+
+    def range_text(self) -> str:
+        """The range as the README shows it: ``1e-06 … 1e+06``, or '' if unbounded."""
+        if self.choices:
+            return " \\| ".join(self.choices)
+        if self.low is None and self.high is None:
+            return ""
+        low = "" if self.low is None else _number(self.low)
+        high = "" if self.high is None else _number(self.high)
+        return f"{low} … {high}"
+
+    def described(self, description: str, **changes: Any) -> Setting:
+        """The same value under another node's description (same range and default)."""
+        return replace(self, description=description, **changes)
+
+
+def _number(value: float) -> str:
+    return f"{value:g}"
+
+
+def table(*settings: Setting) -> dict[str, Setting]:
+    """Settings by name, in declaration order."""
+    return {setting.name: setting for setting in settings}
+
+
+# -- the plant -------------------------------------------------------------------
+
+MASS = Setting("mass", 1.0, "kg", "slider mass m", 1e-6, 1e6)
+MU = Setting("mu", 0.1, "-", "kinetic Coulomb friction coefficient mu", 1e-6, 10.0)
+GRAVITY = Setting("gravity", 10.0, "m/s^2", "gravity g", 1e-6, 1e3)
+STATIC_RATIO = Setting(
+    "static_ratio", 1.0, "-",
+    "static over kinetic friction mu_s/mu (stuck while the tangential force is at most mu_s R)", 1.0, 100.0)
+EXCITATION_ANGLE = Setting(
+    "excitation_angle", 90.0, "deg", "vibration angle beta to the track; tangential amplitude Pt = Pa cot(beta) "
+    "(90: normal only, the paper)", 0.1, 90.0, flag="--angle")
+EXCITATION_PHASE = Setting("excitation_phase", 0.0, "deg", "phase psi of the tangential excitation Pt sin(theta + psi) "
+                           "(0: linear drive; +-90: elliptical)", -180.0, 180.0, flag="--phase")
+TRACK_INCLINATION = Setting("track_inclination", 0.0, "deg", "track slope alpha (> 0: conveying uphill)",
+                            -89.0, 89.0, flag="--inclination")
+RESTITUTION = Setting("restitution", 0.0, "-", "normal restitution e at landing (0: plastic)", 0.0, 0.99)
+LANDING_FRICTION = Setting(
+    "landing_friction", "impulsive", "-", "tangential impulse at landing: impulsive (Coulomb impact, bounded by "
+    "mu times the normal impulse) or none (tangential velocity kept)", choices=("impulsive", "none"))
+PLANT = table(MASS, MU, GRAVITY, STATIC_RATIO, EXCITATION_ANGLE, EXCITATION_PHASE, TRACK_INCLINATION, RESTITUTION,
+              LANDING_FRICTION)
+
+# -- the inputs ------------------------------------------------------------------
+
+MAX_FORCE = 1e6
+DRIVE_FORCE = Setting("drive_force", 0.7, "N", "drive force Fd along +x (negative drives backwards)",
+                      -MAX_FORCE, MAX_FORCE)
+EXCITATION_AMPLITUDE = Setting(
+    "excitation_amplitude", 5.0, "N", "excitation amplitude Pa of the normal force (above m g cos(alpha) the "
+    "slider hops)", 0.0, MAX_FORCE, flag="--amplitude")
+#: The real-time loop simulates at most this many excitation periods per wall
+#: second (f times the real-time factor): each costs the core ~10 us, and a
+#: tick must stay well inside its millisecond.
+MAX_PERIODS_PER_SECOND = 20_000.0
+EXCITATION_FREQUENCY = Setting(
+    "excitation_frequency", 50.0, "Hz", "excitation frequency f; the phase stays continuous when it changes",
+    1e-3, MAX_PERIODS_PER_SECOND, rule="f x real_time_factor <= 20000 in real time", flag="--frequency")
+EXTERNAL_FORCE_X = Setting("external_force_x", 0.0, "N", "extra tangential force Fx, added to Fd",
+                           -MAX_FORCE, MAX_FORCE)
+EXTERNAL_FORCE_Z = Setting("external_force_z", 0.0, "N", "extra force Fz along +z, away from the track; > 0 lifts",
+                           -MAX_FORCE, MAX_FORCE)
+INPUTS = table(DRIVE_FORCE, EXCITATION_AMPLITUDE, EXCITATION_FREQUENCY, EXTERNAL_FORCE_X, EXTERNAL_FORCE_Z)
+
+# -- the real-time loop ------------------------------------------------------------
+
+MAX_MEAN_WINDOW = 10_000
+PUBLISH_RATE = Setting("publish_rate", 1000.0, "Hz", "state publishing rate", 1.0, 10_000.0)
+REAL_TIME_FACTOR = Setting("real_time_factor", 1.0, "-", "simulated seconds per wall second", 1e-3, 1e3)
+PUBLISH_CLOCK = Setting("publish_clock", False, "-", "publish simulation time on /clock")
+MEAN_WINDOW_PERIODS = Setting("mean_window_periods", 1, "periods", "whole periods averaged in mean_velocity",
+                              1, MAX_MEAN_WINDOW)
+FRAME_ID = Setting("frame_id", "slideway", "-", "header.frame_id of published messages")
+LOG_PATH = Setting("log_path", "", "-", "record the run to this MCAP file ('' = no recording)", start_only=True)
+LOG_RATE = Setting("log_rate", 1000.0, "Hz", "recorded state samples per simulated second", 1.0, 100_000.0,
+                   start_only=True)
+FOXGLOVE_PORT = Setting("foxglove_port", 0, "-", "serve a Foxglove live view (WebSocket) on this TCP port "
+                        "(0 = off; Foxglove's usual port is 8765)", 0, 65535, start_only=True)
+FOXGLOVE_ADDRESS = Setting("foxglove_address", "127.0.0.1", "-", "address the live view listens on "
+                           "(0.0.0.0: every interface)", start_only=True)
+
+# -- simulation control (the ~/step service) -------------------------------------------
+
+STEP_PERIODS = Setting("step_periods", 1, "periods", "excitation periods one ~/step call advances "
+                       "(when step_time is 0)", 1, 10_000)
+STEP_TIME = Setting("step_time", 0.0, "s", "simulated seconds one ~/step call advances (0: step_periods "
+                    "periods instead)", 0.0, 100.0)
+
+# -- the controller ------------------------------------------------------------------
+
+TARGET_SPEED = Setting("target_speed", 0.0002, "m/s", "target mean speed V*", -1e3, 1e3)
+INTEGRAL_GAIN = Setting("integral_gain", 0.4, "-", "first integral step, fraction of the error in U", 0.0, 2.0)
+MAX_AMPLITUDE_RATIO = Setting("max_amplitude_ratio", 0.95, "-", "largest Pa/(m g) applied (above 1 the slider "
+                              "hops)", 1e-3, 10.0)
+SETTLE_MARGIN = Setting(
+    "settle_margin", 0.25, "periods",
+    "how far a sample window keeps clear of a change of Pa, on top of the delivery jitter seen", 0.0, 5.0)
+PLANT_NODE = Setting("plant_node", "slider", "-", "node to read mass, mu, gravity and the window from at "
+                                                  "start-up ('' = none)")
+ACTIVE = Setting("active", True, "-", "regulate now; false: stand by (publish nothing) until a target arrives")
+
+# -- the nodes ---------------------------------------------------------------------
+
+SLIDER_NODE = table(
+    MASS, MU, GRAVITY, STATIC_RATIO, EXCITATION_ANGLE, EXCITATION_PHASE, TRACK_INCLINATION, RESTITUTION,
+    LANDING_FRICTION,
+    DRIVE_FORCE.described("drive force Fd along +x; setting it acts like the topic"),
+    EXCITATION_AMPLITUDE, EXCITATION_FREQUENCY,
+    PUBLISH_RATE, REAL_TIME_FACTOR, PUBLISH_CLOCK, MEAN_WINDOW_PERIODS, FRAME_ID, LOG_PATH, LOG_RATE,
+    FOXGLOVE_PORT, FOXGLOVE_ADDRESS, STEP_PERIODS, STEP_TIME,
+)
+CONTROLLER_NODE = table(
+    MASS.described("model: slider mass m (the plant's parameters are replaced at start-up by plant_node's, if it "
+                   "answers within 5 s)"),
+    MU.described("model: kinetic Coulomb friction coefficient"),
+    GRAVITY.described("model: gravity g"),
+    *(setting.described("model: " + setting.description) for setting in (
+        STATIC_RATIO, EXCITATION_ANGLE, EXCITATION_PHASE, TRACK_INCLINATION, RESTITUTION, LANDING_FRICTION)),
+    EXCITATION_FREQUENCY.described("initial excitation frequency f; then it follows the topic", rule=""),
+    DRIVE_FORCE.described("initial drive force Fd; then it follows the topic"),
+    TARGET_SPEED, INTEGRAL_GAIN, MAX_AMPLITUDE_RATIO, SETTLE_MARGIN,
+    MEAN_WINDOW_PERIODS.described("the slider's mean_velocity window (read from plant_node)"),
+    PLANT_NODE, ACTIVE,
+)
+
+
+def markdown_table(settings: dict[str, Setting]) -> str:
+    """The README table of ``settings``: one row each with default, unit, range
+    (and cross-field rule) and meaning.  The README holds exactly this text; a
+    test checks it, so the documentation cannot drift from the code."""
+    rows = ["| parameter | default | unit | range / rule | meaning |", "|---|---|---|---|---|"]
+    for setting in settings.values():
+        limits = "; ".join(part for part in (setting.range_text(), setting.rule) if part) or "–"
+        meaning = (setting.description + ("; start-up only" if setting.start_only else "")).replace("|", "\\|")
+        unit = setting.unit if setting.unit not in ("", "-") else "–"
+        rows.append(f"| `{setting.name}` | {_default_text(setting.default)} | {unit} | {limits} "
+                    f"| {meaning} |")
+    return "\n".join(rows) + "\n"
+
+
+def _default_text(value: Value) -> str:
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, str):
+        return f"`{value}`" if value else "''"
+    return repr(value)
+
+
+def defaults(settings: dict[str, Setting]) -> dict[str, Value]:
+    """name -> default of every setting in ``settings``."""
+    return {name: setting.default for name, setting in settings.items()}
+
+
+__all__ = [
+    "CONTROLLER_NODE", "INPUTS", "MAX_MEAN_WINDOW", "MAX_PERIODS_PER_SECOND", "PLANT", "SLIDER_NODE",
+    "Setting", "Value", "defaults", "markdown_table", "table",
+]

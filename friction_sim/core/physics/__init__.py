@@ -1,0 +1,1 @@
+"""friction_sim.core.physics."""

@@ -1,0 +1,254 @@
+"""The constants of the motion under one set of parameters and inputs, written once.
+
+Track frame: x along the track (+ = conveying), z normal to it, away from it.
+With theta the excitation phase (d(theta)/dt = omega = 2*pi*f):
+
+    contact force needed   R(theta)  = m*g*cos(alpha) - Fz - Pa*sin(theta)
+    tangential force       Ft(theta) = Fd + Fx - m*g*sin(alpha) + Pt*sin(theta + psi),  Pt = Pa*cot(beta)
+
+In contact (z = 0): stuck while |Ft| <= mu_s*R; slipping in direction s,
+m*x'' = Ft - s*mu*R.  When R would become negative the slider lifts off; in
+flight m*x'' = Ft and m*z'' = -R.  Every acceleration is a constant plus a
+sinusoid of theta, a :class:`Form` b0 + b1*sin(theta + delta) with b1 >= 0,
+and :func:`plant` computes them all once per change of parameters or inputs.
+Plain functions over floats (see :mod:`friction_sim.core.physics.roots`):
+the single slider and the compiled population engine share them.
+"""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+from typing import Any, NamedTuple
+
+from friction_sim.core.model.params import Inputs, SliderParams, cos_degrees, sin_degrees
+from friction_sim.core.physics.roots import TWO_PI
+
+#: A rebound slower than this many units of g*cos(alpha)/omega (gravity would
+#: stop it within a millionth of a radian of excitation phase) is a plastic
+#: landing: bouncing with restitution then ends after finitely many bounces
+#: instead of a Zeno sequence.
+REBOUND_FLOOR = 1e-6
+
+
+class Form(NamedTuple):
+    """b0 + b1*sin(theta + delta), b1 >= 0: a constant plus a sinusoid of the phase."""
+
+    b0: float
+    b1: float
+    delta: float
+
+
+def _split(a: float) -> tuple[float, float]:
+    """Veltkamp's split of a (|a| < 2**996) into two halves of 26 bits, exactly."""
+    c = 134217729.0 * a  # 2**27 + 1
+    high = c - (c - a)
+    return high, a - high
+
+
+def _two_product(a: float, b: float) -> tuple[float, float]:
+    """(a*b rounded, its exact rounding error) (Dekker), without an fma."""
+    product = a * b
+    ah, al = _split(a)
+    bh, bl = _split(b)
+    return product, ((ah * bh - product) + ah * bl + al * bh) + al * bl
+
+
+def hypot(a: float, b: float) -> float:
+    """sqrt(a*a + b*b), correctly rounded but in rare hard cases, without overflow or
+    underflow.  Not math.hypot: CPython computes that its own way (its algorithm
+    changes between versions) and Numba calls libm's, which differ in the last bit
+    now and then, and one formulation must give one result everywhere.  The sum
+    of squares is formed exactly as a double-double (Dekker's products, no fma),
+    from operands scaled by a power of two into [0.5, 1), and the square root gets
+    one Newton correction from the exact residual."""
+    a, b = abs(a), abs(b)
+    if a == math.inf or b == math.inf:
+        return math.inf
+    if a != a or b != b:
+        return math.nan
+    big, small = (a, b) if a >= b else (b, a)
+    if big == 0.0 or small == 0.0:
+        return big
+    _, exponent = math.frexp(big)
+    x, y = math.ldexp(big, -exponent), math.ldexp(small, -exponent)  # exact unless y underflows (then negligible)
+    xx, xx_error = _two_product(x, x)
+    yy, yy_error = _two_product(y, y)
+    total = xx + yy
+    bb = total - xx
+    low = ((xx - (total - bb)) + (yy - bb)) + (xx_error + yy_error)  # two_sum's error plus the products'
+    h = math.sqrt(total + low)
+    hh, hh_error = _two_product(h, h)
+    h += ((total - hh) + (low - hh_error)) / (2.0 * h)
+    return math.ldexp(h, exponent)
+
+
+def form_of(constant: float, sin_part: float, cos_part: float) -> Form:
+    """constant + sin_part*sin(theta) + cos_part*cos(theta) as a Form (delta exactly 0
+    when there is no cosine part and the sine part is >= 0)."""
+    if cos_part == 0.0 and sin_part >= 0.0:
+        return Form(constant, sin_part, 0.0)
+    return Form(constant, hypot(sin_part, cos_part), math.atan2(cos_part, sin_part))
+
+
+def form_at(form: Form, theta: float) -> float:
+    """The value of ``form`` at phase ``theta``."""
+    return form.b0 + form.b1 * math.sin(theta + form.delta)
+
+
+class Plant(NamedTuple):
+    """Everything the motion needs of the parameters and inputs in force.
+
+    ``slip_*``: dw/dt (w = s*v) of a slip in direction s, per unit mass, s*Ft - mu*R;
+    ``flight_x``, ``flight_z``: the accelerations in flight; ``onset_*``: where a
+    stuck slider starts to slip in direction s, s*Ft - mu_s*R > 0; ``lift``: where
+    it lifts off, -R > 0; ``tangential``: Ft.  ``kostek``: Kostek's model applies
+    (:func:`kostek_applies`: its own fast onsets and outcomes, the paper's case bit
+    for bit); ``can_slip``: the slider can ever slip (:func:`can_ever_slip`);
+    ``direction``: the direction a slip from rest takes in Kostek's model, sign(Ft).
+    """
+
+    omega: float
+    frequency: float
+    mass: float
+    mu: float
+    restitution: float
+    impulsive: bool
+    rebound_floor: float
+    n0: float  # R(theta) = n0 - pa*sin(theta)
+    pa: float
+    tangential: Form
+    slip_forward: Form
+    slip_backward: Form
+    flight_x: Form
+    flight_z: Form
+    onset_forward: Form
+    onset_backward: Form
+    lift: Form
+    kostek: bool
+    can_slip: bool
+    direction: int
+
+
+def kostek_applies(excitation_angle: Any, track_inclination: Any, static_ratio: Any, excitation_amplitude: Any,
+                   weight: Any, external_force_z: Any) -> Any:
+    """Kostek's model: normal excitation, a level track, one friction coefficient, and
+    an excitation below the load, so the slider never leaves the track.  The one
+    rule for where the paper's closed forms (its fast segments, the U relation) hold.
+    Floats, or numpy arrays elementwise."""
+    return ((excitation_angle == 90.0) & (track_inclination == 0.0) & (static_ratio == 1.0)  # (& : arrays too)
+            & (excitation_amplitude < weight - external_force_z))
+
+
+def closed_form_applies(params: SliderParams, inputs: Inputs) -> bool:
+    """:func:`kostek_applies` for validated parameters and inputs."""
+    return bool(kostek_applies(params.excitation_angle, params.track_inclination, params.static_ratio,
+                               inputs.excitation_amplitude, params.weight, inputs.external_force_z))
+
+
+def slip_margin(excess_force: float, least_load: float, mu: float) -> int:
+    """Whether |Ft| = ``excess_force`` > mu*``least_load`` (the load at its least, m*g - Fz - Pa):
+    +1 clearly yes, -1 clearly no, 0 too close to tell in floating point (then
+    :func:`can_ever_slip` decides in exact arithmetic)."""
+    margin = excess_force - mu * least_load
+    if abs(margin) > 1e-9 * (excess_force + mu * abs(least_load)):
+        return 1 if margin > 0.0 else -1
+    return 0
+
+
+def can_ever_slip(params: SliderParams, inputs: Inputs) -> bool:
+    """Whether |Ft| > mu*(m*g - Fz - Pa): the slider can slip at some phase (Kostek's model).
+
+    Decided in exact rational arithmetic on the given binary values where
+    :func:`slip_margin` cannot tell, so that a slider on the motion boundary
+    phi = 1 - a (up to its last bit) never moves, not even by a rounding-sized
+    step.  (Python: the population engine asks :func:`slip_margin` compiled and
+    this function for the few it cannot tell.)
+    """
+    clear = slip_margin(abs(inputs.tangential_force),
+                        params.weight - inputs.external_force_z - inputs.excitation_amplitude, params.mu)
+    if clear:
+        return clear > 0
+    excess = abs(Fraction(inputs.drive_force) + Fraction(inputs.external_force_x))
+    least_load = (
+        Fraction(params.mass) * Fraction(params.gravity)
+        - Fraction(inputs.external_force_z) - Fraction(inputs.excitation_amplitude)
+    )
+    return excess > Fraction(params.mu) * least_load
+
+
+#: The forms a Kostek plant never uses (its own onsets and outcomes need none of them).
+UNUSED = Form(0.0, 0.0, 0.0)
+
+
+def plant(mass: float, mu: float, gravity: float, static_ratio: float, excitation_angle: float,
+          excitation_phase: float, track_inclination: float, restitution: float, impulsive: bool,
+          drive_force: float, excitation_amplitude: float, excitation_frequency: float,
+          external_force_x: float, external_force_z: float, kostek: bool, can_slip: bool) -> Plant:
+    """The :class:`Plant` of one set of parameters and inputs (the fields of
+    SliderParams and Inputs, ``impulsive`` for landing_friction "impulsive").
+    ``kostek``: the slider takes Kostek's own onsets (:func:`kostek_applies`, and
+    no flight under way: one goes on in the general model until the next
+    change); ``can_slip``: :func:`can_ever_slip` (Kostek's model only).  A
+    Kostek plant, made every time a controller changes Pa, gets only the forms
+    it uses."""
+    m, pa = mass, excitation_amplitude
+    omega = TWO_PI * excitation_frequency
+    weight = mass * gravity
+    ft = drive_force + external_force_x
+    if kostek:  # the general forms below, where beta = 90 and alpha = 0 make them exact
+        n0 = weight * 1.0 - external_force_z
+        f0 = ft - weight * 0.0
+        slip_b1 = (0.0 + mu * pa) / m
+        return Plant(omega, excitation_frequency, m, mu, restitution, impulsive,
+                     REBOUND_FLOOR * max(n0, 0.0) / m / omega, n0, pa, Form(f0, 0.0, 0.0),
+                     Form((f0 - mu * n0) / m, slip_b1, 0.0), Form((-1 * f0 - mu * n0) / m, slip_b1, 0.0),
+                     UNUSED, UNUSED, UNUSED, UNUSED, UNUSED, True, can_slip, 1 if ft > 0.0 else -1)
+    mu_s = mu * static_ratio
+    n0 = weight * cos_degrees(track_inclination) - external_force_z
+    f0 = ft - weight * sin_degrees(track_inclination)
+    pt = pa * (cos_degrees(excitation_angle) / sin_degrees(excitation_angle))
+    psi = math.radians(excitation_phase)
+    ts, tc = (pt, 0.0) if psi == 0.0 else (pt * math.cos(psi), pt * math.sin(psi))
+    return Plant(
+        omega, excitation_frequency, m, mu, restitution, impulsive, REBOUND_FLOOR * max(n0, 0.0) / m / omega, n0, pa,
+        form_of(f0, ts, tc),
+        form_of((f0 - mu * n0) / m, (ts + mu * pa) / m, tc / m),
+        form_of((-1 * f0 - mu * n0) / m, (-1 * ts + mu * pa) / m, -1 * tc / m),
+        form_of(f0 / m, ts / m, tc / m),
+        Form(-n0 / m, pa / m, 0.0),
+        form_of(f0 - mu_s * n0, ts + mu_s * pa, tc),
+        form_of(-1 * f0 - mu_s * n0, -1 * ts + mu_s * pa, -1 * tc),
+        Form(-n0, pa, 0.0),
+        False, True, 1 if ft > 0.0 else -1)
+
+
+def plant_of(params: SliderParams, inputs: Inputs, in_flight: bool = False) -> Plant:
+    """The :class:`Plant` of validated parameters and inputs (``in_flight``: a
+    flight is under way, see :func:`plant`)."""
+    mass, gravity, angle, inclination, ratio = (params.mass, params.gravity, params.excitation_angle,
+                                                params.track_inclination, params.static_ratio)
+    amplitude, external_force_z = inputs.excitation_amplitude, inputs.external_force_z
+    kostek = not in_flight and kostek_applies(angle, inclination, ratio, amplitude, mass * gravity, external_force_z)
+    return plant(mass, params.mu, gravity, ratio, angle, params.excitation_phase, inclination, params.restitution,
+                 params.landing_friction == "impulsive", inputs.drive_force, amplitude, inputs.excitation_frequency,
+                 inputs.external_force_x, external_force_z, kostek, kostek and can_ever_slip(params, inputs))
+
+
+def slip_form(p: Plant, direction: int) -> Form:
+    """dw/dt of a slip in ``direction`` (+1 forward, -1 backward)."""
+    return p.slip_forward if direction > 0 else p.slip_backward
+
+
+def onset_form(p: Plant, direction: int) -> Form:
+    """Where a stuck slider starts to slip in ``direction``."""
+    return p.onset_forward if direction > 0 else p.onset_backward
+
+
+def stays(p: Plant, theta: float) -> int:
+    """At phase theta in contact and at rest: 0 if it stays stuck, else the direction it slips in."""
+    if form_at(p.onset_forward, theta) > 0.0:
+        return 1
+    if form_at(p.onset_backward, theta) > 0.0:
+        return -1
+    return 0

@@ -1,0 +1,302 @@
+"""A segment of the motion and its next event, written once.
+
+A segment is the motion from one event to the next under constant inputs:
+stuck (mode 0), slipping forward or backward (+1, -1) or in flight (2), from
+its start phase, velocities and height.  :func:`next_step` detects its next
+event (when, where, with what velocities) and works out what follows it (the
+outcome: a slip's stop sticks or reverses, a landing's impact law), as one
+:class:`Step`.  It depends only on the segment's start and the plant, never on
+x or t, so an engine may keep steps in a memo: a periodic motion repeats them
+bit for bit.  Kostek's model (``Plant.kostek``) has its own onsets and
+outcomes, the paper's case to the last bit; everything else takes the general
+ones.  The engines act on steps: the single slider
+(:mod:`friction_sim.core.engine.single`, interpreted) and the population
+(:mod:`friction_sim.core.engine.compiled`, the same functions compiled).
+
+The period bookkeeping is here too: :func:`offset` times a phase from the
+slider's phase anchor, so event times never inherit one another's rounding,
+and :func:`to_cycle` finds where a period starts within a segment.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+from friction_sim.core.physics.plant import Form, Plant, form_at, onset_form, slip_form, stays
+from friction_sim.core.physics.roots import (
+    NEVER,
+    TWO_PI,
+    Harmonic,
+    from_rest_b0,
+    harmonic,
+    harmonic_at,
+    landing_delay,
+    next_slip_start,
+    reduce_phase,
+    slip_stop_delay,
+)
+
+#: Segment modes: the slip directions -1 and +1, stuck, in flight (the values of events.Mode).
+BACKWARD, STUCK, FORWARD, FLIGHT = -1, 0, 1, 2
+#: Event kinds, numbered as events.EventKind lists them.
+SLIP_START, STICK, REVERSAL, LIFT_OFF, LANDING = 0, 1, 2, 3, 4
+
+
+class Step(NamedTuple):
+    """A segment's next event, worked out.
+
+    ``delay`` after the segment's start (``inf``: none), or for an event
+    ``tied`` to a phase: at ``phase`` of period ``whole`` counted from the
+    segment's, timed from the phase anchor (:func:`offset`).  ``phase`` and
+    ``whole`` are the event's phase in [0, 2*pi) and whole periods in any case.
+    ``travel``: the signed x travelled; ``v``, ``vz``: the velocities just
+    before.  What follows: the event ``kind`` it turns out to be, the next
+    segment's ``mode`` and velocities, and the progress guards of its next
+    step (``closing``: the direction of the slip that just stopped;
+    ``grounded``: a flight that ended as it began)."""
+
+    delay: float
+    tied: bool
+    phase: float
+    whole: int
+    travel: float
+    v: float
+    vz: float
+    kind: int
+    mode: int
+    v_after: float
+    vz_after: float
+    closing: int
+    grounded: bool
+
+
+NO_STEP = Step(NEVER, False, 0.0, 0, 0.0, 0.0, 0.0, STICK, STUCK, 0.0, 0.0, 0, False)
+
+
+# -- the closed forms of a segment -------------------------------------------------------------
+
+
+def axis(w0: float, form: Form, theta0: float, omega: float, from_rest: bool, start: float) -> Harmonic:
+    """The closed form of a speed w0 + integral of form(theta) from phase theta0
+    (and its integral from ``start``).  ``from_rest``: a motion that starts from
+    rest cannot start decelerating (:func:`roots.from_rest_b0`)."""
+    phase = theta0 + form.delta
+    b0 = from_rest_b0(w0, form.b0, form.b1, math.sin(phase)) if from_rest else form.b0
+    return harmonic(w0, b0, form.b1, phase, omega, start)
+
+
+def x_axis(p: Plant, mode: int, v0: float, phase0: float) -> Harmonic:
+    """The tangential closed form: w = mode*v of a slip, v of a flight (zero when stuck)."""
+    if mode == FLIGHT:
+        return axis(v0, p.flight_x, phase0, p.omega, False, 0.0)
+    if mode == STUCK:
+        return harmonic(0.0, 0.0, 0.0, phase0, p.omega, 0.0)
+    return axis(mode * v0, slip_form(p, mode), phase0, p.omega, v0 == 0.0, 0.0)
+
+
+def z_axis(p: Plant, phase0: float, vz0: float, z0: float) -> Harmonic:
+    """The normal closed form of a flight (from a lift-off it cannot start falling)."""
+    return axis(vz0, p.flight_z, phase0, p.omega, vz0 == 0.0 and z0 == 0.0, z0)
+
+
+def travel(p: Plant, mode: int, v0: float, phase0: float, tau: float) -> float:
+    """x(tau) - x(0) of a segment, signed."""
+    if mode == STUCK:
+        return 0.0
+    moved = harmonic_at(x_axis(p, mode, v0, phase0), tau)[1]
+    return moved if mode == FLIGHT else mode * moved
+
+
+def velocities(p: Plant, mode: int, v0: float, vz0: float, z0: float, phase0: float, tau: float) -> tuple[float,
+                                                                                                          float]:
+    """(v, vz) ``tau`` into a segment."""
+    if mode == FLIGHT:
+        return harmonic_at(x_axis(p, mode, v0, phase0), tau)[0], harmonic_at(z_axis(p, phase0, vz0, z0), tau)[0]
+    if mode == STUCK:
+        return 0.0, 0.0
+    return mode * harmonic_at(x_axis(p, mode, v0, phase0), tau)[0], 0.0
+
+
+def moved_and_velocities(p: Plant, mode: int, v0: float, vz0: float, z0: float, phase0: float,
+                         tau: float) -> tuple[float, float, float, float]:
+    """(x(tau) - x(0), v, vz, z) ``tau`` into a segment: :func:`travel`,
+    :func:`velocities` and the height at once (where an input change cuts it)."""
+    if mode == STUCK:
+        return 0.0, 0.0, 0.0, 0.0
+    w, moved = harmonic_at(x_axis(p, mode, v0, phase0), tau)
+    if mode == FLIGHT:
+        vz, z = harmonic_at(z_axis(p, phase0, vz0, z0), tau)
+        return moved, w, vz, z
+    return mode * moved, mode * w, 0.0, 0.0
+
+
+def to_cycle(n: int, cycles: int, phase0: float, omega: float) -> float:
+    """tau at which a segment that started at phase ``phase0`` of period ``cycles``
+    reaches the start of period ``n`` (0 if it already had)."""
+    whole = n - cycles
+    return 0.0 if whole <= 0 else (TWO_PI * whole - phase0) / omega
+
+
+def offset(cycles: int, phase: float, origin_cycles: int, origin_phase: float, frequency: float,
+           omega: float) -> float:
+    """When (after the phase anchor: time origin at total phase
+    2*pi*origin_cycles + origin_phase) the total phase reaches 2*pi*cycles + phase.
+    Every event and period start is timed afresh from the anchor, so rounding
+    errors never add up from one event to the next."""
+    return (cycles - origin_cycles) / frequency + (phase - origin_phase) / omega
+
+
+# -- the next event -----------------------------------------------------------------------------
+
+
+def next_step(p: Plant, mode: int, phase0: float, v0: float, vz0: float, z0: float, closing: int,
+              grounded: bool) -> Step:
+    """Detect the next event of the segment that starts with (mode, phase0, v0,
+    vz0, z0) and the guards (closing, grounded), and work out its outcome."""
+    if p.kostek and mode != FLIGHT:
+        return kostek_onset(p, phase0, closing) if mode == STUCK else kostek_stop(p, mode, v0, phase0)
+    return general_step(p, mode, phase0, v0, vz0, z0, closing, grounded)
+
+
+def kostek_onset(p: Plant, phase0: float, closing: int) -> Step:
+    """Kostek's model, stuck: the slip starts where |Ft| rises above mu*R (asin),
+    in the direction of Ft, tied to its phase (at once: no wait at all)."""
+    if not p.can_slip:
+        return NO_STEP
+    direction = p.direction
+    form = slip_form(p, direction)
+    delta, start = next_slip_start(phase0, form.b0, form.b1, closing == direction)
+    if delta == NEVER:
+        return NO_STEP
+    if delta == 0.0:
+        return Step(0.0, False, start, 0, 0.0, 0.0, 0.0, SLIP_START, direction, 0.0, 0.0, 0, False)
+    wraps = start < phase0 or (start == phase0 and delta > 0.0)  # the start passes 2*pi on the way
+    return Step(delta / p.omega, True, start, 1 if wraps else 0, 0.0, 0.0, 0.0, SLIP_START, direction, 0.0, 0.0, 0,
+                False)
+
+
+def kostek_stop(p: Plant, mode: int, v0: float, phase0: float) -> Step:
+    """Kostek's model, slipping: the slip stops where its speed returns to zero;
+    it then sticks, or reverses if the window of the other direction is open."""
+    h = x_axis(p, mode, v0, phase0)
+    delay = slip_stop_delay(h.w0, h.b0, h.b1, h.phase0, h.omega)
+    if delay == NEVER:
+        return NO_STEP
+    moved = harmonic_at(h, delay)[1]
+    phase, whole = reduce_phase(phase0 + p.omega * delay, 0)
+    direction = p.direction
+    if direction == -mode and p.can_slip:
+        form = slip_form(p, direction)
+        if next_slip_start(phase, form.b0, form.b1, False)[0] == 0.0:
+            return Step(delay, False, phase, whole, mode * moved, 0.0, 0.0, REVERSAL, direction, 0.0, 0.0, 0, False)
+    return Step(delay, False, phase, whole, mode * moved, 0.0, 0.0, STICK, STUCK, 0.0, 0.0, mode, False)
+
+
+def _onset_phase(form: Form, theta0: float, closing: bool) -> float:
+    """The phase at which form(theta) first rises above 0 from theta0 (``inf``: never)."""
+    delta, _ = next_slip_start(theta0 + form.delta, form.b0, form.b1, closing)
+    return NEVER if delta == NEVER else theta0 + delta
+
+
+def general_step(p: Plant, mode: int, phase0: float, v0: float, vz0: float, z0: float, closing: int,
+                 grounded: bool) -> Step:
+    """:func:`next_step` of the general model.  ``closing`` and ``grounded``
+    guard progress: an at-once restart of the slip that just stopped, or of a
+    flight that ended as it began, could only come from rounding, so it waits
+    for the window to open again (see :func:`roots.next_slip_start`)."""
+    omega = p.omega
+    kind, direction, theta = STICK, 0, NEVER  # theta: the phase of an event tied to one
+    if mode == FLIGHT:
+        z = z_axis(p, phase0, vz0, z0)
+        kind, delay = LANDING, landing_delay(z.w0, z.b0, z.b1, z.phase0, z.omega, z.start)
+    else:
+        lift = _onset_phase(p.lift, phase0, grounded)
+        if mode == STUCK:
+            theta, kind = lift, LIFT_OFF
+            for s in (1, -1):
+                onset = _onset_phase(onset_form(p, s), phase0, closing == s)
+                if onset != NEVER and (theta == NEVER or onset < theta):
+                    theta, kind, direction = onset, SLIP_START, s
+            delay = NEVER if theta == NEVER else (theta - phase0) / omega
+        else:
+            h = x_axis(p, mode, v0, phase0)
+            delay = slip_stop_delay(h.w0, h.b0, h.b1, h.phase0, omega)
+            if lift != NEVER and (lift - phase0) / omega <= delay:
+                theta, kind, delay = lift, LIFT_OFF, (lift - phase0) / omega
+    if delay == NEVER:
+        return NO_STEP
+    tied = theta != NEVER
+    if not tied:
+        theta = phase0 + omega * delay
+    phase, whole = reduce_phase(theta, 0)
+    v, vz = velocities(p, mode, v0, vz0, z0, phase0, delay)
+    moved = travel(p, mode, v0, phase0, delay)
+    if kind == SLIP_START:
+        return Step(delay, tied, phase, whole, moved, v, vz, kind, direction, 0.0, 0.0, 0, False)
+    if kind == LIFT_OFF:
+        return Step(delay, tied, phase, whole, moved, v, vz, kind, FLIGHT, v, 0.0, 0, False)
+    if kind == STICK:
+        after = stays(p, theta)
+        if after == -mode:
+            return Step(delay, tied, phase, whole, moved, v, vz, REVERSAL, after, 0.0, 0.0, 0, False)
+        return Step(delay, tied, phase, whole, moved, v, vz, STICK, STUCK, 0.0, 0.0, mode, False)
+    v_after, vz_after, bounces = impact(p, v, vz)
+    if bounces:
+        return Step(delay, tied, phase, whole, moved, v, vz, LANDING, FLIGHT, v_after, vz_after, 0, False)
+    after = STUCK if v_after == 0.0 else (FORWARD if v_after > 0.0 else BACKWARD)
+    return Step(delay, tied, phase, whole, moved, v, vz, LANDING, after, v_after, 0.0, 0, delay == 0.0)
+
+
+def impact(p: Plant, v: float, vz: float) -> tuple[float, float, bool]:
+    """The landing law: the velocities (v, vz) just after a landing and whether the
+    slider bounces.  Normal restitution e; a rebound below the plant's floor is
+    plastic; then (impulsive) a tangential impulse of at most mu times the normal
+    one, which stops the slider if it is enough (Coulomb impact)."""
+    rebound = -p.restitution * vz
+    bounces = rebound > p.rebound_floor
+    normal_impulse = -vz + (rebound if bounces else 0.0)  # per unit mass, >= 0
+    if p.impulsive:
+        limit = p.mu * normal_impulse
+        v = 0.0 if abs(v) <= limit else v - math.copysign(limit, v)
+    return v, rebound if bounces else 0.0, bounces
+
+
+def normal_force(p: Plant, theta: float) -> float:
+    """The contact force R at phase ``theta`` (in contact)."""
+    return p.n0 - p.pa * math.sin(theta)
+
+
+def tangential_force(p: Plant, theta: float) -> float:
+    """Ft at phase ``theta``."""
+    return form_at(p.tangential, theta)
+
+
+def evaluate(p: Plant, mode: int, x0: float, xl: float, v0: float, vz0: float, z0: float, phase0: float,
+             tau: float) -> tuple[float, float, float, float, float, float, float, float]:
+    """(x, v, acceleration, friction force, normal force, phase, z, vz) ``tau`` into a
+    segment (the phase unreduced; x0 + xl its start position as a double-double)."""
+    theta = phase0 + p.omega * tau
+    zero = tau * 0.0
+    if mode == FLIGHT:
+        hx, hz = x_axis(p, mode, v0, phase0), z_axis(p, phase0, vz0, z0)
+        v, moved = harmonic_at(hx, tau)
+        vz, z = harmonic_at(hz, tau)
+        rate = hx.b0 + hx.b1 * math.sin(hx.phase0 + hx.omega * tau)
+        return x0 + (xl + moved), v, rate, zero, zero, theta, z, vz
+    if p.kostek:  # Kostek's segments: the paper's case as it always was, to the sign of a zero
+        sin_theta = math.sin(theta)
+        normal = p.n0 - p.pa * sin_theta
+        if mode == STUCK:
+            return x0 + zero, zero, zero, -p.tangential.b0 + zero, normal, theta, 0.0, 0.0
+        h = x_axis(p, mode, v0, phase0)
+        w, moved = harmonic_at(h, tau)
+        return (x0 + (xl + mode * moved), mode * w, mode * (h.b0 + h.b1 * sin_theta), -mode * p.mu * normal, normal,
+                theta, 0.0, 0.0)
+    normal = p.n0 - p.pa * math.sin(theta) if p.pa else p.n0 + zero
+    if mode == STUCK:
+        return x0 + zero, zero, zero, -tangential_force(p, theta), normal, theta, zero, zero
+    h = x_axis(p, mode, v0, phase0)
+    w, moved = harmonic_at(h, tau)
+    rate = h.b0 + h.b1 * math.sin(h.phase0 + h.omega * tau)
+    return x0 + (xl + mode * moved), mode * w, mode * rate, -mode * p.mu * normal, normal, theta, zero, zero

@@ -1,0 +1,240 @@
+"""The controller's own runtime, without ROS: what it counts, refuses, waits for and reports.
+
+The controller node is a thin ROS adapter around :class:`RealtimeController`,
+as the slider node is around :class:`~friction_sim.core.runtime.realtime.RealtimeSlider`:
+
+* commands come in batches (:meth:`RealtimeController.take_batch`): each is
+  judged against the state the ones before it left, refusals are counted with
+  the latest reason, and a target makes a standing-by controller active;
+* mean-speed samples (:meth:`RealtimeController.take_sample`) are counted,
+  accepted or refused;
+* a target the node's own model refuses but the plant's may take waits for the
+  plant's model (:meth:`RealtimeController.settle`);
+* a parameter set is judged whole on a copy (:meth:`RealtimeController.with_parameters`);
+* the conditions worth a warning (unreachable, runaway) are reported once each
+  time they begin (:meth:`RealtimeController.news`), and the status the node
+  publishes on ``diagnostics`` is built here (:meth:`RealtimeController.status`).
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from friction_sim.core.control.law import ControllerConfig, ControlOutput, MeanSpeedController, uses_closed_form
+from friction_sim.core.model import spec
+from friction_sim.core.model.params import plant_from
+from friction_sim.errors import ParameterError
+
+#: The plant's parameters that make up the controller's model.
+MODEL = tuple(spec.PLANT)
+#: Parameters that make up the ControllerConfig.
+CONFIG = {*MODEL, "integral_gain", "max_amplitude_ratio", "settle_margin", "mean_window_periods"}
+#: Diagnostic levels (diagnostic_msgs/DiagnosticStatus: OK, WARN, ERROR).
+OK, WARN, ERROR = 0, 1, 2
+
+
+def config_of(values: Mapping[str, Any]) -> ControllerConfig:
+    """The law's configuration from the node's parameter values."""
+    return ControllerConfig(
+        model=plant_from({name: values[name] for name in MODEL})[0],
+        integral_gain=values["integral_gain"], max_amplitude_ratio=values["max_amplitude_ratio"],
+        mean_window_periods=values["mean_window_periods"], settle_margin=values["settle_margin"],
+    )
+
+
+@dataclass(frozen=True)
+class Status:
+    """What the node publishes on ``diagnostics``: a level, a message and the values."""
+
+    level: int
+    message: str
+    values: dict[str, Any]
+
+
+class RealtimeController:
+    """The mean-speed law with the counters, the pending target and the reports of a running controller."""
+
+    def __init__(self, values: Mapping[str, Any]) -> None:
+        """Start from the node's parameter ``values`` (a ParameterError names a bad one).
+        A target the node's own model refuses but the plant's may take (a target with
+        no drive force, for a plant whose tilted vibration conveys) waits for the
+        plant's model when ``plant_node`` is set: :meth:`settle` judges it then."""
+        #: The target waiting for the plant's model, or None.
+        self.pending_target: float | None = None
+        try:
+            self.control = MeanSpeedController(
+                config_of(values), drive_force=values["drive_force"], frequency=values["excitation_frequency"],
+                target_speed=values["target_speed"])
+        except ParameterError:
+            if not values["plant_node"] or values["target_speed"] == 0.0:
+                raise
+            self.control = MeanSpeedController(config_of(values), drive_force=values["drive_force"],
+                                               frequency=values["excitation_frequency"])
+            self.pending_target = values["target_speed"]
+        self.active: bool = values["active"]
+        #: Commands taken; inputs refused (commands, parameter values, samples), with the latest reason.
+        self.accepted = 0
+        self.rejected = 0
+        self.last_rejection = ""
+        self.command_batches = 0
+        #: mean_velocity samples judged (while regulating) and refused.
+        self.samples_accepted = 0
+        self.samples_rejected = 0
+        self.last_sample_rejection = ""
+        #: Unexpected errors in callbacks (each refused its input).
+        self.internal_errors = 0
+        self.last_internal_error = ""
+        self.model_source = "own parameters"
+        self._refused_before_interval = 0
+        self._warned_unreachable = False
+        self._warned_runaway = False
+
+    # -- inputs ---------------------------------------------------------------------
+
+    def refuse(self, reason: str) -> None:
+        """Count a refused input and keep its reason."""
+        self.rejected += 1
+        self.last_rejection = reason
+
+    def take_batch(self, changes: Sequence[tuple[str, float]]) -> list[str]:
+        """Apply a batch of command changes (field, value) in order, each judged
+        against the state the ones before it left; the reasons of the refused
+        ones (counted), in order.  A target makes a standing-by controller active."""
+        self.command_batches += 1
+        refusals = []
+        for (field, _), verdict in zip(changes, self.control.take(list(changes))):
+            if verdict is not None:
+                self.refuse(str(verdict))
+                refusals.append(str(verdict))
+                continue
+            self.accepted += 1
+            if field == "target_speed":
+                self.active = True
+        return refusals
+
+    def take_sample(self, speed: float, t: float, now_ns: int, regulating: bool) -> ControlOutput | None:
+        """A mean-speed sample at simulation time ``t``: the law's new output, or
+        None (standing by: only the plant's pace is learnt).  ParameterError
+        (counted) for a sample no plant in force could give."""
+        if not regulating:
+            self.control.clock.observe(t, now_ns)
+            return None
+        try:
+            output = self.control.on_mean_velocity(speed, t, now_ns)
+        except ParameterError as error:
+            self.samples_rejected += 1
+            self.last_sample_rejection = str(error)
+            self.refuse(str(error))
+            raise
+        self.samples_accepted += 1
+        return output
+
+    def settle(self) -> str:
+        """The model is settled: judge the pending target; '' or the refusal's reason (counted)."""
+        pending, self.pending_target = self.pending_target, None
+        if pending is None:
+            return ""
+        try:
+            self.control.set_target(pending)
+        except ParameterError as error:
+            self.refuse(str(error))
+            return str(error)
+        return ""
+
+    def with_parameters(self, values: Mapping[str, Any], current: Mapping[str, Any]) -> MeanSpeedController:
+        """The law as a set of parameters ``values`` would leave it, judged whole on
+        a copy (``current``: every parameter's value now); ParameterError, counted,
+        if the set is refused (then nothing changes)."""
+        candidate = copy.copy(self.control)
+        try:
+            if values.keys() & CONFIG:
+                candidate.config = config_of({**current, **values})
+            if "drive_force" in values:
+                candidate.set_drive_force(values["drive_force"])
+            if "excitation_frequency" in values:
+                candidate.set_frequency(values["excitation_frequency"])
+            if "target_speed" in values:
+                candidate.set_target(values["target_speed"])
+        except ParameterError as error:
+            self.refuse(str(error))
+            raise
+        return candidate
+
+    def adopt(self, control: MeanSpeedController, values: Mapping[str, Any]) -> None:
+        """Take a parameter set judged by :meth:`with_parameters`."""
+        self.control = control
+        if "active" in values or "target_speed" in values:
+            self.active = values.get("active", True) or "target_speed" in values
+
+    def internal_error(self, reason: str) -> None:
+        """Count an unexpected error (reported as ERROR from now on)."""
+        self.internal_errors += 1
+        self.last_internal_error = reason
+
+    # -- reports --------------------------------------------------------------------
+
+    def news(self, output: ControlOutput) -> tuple[list[str], bool]:
+        """(warnings to log, whether to publish diagnostics now): the target
+        becoming unreachable, the drive running away, or reachable again."""
+        warnings: list[str] = []
+        publish = False
+        if output.unreachable and not self._warned_unreachable:
+            config = self.control.config
+            if uses_closed_form(config.model, config.max_amplitude_ratio):
+                where = f"with Pa <= {config.max_amplitude_ratio:g} m g"
+            else:
+                where = (f"on the rising branch of the mean speed for Pa <= {config.max_amplitude_ratio:g} m g "
+                         "(it ends where U stops rising with Pa)")
+            warnings.append(f"target {output.target_speed!r} m/s is unreachable {where}: Pa set to "
+                            f"{output.amplitude:g} N")
+            publish = True
+        if output.runaway and not self._warned_runaway:
+            warnings.append(f"phi = {output.phi:.3f}: the drive force (with the slope's pull) exceeds friction, the "
+                            "slider slides on whatever the excitation; Pa set to 0")
+        if output.unreachable != self._warned_unreachable and not output.unreachable:
+            publish = True
+        self._warned_unreachable, self._warned_runaway = output.unreachable, output.runaway
+        return warnings, publish
+
+    def status(self, *, namesake: str, ready: bool) -> Status:
+        """The diagnostics status now (``namesake``: the graph's warning about a node
+        of the same name, or ''; ``ready``: the model settled and the output heard).
+        The count of inputs refused is the one since the previous status."""
+        out = self.control.output
+        refused_now, self._refused_before_interval = self.rejected - self._refused_before_interval, self.rejected
+        problems = [text for flag, text in (
+            (bool(namesake), namesake),
+            (out.unreachable, "target unreachable"),
+            (out.saturated and not out.unreachable, "saturated"),
+            (out.runaway, "the drive beats friction (phi >= 1): no control over the speed"),
+            (not ready, "waiting for the plant's parameters"),
+            (ready and not self.active, "standing by for a target"),
+            (refused_now > 0, f"{refused_now} inputs refused ({self.last_rejection})"),
+        ) if flag]
+        if self.internal_errors:
+            level = ERROR
+            message = "; ".join([f"{self.internal_errors} internal errors, the last in {self.last_internal_error} "
+                                 "(input refused, controller goes on)", *problems])
+        else:
+            level, message = (WARN, "; ".join(problems)) if problems else (OK, "regulating")
+        values = {
+            "target_speed": out.target_speed, "measured_mean_speed": self.control.measured_speed,
+            "u_target": out.u_target, "phi": out.phi, "feedforward_ratio": out.feedforward_ratio,
+            "applied_ratio": out.applied_ratio, "excitation_amplitude": out.amplitude,
+            "integral": out.integral, "saturated": out.saturated, "unreachable": out.unreachable,
+            "runaway": out.runaway, "drive_force": self.control.drive_force,
+            "excitation_frequency": self.control.frequency, "model_source": self.model_source,
+            "commands_accepted": self.accepted, "commands_rejected": self.rejected,
+            "command_batches": self.command_batches,
+            "last_rejection": self.last_rejection,
+            "samples_accepted": self.samples_accepted, "samples_rejected": self.samples_rejected,
+            "last_sample_rejection": self.last_sample_rejection, "sample_limit": self.control.sample_limit,
+            "internal_errors": self.internal_errors, "last_internal_error": self.last_internal_error,
+        }
+        return Status(level, message, values)
+
+
+__all__ = ["CONFIG", "ERROR", "MODEL", "OK", "WARN", "RealtimeController", "Status", "config_of"]

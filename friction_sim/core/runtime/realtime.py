@@ -1,0 +1,556 @@
+"""Running the exact core against a wall clock, without ROS.
+
+The slider node is a thin ROS adapter around :class:`RealtimeSlider`, which
+holds everything that is not message conversion:
+
+* :class:`SimClock` turns a monotonic wall clock into simulation time
+  (elapsed wall time times the real-time factor), so a late or missed timer
+  tick never changes the physics: the next tick simply advances further.
+* Commands take effect at the simulation time at which they are handled,
+  are validated once (:mod:`friction_sim.core.model.params`), and are counted; a
+  rejected command leaves the last valid inputs in force.
+* Once per completed excitation period it reports the mean velocity over
+  the last ``mean_window_periods`` whole periods and the stick and flight
+  fractions of the last period, from the core's exact period marks.
+* It keeps the tick statistics the node publishes as diagnostics, with the
+  lift-offs, landings and time in flight of each diagnostics interval.
+* A change of plant or inputs is taken under a guard: if the core raises
+  while taking it, or the state it leaves is not finite, everything is put
+  back as it was and the command is refused with the reason.  If advancing
+  ever fails (or the state stops being finite) under inputs the core had
+  taken, the run cannot go on: :class:`SimulationFault` is raised, and from
+  then on every call raises it again (the node reports it and stops).
+
+Every outcome is a typed record, so the node only converts and publishes,
+and a recorder can log exactly what happened and when.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from friction_sim.core.engine.single import Slider
+from friction_sim.core.meanspeed.predict import predict
+from friction_sim.core.meanspeed.urelation import Prediction
+from friction_sim.core.model import spec
+from friction_sim.core.model.commands import PARAMETERS, PAUSE, RESET, RESUME, STEP, Command, Outcome, apply, reason
+from friction_sim.core.model.events import CycleMark, Event, EventKind, SliderState
+from friction_sim.core.model.params import Inputs, SliderParams, check_load, throw_number
+from friction_sim.core.model.records import PeriodSummary, Tick
+from friction_sim.core.model.spec import NS_PER_S
+from friction_sim.core.runtime.simclock import SimClock
+from friction_sim.errors import ParameterError, SimulationFault, one_line
+
+_PHYSICS = {**spec.PLANT, **spec.INPUTS}
+#: Period marks the core keeps; more than this many periods in one tick are
+#: summarised only from the last ones (only at absurd real-time factors).
+_MARK_BACKLOG = 4096
+#: Log samples one advance takes at most (a few ms of work).  Asked for more
+#: (real_time_factor x log_rate beyond what this machine computes), the
+#: simulation falls behind the wall clock instead, as it does for a slow
+#: recorder: one tick never holds the node for seconds, parameter sets stay
+#: answered, and diagnostics report the achieved real-time factor.
+MAX_SAMPLES_PER_ADVANCE = 1000
+#: Log samples one ``~/step`` may make at most (they are kept in memory until
+#: the next tick hands them to the recorder): 100 s at the default log rate.
+MAX_STEP_SAMPLES = 100_000
+#: Excitation periods one ``~/step`` may cover at most: it is computed at once,
+#: with the node's tick waiting (about a second of work in the general model).
+MAX_STEP_PERIODS = 100_000
+
+
+def _non_finite(state: SliderState) -> str:
+    """'' if every number of ``state`` is finite, else the first that is not (``x = inf``)."""
+    for name in ("t", "x", "v", "acceleration", "friction_force", "normal_force", "z", "vz"):
+        value = getattr(state, name)
+        if not math.isfinite(value):
+            return f"{name} = {value!r}"
+    return ""
+
+
+@dataclass
+class TickStats:
+    """Timer health over the current diagnostics interval."""
+
+    ticks: int = 0
+    late_ticks: int = 0
+    total_late_ticks: int = 0
+    last_wall_ns: int | None = None
+    interval_start_ns: int | None = None
+    interval_sim_start: float = 0.0
+    #: The slider's time [s], its time in flight [s] and lift-off and landing counts at the interval's start.
+    interval_slider_start: float = 0.0
+    interval_flight_start: float = 0.0
+    interval_lift_offs_start: int = 0
+    interval_landings_start: int = 0
+
+
+class RealtimeSlider:
+    """The exact slider advanced by a wall clock, with commands and statistics."""
+
+    def __init__(
+        self, params: SliderParams, inputs: Inputs, *, wall_ns: int,
+        real_time_factor: float = 1.0, publish_rate: float = 1000.0, mean_window_periods: int = 1,
+        log_rate: float | None = None, load_blame: str = "excitation_frequency",
+    ) -> None:
+        """``load_blame`` names the setting a refusal of f x real_time_factor
+        blames (``excitation_frequency`` or ``real_time_factor``): the one the user set."""
+        self.clock = SimClock(float(spec.REAL_TIME_FACTOR.check(real_time_factor)), wall_ns)
+        check_load(inputs.excitation_frequency, self.clock.rate, load_blame)
+        self.slider = Slider(params, inputs, event_log_size=1000, cycle_log_size=_MARK_BACKLOG)
+        self.publish_rate = float(spec.PUBLISH_RATE.check(publish_rate))
+        self._window: deque[CycleMark] = deque(maxlen=2)
+        self.set_mean_window(mean_window_periods)
+        self._last_mark_n = -1
+        self.accepted = 0
+        self.rejected = 0
+        #: Advances cut short by MAX_SAMPLES_PER_ADVANCE (the simulation fell behind real time).
+        self.behind = 0
+        self._behind_before_interval = 0
+        self.last_rejection = ""
+        self._rejected_before_interval = 0
+        self.stats = TickStats(interval_start_ns=wall_ns)
+        self.last_period: PeriodSummary | None = None
+        self._prediction: tuple[SliderParams, Inputs, Prediction] | None = None
+        self.log_rate = float(spec.LOG_RATE.check(log_rate)) if log_rate is not None else None
+        self._next_log_index = 0  # the log grid is k / log_rate in simulation time
+        # What advancing produced since the last tick (commands advance too).
+        self._events: list[Event] = []
+        self._samples: list[SliderState] = []
+        self._periods: list[PeriodSummary] = []  # summaries made before a reset, for the next tick
+        #: Why the run cannot go on ('' while it can): see :class:`SimulationFault`.
+        self.fault = ""
+
+    # -- commands -----------------------------------------------------------
+
+    def now(self, wall_ns: int) -> float:
+        """Simulation time [s] at wall time ``wall_ns`` (never before the slider's own)."""
+        return max(self.clock.now(wall_ns), self.slider.t)
+
+    def command(self, command: Command, wall_ns: int) -> Outcome:
+        """Apply one command now, or refuse it (see :meth:`commands`)."""
+        return self.commands([command], wall_ns)[0]
+
+    def commands(self, batch: Sequence[Command], wall_ns: int) -> list[Outcome]:
+        """Handle several commands at the same instant (now), in order.
+
+        Each is validated against the state the ones before it left, through
+        the core's one gate (:func:`friction_sim.core.model.commands.apply` and the
+        real-time load rule), and accepted or refused on its own; the core
+        then takes the result once (applying them one by one at the same
+        instant would give the same motion, at the cost of a new segment each).
+        If the core cannot take the result (see :meth:`_take`), the accepted
+        commands are taken one by one and each one it cannot take is refused.
+        The outcomes carry the commands stamped with the time they took effect.
+        """
+        t = self._advance(wall_ns)
+        start = self.slider.params, self.slider.inputs
+        params, inputs = start
+        outcomes: list[Outcome] = []
+        taken: list[int] = []  # indices of the accepted outcomes
+        for command in batch:
+            stamped = command if command.t == t else command.at(t)  # the node stamps them already
+            try:
+                params, inputs = self._check(stamped, params, inputs)
+            except ParameterError as error:
+                outcomes.append(self._refuse(stamped, reason(stamped, error)))
+                continue
+            taken.append(len(outcomes))
+            outcomes.append(Outcome(stamped))
+        if taken and self._take(params, inputs):
+            self._take_one_by_one(outcomes, taken, *start)
+        self.accepted += sum(outcomes[i].accepted for i in taken)
+        return outcomes
+
+    def _check(self, command: Command, params: SliderParams, inputs: Inputs) -> tuple[SliderParams, Inputs]:
+        """Plant and inputs after ``command`` (the one gate plus the real-time load rule).
+
+        Each value is first checked against its own range alone: a NaN, inf or
+        out-of-range value (what a flood of bad commands is made of) is refused
+        there, in a few microseconds, without building new plant and inputs.
+        """
+        for field, value in command.values.items():
+            _PHYSICS[field].check(value)
+        params, inputs = apply(command, params, inputs)
+        check_load(inputs.excitation_frequency, self.clock.rate)
+        return params, inputs
+
+    def _take_one_by_one(self, outcomes: list[Outcome], taken: list[int], params: SliderParams,
+                         inputs: Inputs) -> None:
+        """The core could not take a batch as a whole: take its accepted commands
+        one at a time, refusing each it cannot take (or that the refusal of an
+        earlier one made invalid)."""
+        for index in taken:
+            command = outcomes[index].command
+            try:
+                new_params, new_inputs = self._check(command, params, inputs)
+            except ParameterError as error:
+                outcomes[index] = self._refuse(command, reason(command, error))
+                continue
+            problem = self._take(new_params, new_inputs)
+            if problem:
+                outcomes[index] = self._refuse(command, f"{command.name}: {problem}")
+                continue
+            params, inputs = new_params, new_inputs
+
+    def configure(self, values: Mapping[str, Any], wall_ns: int) -> Outcome:
+        """A set of node parameters, checked and applied as one new state, now.
+
+        ``values`` may hold plant and input fields (the physics, applied as one
+        ``parameters`` command), ``real_time_factor``, ``publish_rate`` and
+        ``mean_window_periods``.  Everything is checked against the state in
+        force before anything changes: the whole set takes effect, or none of
+        it (the refusal names the field that was set).
+        """
+        t = self._advance(wall_ns)
+        physics = {k: v if isinstance(v, str) else float(v) for k, v in values.items()
+                   if k in spec.PLANT or k in spec.INPUTS}
+        command = Command(t, PARAMETERS, physics)
+        try:
+            params, inputs = apply(command, self.slider.params, self.slider.inputs)
+            rate = float(spec.REAL_TIME_FACTOR.check(values.get("real_time_factor", self.clock.rate)))
+            check_load(inputs.excitation_frequency, rate,
+                       "real_time_factor" if "real_time_factor" in values else "excitation_frequency")
+            publish_rate = float(spec.PUBLISH_RATE.check(values.get("publish_rate", self.publish_rate)))
+            window = int(spec.MEAN_WINDOW_PERIODS.check(values.get("mean_window_periods",
+                                                                   self.mean_window_periods)))
+        except ParameterError as error:
+            return self._refuse(command, str(error))
+        problem = self._take(params, inputs)
+        if problem:
+            return self._refuse(command, f"{', '.join(values)}: {problem}")
+        self.clock.set_rate(rate, wall_ns)
+        self.publish_rate = publish_rate
+        self.set_mean_window(window)
+        if physics:
+            self.accepted += 1
+        return Outcome(command)
+
+    def refuse(self, command: Command, why: str, wall_ns: int) -> Outcome:
+        """Count a command that was refused before it reached the core (also
+        after a fault: the refusal is still counted, at the time reached)."""
+        return self._refuse(command.at(self.now(wall_ns) if self.fault else self._advance(wall_ns)), why)
+
+    def _refuse(self, command: Command, why: str) -> Outcome:
+        self.rejected += 1
+        self.last_rejection = why
+        return Outcome(command, why)
+
+    def _take(self, params: SliderParams, inputs: Inputs) -> str:
+        """Hand new (validated) parameters and inputs to the core, if they changed.
+
+        Returns '' when the core took them, else why not: the core raised, or
+        the state it leaves is not finite; then the core is put back exactly
+        as it was (a checkpoint taken first).
+        """
+        slider = self.slider
+        if params == slider.params and inputs == slider.inputs:
+            return ""
+        checkpoint = slider.checkpoint()
+        try:
+            slider.set_plant(params, inputs)
+            problem = _non_finite(slider.state())
+            if math.isnan(slider.next_event_time):
+                problem = problem or "the next event time is nan"
+        except Exception as error:  # noqa: BLE001 - any failure of the core refuses the change
+            problem = one_line(error, with_type=True)
+        if problem:
+            slider.restore(checkpoint)
+            return f"the simulation cannot take this state ({problem}); last valid state kept"
+        return ""
+
+    # -- simulation control (the node's ~/pause, ~/resume, ~/step, ~/reset) ----------
+
+    @property
+    def paused(self) -> bool:
+        """Whether simulation time stands still (:meth:`pause`)."""
+        return self.clock.paused
+
+    def pause(self, wall_ns: int) -> Outcome:
+        """Stop simulation time now, exactly: nothing moves until :meth:`resume`
+        or :meth:`step` (commands are still taken, at the time it stopped)."""
+        t = self._advance(wall_ns)
+        if self.clock.paused:
+            return self._refuse(Command(t, PAUSE), f"pause: already paused at t = {t:.9f} s")
+        self.clock.pause(wall_ns)
+        return Outcome(Command(t, PAUSE))
+
+    def resume(self, wall_ns: int) -> Outcome:
+        """Let simulation time run again from where it stood (no jump)."""
+        t = self._advance(wall_ns)
+        if not self.clock.paused:
+            return self._refuse(Command(t, RESUME), "resume: not paused")
+        self.clock.resume(wall_ns)
+        return Outcome(Command(t, RESUME))
+
+    def step_length(self, step_periods: int, step_time: float) -> float:
+        """How far one step goes [s]: ``step_time``, or ``step_periods`` periods
+        of the excitation frequency in force when ``step_time`` is 0."""
+        if step_time > 0.0:
+            return float(spec.STEP_TIME.check(step_time))
+        return int(spec.STEP_PERIODS.check(step_periods)) / self.slider.inputs.excitation_frequency
+
+    def step(self, duration: float, wall_ns: int) -> Outcome:
+        """While paused: advance simulation time by ``duration`` [s] (to the
+        nanosecond of the stamps) at once, exactly as running would, keeping the
+        events, log samples and period means for the next tick; stay paused."""
+        t = self._advance(wall_ns)
+        command = Command(t, STEP, {"duration": duration})
+        step_ns = round(duration * NS_PER_S) if math.isfinite(duration) else 0
+        if not self.clock.paused:
+            return self._refuse(command, "step: the simulation is running; call pause first")
+        if step_ns < 1:
+            return self._refuse(command, f"step: duration = {duration!r} s rejected: must be >= 1 ns")
+        samples = step_ns / NS_PER_S * (self.log_rate or 0.0)
+        if samples > MAX_STEP_SAMPLES:
+            return self._refuse(command, f"step: duration = {duration!r} s rejected: at log_rate {self.log_rate:g} Hz "
+                                         f"that is {samples:.3g} recorded states, at most {MAX_STEP_SAMPLES} per step")
+        periods = step_ns / NS_PER_S * self.slider.inputs.excitation_frequency
+        if periods > MAX_STEP_PERIODS:
+            return self._refuse(command, f"step: duration = {duration!r} s rejected: at "
+                                         f"{self.slider.inputs.excitation_frequency:g} Hz that is {periods:.3g} "
+                                         f"excitation periods, at most {MAX_STEP_PERIODS} per step")
+        self.clock.step(step_ns)
+        end = self.clock.now_ns(wall_ns) / NS_PER_S
+        mark = self.slider.next_mark_time
+        if end < mark <= end + 0.5 / NS_PER_S:  # a period that ends at this nanosecond ends in this step
+            end = mark
+        self._advance_sim(end, chunked=True)
+        return Outcome(Command(t, STEP, {"duration": step_ns / NS_PER_S}))
+
+    def reset(self, wall_ns: int) -> Outcome:
+        """Back to the initial state now (at rest at x = 0, excitation phase 0),
+        under the plant and inputs in force; time goes on, paused or not.  The
+        mean-velocity window starts afresh: no mean spans the reset."""
+        t = self._advance(wall_ns)
+        self._periods.extend(self._new_periods())
+        checkpoint = self.slider.checkpoint()
+        try:
+            self.slider.restart()
+            problem = _non_finite(self.slider.state())
+        except Exception as error:  # noqa: BLE001 - any failure of the core refuses the reset
+            problem = one_line(error, with_type=True)
+        if problem:
+            self.slider.restore(checkpoint)
+            return self._refuse(Command(t, RESET), f"reset: the simulation cannot restart ({problem})")
+        self._window.clear()
+        return Outcome(Command(t, RESET))
+
+    # -- settings -----------------------------------------------------------
+
+    def set_mean_window(self, periods: int) -> None:
+        """Average the mean velocity over the last ``periods`` whole periods."""
+        periods = spec.MEAN_WINDOW_PERIODS.check(periods)
+        self._window = deque(self._window, maxlen=periods + 1)
+
+    @property
+    def mean_window_periods(self) -> int:
+        assert self._window.maxlen is not None
+        return self._window.maxlen - 1
+
+    # -- the tick -------------------------------------------------------------
+
+    def tick(self, wall_ns: int) -> Tick:
+        """Advance to the present and collect what happened on the way.
+
+        Raises :class:`SimulationFault` if the state there (or at a log sample
+        on the way) is not finite.
+        """
+        self._count_tick(wall_ns)
+        self._advance(wall_ns)
+        state = self.slider.state()
+        problem = _non_finite(state)
+        for sample in self._samples:
+            if problem:
+                break
+            problem = _non_finite(sample)
+        if problem:
+            self._fail(f"the state became non-finite ({problem})")
+        events, samples, periods = self._events, tuple(self._samples), self._periods + self._new_periods()
+        self._events, self._samples, self._periods = [], [], []
+        return Tick(state, events, periods, samples, paused=self.clock.paused)
+
+    def _log_samples(self, t: float) -> None:
+        """Advance through the log grid points up to ``t`` not logged yet,
+        keeping the exact state at each (and the events on the way).  Mostly
+        one point per tick: a scalar advance is cheaper than numpy here, and
+        cutting the time axis there does not change the motion."""
+        if self.log_rate is None:
+            return
+        last = math.floor(t * self.log_rate)
+        if (last + 1) / self.log_rate <= t:  # the rounded product may be one short ...
+            last += 1
+        elif last / self.log_rate > t:  # ... or one over
+            last -= 1
+        first = max(self._next_log_index, math.ceil(self.slider.t * self.log_rate * (1.0 - 1e-15)))
+        if last < first:
+            return
+        self._next_log_index = last + 1
+        for k in range(first, last + 1):
+            self._events.extend(self.slider.advance_to(max(k / self.log_rate, self.slider.t)))
+            self._samples.append(self.slider.state())
+
+    def _reachable(self, t: float, wall_ns: int) -> float:
+        """``t``, or the time :data:`MAX_SAMPLES_PER_ADVANCE` log samples ahead
+        if that is sooner; then simulation time is held there (it falls behind)."""
+        if self.log_rate is None or t - self.slider.t <= MAX_SAMPLES_PER_ADVANCE / self.log_rate:
+            return t
+        limit_ns = math.floor((self.slider.t + MAX_SAMPLES_PER_ADVANCE / self.log_rate) * NS_PER_S)
+        self.clock.fall_behind(limit_ns, wall_ns)
+        self.behind += 1
+        return max(limit_ns / NS_PER_S, self.slider.t)
+
+    def _advance(self, wall_ns: int) -> float:
+        """Advance to the present, keeping the events and log samples on the way
+        (a failure of the core is a :class:`SimulationFault`)."""
+        if self.fault:
+            raise SimulationFault(self.fault)
+        try:
+            t = self._reachable(self.now(wall_ns), wall_ns)
+        except Exception as error:  # noqa: BLE001 - whatever the core raised, the run cannot go on
+            self._fail(f"advancing failed ({one_line(error, with_type=True)})")
+        self._advance_sim(t)
+        return t
+
+    def _advance_sim(self, t: float, *, chunked: bool = False) -> None:
+        """Advance the core to ``t``, keeping the events and log samples on the
+        way; ``chunked``: in pieces of :data:`MAX_SAMPLES_PER_ADVANCE` samples
+        (a step).  A failure of the core is a :class:`SimulationFault`."""
+        try:
+            while True:
+                end = t
+                if chunked and self.log_rate is not None:
+                    end = min(t, self.slider.t + MAX_SAMPLES_PER_ADVANCE / self.log_rate)
+                self._log_samples(end)
+                self._events.extend(self.slider.advance_to(end))
+                if end >= t:
+                    return
+        except Exception as error:  # noqa: BLE001 - whatever the core raised, the run cannot go on
+            self._fail(f"advancing failed ({one_line(error, with_type=True)})")
+
+    def _fail(self, why: str) -> None:
+        """Stop for good: every later call raises the same fault."""
+        slider = self.slider
+        self.fault = (f"simulation fault at t = {slider.t!r} s: {why}, with inputs {slider.inputs} "
+                      f"and plant {slider.params}")
+        raise SimulationFault(self.fault)
+
+    def _new_periods(self) -> list[PeriodSummary]:
+        summaries = []
+        for mark in self.slider.cycle_marks_after(self._last_mark_n):
+            self._last_mark_n = mark.n
+            previous = self._window[-1] if self._window else None
+            self._window.append(mark)
+            if previous is None or previous.n != mark.n - 1:
+                continue
+            first = self._window[0]
+            span = mark.t - first.t
+            duration = mark.t - previous.t
+            summaries.append(PeriodSummary(
+                n=mark.n, t=mark.t, mean_velocity=(mark.x - first.x) / span if span > 0 else 0.0,
+                window_periods=mark.n - first.n,
+                stick_fraction=(mark.stuck_time - previous.stuck_time) / duration if duration > 0 else 1.0,
+                flight_fraction=(mark.flight_time - previous.flight_time) / duration if duration > 0 else 0.0,
+            ))
+        if summaries:
+            self.last_period = summaries[-1]
+        return summaries
+
+    def _count_tick(self, wall_ns: int) -> None:
+        stats = self.stats
+        if stats.last_wall_ns is not None and (wall_ns - stats.last_wall_ns) > 1.5 * NS_PER_S / self.publish_rate:
+            stats.late_ticks += 1
+            stats.total_late_ticks += 1
+        stats.ticks += 1
+        stats.last_wall_ns = wall_ns
+
+    # -- diagnostics ------------------------------------------------------------
+
+    def prediction(self, params: SliderParams | None = None, inputs: Inputs | None = None) -> Prediction:
+        """The mean-speed prediction for ``params`` and ``inputs`` (default: those
+        in force), computed once per change; NaN where there is none.
+
+        Outside Kostek's model it is a simulation (:func:`predict` falls back
+        on the general mean speed: a millisecond, up to ~0.4 s for a chattering
+        plant), so a node asks for it outside its tick's lock and passes it to
+        :meth:`diagnostics`.
+        """
+        params = self.slider.params if params is None else params
+        inputs = self.slider.inputs if inputs is None else inputs
+        cached = self._prediction
+        if cached is None or cached[0] is not params or cached[1] is not inputs:
+            try:
+                value = predict(params, inputs)
+            except Exception:  # noqa: BLE001 - diagnostics must answer whatever the inputs: nan = no prediction
+                value = Prediction(math.nan, math.nan, math.nan, math.nan)
+            cached = self._prediction = (params, inputs, value)
+        return cached[2]
+
+    def diagnostics(self, wall_ns: int, prediction: Prediction | None = None) -> dict[str, Any]:
+        """The figures of the last diagnostics interval; starts a new interval.
+        ``prediction`` is :meth:`prediction`'s, if the caller has made it."""
+        stats = self.stats
+        start = stats.interval_start_ns if stats.interval_start_ns is not None else wall_ns
+        wall = (wall_ns - start) / NS_PER_S
+        sim_now = self.clock.now(wall_ns)
+        tick_rate = stats.ticks / wall if wall > 0 else 0.0
+        achieved_rtf = (sim_now - stats.interval_sim_start) / wall if wall > 0 else 0.0
+        inputs = self.slider.inputs
+        flight_time, lift_offs, landings = self._flight_record()
+        sim_elapsed = self.slider.t - stats.interval_slider_start
+        if prediction is None:
+            prediction = self.prediction()
+        report = {
+            "sim_time": sim_now,
+            "paused": self.clock.paused,
+            "real_time_factor": self.clock.rate,
+            "achieved_real_time_factor": achieved_rtf,
+            "tick_rate": tick_rate,
+            "publish_rate": self.publish_rate,
+            "late_ticks": stats.late_ticks,
+            "late_ticks_total": stats.total_late_ticks,
+            "commands_accepted": self.accepted,
+            "commands_rejected": self.rejected,
+            "commands_rejected_in_interval": self.rejected - self._rejected_before_interval,
+            "ticks_behind_in_interval": self.behind - self._behind_before_interval,
+            "last_rejection": self.last_rejection,
+            "drive_force": inputs.drive_force,
+            "excitation_amplitude": inputs.excitation_amplitude,
+            "excitation_frequency": inputs.excitation_frequency,
+            "external_force_x": inputs.external_force_x,
+            "external_force_z": inputs.external_force_z,
+            "throw_number": throw_number(self.slider.params, inputs),
+            # the groups the prediction is made of: with an external force, the effective ones
+            "phi": prediction.effective_phi,
+            "amplitude_ratio": prediction.effective_amplitude_ratio,
+            "predicted_U": prediction.u,
+            "predicted_mean_velocity": prediction.mean_velocity,
+            "stick_fraction": self.last_period.stick_fraction if self.last_period else math.nan,
+            "flight_fraction": self.last_period.flight_fraction if self.last_period else math.nan,
+            "flight_fraction_in_interval": ((flight_time - stats.interval_flight_start) / sim_elapsed
+                                            if sim_elapsed > 0 else math.nan),
+            "lift_offs": lift_offs,
+            "landings": landings,
+            "lift_offs_in_interval": lift_offs - stats.interval_lift_offs_start,
+            "landings_in_interval": landings - stats.interval_landings_start,
+            "measured_mean_velocity": self.last_period.mean_velocity if self.last_period else math.nan,
+        }
+        self._rejected_before_interval = self.rejected
+        self._behind_before_interval = self.behind
+        stats.ticks = 0
+        stats.late_ticks = 0
+        stats.interval_start_ns = wall_ns
+        stats.interval_sim_start = sim_now
+        stats.interval_slider_start = self.slider.t
+        stats.interval_flight_start, stats.interval_lift_offs_start, stats.interval_landings_start = (
+            flight_time, lift_offs, landings)
+        return report
+
+    def _flight_record(self) -> tuple[float, int, int]:
+        """(time in flight [s], lift-offs, landings) since the start, up to the slider's time."""
+        counts = self.slider.event_counts
+        return self.slider.flight_time, counts.get(EventKind.LIFT_OFF, 0), counts.get(EventKind.LANDING, 0)

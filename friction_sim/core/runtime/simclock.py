@@ -1,0 +1,85 @@
+"""Simulation time from a monotonic wall clock: :class:`SimClock`.
+
+The real-time slider (:mod:`friction_sim.core.runtime.realtime`) reads simulation time
+from here on every tick and command, so a late or missed tick never changes
+the physics.  The clock can be paused (simulation time stands still, exactly)
+and stepped while paused: the ``~/pause``, ``~/resume`` and ``~/step``
+services of the slider node.
+"""
+
+from __future__ import annotations
+
+from friction_sim.core.model.params import require_positive
+from friction_sim.core.model.spec import NS_PER_S
+from friction_sim.errors import ParameterError
+
+
+class SimClock:
+    """Simulation time from a monotonic wall clock, both in integer nanoseconds.
+
+    t_sim = sim_start + rate * (wall - wall_start); changing the rate rebases,
+    so simulation time stays continuous.  Simulation time is kept in whole
+    nanoseconds, the resolution of a ROS header stamp, so the time a state or a
+    command is stamped with is exactly the time the core computed it for.
+    """
+
+    def __init__(self, rate: float, wall_ns: int, sim_start_ns: int = 0) -> None:
+        self._rate = require_positive("real_time_factor", rate)
+        self._wall0 = wall_ns
+        self._sim0 = sim_start_ns
+        self._paused = False
+
+    @property
+    def rate(self) -> float:
+        return self._rate
+
+    @property
+    def paused(self) -> bool:
+        """Whether simulation time stands still (:meth:`pause`)."""
+        return self._paused
+
+    def now_ns(self, wall_ns: int) -> int:
+        """Simulation time [ns] at wall time ``wall_ns``."""
+        if self._paused:
+            return self._sim0
+        elapsed = wall_ns - self._wall0
+        return self._sim0 + (elapsed if self._rate == 1.0 else round(self._rate * elapsed))
+
+    def pause(self, wall_ns: int) -> None:
+        """Stop simulation time at its value at ``wall_ns`` (exactly: it stays there)."""
+        if not self._paused:
+            self._sim0, self._wall0, self._paused = self.now_ns(wall_ns), wall_ns, True
+
+    def resume(self, wall_ns: int) -> None:
+        """Let simulation time run again from where it stood, from ``wall_ns`` on
+        (no jump: the wall time that passed while paused is not simulated)."""
+        if self._paused:
+            self._wall0, self._paused = wall_ns, False
+
+    def step(self, sim_ns: int) -> None:
+        """While paused: move simulation time on by ``sim_ns`` (a ``~/step``)."""
+        if not self._paused:
+            raise ParameterError("step", sim_ns, "only while paused")
+        self._sim0 += max(0, int(sim_ns))
+
+    def now(self, wall_ns: int) -> float:
+        """Simulation time [s] at wall time ``wall_ns`` (a whole number of ns)."""
+        return self.now_ns(wall_ns) / NS_PER_S
+
+    def hold(self, wall_ns: int) -> None:
+        """Let ``wall_ns`` of wall time pass without simulation time (the caller
+        waited for something, a recorder say): simulation time does not jump."""
+        self._wall0 += max(0, int(wall_ns))
+
+    def fall_behind(self, sim_ns: int, wall_ns: int) -> None:
+        """Make it ``sim_ns`` at ``wall_ns`` (not later than it was): the
+        simulation could not keep up and goes on from there, at the same rate."""
+        self._sim0, self._wall0 = min(sim_ns, self.now_ns(wall_ns)), wall_ns
+
+    def set_rate(self, rate: float, wall_ns: int) -> None:
+        """Change the real-time factor from ``wall_ns`` on (paused: from the resume on)."""
+        rate = require_positive("real_time_factor", rate)
+        self._sim0, self._wall0, self._rate = self.now_ns(wall_ns), wall_ns, rate
+
+
+__all__ = ["SimClock"]
