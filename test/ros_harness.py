@@ -199,8 +199,8 @@ def flood_value(kind: str, n: int) -> float:
 
 
 def flood(namespace: str, rate: int, seconds: float, kind: str = "valid", last: bool = False) -> int:
-    """Publish drive_force commands of ``kind`` (:func:`flood_value`) at ``rate``
-    per second once a reader has matched (run in its own process); print
+    """Publish ``rate`` x ``seconds`` drive_force commands of ``kind``
+    (:func:`flood_value`), at most ``rate`` per second, once a reader has matched (run in its own process); print
     "flooding" when the flood begins.  With ``last``, end with one valid
     command, :data:`LAST`.  Returns how many were sent."""
     rclpy.init()
@@ -211,9 +211,12 @@ def flood(namespace: str, rate: int, seconds: float, kind: str = "valid", last: 
         time.sleep(0.01)
     time.sleep(0.3)  # the reader matches our writer a moment after we match it
     print("flooding", flush=True)
-    start, sent, msg = time.monotonic(), 0, Float64()
-    while (now := time.monotonic()) - start < seconds:
-        while sent < int((now - start) * rate):
+    # A fixed count, paced at ``rate`` at most: a slow machine floods for longer,
+    # never with fewer commands.
+    start, sent, msg, total = time.monotonic(), 0, Float64(), int(rate * seconds)
+    while sent < total:
+        due = min(total, int((time.monotonic() - start) * rate))
+        while sent < due:
             msg.data = flood_value(kind, sent)
             publisher.publish(msg)
             sent += 1

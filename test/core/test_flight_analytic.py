@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import time
 from typing import Any
 
 import numpy as np
@@ -274,9 +273,7 @@ def test_restitution_near_one_ends_in_finitely_many_bounces(gamma: float, chatte
     periods = 8
     duration = periods / inputs.excitation_frequency
     slider = Slider(params, inputs, event_log_size=None)
-    started = time.perf_counter()
     slider.advance_to(duration)
-    elapsed = time.perf_counter() - started
     omega = 2.0 * math.pi * inputs.excitation_frequency
     floor = 1e-6 * params.normal_weight / params.mass / omega
     fastest = (params.normal_weight + inputs.excitation_amplitude) / params.mass * duration  # |vz| bound
@@ -290,7 +287,6 @@ def test_restitution_near_one_ends_in_finitely_many_bounces(gamma: float, chatte
         plastic = [e for e in slider.events if e.kind is EventKind.LANDING and e.vz_after == 0.0]
         assert len(plastic) == periods
         assert all(0.99 * abs(e.vz_before) <= floor for e in plastic)
-    assert elapsed < 10.0
 
 
 # ---------------------------------------------------------------------------- a grazing landing

@@ -20,7 +20,6 @@ Independent expectations:
 from __future__ import annotations
 
 import math
-import time
 from typing import Any
 
 import numpy as np
@@ -132,14 +131,13 @@ def test_period_doubling_and_a_stated_window_when_nothing_repeats() -> None:
     assert long.u == pytest.approx(doubled.u, rel=1e-9)
 
 
-def test_a_hopping_call_is_fast() -> None:
+def test_a_hopping_call_stops_at_the_first_repeat() -> None:
+    """A periodic hopping motion is recognised within a few periods, not
+    averaged over the default 200 + 200 (the time it takes: bench/step_vs_run.py)."""
     params = SliderParams(mu=0.5, excitation_angle=30.0)
     inputs = Inputs(drive_force=0.0, excitation_amplitude=20.0)
-    mean_speed(params, inputs)
-    started = time.perf_counter()
     result = mean_speed(params, inputs)
-    elapsed = time.perf_counter() - started
-    assert result.periodic and elapsed < 0.05
+    assert result.periodic and result.settle_periods + result.periods * result.period_multiple <= 10, result
 
 
 def test_predict_falls_back_to_the_general_mean_speed() -> None:

@@ -236,30 +236,44 @@ def test_nothing_is_encoded_without_a_subscriber_and_a_burst_never_blocks(view: 
     s = state(5)
     with FoxgloveClient(view.url) as client:
         subscribed(client, view, f"{NS}/events")  # a client, but not on the state topics
-        started = time.perf_counter()
         for _ in range(100_000):
             view.on_states((s,), "slideway")
-        elapsed = time.perf_counter() - started
-    assert elapsed < 2.0, f"100k on_states without a subscriber took {elapsed:.2f} s"
     assert view.encoded == 0 and view.sent == 0
     assert view.skipped == 300_000 and view.dropped == 0
 
 
-def test_a_burst_beyond_what_the_thread_encodes_is_dropped_and_counted_never_waits() -> None:
+def test_a_burst_beyond_what_the_thread_encodes_is_dropped_and_counted_never_waits(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The serving thread is held inside its first record for the whole burst: the
+    caller still gets through all 100k calls (it never waits for the thread: the
+    calls run in a thread of their own that must end while the server is held),
+    the queue keeps at most its size, and the rest is dropped and counted."""
     view = LiveView(0, namespace=NS, queue_size=3000)
     states = [state(i) for i in range(1, 100_001)]
+    held, release = threading.Event(), threading.Event()
+    serve = view._serve  # noqa: SLF001 - hold the real serving step
+
+    def held_serve(item: object, size: int) -> None:
+        held.set()
+        release.wait(120.0)
+        serve(item, size)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(view, "_serve", held_serve)
     try:
         with FoxgloveClient(view.url) as client:
             subscribed(client, view, f"{NS}/pose")
-            started = time.perf_counter()
-            for s in states:
-                view.on_states((s,), "slideway")
-            elapsed = time.perf_counter() - started
-            received = client.collect(0.3)
+            view.on_states((states[0],), "slideway")
+            assert wait_until(held.is_set)
+            burst = threading.Thread(target=lambda: [view.on_states((s,), "slideway") for s in states[1:]])
+            burst.start()
+            burst.join(timeout=120.0)  # a hang guard: the burst ends while the server is still held
+            assert not burst.is_alive() and not release.is_set(), "the caller waited for the serving thread"
+            assert view.dropped >= len(states) - 1 - 3000
+            release.set()
+            received = client.collect(until=lambda got: len(got) >= 1 + 3000 // 3, timeout=30.0)
     finally:
+        release.set()
         view.close()
-    assert elapsed < 3.0, f"100k on_states with a subscriber took {elapsed:.2f} s"
-    assert view.dropped > 0
     # each message offered is accounted for once: sent, skipped (nobody on velocity and friction_force), dropped
     assert view.sent + view.skipped + view.dropped == 300_000
     assert view.sent == view.encoded > 0
@@ -405,10 +419,8 @@ def test_a_thread_that_dies_says_why_and_the_view_refuses_records(
         assert wait_until(lambda: view.error is not None)
         client.collect(until=lambda _: bool(client.statuses), timeout=2.0)
         assert view.dropped == 3  # the record the thread died on
-        started = time.perf_counter()
         view.on_states([state(2)], "slideway")  # still subscribed: refused, counted
         assert view.write("anything", Float64(data=0.0), 0) is False
-        assert time.perf_counter() - started < 0.1
         assert view.dropped == 3 + 3 + 1
     assert view.error == "live view stopped: RuntimeError: encoder exploded"
     assert view.stats()["live_view_error"] == view.error

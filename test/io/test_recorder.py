@@ -187,13 +187,14 @@ def test_written_data_is_readable_within_the_flush_interval_while_recording(tmp_
     try:
         written = time.monotonic()
         recorder.on_states([STATE], "slideway")
-        while time.monotonic() - written < 10.0:
+        while time.monotonic() - written < 60.0:  # a hang guard only
             live = read_recording(path, require_friction_sim=False)
             if live.messages:
                 break
             time.sleep(0.02)
-        # Flushed every 0.2 s; without the periodic flush nothing reaches the disk before finish().
-        assert time.monotonic() - written < 3.0, "on disk within the flush interval (3 s for a loaded machine)"
+        # Without the periodic flush nothing reaches the disk before finish(): the
+        # writer's own count shows that its flush (not a buffer filling) put it there.
+        assert recorder.stats.chunks_flushed >= 1 and recorder.stats.last_flush >= written
         assert not live.complete and len(live.messages) == 3
         assert "no footer" in (live.recovery_note() or "")
     finally:
@@ -223,15 +224,13 @@ def states(n: int) -> list[SliderState]:
 def test_a_full_queue_drops_and_counts_without_blocking_a_caller_that_does_not_wait(tmp_path: Path) -> None:
     path = tmp_path / "stalled.mcap"
     recorder = StalledRecorder(path, metadata={"mass": 1.0}, queue_size=10, block_when_full=False)
-    slowest, accepted = 0.0, 0
+    accepted = 0
     for state in states(100):
-        started = time.perf_counter()
         before = recorder.dropped
         recorder.on_states([state], "slideway")
         accepted += recorder.dropped == before
-        slowest = max(slowest, time.perf_counter() - started)
-    # A blocked call would wait for the stalled writer (10 s); 0.5 s leaves room for a loaded machine.
-    assert slowest < 0.5, f"on_states never waits for the writer (slowest call {slowest:.3f} s)"
+    # The writer is stalled until the gate opens: a call that waited for it would
+    # never have returned, and the recorder counts every wait (none, below).
     # 3 states (9 messages) fit in the queue, and up to 3 more if the writer took them before it stalled.
     assert 3 <= accepted <= 6 and recorder.dropped == 3 * (100 - accepted), "drops count messages"
     assert recorder.waits == 0
@@ -281,10 +280,9 @@ def test_a_command_never_waits_behind_a_queue_full_of_states(tmp_path: Path) -> 
     headroom beyond the capacity, so a parameter set is answered at once."""
     recorder = StalledRecorder(tmp_path / "urgent.mcap", metadata={"mass": 1.0}, queue_size=30)
     recorder.on_states(states(10), "slideway")  # 30 messages: the queue is full
-    started = time.monotonic()
     recorder.on_command(Outcome(Command(0.001, "drive_force", {"drive_force": 0.8})), "slideway")
     recorder.on_parameters({"publish_rate": 500.0}, 0.001, changed=True)
-    assert time.monotonic() - started < 0.2 and recorder.waits == 0
+    assert recorder.waits == 0  # the writer is stalled: a wait would never have ended
     recorder.gate.set()
     stats = recorder.finish()
     assert stats.dropped == 0 and stats.per_topic["/drive_force"] == 1

@@ -101,14 +101,14 @@ except RecordingPathError as error:
 recorder.on_parameters({**plant_parameters(params, inputs), "log_rate": 1000.0, "frame_id": "slideway",
                         "mean_window_periods": 1}, 0.0, changed=False)
 rt = RealtimeSlider(params, inputs, wall_ns=0, real_time_factor=10.0, log_rate=1000.0)
-slowest_after, puts_after, failed_at = 0.0, 0, None
+waits_after, puts_after, failed_at = 0, 0, None
 for k in range(1, ticks + 1):
     tick = rt.tick(k * 1_000_000)
     failed = recorder.failed
-    started = time.perf_counter()
+    waits = recorder.waits
     deliver_tick([recorder], tick, "slideway")
     if failed:
-        slowest_after = max(slowest_after, time.perf_counter() - started)
+        waits_after += recorder.waits - waits
         puts_after += 1
         failed_at = k if failed_at is None else failed_at
     if k % 20 == 0:
@@ -121,7 +121,7 @@ except BaseException as error:
 print(json.dumps({
     "error": recorder.error, "raised": raised, "stats_error": stats.error, "messages": stats.messages,
     "unrecorded": stats.unrecorded, "dropped": stats.dropped, "last_ns": stats.last_ns,
-    "slowest_after": slowest_after, "puts_after": puts_after, "failed_at": failed_at, "ticks": ticks,
+    "waits_after": waits_after, "puts_after": puts_after, "failed_at": failed_at, "ticks": ticks,
     "logged": [[r.levelname, r.getMessage()] for r in records],
 }))
 """
@@ -153,7 +153,7 @@ def test_disk_full_during_a_run_one_message_no_blocking_and_the_part_written_ver
     assert result["logged"] == [["ERROR", error]], "one message, logged once; never 'falls behind'"
     assert result["failed_at"] is not None and result["failed_at"] < result["ticks"] - 100, "it failed mid-run"
     assert result["puts_after"] > 100 and result["unrecorded"] > 0 and result["dropped"] == 0
-    assert result["slowest_after"] < 0.5, "a failed recording never makes the producer wait (0.5 s: loaded machine)"
+    assert result["waits_after"] == 0, "a failed recording never makes the producer wait (the recorder counts waits)"
     assert path.stat().st_size <= 120_000
 
     # The message tells the truth about the file: that many messages, up to that time.
@@ -222,10 +222,9 @@ def test_a_disk_that_fills_wakes_a_waiting_producer_and_later_puts_are_counted_n
     written = int(match.group(4))
     assert written > 0 and recorder.dropped == 0
     assert written + recorder.unrecorded == 120_000, "every message is in the file or counted"
-    before = recorder.unrecorded
-    started = time.perf_counter()
+    before, waits = recorder.unrecorded, recorder.waits
     recorder.on_states(states(50_000, 1000), "slideway")
-    assert time.perf_counter() - started < 0.5 and recorder.unrecorded == before + 3000
+    assert recorder.waits == waits and recorder.unrecorded == before + 3000, "refused at once, counted"
     stats = recorder.finish()
     assert stats.error == recorder.error and stats.messages == written and recorder.finish() is stats
     errors = [r for r in caplog.records if r.levelno >= logging.WARNING]
@@ -276,10 +275,8 @@ def test_a_producer_never_waits_for_a_writer_thread_that_is_gone(tmp_path: Path)
     recorder = GoneRecorder(tmp_path / "gone.mcap", metadata={"mass": 1.0}, queue_size=9)
     while recorder.writer_alive:
         time.sleep(0.01)
-    started = time.perf_counter()
-    for state in states(0, 10):
+    for state in states(0, 10):  # a wait on a full queue nobody empties would never end
         recorder.on_states([state], "slideway")
-    assert time.perf_counter() - started < 2.0, "not stuck on a full queue nobody empties"
     assert recorder.dropped == 3 * 7, "3 states fit in the queue; the rest is counted"
     assert recorder.finish().dropped == 30, "and the 3 states no writer took are counted at finish"
 

@@ -58,18 +58,19 @@ def test_a_flood_of_half_invalid_commands_is_taken_in_batches(ros: None) -> None
         assert probe.spin_until(lambda: flooder is not None and flooder.poll() is not None, FLOOD_SECONDS + 30.0)
         elapsed = time.monotonic() - started
         sent = int(flooder.communicate(timeout=10)[0].split()[-1])
-        assert probe.spin_until(lambda: controller.control.drive_force == LAST, 5.0), "the last valid value holds"
+        assert probe.spin_until(lambda: controller.control.drive_force == LAST, 30.0), "the last valid value holds"
         probe.spin_for(0.2)
-        assert sent > 0.5 * FLOOD_RATE * FLOOD_SECONDS
+        assert sent == int(FLOOD_RATE * FLOOD_SECONDS) + 1  # the flood and the last valid command
         most = elapsed / COMMAND_HOLD_OFF + 10  # one batch per hold-off at most, plus the quiet-time wake-ups
         assert len(probe.received["excitation_amplitude"]) - answers <= most, "one answer per batch"
         assert controller.runtime.command_batches <= most  # (none before the flood: the target came as a parameter)
         assert controller.runtime.rejected > 100 and controller.runtime.accepted > 100, "both kinds, all through"
         assert "drive_force" in controller.runtime.last_rejection
         assert any(word in controller.runtime.last_rejection for word in ("nan", "inf"))
-        assert controller.runtime.accepted + controller.runtime.rejected >= controller.runtime.command_batches, "every message was judged"
+        runtime = controller.runtime
+        assert runtime.accepted + runtime.rejected >= runtime.command_batches, "every message was judged"
         assert all(math.isfinite(m.data) for m in probe.received["excitation_amplitude"])
-        assert probe.spin_until(lambda: not controller.polling, 2.0), "quiet again: commands wake the node at once"
+        assert probe.spin_until(lambda: not controller.polling, 30.0), "quiet again: commands wake the node at once"
     finally:
         if flooder is not None:
             kill_if_running(flooder)
@@ -91,12 +92,13 @@ def test_a_lone_command_is_taken_at_once_and_the_polling_stops(ros: None) -> Non
             assert probe.spin_until(lambda v=value: controller.control.drive_force == v, 5.0)  # type: ignore[misc]
             assert controller.runtime.command_batches == batches
             assert controller.polling, "after a batch, the topics are polled for a hold-off"
-            assert probe.spin_until(lambda: not controller.polling, 2.0), "and then no more"
+            assert probe.spin_until(lambda: not controller.polling, 30.0), "and then no more"
         # Two topics in one batch: each command is judged in the order they came.
         probe.send("target_speed", -2e-4)  # against the drive force in force: refused
         probe.send("drive_force", -0.7)
         probe.send("target_speed", -3e-4)  # with the new drive force: taken
-        assert probe.spin_until(lambda: controller.control.target_speed == -3e-4, 5.0), controller.runtime.last_rejection
+        taken = probe.spin_until(lambda: controller.control.target_speed == -3e-4, 30.0)
+        assert taken, controller.runtime.last_rejection
         assert controller.runtime.rejected == 1 and "-0.0002" in controller.runtime.last_rejection
     finally:
         probe.close()

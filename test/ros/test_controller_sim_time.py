@@ -47,9 +47,14 @@ class Feeder:
         for _ in range(n):
             seen = len(self.outputs)
             self.call("step")
-            answered = self.probe.spin_until(lambda seen=seen: len(self.outputs) > seen, 5.0)
+            answered = self.probe.spin_until(lambda seen=seen: len(self.outputs) > seen, 30.0)
             assert answered, "the controller did not answer"
-            self.probe.spin_for(0.01)  # its Pa reaches the paused slider, which takes it at the paused time
+            # Its Pa reaches the paused slider, which takes it at the paused time:
+            # wait for the slider to hold it (counted, however slow DDS is today).
+            applied = self.outputs[-1].amplitude
+            taken = self.probe.spin_until(
+                lambda applied=applied: self.slider.realtime.slider.inputs.excitation_amplitude == applied, 30.0)
+            assert taken, "the slider never took the controller's Pa"
 
     def speeds(self) -> list[float]:
         return [m.twist.linear.x for m in self.probe.received["mean_velocity"]]
@@ -94,16 +99,17 @@ def test_a_target_changed_while_paused_integrates_no_mixed_window(sim_time: bool
     matter of pausing."""
     feeder = Feeder(sim_time=sim_time, target_speed=1e-4)
     try:
-        feeder.probe.spin_for(0.3)
+        assert feeder.probe.spin_until(lambda: len(feeder.outputs) >= 3, 30.0)  # running, answered
         feeder.call("pause")
         feeder.probe.spin_for(0.3)
         seen = len(feeder.outputs)
         before = _correction(feeder.outputs[-1])
         feeder.probe.send("target_speed", 3e-4)
-        assert feeder.probe.spin_until(lambda: len(feeder.outputs) > seen, 5.0)
-        feeder.probe.spin_for(0.7)
+        assert feeder.probe.spin_until(lambda: len(feeder.outputs) > seen, 30.0)
+        feeder.probe.spin_for(0.7)  # paused a while: nothing may be integrated meanwhile
         feeder.call("resume")
-        feeder.probe.spin_for(0.4)
+        # Running again: wait for windows answered after it (counted, not timed).
+        assert feeder.probe.spin_until(lambda: len(feeder.outputs) > seen + 8, 30.0)
         feeder.call("pause")
         feeder.step_periods(5)
         moved = [abs(_correction(out) - before) for out in feeder.outputs[seen:]]

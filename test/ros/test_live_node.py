@@ -14,7 +14,8 @@ import signal
 import socket
 import subprocess
 import sys
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -54,10 +55,13 @@ class LiveRig:
     def call(self, name: str) -> Any:
         return self.probe.control(name)
 
-    def collect(self, seconds: float) -> list[Received]:
-        """Spin the nodes and read the socket for ``seconds`` (the client's reads are short)."""
+    def collect_until(self, done: Callable[[list[Received]], bool], timeout: float = 60.0) -> list[Received]:
+        """Spin and read until ``done(received so far)``; the timeout only guards a hang
+        (it is never reached on a working node, however loaded the machine)."""
         got: list[Received] = []
-        for _ in range(max(1, round(seconds / 0.05))):
+        deadline = time.monotonic() + timeout
+        while not done(got):
+            assert time.monotonic() < deadline, f"still waiting after {timeout} s: {len(got)} messages"
             self.probe.spin_for(0.03)
             got.extend(self.client.collect(0.02))
         return got
@@ -83,21 +87,33 @@ def test_a_client_receives_what_the_node_publishes(live: LiveRig) -> None:
     assert channels[live.topic("pose")]["schemaName"] == "geometry_msgs/msg/PoseStamped"
     assert all(c["encoding"] == "cdr" and c["schemaEncoding"] == "ros2msg" for c in channels.values())
     live.client.subscribe(*at_start)
-    got = live.collect(0.6)
+
+    def seen(got: list[Received], *names: str) -> bool:
+        return set(names) <= {item.topic.removeprefix(live.ns + "/") for item in got}
+
+    # Waits are for what is needed, counted, never for a rate: 300 states, the
+    # reactions to two commands, a diagnostics message (1 Hz), two controls.
+    got = live.collect_until(lambda got: sum(item.topic.endswith("/pose") for item in got) >= 300)
     live.probe.send("excitation_amplitude", 6.0)
     live.probe.send("drive_force", math.nan)
-    got += live.collect(1.2)  # a diagnostics message (1 Hz) comes too
+    got += live.collect_until(lambda more: seen(got + more, "rejected_commands", "diagnostics", "events",
+                                                  "mean_velocity", "excitation_amplitude"))
     assert live.call("pause").success and live.call("step").success
-    got += live.collect(1.2)
+    step_end = round(live.node.realtime.slider.t * 1e9)  # paused: the step has ended
+    got += live.collect_until(lambda more: sum(item.topic.endswith("/sim_control") for item in more) >= 2
+                              and any(item.log_time_ns == step_end for item in more))
     by_topic: dict[str, list[Received]] = {}
     for item in got:
         by_topic.setdefault(item.topic.removeprefix(live.ns + "/"), []).append(item)
-    # The states: each one the client got is the one the node published with that stamp.
+    # The states: each one the client got is the one the node published with that
+    # stamp, once and in order.  The probe's own DDS subscription may drop states
+    # on a loaded machine (depth-limited queue), so those it has are the witnesses.
     published = {stamp_ns(m): m for m in live.probe.received["pose"]}
     poses = by_topic["pose"]
-    assert len(poses) > 300, "the 1 kHz state stream arrives at its rate"
+    stamps = [p.log_time_ns for p in poses]
+    assert stamps == sorted(set(stamps)), "each state once, in order"
     matched = [p for p in poses if p.log_time_ns in published]
-    assert len(matched) > 0.9 * len(poses)
+    assert len(matched) >= 100, (len(matched), len(poses), len(published))
     for item in matched:
         sent = published[item.log_time_ns]
         assert item.message.pose.position.x == sent.pose.position.x
@@ -110,7 +126,7 @@ def test_a_client_receives_what_the_node_publishes(live: LiveRig) -> None:
     assert [c.message.name for c in by_topic.get("sim_control", [])] == ["pause", "step"]
     assert [a.message.data for a in by_topic["excitation_amplitude"]] == [6.0]
     # While paused, the step's end is the last state sent.
-    assert max(p.log_time_ns for p in poses) == round(live.node.realtime.slider.t * 1e9)
+    assert max(p.log_time_ns for p in poses) == step_end == round(live.node.realtime.slider.t * 1e9)
     stats = live.node.live.stats()  # type: ignore[union-attr]
     assert stats["live_view_clients"] == 1 and stats["live_view_sent"] > 0 and not stats["live_view_error"]
 
@@ -138,13 +154,18 @@ def test_friction_sim_feeder_foxglove_serves_both_nodes_and_a_taken_port_is_one_
         try:
             client.wait_for_channels(f"{ns}/pose", timeout=10.0)
             client.subscribe(f"{ns}/pose")
-            got = client.collect(3.0)
+            got = client.collect(until=lambda r: sum(x.topic == f"{ns}/pose" for x in r) >= 500, timeout=60.0)
             client.subscribe(*(t for t in (f"{ns}/diagnostics", f"{ns}/target_speed") if t in client.channels))
-            got += client.collect(2.5)
+
+            def both_reported(more: list[Received]) -> bool:
+                return {"slider", "controller"} <= {s.name for r in more if r.topic == f"{ns}/diagnostics"
+                                                     for s in r.message.status}
+
+            got += client.collect(until=both_reported, timeout=60.0)
         finally:
             client.close()
         statuses = {s.name for r in got if r.topic == f"{ns}/diagnostics" for s in r.message.status}
-        assert sum(r.topic == f"{ns}/pose" for r in got) > 500
+        assert sum(r.topic == f"{ns}/pose" for r in got) >= 500
         assert {"slider", "controller"} <= statuses, statuses
         second = _feeder(port, namespace())
         _, err = second.communicate(timeout=60)
@@ -190,14 +211,14 @@ def test_friction_sim_experiment_foxglove_serves_the_in_process_run(tmp_path: Pa
             client.collect(until=lambda _: any(t.endswith("/pose") for t in client.channels), timeout=10.0)
             poses = [t for t in client.channels if t.endswith("/pose")]  # in the experiment's own namespace
             client.subscribe(*poses, *(t for t in client.channels if t.endswith("/excitation_amplitude")))
-            got = client.collect(2.0)
+            got = client.collect(until=lambda r: sum(x.topic in poses for x in r) >= 300, timeout=60.0)
         finally:
             client.close()
         _, err = job.communicate(timeout=120)
     finally:
         kill_if_running(job)
     assert job.returncode == 0, err[-2000:]
-    assert len(poses) == 1 and sum(r.topic in poses for r in got) > 300
+    assert len(poses) == 1 and sum(r.topic in poses for r in got) >= 300
     assert (tmp_path / "out" / "short.mcap").is_file()
     attached = subprocess.run([sys.executable, "-m", "friction_sim", "experiment", str(scenario), "--attach", "/x",
                                "--foxglove"], capture_output=True, text=True, env=os.environ.copy(), timeout=60)

@@ -16,7 +16,8 @@ import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
-from friction_sim.core.commands import Command
+from friction_sim.cli.progress import TerminalProgress
+from friction_sim.core.model.commands import Command
 from friction_sim.errors import RecordingError
 from friction_sim.io.offline import record_offline
 from friction_sim.io.reader import read_recording
@@ -66,33 +67,88 @@ def test_publish_keeps_the_recorded_timing(ros: None, tmp_path: Path) -> None:
             assert plain(received) == plain(sent), topic  # an rclpy message received, a rosbags one decoded
             pairs.append((log_time / 1e9, arrived))
     pairs.sort()
-    # Timing error: each arrival's offset from the typical offset (the median, so one late first message
-    # does not shift them all). Deadlines are absolute, so errors do not add up; on a loaded CI machine a
-    # few messages may still arrive late, which the 90th percentile tolerates and the maximum bounds.
-    offsets = [arrived - recorded for recorded, arrived in pairs]
-    typical = float(np.median(offsets))
-    errors = np.sort([abs(offset - typical) for offset in offsets])
-    p90 = errors[int(0.9 * len(errors))]
-    assert p90 <= 0.003, f"90th percentile timing error {p90 * 1e3:.2f} ms"
-    assert errors[-1] <= 0.05, f"largest timing error {errors[-1] * 1e3:.2f} ms"
-    half = len(offsets) // 2
-    drift = float(np.median(offsets[half:]) - np.median(offsets[:half]))
-    assert abs(drift) <= 0.002, f"the second half runs {drift * 1e3:.2f} ms behind the first"
+    # Real time, without asserting this machine's speed (bench/replay.py measures the
+    # timing error): no message goes out before its time, so the arrivals span at
+    # least the recorded second, less the lateness of the first one.
     assert pairs[-1][0] - pairs[0][0] == pytest.approx(1.0)
+    assert pairs[-1][1] - pairs[0][1] >= 1.0 - outcome["result"].max_late - 0.001
 
 
-def test_publish_loops_at_a_faster_rate_and_reports_progress(ros: None, tmp_path: Path) -> None:
+def spy_on_publishers(monkeypatch: pytest.MonkeyPatch, before_each: Callable[[], None]) -> None:
+    """Call ``before_each()`` before every message the republisher publishes (on its real publishers)."""
+    from friction_sim.ros import republisher
+
+    made = republisher._publishers  # noqa: SLF001 - the spy wraps what it makes
+
+    class Spy:
+        def __init__(self, publisher: Any) -> None:
+            self.publisher = publisher
+
+        def publish(self, data: Any) -> None:
+            before_each()
+            self.publisher.publish(data)
+
+    monkeypatch.setattr(republisher, "_publishers",
+                        lambda *args, **kw: {k: Spy(v) for k, v in made(*args, **kw).items()})
+
+
+class VirtualTime:
+    """A stand-in for the ``time`` module on a clock of its own: ``sleep`` moves
+    it on by what was asked plus an oversleep drawn in [0, ``oversleep``),
+    as a busy machine would."""
+
+    def __init__(self, oversleep: float, seed: int = 1) -> None:
+        self.now, self.oversleep = 1000.0, oversleep
+        self.rng = np.random.default_rng(seed)
+
+    def monotonic(self) -> float:
+        return self.now
+
+    def sleep(self, seconds: float) -> None:
+        self.now += max(seconds, 0.0) + self.oversleep * float(self.rng.random())
+
+
+@pytest.mark.parametrize("rate", [1.0, 2.5])
+def test_publish_keeps_the_recorded_timing_on_its_clock(ros: None, tmp_path: Path,
+                                                        monkeypatch: pytest.MonkeyPatch, rate: float) -> None:
+    """Exactly, on a virtual clock that oversleeps up to 2 ms at every sleep: each
+    message goes out at the start plus its recorded time / rate, late by no more
+    than one oversleep, and lateness never adds up (absolute deadlines)."""
+    from friction_sim.ros import republisher
+
+    path = tmp_path / "short.mcap"
+    record_offline(path, schedule=[Command(0.3, "drive_force", {"drive_force": 0.9})], duration=1.0, log_rate=100.0)
+    recording = read_recording(path)
+    clock = VirtualTime(oversleep=0.002)
+    monkeypatch.setattr(republisher, "time", clock)
+    sent: list[float] = []
+    spy_on_publishers(monkeypatch, lambda: sent.append(clock.now))
+    topics = ["pose", "velocity", "events", "drive_force"]
+    result = publish(recording, rate=rate, topics=topics)
+    recorded = sorted(log / 1e9 for topic in topics for log, _ in recording.decoded(topic))
+    assert result.messages == len(recorded) == len(sent)
+    late = np.array(sent) - sent[0] - (np.array(recorded) - recorded[0]) / rate
+    assert late.min() >= -0.002 and late.max() < 0.002 + 1e-9, (late.min(), late.max())
+    half = len(late) // 2
+    assert abs(float(np.median(late[half:]) - np.median(late[:half]))) < 0.002, "no drift"
+    assert result.max_late < 0.002 + 1e-9
+
+
+def test_publish_loops_at_a_faster_rate_and_reports_progress(ros: None, tmp_path: Path,
+                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    """Looped, it starts over until stopped: stopped during its fourth pass (the
+    stop counted in messages, not in seconds), it reports four passes, interrupted."""
     path = tmp_path / "short.mcap"
     record_offline(path, duration=0.5, log_rate=100.0)
     recording = read_recording(path)
+    per_loop = len(recording.decoded("pose"))
     stop = threading.Event()
-    threading.Timer(1.5, stop.set).start()
+    count = itertools.count(1)
+    spy_on_publishers(monkeypatch, lambda: stop.set() if next(count) == 3 * per_loop + 10 else None)
     progress = io.StringIO()
-    started = time.monotonic()
-    result = publish(recording, rate=5.0, loop=True, topics=["/pose"], stop=stop, progress=progress)
-    assert time.monotonic() - started < 5.0, "the stop event ends it"
-    # At x1 a 0.5 s recording loops at most 3 times in 1.5 s; x5 manages about 15.
-    assert result.loops >= 6 and result.messages >= 5 * 51 and result.interrupted
+    result = publish(recording, rate=5.0, loop=True, topics=["/pose"], stop=stop,
+                     progress=TerminalProgress(progress, interval=0.0))
+    assert result.loops == 4 and result.messages == 3 * per_loop + 10 and result.interrupted
     assert "replay:" in progress.getvalue() and "x5 " in progress.getvalue()
     with pytest.raises(RecordingError, match="no topic warp"):
         publish(recording, topics=["warp"])
@@ -103,8 +159,8 @@ def test_publish_moves_a_namespaced_recording_and_streams_it(ros: None, tmp_path
     """A recording made in /feeder1 (topics stored /feeder1/pose, as rosbag2 stores them)
     replays on its stored names, or moved into another namespace; and it is streamed:
     the whole-file list of messages is never asked for."""
-    from friction_sim.core.params import Inputs, SliderParams
-    from friction_sim.core.slider import Slider
+    from friction_sim.core.engine.single import Slider
+    from friction_sim.core.model.params import Inputs, SliderParams
     from friction_sim.io.reader import Recording
     from friction_sim.io.recorder import Recorder, recording_metadata
 
