@@ -282,7 +282,10 @@ def _stop_with_turning_points(w0: float, b0: float, b1: float, phase0: float, om
     if w_min > 0.0:
         if b0 >= 0.0:  # the minima only grow: never back to rest
             return NEVER
-        estimate = w_min / (-b0 * period)
+        drop = -b0 * period  # how much the minima fall per period
+        if drop == 0.0:  # a subnormal drift that rounds away over a period: never back to rest
+            return NEVER
+        estimate = w_min / drop
         if not estimate <= LONGEST_SLIP:  # (also when it overflows to inf)
             return NEVER
         hi += max(1.0, math.ceil(estimate)) * period
