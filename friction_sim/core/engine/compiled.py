@@ -118,7 +118,9 @@ def cache_directory() -> Path:
     raise OSError(f"no writable cache directory for compiled code (tried {base} and the temporary directory)")
 
 
-_CONFIG.CACHE_DIR = str(cache_directory())
+#: Where this process keeps and finds the compiled engine (see :func:`cache_directory`).
+CACHE_DIR = cache_directory()
+_CONFIG.CACHE_DIR = str(CACHE_DIR)
 
 
 # -- one slider ------------------------------------------------------------------------------------
@@ -306,12 +308,12 @@ def _margins(values: np.ndarray, margins: np.ndarray) -> None:
 
 _LOCK = threading.Lock()
 #: Compile time [s] on the development machine, for the progress line's estimate.
-COMPILE_SECONDS = 30
+COMPILE_SECONDS = 15
 
 
 def cached() -> bool:
     """Whether the compiled engine is in the cache already (else its first run compiles it)."""
-    return any(Path(_CONFIG.CACHE_DIR).glob("*_run_all*.nbi"))
+    return any(CACHE_DIR.rglob("*._run_all-*.nbi"))  # (Numba files them one folder down)
 
 
 def prepare(progress: Callable[[str], None] | None = None) -> float:
@@ -351,7 +353,7 @@ def run(columns: dict[str, np.ndarray], exact_can_slip: Callable[[int], bool], s
         compiling = not cached()
         if progress is not None and compiling:
             progress(f"compiling the population engine (first use of this version on this machine, about "
-                     f"{COMPILE_SECONDS} s; cached in {_CONFIG.CACHE_DIR})")
+                     f"{COMPILE_SECONDS} s; cached in {CACHE_DIR})")
         started = time.perf_counter()
         numba.set_num_threads(max(1, min(threads or _CONFIG.NUMBA_NUM_THREADS, _CONFIG.NUMBA_NUM_THREADS)))
         _margins(values, margins)
