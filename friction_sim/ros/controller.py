@@ -10,7 +10,8 @@ takes, so the model follows the plant's inputs).
 Publications: ``excitation_amplitude`` (std_msgs/Float64, Pa in N) after each
 mean_velocity sample taken and after each batch of commands that changed
 something; ``diagnostics`` (DiagnosticArray, status name ``controller``,
-stamped by the node's clock like the slider's) at 1 Hz and whenever the
+stamped by the node's clock like the slider's) every ``diagnostics_period``
+(1 s) and whenever the
 target becomes unreachable or reachable again or an internal error occurs.
 
 Commands are taken in batches: while the node is quiet, a command wakes it at
@@ -92,7 +93,8 @@ PUBLICATIONS = (
     ("excitation_amplitude", "std_msgs/msg/Float64",
      "data = Pa [N] for the plant, after each mean_velocity sample and each batch of commands"),
     ("diagnostics", "diagnostic_msgs/msg/DiagnosticArray",
-     "status 'controller', 1 Hz and when the target becomes (un)reachable or an internal error occurs"),
+     "status 'controller', every diagnostics_period (1 s) and when"
+     " the target becomes (un)reachable or an internal error occurs"),
 )
 
 
@@ -128,7 +130,8 @@ class ControllerNode(Node):
         self.create_subscription(TwistStamped, "mean_velocity",
                                  self._guarded("mean_velocity callback", self._on_mean_velocity), QOS_DEPTH)
         self.names = NameWatch(self)
-        self.create_timer(1.0, self._guarded("diagnostics", self._publish_diagnostics), clock=steady)
+        self.create_timer(values["diagnostics_period"], self._guarded("diagnostics", self._publish_diagnostics),
+                          clock=steady)
         watch_parameter_refusals(self, PARAMETERS, self._parameter_refused)
         self.add_on_set_parameters_callback(self._set_parameters_guarded)
         self.add_post_set_parameters_callback(self._guarded("parameter update", self._parameters_set))

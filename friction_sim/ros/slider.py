@@ -16,8 +16,8 @@ Subscriptions: ``drive_force``, ``excitation_amplitude``,
 (geometry_msgs/WrenchStamped: force.x tangential, force.z normal, > 0 lifts,
 away from the track; held until the next message).
 Publications: ``pose``, ``velocity``, ``friction_force`` at ``publish_rate``;
-``mean_velocity`` once per completed excitation period; ``diagnostics`` at
-1 Hz; ``/clock`` while ``publish_clock`` is true (the publisher exists only
+``mean_velocity`` once per completed excitation period; ``diagnostics`` every
+``diagnostics_period`` (1 s); ``/clock`` while ``publish_clock`` is true (the publisher exists only
 then).  The states' and mean velocities' header stamps are simulation time
 (when the state was); the diagnostics' stamp is the node's clock, as
 ``diagnostic_updater`` stamps it (wall time, or /clock with ``use_sim_time``),
@@ -122,7 +122,7 @@ PUBLICATIONS = (
     ("mean_velocity", "geometry_msgs/msg/TwistStamped",
      "linear.x = mean speed [m/s] over the last mean_window_periods whole periods, once per period"),
     ("diagnostics", "diagnostic_msgs/msg/DiagnosticArray",
-     "status 'slider', 1 Hz: with the throw number, flight fraction, lift-offs and landings"),
+     "status 'slider', every diagnostics_period (1 s): with the throw number, flight fraction, lift-offs and landings"),
     ("/clock", "rosgraph_msgs/msg/Clock", "simulation time, while publish_clock is true"),
 )
 
@@ -173,7 +173,8 @@ class SliderNode(Node):
         self._last_published: SliderState | None = None
         self._make_services()
         self.names = NameWatch(self)
-        self.create_timer(1.0, self._on_diagnostics, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.create_timer(values["diagnostics_period"], self._on_diagnostics,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
         watch_parameter_refusals(self, PARAMETERS, self._parameter_refused)
         self.add_on_set_parameters_callback(self._set_parameters)
         self.add_post_set_parameters_callback(self._parameters_set)

@@ -1,12 +1,12 @@
 """Fuzzing the real nodes over real ROS: the slider and the controller console
 scripts each run in their own process, and this test process is the hostile
-client (test/fuzz_rigs.py).  Hypothesis draws the inputs from the one
-vocabulary (test/fuzz_strategies.py): every command topic with every field
+client (test/ros/fuzz_rigs.py).  Hypothesis draws the inputs from the one
+vocabulary (test/ros/fuzz_strategies.py): every command topic with every field
 of its message, every parameter, single and atomic parameter sets, bursts;
 values inside the ranges, at the edges, just outside, absurd finite,
 nan/inf, and of the wrong type.
 
-After each step and each example the invariants of test/fuzz_rigs.py hold:
+After each step and each example the invariants of test/ros/fuzz_rigs.py hold:
 the node is alive and printed no traceback, everything it publishes is
 finite, parameter sets are answered as the one gate says and
 ``get_parameters`` agrees with the simulation in force, every refusal is

@@ -192,6 +192,8 @@ FOXGLOVE_PORT = Setting("foxglove_port", 0, "-", "serve a Foxglove live view (We
                         "(0 = off; Foxglove's usual port is 8765)", 0, 65535, start_only=True)
 FOXGLOVE_ADDRESS = Setting("foxglove_address", "127.0.0.1", "-", "address the live view listens on "
                            "(0.0.0.0: every interface)", start_only=True)
+DIAGNOSTICS_PERIOD = Setting("diagnostics_period", 1.0, "s", "wall-clock seconds between diagnostics messages "
+                             "(the interval their rates and counts cover)", 0.05, 3600.0, start_only=True)
 
 # -- simulation control (the ~/step service) -------------------------------------------
 
@@ -221,7 +223,7 @@ SLIDER_NODE = table(
     DRIVE_FORCE.described("drive force Fd along +x; setting it acts like the topic"),
     EXCITATION_AMPLITUDE, EXCITATION_FREQUENCY,
     PUBLISH_RATE, REAL_TIME_FACTOR, PUBLISH_CLOCK, MEAN_WINDOW_PERIODS, FRAME_ID, LOG_PATH, LOG_RATE,
-    FOXGLOVE_PORT, FOXGLOVE_ADDRESS, STEP_PERIODS, STEP_TIME,
+    FOXGLOVE_PORT, FOXGLOVE_ADDRESS, STEP_PERIODS, STEP_TIME, DIAGNOSTICS_PERIOD,
 )
 CONTROLLER_NODE = table(
     MASS.described("model: slider mass m (the plant's parameters are replaced at start-up by plant_node's, if it "
@@ -234,7 +236,7 @@ CONTROLLER_NODE = table(
     DRIVE_FORCE.described("initial drive force Fd; then it follows the topic"),
     TARGET_SPEED, INTEGRAL_GAIN, MAX_AMPLITUDE_RATIO, SETTLE_MARGIN,
     MEAN_WINDOW_PERIODS.described("the slider's mean_velocity window (read from plant_node)"),
-    PLANT_NODE, ACTIVE,
+    PLANT_NODE, ACTIVE, DIAGNOSTICS_PERIOD,
 )
 
 

@@ -25,6 +25,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from std_srvs.srv import Trigger
 
 from ros_harness import stamp_ns
 
@@ -261,6 +262,15 @@ class FuzzClient:
         if kind == "atomic":
             return [self._answer(self.parameters.set_parameters_atomically(parameters), f"set {items}").result]
         return list(self._answer(self.parameters.set_parameters(parameters), f"set {items}").results)
+
+    def trigger(self, service: str) -> Any:
+        """Call the node's std_srvs/Trigger service ``~/service`` (its simulation control)."""
+        client = self.node.create_client(Trigger, f"{self.target}/{service}")
+        try:
+            assert self.spin_until(lambda: client.service_is_ready(), ANSWER_TIMEOUT), f"no {service} service"
+            return self._answer(client.call_async(Trigger.Request()), service)
+        finally:
+            self.node.destroy_client(client)
 
     def get(self, names: Sequence[str]) -> dict[str, Any]:
         answer = self._answer(self.parameters.get_parameters(list(names)), "get_parameters")

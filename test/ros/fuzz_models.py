@@ -164,8 +164,8 @@ def _sign(value: float) -> float:
 class ControllerModel(ParameterModel):
     """The controller node: parameters, and the law's inputs in force."""
 
-    def __init__(self) -> None:
-        super().__init__(spec.CONTROLLER_NODE, overrides={"plant_node": ""})
+    def __init__(self, overrides: Mapping[str, Any] | None = None) -> None:
+        super().__init__(spec.CONTROLLER_NODE, overrides={"plant_node": "", **(overrides or {})})
         self.drive_force = float(spec.DRIVE_FORCE.default)  # type: ignore[arg-type]
         self.frequency = float(spec.EXCITATION_FREQUENCY.default)  # type: ignore[arg-type]
         self.target = float(spec.TARGET_SPEED.default)  # type: ignore[arg-type]
