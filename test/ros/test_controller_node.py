@@ -1,6 +1,6 @@
 """The controller node over real topics: its model from the plant node,
 diagnostics, its console scripts, and its parameters.  (The law itself is
-tested offline in test/core/test_control.py, the acceptance cases in
+tested offline in test/core/control/test_control.py, the acceptance cases in
 test/experiment/test_acceptance.py.)"""
 
 from __future__ import annotations

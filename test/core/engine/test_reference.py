@@ -26,7 +26,7 @@ OMEGA = 2.0 * math.pi * F
 PAPER = ReferenceInputs(drive_force=0.7, excitation_amplitude=5.0, excitation_frequency=F)
 # Paper case: |Fd| - mu*R = -0.3 + 0.5*sin(theta) > 0  <=>  sin(theta) > 0.6.
 PAPER_SLIP_PHASE = math.asin(0.6)
-MODULE = Path(__file__).resolve().parents[1] / 'reference.py'
+MODULE = Path(__file__).resolve().parents[2] / 'reference.py'
 
 
 def _paper_slip_velocity(t: float, t_s: float) -> float:

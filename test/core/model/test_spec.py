@@ -16,7 +16,7 @@ from friction_sim.core.model.commands import COMMANDS, PARAMETERS, Command, appl
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.errors import ParameterError
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 NUMERIC = [s for table in (spec.SLIDER_NODE, spec.CONTROLLER_NODE, spec.INPUTS) for s in table.values()
            if s.kind in (int, float) and s.low is not None]
 
