@@ -51,6 +51,7 @@ from friction_sim.core.engine.single import Slider
 from friction_sim.core.meanspeed.urelation import kostek_prediction, moves, stop_phase_advance, u_map
 from friction_sim.core.model import spec
 from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.model.records import share
 from friction_sim.core.physics.plant import closed_form_applies, kostek_applies
 from friction_sim.errors import ParameterError
 
@@ -203,7 +204,8 @@ def _window(params: SliderParams, inputs: Inputs, starts: list[_Start], first: i
     return MeanSpeed(
         u=velocity * frequency / (params.gravity * params.mu), mean_velocity=velocity, periodic=periodic,
         period_multiple=count if periodic else 0, settle_periods=first, periods=count,
-        flight_fraction=(end.flight - begin.flight) / duration, stick_fraction=(end.stuck - begin.stuck) / duration,
+        flight_fraction=share(end.flight - begin.flight, duration),
+        stick_fraction=share(end.stuck - begin.stuck, duration),
         exact=False, runaway=runaway,
     )
 

@@ -8,8 +8,33 @@ nodes consume them.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import overload
+
+import numpy as np
+from numpy.typing import NDArray
 
 from friction_sim.core.model.events import Event, SliderState
+
+
+@overload
+def share(part: float, whole: float, empty: float = 0.0) -> float: ...
+@overload
+def share(part: NDArray[np.float64], whole: float | NDArray[np.float64], empty: float = 0.0) -> NDArray[np.float64]: ...
+
+
+def share(part: float | NDArray[np.float64], whole: float | NDArray[np.float64],
+          empty: float = 0.0) -> float | NDArray[np.float64]:
+    """``part / whole`` as a fraction (of a period stuck, say, or in flight), in
+    [0, 1]: the two are differences of separately accumulated times, so their
+    ratio may round a few ulp outside (1.0000000000003553 was seen); ``empty``
+    where ``whole`` is not positive.  The one rule for every time fraction."""
+    if isinstance(part, np.ndarray) or isinstance(whole, np.ndarray):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.asarray(part, dtype=float) / whole
+        return np.where(np.asarray(whole) > 0.0, np.clip(ratio, 0.0, 1.0), empty)
+    if not whole > 0.0:
+        return empty
+    return min(max(part / whole, 0.0), 1.0)
 
 
 @dataclass(frozen=True)
@@ -40,4 +65,4 @@ class Tick:
     paused: bool = False
 
 
-__all__ = ["PeriodSummary", "Tick"]
+__all__ = ["PeriodSummary", "Tick", "share"]

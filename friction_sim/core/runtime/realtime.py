@@ -40,7 +40,7 @@ from friction_sim.core.model import spec
 from friction_sim.core.model.commands import PARAMETERS, PAUSE, RESET, RESUME, STEP, Command, Outcome, apply, reason
 from friction_sim.core.model.events import CycleMark, Event, EventKind, SliderState
 from friction_sim.core.model.params import Inputs, SliderParams, check_load, throw_number
-from friction_sim.core.model.records import PeriodSummary, Tick
+from friction_sim.core.model.records import PeriodSummary, Tick, share
 from friction_sim.core.model.spec import NS_PER_S
 from friction_sim.core.runtime.simclock import SimClock
 from friction_sim.errors import ParameterError, SimulationFault, one_line
@@ -453,8 +453,8 @@ class RealtimeSlider:
             summaries.append(PeriodSummary(
                 n=mark.n, t=mark.t, mean_velocity=(mark.x - first.x) / span if span > 0 else 0.0,
                 window_periods=mark.n - first.n,
-                stick_fraction=(mark.stuck_time - previous.stuck_time) / duration if duration > 0 else 1.0,
-                flight_fraction=(mark.flight_time - previous.flight_time) / duration if duration > 0 else 0.0,
+                stick_fraction=share(mark.stuck_time - previous.stuck_time, duration, empty=1.0),
+                flight_fraction=share(mark.flight_time - previous.flight_time, duration),
             ))
         if summaries:
             self.last_period = summaries[-1]
@@ -531,8 +531,8 @@ class RealtimeSlider:
             "predicted_mean_velocity": prediction.mean_velocity,
             "stick_fraction": self.last_period.stick_fraction if self.last_period else math.nan,
             "flight_fraction": self.last_period.flight_fraction if self.last_period else math.nan,
-            "flight_fraction_in_interval": ((flight_time - stats.interval_flight_start) / sim_elapsed
-                                            if sim_elapsed > 0 else math.nan),
+            "flight_fraction_in_interval": share(flight_time - stats.interval_flight_start, sim_elapsed,
+                                                 empty=math.nan),
             "lift_offs": lift_offs,
             "landings": landings,
             "lift_offs_in_interval": lift_offs - stats.interval_lift_offs_start,

@@ -27,6 +27,7 @@ from friction_sim.core.model import spec
 from friction_sim.core.model.commands import Command, apply_all
 from friction_sim.core.model.events import Event, EventKind, Trajectory
 from friction_sim.core.model.params import Inputs, SliderParams, require_finite, throw_number
+from friction_sim.core.model.records import share
 from friction_sim.errors import ParameterError
 
 Schedule = Sequence[Command]
@@ -186,7 +187,7 @@ def simulate(
     slider.advance_to(min(settle + periods * period, duration))
     window = periods * period
     mean_velocity = (slider.state().x - x_start) / window
-    flight_fraction = (slider.flight_time - flight_start) / window
+    flight_fraction = share(slider.flight_time - flight_start, window)
     slider.advance_to(max(duration, slider.t))
     wall = time.perf_counter() - started
     counts = slider.event_counts

@@ -11,7 +11,7 @@ import math
 import pytest
 
 from friction_sim.core.model.commands import Command
-from friction_sim.core.model.events import Event, EventKind, Mode
+from friction_sim.core.model.events import CycleMark, Event, EventKind, Mode
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.model.records import PeriodSummary
 from friction_sim.core.runtime.realtime import NS_PER_S, RealtimeSlider
@@ -59,6 +59,21 @@ def test_each_period_summary_carries_the_flight_fraction_the_events_give() -> No
         assert 0.0 < period.flight_fraction < 1.0
         assert period.flight_fraction == pytest.approx(expected, rel=1e-9, abs=1e-12)
         assert period.stick_fraction + period.flight_fraction <= 1.0 + 1e-12
+
+
+def test_fractions_are_clamped_to_0_1_where_rounding_pushes_them_out(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Stuck and flight times are accumulated apart from the period marks' times,
+    so a period spent wholly in flight can come out a few ulp above 1 (a hopping
+    run showed flight_fraction 1.0000000000003553): summaries say 1, never more,
+    and never below 0."""
+    t0, t1 = 1000.0, 1000.02
+    over = (t1 - t0) * (1.0 + 2 ** -42)  # a whole period of flight, accumulated a few ulp long
+    marks = [CycleMark(50_000, t0, 0.0, 0.0, 5.0), CycleMark(50_001, t1, 0.0, -1e-18, 5.0 + over)]
+    assert (marks[1].flight_time - marks[0].flight_time) / (t1 - t0) > 1.0  # what the division gave
+    rt = RealtimeSlider(SliderParams(), HOP, wall_ns=0)
+    monkeypatch.setattr(rt.slider, "cycle_marks_after", lambda n: [m for m in marks if m.n > n])
+    (summary,) = rt._new_periods()  # noqa: SLF001 - the summaries straight from the marks
+    assert summary.flight_fraction == 1.0 and summary.stick_fraction == 0.0
 
 
 def test_diagnostics_count_lift_offs_and_landings_and_the_flight_fraction_per_interval() -> None:
