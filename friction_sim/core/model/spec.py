@@ -110,9 +110,10 @@ class Setting:
         return ""
 
     def range_text(self) -> str:
-        """The range as the README shows it: ``1e-06 … 1e+06``, or '' if unbounded."""
+        """The range in words: ``1e-06 … 1e+06`` or ``impulsive | none``, or '' if unbounded
+        (plain text: :func:`markdown_table` escapes it for a table)."""
         if self.choices:
-            return " \\| ".join(self.choices)
+            return " | ".join(self.choices)
         if self.low is None and self.high is None:
             return ""
         low = "" if self.low is None else _number(self.low)
@@ -246,7 +247,7 @@ def markdown_table(settings: dict[str, Setting]) -> str:
     test checks it, so the documentation cannot drift from the code."""
     rows = ["| parameter | default | unit | range / rule | meaning |", "|---|---|---|---|---|"]
     for setting in settings.values():
-        limits = "; ".join(part for part in (setting.range_text(), setting.rule) if part) or "–"
+        limits = "; ".join(part for part in (setting.range_text(), setting.rule) if part).replace("|", "\\|") or "–"
         meaning = (setting.description + ("; start-up only" if setting.start_only else "")).replace("|", "\\|")
         unit = setting.unit if setting.unit not in ("", "-") else "–"
         rows.append(f"| `{setting.name}` | {_default_text(setting.default)} | {unit} | {limits} "
