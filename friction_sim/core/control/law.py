@@ -111,29 +111,46 @@ def speed_limit(drive_force: float, model: SliderParams, frequency: float,
                 max_ratio: float = float(spec.MAX_AMPLITUDE_RATIO.default)) -> float:
     """The largest |mean velocity| [m/s] a slider of the model's mass, driven
     by ``drive_force`` at excitation ``frequency``, can show (see the module
-    doc); inf when |phi| >= 1 (it slides away, and reaches any speed in time).
+    doc and :func:`speed_limit_formula`)."""
+    return speed_limit_formula(drive_force, model, frequency, max_ratio)[0]
 
-    Beyond Kostek's model below lift-off (:func:`uses_closed_form`) the
-    tangential excitation Pt <= ``max_ratio``*m*g*|cot(beta)| and the slope's
-    pull add to the drive: the limit is :data:`SPEED_LIMIT_FACTOR`
-    (|Fd - m g sin(alpha)| + Pt)/(m f), and at least :data:`GENERAL_SPEED_MARGIN`
-    times the fastest mean speed the model shows for a <= ``max_ratio``; inf
-    when |Fd - m g sin(alpha)| >= mu m g cos(alpha) or when the model runs away
-    somewhere in that range (a hopping slider without landing friction can).
+
+def speed_limit_formula(drive_force: float, model: SliderParams, frequency: float,
+                        max_ratio: float = float(spec.MAX_AMPLITUDE_RATIO.default)) -> tuple[float, str]:
+    """The speed limit and the formula that gives it, with its numbers (for
+    the refusal's message: the words must be the rule that was applied).
+
+    In Kostek's model below lift-off (:func:`uses_closed_form`) the limit is
+    :data:`SPEED_LIMIT_FACTOR` |Fd|/(m f); inf when |phi| >= 1 (it slides
+    away, and reaches any speed in time).  Beyond it the tangential excitation
+    Pt <= ``max_ratio``*m*g*|cot(beta)| and the slope's pull add to the drive:
+    the limit is :data:`SPEED_LIMIT_FACTOR` (|Fd - m g sin(alpha)| + Pt)/(m f),
+    and at least :data:`GENERAL_SPEED_MARGIN` times the fastest mean speed the
+    model shows for a <= ``max_ratio``; inf when |Fd - m g sin(alpha)| >=
+    mu m g cos(alpha) or when the model runs away somewhere in that range (a
+    hopping slider without landing friction can).
     """
+    m_f = f"m = {model.mass:g} kg, f = {frequency:g} Hz"
     if uses_closed_form(model, max_ratio):
         force = abs(drive_force)
         if force >= model.mu * model.weight:
-            return math.inf
-        return SPEED_LIMIT_FACTOR * force / (model.mass * frequency)
+            return math.inf, f"none: |Fd| = {force:g} N >= mu m g = {model.mu * model.weight:g} N (|phi| >= 1)"
+        limit = SPEED_LIMIT_FACTOR * force / (model.mass * frequency)
+        return limit, f"{SPEED_LIMIT_FACTOR:g} |Fd|/(m f) = {limit:.6g} m/s for Fd = {drive_force:g} N, {m_f}"
     if runs_away(drive_force, model):
-        return math.inf
+        return math.inf, "none: |Fd - m g sin(alpha)| >= mu m g cos(alpha) (the slider runs away)"
     samples = _branch(model, drive_force, max_ratio, 1).u
     if not np.all(np.isfinite(samples)):
-        return math.inf
+        return math.inf, f"none: the model runs away somewhere in a <= {max_ratio:g}"
     fastest = float(np.max(np.abs(samples))) * model.gravity * model.mu / frequency
     pull = abs(drive_force - model.downhill_weight) + max_ratio * model.weight * abs(model.tangential_ratio)
-    return max(SPEED_LIMIT_FACTOR * pull / (model.mass * frequency), GENERAL_SPEED_MARGIN * fastest)
+    by_pull = SPEED_LIMIT_FACTOR * pull / (model.mass * frequency)
+    by_model = GENERAL_SPEED_MARGIN * fastest
+    limit = max(by_pull, by_model)
+    margin = f"{GENERAL_SPEED_MARGIN / math.pi:g} pi"
+    return limit, (f"max({SPEED_LIMIT_FACTOR:g} (|Fd - m g sin(alpha)| + Pt)/(m f), {margin} x the fastest mean speed "
+                   f"of the model {fastest:.6g} m/s) = max({by_pull:.6g}, {by_model:.6g}) = {limit:.6g} m/s for "
+                   f"|Fd - m g sin(alpha)| + Pt = {pull:g} N, {m_f}")
 
 
 def uses_closed_form(model: SliderParams, max_ratio: float) -> bool:
@@ -397,11 +414,8 @@ class MeanSpeedController:
         return speed
 
     def _limit_words(self) -> str:
-        model, force, frequency = self.config.model, self._drive_force, self._frequency
-        plant = f"m = {model.mass:g} kg, Fd = {force:g} N, f = {frequency:g} Hz"
-        creep = abs(force) / (2.0 * math.pi * model.mass * frequency)
-        now = (f"{SPEED_LIMIT_FACTOR:g} |Fd|/(m f) = {self._limit:.6g} m/s for {plant}; such a slider creeps at most "
-               f"|Fd|/(2 pi m f) = {creep:.3g} m/s")
+        now = speed_limit_formula(self._drive_force, self.config.model, self._frequency,
+                                  self.config.max_amplitude_ratio)[1]
         if self._envelope > self._limit:
             return (f"|mean_velocity| must be <= {self._envelope:.6g} m/s, the limit of the plant before the last "
                     f"change (now {now}); a faster sample is from no plant in force")

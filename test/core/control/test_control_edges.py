@@ -10,6 +10,7 @@ included) are never refused.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -362,3 +363,43 @@ def test_the_limit_stays_for_the_windows_on_their_way() -> None:
     assert controller.sample_limit == old, "not before a sample within the new limit"
     controller.on_mean_velocity(0.0, 1.0, 100)
     assert controller.sample_limit == speed_limit(0.7, SliderParams(), 100.0) < old
+
+
+def _refusal(config: ControllerConfig, drive_force: float, frequency: float) -> tuple[str, float]:
+    """The words of a refused sample and the limit in force."""
+    controller = MeanSpeedController(config, drive_force=drive_force, frequency=frequency,
+                                     target_speed=math.copysign(1e-4, drive_force))
+    limit = controller.sample_limit
+    with pytest.raises(ParameterError) as refused:
+        controller.on_mean_velocity(2.0 * limit, 0.1, NS)
+    return str(refused.value), limit
+
+
+def _number(text: str) -> float:
+    return float(text.rstrip("."))
+
+
+@pytest.mark.parametrize("drive_force, frequency", [(0.8, 50.0), (0.3, 100.0), (-0.5, 20.0)])
+def test_a_refusal_prints_the_formula_it_applied_in_kostek_s_model(drive_force: float, frequency: float) -> None:
+    """Issue 23, defect 3: the printed formula, evaluated with the printed
+    numbers, gives the printed limit, and that is the limit in force."""
+    words, limit = _refusal(ControllerConfig(), drive_force, frequency)
+    found = re.search(r"(\S+) \|Fd\|/\(m f\) = (\S+) m/s for Fd = (\S+) N, m = (\S+) kg, f = (\S+) Hz", words)
+    assert found, words
+    factor, value, force, mass, freq = (_number(group) for group in found.groups())
+    assert force == pytest.approx(drive_force, rel=1e-6) and freq == frequency and mass == 1.0
+    assert value == pytest.approx(factor * abs(force) / (mass * freq), rel=1e-5)  # 6 printed digits
+    assert value == pytest.approx(limit, rel=1e-5)
+
+
+def test_a_refusal_prints_the_formula_it_applied_beyond_kostek_s_model() -> None:
+    """The hopping run of defect 3 (max_amplitude_ratio above 1: the general
+    model's limit): the words name the max(...) rule that gave 0.06 m/s at
+    Fd = 0.8 N, not 2 |Fd|/(m f) = 0.032 m/s."""
+    words, limit = _refusal(ControllerConfig(max_amplitude_ratio=2.0), 0.8, 50.0)
+    found = re.search(r"= max\((\S+), (\S+)\) = (\S+) m/s for \|Fd - m g sin\(alpha\)\| \+ Pt = (\S+) N", words)
+    assert found, words
+    by_pull, by_model, value, pull = (_number(group) for group in found.groups())
+    assert by_pull == pytest.approx(2.0 * pull / (1.0 * 50.0), rel=1e-5)
+    assert value == pytest.approx(max(by_pull, by_model), rel=1e-5) and value == pytest.approx(limit, rel=1e-5)
+    assert "2 |Fd|/(m f) =" not in words
