@@ -77,7 +77,7 @@ from friction_sim.io.messages import command_from_message, key_values, message_c
 from friction_sim.ros.graph import NameWatch
 from friction_sim.ros.intake import PolledGroup, ThrottledWarning, take_with_info
 from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
-from friction_sim.ros.run import node_help, run_node, wall_ns
+from friction_sim.ros.run import CONTROLLER_EXIT_CODES, node_help, run_node, wall_ns
 
 _T = TypeVar("_T")
 QOS_DEPTH = 10
@@ -419,7 +419,7 @@ def help_text() -> str:
               "the slider's mean speed [m/s] per window (refused if no plant in force could creep that fast)")
     return node_help("The mean-speed controller: publishes the excitation amplitude Pa that makes the slider "
                      "creep at target_speed (exact U-relation feedforward, integral action on the measured "
-                     "mean speed).", PARAMETERS, CONTROLLER, PUBLICATIONS, [sample])
+                     "mean speed).", PARAMETERS, CONTROLLER, PUBLICATIONS, CONTROLLER_EXIT_CODES, [sample])
 
 
 def main(args: Sequence[str] | None = None) -> int:

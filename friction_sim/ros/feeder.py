@@ -14,7 +14,7 @@ from rclpy.parameter import Parameter
 
 from friction_sim.io.paramfile import read_params_file
 from friction_sim.ros.controller import ControllerNode
-from friction_sim.ros.run import EXIT_CODES, run_node
+from friction_sim.ros.run import FEEDER_EXIT_CODES, run_node
 from friction_sim.ros.slider import SliderNode
 
 
@@ -41,4 +41,4 @@ def main(args: Sequence[str] | None = None, slider_params: Path | None = None,
 
     return run_node(make, args, prog="feeder", help_text=(
         "Slider and controller in one process, on one executor, talking over the same topics as the two "
-        "nodes started separately (see slider --help and controller --help).\n\n" + EXIT_CODES))
+        "nodes started separately (see slider --help and controller --help).\n\n" + FEEDER_EXIT_CODES))

@@ -35,11 +35,16 @@ EXIT_OK = 0
 EXIT_BAD_PARAMETER = 2
 EXIT_FAULT = 3
 EXIT_RECORDING_FAILED = 4
-EXIT_CODES = (
-    f"exit codes: {EXIT_OK} stopped by Ctrl-C or SIGTERM; {EXIT_BAD_PARAMETER} bad argument or start-up "
-    f"parameter; {EXIT_FAULT} the simulation could not go on (reason logged); {EXIT_RECORDING_FAILED} ran "
-    "to the end but its recording failed (reason logged; the part written is readable)"
-)
+#: What each exit code means, for --help: every node's, then the slider's own.
+_COMMON_EXITS = (f"{EXIT_OK} stopped by Ctrl-C or SIGTERM; {EXIT_BAD_PARAMETER} bad argument or start-up "
+                 f"parameter")
+CONTROLLER_EXIT_CODES = f"exit codes: {_COMMON_EXITS}; {EXIT_FAULT} an internal error stopped it (one line on stderr)"
+SLIDER_EXIT_CODES = (
+    f"exit codes: {_COMMON_EXITS}; {EXIT_FAULT} the simulation could not go on (reason logged); "
+    f"{EXIT_RECORDING_FAILED} ran to the end but its recording failed (reason logged; the part written is "
+    "readable)")
+#: ``feeder`` runs both: the slider's codes (the controller's 3 is an error that stops the process too).
+FEEDER_EXIT_CODES = SLIDER_EXIT_CODES
 #: Line width of --help.
 HELP_WIDTH = 100
 
@@ -74,12 +79,12 @@ class FaultSignal:
 
 
 def node_help(description: str, settings: Mapping[str, Setting], consumer: str,
-              publications: Sequence[tuple[str, str, str]], more_subscriptions: Sequence[tuple[str, str, str]] = ()
-              ) -> str:
+              publications: Sequence[tuple[str, str, str]], exit_codes: str,
+              more_subscriptions: Sequence[tuple[str, str, str]] = ()) -> str:
     """The ``--help`` text of a node after its usage line: what it does, its
     parameters with default, unit, range and meaning (from the one vocabulary),
     its topics (name, type, meaning: the command topics ``consumer`` takes,
-    from the command table, then ``more_subscriptions``) and its exit codes."""
+    from the command table, then ``more_subscriptions``) and its own ``exit_codes``."""
     subscriptions = [(entry.name, entry.message_type, entry.description) for entry in consumed_by(consumer)]
     subscriptions += more_subscriptions
     def wrapped(text: str, indent: str = "") -> list[str]:
@@ -99,7 +104,7 @@ def node_help(description: str, settings: Mapping[str, Setting], consumer: str,
         for topic, kind, meaning in topics:
             lines.append(f"  {topic} ({kind})")
             lines += wrapped(meaning, "      ")
-    lines += ["", *wrapped(EXIT_CODES)]
+    lines += ["", *wrapped(exit_codes)]
     return "\n".join(lines)
 
 

@@ -102,7 +102,15 @@ from friction_sim.io.sinks import Sink, deliver_tick
 from friction_sim.ros.graph import NameWatch
 from friction_sim.ros.intake import PolledGroup, ThrottledWarning, take_all
 from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
-from friction_sim.ros.run import EXIT_FAULT, EXIT_RECORDING_FAILED, FaultSignal, node_help, run_node, wall_ns
+from friction_sim.ros.run import (
+    EXIT_FAULT,
+    EXIT_RECORDING_FAILED,
+    SLIDER_EXIT_CODES,
+    FaultSignal,
+    node_help,
+    run_node,
+    wall_ns,
+)
 from friction_sim.ros.slider_outputs import control_text, health, open_live_view, open_recorder, recorded
 
 QOS_DEPTH = 10
@@ -526,7 +534,7 @@ def help_text() -> str:
                      "parameters.  Services (std_srvs/srv/Trigger): ~/pause and ~/resume (simulation time "
                      "stops exactly, /clock too), ~/step (while paused: step_periods periods, or step_time "
                      "seconds), ~/reset (back to rest at x = 0, phase 0, under the parameters in force).",
-                     PARAMETERS, SLIDER, PUBLICATIONS)
+                     PARAMETERS, SLIDER, PUBLICATIONS, SLIDER_EXIT_CODES)
 
 
 def main(args: Sequence[str] | None = None) -> int:

@@ -291,7 +291,13 @@ def test_help_prints_usage_and_exits_0_without_starting_a_node(script: str) -> N
             assert f"  {topic} (" in done.stdout
         words = " ".join(done.stdout.split())  # as wrapped to the terminal width
         assert "excitation_frequency = 50.0 Hz" in words and "0.001 … 20000" in words
-        assert "exit codes: 0" in done.stdout
+        assert "[impulsive | none]" in words, "plain text, not the README's markdown escape"
+    words = " ".join(done.stdout.split())
+    assert "\\" not in done.stdout, "no markdown escapes in plain text"
+    codes = words[words.index("exit codes:"):]
+    # Each node lists its own codes: 4 (a failed recording) is the slider's alone.
+    assert "0 stopped by Ctrl-C" in codes and "2 bad argument" in codes and "3 " in codes
+    assert ("4 ran to the end but its recording failed" in codes) == (script == "slider"), codes
     wrong = subprocess.run([str(BIN / script), "--frobnicate"], capture_output=True, text=True, timeout=30)
     assert wrong.returncode == 2 and "--frobnicate" in wrong.stderr and "Traceback" not in wrong.stderr
 
