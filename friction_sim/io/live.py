@@ -98,6 +98,7 @@ from friction_sim.io.messages import (
     TOPIC_TYPES,
     command_topic,
     fill_state_messages,
+    node_name,
     seconds_to_ns,
     state_messages,
 )
@@ -129,7 +130,8 @@ class LiveView:
     'ws://127.0.0.1:8765'
 
     ``port`` 0 lets the OS choose (:attr:`port` says which).  ``namespace``
-    qualifies relative topic names; ``advertise`` names the topics
+    qualifies relative topic names; ``node`` is the fully qualified name
+    the parameter events name (default: ``slider`` in ``namespace``); ``advertise`` names the topics
     advertised at start: names of :data:`~friction_sim.io.messages.TOPIC_TYPES`,
     or (topic, ``pkg/msg/Type``) pairs for others (``("/clock",
     "rosgraph_msgs/msg/Clock")``).
@@ -146,7 +148,7 @@ class LiveView:
     #: each tick published (publish_rate), not the recording's log grid.
     published_states = True
 
-    def __init__(self, port: int = 8765, address: str = "127.0.0.1", *, namespace: str = "/",
+    def __init__(self, port: int = 8765, address: str = "127.0.0.1", *, namespace: str = "/", node: str | None = None,
                  advertise: Sequence[str | tuple[str, str]] = ADVERTISED, queue_size: int = 4096, backlog: int = 4096,
                  interval: float = 0.02, name: str = "friction_sim", services: Sequence[LiveService] = ()) -> None:
         check_port(port)
@@ -163,6 +165,7 @@ class LiveView:
                                 "(give others as (topic, type) pairs)")
         self.address = address
         self.namespace = namespace
+        self.node = node or node_name(namespace)
         self._capacity = queue_size
         self._interval = float(interval)
         self._lock = threading.Lock()
@@ -437,7 +440,7 @@ class LiveView:
             self._serve_states(item[1], item[2])
             return
         try:
-            messages = record_messages(item)
+            messages = record_messages(item, self.node)
         except Exception as error:  # noqa: BLE001 - one bad record must not end the live view
             self._count_bad(size, item[0], one_line(error, with_type=True))
             return

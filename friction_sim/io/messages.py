@@ -172,15 +172,28 @@ def mean_velocity_message(period: PeriodSummary, frame_id: str = "slideway") -> 
 
 # -- commands -----------------------------------------------------------------
 
+#: The slider node's name when it is not renamed (``__node:=``).
+SLIDER_NODE = "slider"
+#: The fully qualified name of a slider node in the root namespace.
+DEFAULT_NODE = "/" + SLIDER_NODE
 
-def command_message(command: Command, frame_id: str = "") -> Any:
+
+def node_name(namespace: str, name: str = SLIDER_NODE) -> str:
+    """The fully qualified name of node ``name`` in ``namespace`` (as
+    rclpy's get_fully_qualified_name gives it): /slider, /feeder2/slider."""
+    return f"{namespace.rstrip('/')}/{name}"
+
+
+
+def command_message(command: Command, frame_id: str = "", node: str = DEFAULT_NODE) -> Any:
     """A command as the message it travels in (see :data:`COMMANDS`): the
     values written at their message fields; a stamped message gets the
     command's time and ``frame_id``.  A ``parameters`` command (a change made
     with ``ros2 param set``) becomes a ParameterEvent whose changed_parameters
-    carry the field names and values."""
+    carry the field names and values, and names ``node`` (the slider's fully
+    qualified name) as ROS's own /parameter_events does."""
     if command.name == PARAMETERS:
-        return parameters_message(command.values, command.t, changed=True)
+        return parameters_message(command.values, command.t, changed=True, node=node)
     if command.is_control:
         return DiagnosticStatus(level=DiagnosticStatus.OK, name=command.name, message=_CONTROL_TEXT[command.name],
                                 values=key_values({"t": float(command.t), **command.values}))
@@ -342,11 +355,12 @@ def parameter_python_value(value: Any) -> Any:
 
 
 def parameters_message(
-    values: Mapping[str, Any], t: float, *, changed: bool = False, node: str = "/slider",
+    values: Mapping[str, Any], t: float, *, changed: bool = False, node: str = DEFAULT_NODE,
 ) -> ParameterEvent:
     """The parameters ``values`` at simulation time ``t`` as an
-    rcl_interfaces/ParameterEvent: as new_parameters (the set at start), or
-    with ``changed`` as changed_parameters (a later change)."""
+    rcl_interfaces/ParameterEvent of ``node`` (fully qualified: /feeder2/slider
+    under namespace /feeder2): as new_parameters (the set at start), or with
+    ``changed`` as changed_parameters (a later change)."""
     parameters = [Parameter(name=name, value=parameter_value(value)) for name, value in values.items()]
     msg = ParameterEvent(node=node)
     time_msg(seconds_to_ns(t), msg.stamp)
@@ -376,9 +390,11 @@ def key_values(values: Mapping[str, Any]) -> list[KeyValue]:
 
 
 __all__ = [
-    "COMMAND_TOPICS", "FLIGHT_EVENTS", "NS_PER_S", "SIM_CONTROL", "STATE_TOPICS", "TOPIC_TYPES",
+    "COMMAND_TOPICS", "DEFAULT_NODE", "FLIGHT_EVENTS", "NS_PER_S", "SIM_CONTROL", "SLIDER_NODE", "STATE_TOPICS",
+    "TOPIC_TYPES",
     "command_from_message", "command_message", "command_topic", "event_message", "fill_state_messages",
     "mean_velocity_message", "message_class",
-    "ns_to_seconds", "parameter_event_values", "parameter_python_value", "parameter_value", "parameters_message",
+    "node_name", "ns_to_seconds", "parameter_event_values", "parameter_python_value", "parameter_value",
+    "parameters_message",
     "rejection_message", "seconds_to_ns", "stamp_ns", "state_messages", "time_msg",
 ]

@@ -85,7 +85,7 @@ from friction_sim.core.model.records import PeriodSummary
 from friction_sim.errors import ParameterError, RecordingPathError, one_line
 from friction_sim.io import cdr
 from friction_sim.io.bagfile import BagFile, RecordingStats
-from friction_sim.io.messages import TOPIC_TYPES, message_class, value_text
+from friction_sim.io.messages import TOPIC_TYPES, message_class, node_name, value_text
 from friction_sim.io.recordwriter import Item, RecordWriter, qualified_topic
 from friction_sim.io.typesupport import DEFAULT_QOS
 
@@ -162,7 +162,9 @@ class Recorder:
     convention of this version) added unless ``metadata`` has it; None adds
     no key (a file as written before the key existed: tests of old files).
     ``namespace`` is the node's namespace: relative topic names are
-    stored fully qualified in it.  ``setting`` names the setting ``path``
+    stored fully qualified in it; ``node`` is the node's fully qualified
+    name, which the parameter events name (default: ``slider`` in
+    ``namespace``).  ``setting`` names the setting ``path``
     came from, for the error message.  ``queue_size`` counts messages (a
     state is three); ``flush_interval`` [s of wall time] bounds what a
     SIGKILL can lose.  A path that cannot be written raises one
@@ -172,7 +174,7 @@ class Recorder:
 
     def __init__(
         self, path: str | os.PathLike[str], metadata: Mapping[str, Any] | None = None, *,
-        metadata_name: str = METADATA_NAME, namespace: str = "/", setting: str = "log_path",
+        metadata_name: str = METADATA_NAME, namespace: str = "/", node: str | None = None, setting: str = "log_path",
         queue_size: int = 262_144, block_when_full: bool = True, flush_interval: float = 0.25,
         chunk_size: int = 4 * 1024 * 1024, fsync: bool = False, qos_profiles: list[dict[str, Any]] | None = None,
         external_force_z_convention: str | None = LIFTS,
@@ -214,7 +216,7 @@ class Recorder:
             metadata = {**metadata, CONVENTION_KEY: metadata.get(CONVENTION_KEY, external_force_z_convention)}
         self._file = self._start(qos_profiles if qos_profiles is not None else DEFAULT_QOS, chunk_size,
                                  metadata_name, metadata)
-        self._writer = RecordWriter(self._file, namespace, self.path)
+        self._writer = RecordWriter(self._file, namespace, self.path, node or node_name(namespace))
         _prepare_encoders()
         self._thread = threading.Thread(target=self._run, name="mcap_writer", daemon=True)
         self._thread.start()

@@ -86,9 +86,10 @@ def qualified_topic(namespace: str, topic: str) -> str:
 class RecordWriter:
     """Writes queued sink records to ``file`` (see the module docstring); one thread only."""
 
-    def __init__(self, file: BagFile, namespace: str, path: Path) -> None:
+    def __init__(self, file: BagFile, namespace: str, path: Path, node: str) -> None:
         self.file = file
         self.namespace = namespace
+        self.node = node
         self.path = path
         #: Messages dropped because no message could hold their record.
         self.bad = 0
@@ -207,7 +208,7 @@ class RecordWriter:
         elif kind == "state":
             self._add_state(item[1], item[2])
         else:
-            for topic, msg, log_time_ns in record_messages(item):
+            for topic, msg, log_time_ns in record_messages(item, self.node):
                 self._add(self.topic(topic), msg, log_time_ns)
 
     def _add_state(self, state: SliderState, frame_id: str) -> None:
@@ -233,9 +234,10 @@ class RecordWriter:
             _log.warning("recording %s: dropped a %s record: %s", self.path, what, why)
 
 
-def record_messages(item: Item) -> list[tuple[str, Any, int]]:
+def record_messages(item: Item, node: str) -> list[tuple[str, Any, int]]:
     """(topic, message, log time [ns]) of a queued sink record other than
-    states, as a recording holds them (the live view serves the same)."""
+    states, as a recording holds them (the live view serves the same);
+    parameter events name ``node``, the slider's fully qualified name."""
     kind = item[0]
     if kind == "msg":
         return [(item[1], item[2], int(item[3]))]
@@ -246,11 +248,12 @@ def record_messages(item: Item) -> list[tuple[str, Any, int]]:
     if kind == "command":
         outcome: Outcome = item[1]
         if outcome.accepted:
-            return [(command_topic(outcome.name), command_message(outcome.command, item[2]),
+            return [(command_topic(outcome.name), command_message(outcome.command, item[2], node),
                      seconds_to_ns(outcome.t))]
         return [("rejected_commands", rejection_message(outcome), seconds_to_ns(outcome.t))]
     if kind == "parameters":
-        return [("parameters", parameters_message(item[1], item[2], changed=item[3]), seconds_to_ns(item[2]))]
+        return [("parameters", parameters_message(item[1], item[2], changed=item[3], node=node),
+                 seconds_to_ns(item[2]))]
     raise ValueError(f"unknown record kind {kind!r}")
 
 

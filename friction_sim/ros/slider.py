@@ -152,13 +152,14 @@ class SliderNode(Node):
         self._serving = threading.Event()  # set once the node is whole: the live view may call in before
         #: Consumers of the run (the recorder, a live view, a test's probe).
         self.sinks: list[Sink] = []
-        self.recorder = open_recorder(values, self.get_namespace())
+        self.recorder = open_recorder(values, self.get_namespace(), self.get_fully_qualified_name())
         self._recorder_waited_ns = 0
         self._recorder_waited_reported = 0.0
         if self.recorder is not None:
             self.sinks.append(self.recorder)
         try:
-            self.live = open_live_view(values, self.get_namespace(), self._live_services())
+            self.live = open_live_view(values, self.get_namespace(), self.get_fully_qualified_name(),
+                                       self._live_services())
         except BaseException:
             if self.recorder is not None:
                 self.recorder.finish()  # a taken port must not leave a recording open
@@ -175,7 +176,7 @@ class SliderNode(Node):
         self._fault = FaultSignal(self)
         self._make_publishers(values["publish_clock"])
         self._make_subscriptions()
-        self._watch_for_live_view()
+        self._watch_namespace()
         self._published = threading.Condition()  # the tick thread's count of ticks published, for ~/step
         self._ticks_computed = self._ticks_published = 0
         self._last_published: SliderState | None = None
@@ -265,21 +266,24 @@ class SliderNode(Node):
             for entry in consumed_by(SLIDER)
         ]
 
-    def _watch_for_live_view(self) -> None:
-        """With a live view: forward what other nodes put on this namespace's
-        ``diagnostics`` (the controller's, and this node's own) and
-        ``target_speed``, so the view shows the whole feeder."""
-        live = self.live
-        if live is None:
+    def _watch_namespace(self) -> None:
+        """With a recording or a live view: keep what other nodes put on this
+        namespace's ``diagnostics`` (the controller's, and this node's own)
+        and ``target_speed``, so the file and the view show the whole feeder
+        (the shipped layout plots the target against the mean speed)."""
+        if self.recorder is None and self.live is None:
             return
         for topic, kind in (("diagnostics", DiagnosticArray), ("target_speed", message_class("std_msgs/msg/Float64"))):
             self.create_subscription(kind, topic, functools.partial(self._forward, topic), QOS_DEPTH,
                                      event_callbacks=_QUIET_SUBSCRIPTION)
 
     def _forward(self, topic: str, msg: Any) -> None:
-        """Hand a message seen on ``topic`` to the live view, at the simulation time now."""
-        if self.live is not None:
-            self.live.write(topic, msg, seconds_to_ns(self._rt.now(wall_ns())))
+        """Hand a message seen on ``topic`` to the recording and the live view,
+        at the simulation time now."""
+        log_time_ns = seconds_to_ns(self._rt.now(wall_ns()))
+        for sink in (self.recorder, self.live):
+            if sink is not None:
+                sink.write(topic, msg, log_time_ns)
 
     def _take_commands(self) -> None:
         """Apply every command waiting on the command topics (tick thread)."""
@@ -363,9 +367,10 @@ class SliderNode(Node):
 
     def _parameter_refused(self, name: str, value: Any, why: str) -> None:
         """rclpy refused a parameter value before our callbacks (range, type,
-        read-only): counted and recorded like any refusal (common has warned)."""
-        number = isinstance(value, (int, float)) and not isinstance(value, bool)
-        values = {name: float(value)} if number and name in PHYSICS_FIELDS else {}
+        read-only): counted and recorded like any refusal (common has warned),
+        with the value as it was sent (an integer 2 stays 2: the refusal is
+        about its type)."""
+        values = {name: value} if name in PHYSICS_FIELDS else {}
         with self._lock:
             outcome = self._rt.refuse(Command(0.0, PARAMETER_COMMAND, values), why, wall_ns())
         for sink in self.sinks:

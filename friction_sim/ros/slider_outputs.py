@@ -25,7 +25,7 @@ def control_text(outcome: Outcome, state: SliderState) -> str:
     return {PAUSE: "paused at ", RESUME: "resumed at ", RESET: "reset to rest at x = 0: "}[outcome.name] + where
 
 
-def open_recorder(values: dict[str, Any], namespace: str) -> Any:
+def open_recorder(values: dict[str, Any], namespace: str, node: str) -> Any:
     """A Recorder for ``log_path`` (None when it is empty), with the run's
     parameters as the file's metadata, the node's namespace (topics are
     stored fully qualified, as rosbag2 does) and waiting rather than dropping
@@ -34,10 +34,11 @@ def open_recorder(values: dict[str, Any], namespace: str) -> Any:
         return None
     from friction_sim.io.recorder import Recorder
 
-    return Recorder(values["log_path"], metadata=recorded(values), namespace=namespace, block_when_full=True)
+    return Recorder(values["log_path"], metadata=recorded(values), namespace=namespace, node=node,
+                    block_when_full=True)
 
 
-def open_live_view(values: dict[str, Any], namespace: str, services: list[Any]) -> Any:
+def open_live_view(values: dict[str, Any], namespace: str, node: str, services: list[Any]) -> Any:
     """A LiveView on ``foxglove_port`` (None when it is 0): the Foxglove SDK's
     server on ``foxglove_address``, topics qualified in the node's namespace,
     with ``services``.  A port that is taken raises LiveViewError naming it
@@ -50,8 +51,8 @@ def open_live_view(values: dict[str, Any], namespace: str, services: list[Any]) 
     topics: list[Any] = [*ADVERTISED, SIM_CONTROL, *COMMANDS, ("diagnostics", "diagnostic_msgs/msg/DiagnosticArray")]
     if values["publish_clock"]:
         topics.append(("/clock", "rosgraph_msgs/msg/Clock"))
-    return LiveView(values["foxglove_port"], values["foxglove_address"], namespace=namespace, advertise=topics,
-                    services=services)
+    return LiveView(values["foxglove_port"], values["foxglove_address"], namespace=namespace, node=node,
+                    advertise=topics, services=services)
 
 
 def recorded(values: dict[str, Any]) -> dict[str, Any]:

@@ -201,3 +201,39 @@ def test_a_hopping_slider_publishes_its_flight_and_the_recording_verifies(ros: N
                           text=True, timeout=300, check=False)
     assert done.returncode == 0 and "reproducible" in done.stdout, done.stdout + done.stderr
     assert "largest height difference" in done.stdout
+
+
+def test_the_recording_names_its_node_keeps_what_was_sent_and_the_feeder_s_targets(ros: None, tmp_path: Path) -> None:
+    """Issue 23, defects 1, 7 and 9, as ``ros2 param set`` and a controller
+    make them: every parameter event names the slider's fully qualified name
+    (``/<ns>/slider``, not ``/slider``); a refused integer 2 for ``mass`` is
+    recorded as the 2 that was sent, not 2.0; and the targets and statuses
+    seen on the namespace are in the file (the shipped layout plots them)."""
+    from friction_sim.io.reader import read_recording
+
+    ns, path = namespace(), tmp_path / "run.mcap"
+    node = SliderNode(namespace=ns, parameter_overrides=[Parameter("log_path", value=str(path))])
+    probe = Probe(ns, node, outputs={"pose": PoseStamped, "diagnostics": DiagnosticArray})
+    try:
+        probe.wait_for_connection(topic="pose")
+        assert not probe.set_parameter("slider", "mass", 2)[0]  # rclpy refuses the type; the node records it
+        assert probe.set_parameter("slider", "mu", 0.12)[0]  # physics: recorded as a parameters command
+        assert probe.set_parameter("slider", "frame_id", "rail")[0]  # not physics: recorded as it is set
+        assert probe.spin_until(lambda: probe.publishers["target_speed"].get_subscription_count() >= 1)
+        probe.spin_for(0.3)  # the slider's reader matches our writer too (as wait_for_connection does)
+        probe.send("target_speed", 2.5e-4)
+        seen = len(probe.received["diagnostics"])
+        assert probe.spin_until(lambda: len(probe.received["diagnostics"]) >= seen + 2, 15.0)
+    finally:
+        probe.close()
+        node.destroy_node()
+    recording = read_recording(path)
+    by_topic: dict[str, list[Any]] = {}
+    for raw in recording.messages:
+        by_topic.setdefault(raw.topic, []).append(recording.decode(raw))
+    events = by_topic[f"{ns}/parameters"]
+    assert len(events) >= 3 and {msg.node for msg in events} == {f"{ns}/slider"}, {msg.node for msg in events}
+    refusals = [{kv.key: kv.value for kv in msg.values} for msg in by_topic[f"{ns}/rejected_commands"]]
+    assert {"mass": "2"} in refusals, refusals
+    assert [msg.data for msg in by_topic[f"{ns}/target_speed"]] == [2.5e-4]
+    assert by_topic[f"{ns}/diagnostics"], "the statuses seen on the namespace are recorded"
