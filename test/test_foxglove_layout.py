@@ -39,8 +39,8 @@ ROOT = Path(__file__).resolve().parents[1]
 LAYOUT_FILE = ROOT / "config" / "friction_sim.foxglove_layout.json"
 
 #: Every topic of a recording (the simulation control calls ~/pause, ~/resume,
-#: ~/step and ~/reset included, on sim_control), and the 1 Hz status both nodes
-#: publish, which recordings do not hold.
+#: ~/step and ~/reset included, on sim_control), and the status both nodes
+#: publish on diagnostics (a slider's recording keeps it as the slider sees it).
 TOPICS: dict[str, str] = {"diagnostics": "diagnostic_msgs/msg/DiagnosticArray", **TOPIC_TYPES}
 #: The Service Call panel's type id, as the Foxglove SDK writes it into a layout.
 SERVICE_CALL: str = json.loads(fl.ServiceCallPanel().to_json())["panelType"]

@@ -107,7 +107,8 @@ def _play(spec: ExperimentSpec, plant: _InProcess | _Attached, executor: Any, pu
             command = pending.pop(0)
             publishers[command.name].publish(command_message(command.at(now + start)))
             result.commands.append(command.at(now))
-            _record_unseen(plant.recorder, command.at(now + start))
+            if not plant.RECORDS_TARGETS:
+                _record_unseen(plant.recorder, command.at(now + start))
             target = command.values.get("target_speed", target)
         executor.spin_once(timeout_sec=0.0005)
         if progress is not None and time.monotonic() - last_progress > 0.25:
@@ -126,8 +127,9 @@ def _start_recording(spec: ExperimentSpec, recorder: Any, start: float) -> None:
 
 
 def _record_unseen(recorder: Any, command: Command) -> None:
-    """Log a command the slider does not consume (a target for the controller):
-    the slider's recording would not hold it otherwise."""
+    """Log a command the slider does not consume (a target for the controller)
+    in a recording that does not see it: an attached run's, and the initial
+    target (a controller parameter, not a message)."""
     if recorder is not None and not command.for_slider:
         recorder.on_command(Outcome(command.at(round(command.t * 1e9) / 1e9)), "")
 
@@ -155,6 +157,9 @@ def _controller_values(spec: ExperimentSpec) -> dict[str, Any]:
 
 class _InProcess:
     """Slider (and controller) nodes in this process; the slider records."""
+
+    #: The slider records what it sees on target_speed itself.
+    RECORDS_TARGETS = True
 
     def __init__(self, spec: ExperimentSpec, ns: str, executor: Any, result: ExperimentResult) -> None:
         from friction_sim.ros.controller import ControllerNode
@@ -211,6 +216,8 @@ class _Attached:
     and record what the topics carry."""
 
     RECORDED = (*STATE_TOPICS, "mean_velocity", *(entry.name for entry in consumed_by(SLIDER)))
+    #: The targets this process publishes are recorded as it publishes them.
+    RECORDS_TARGETS = False
 
     def __init__(self, spec: ExperimentSpec, driver: Any, executor: Any) -> None:
         self.driver = driver
