@@ -37,7 +37,14 @@ excitation_angle, excitation_phase, track_inclination, restitution and
 landing_friction) and mean_window_periods from that node's parameters at
 start-up through the parameter services; a model parameter the plant node
 does not have keeps this node's value, and if the node does not answer
-within 5 s it says so and keeps its own.  An initial ``target_speed`` that
+within 5 s it says so and keeps its own.  Afterwards it follows the plant
+node's changes of those parameters, of ``drive_force`` and of
+``excitation_frequency`` on ``/parameter_events`` (validated like any
+parameter set; what it cannot take is warned about and counted), and its
+diagnostics name the plant it inverts (``plant_node``, ``plant``).  A plant
+that runs beyond its model is handled as
+:mod:`friction_sim.core.runtime.controller` says: one warning, Pa 0, its
+samples taken, regulation again once they are back within the limit.  An initial ``target_speed`` that
 only the plant's model allows (a target without a drive force, for a
 tilted vibration) waits for that model and is judged then.  Beyond Kostek's model (or with
 max_amplitude_ratio >= 1) the law inverts the general mean speed on its
@@ -61,19 +68,28 @@ from typing import Any, TypeVar
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TwistStamped
-from rcl_interfaces.msg import SetParametersResult
+from rcl_interfaces.msg import ParameterEvent, SetParametersResult
 from rclpy.clock import Clock, ClockType, ROSClock
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import qos_profile_parameter_events
 from std_msgs.msg import Float64
 
 from friction_sim.core.control.law import ControlOutput, MeanSpeedController
 from friction_sim.core.model import spec
 from friction_sim.core.model.commands import CONTROLLER, consumed_by
-from friction_sim.core.runtime.controller import MODEL, RealtimeController
+from friction_sim.core.runtime.controller import MODEL, RealtimeController, plant_words
 from friction_sim.errors import ParameterError, one_line
-from friction_sim.io.messages import command_from_message, key_values, message_class, ns_to_seconds, stamp_ns
+from friction_sim.io.messages import (
+    command_from_message,
+    key_values,
+    message_class,
+    node_name,
+    ns_to_seconds,
+    parameter_event_values,
+    stamp_ns,
+)
 from friction_sim.ros.graph import NameWatch
 from friction_sim.ros.intake import PolledGroup, ThrottledWarning, take_with_info
 from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
@@ -86,6 +102,8 @@ QOS_DEPTH = 10
 COMMAND_HOLD_OFF = 0.02
 
 PLANT_TIMEOUT = 5.0
+#: The plant node's parameters the controller reads at start-up and follows as they change.
+FOLLOWED = (*MODEL, "mean_window_periods", "drive_force", "excitation_frequency")
 DISCOVERY_SETTLE = 0.5
 #: The node's parameters: declared once in the one vocabulary.
 PARAMETERS = spec.CONTROLLER_NODE
@@ -141,6 +159,10 @@ class ControllerNode(Node):
         if not self._plant_settled:
             self._plant = AsyncParameterClient(self, values["plant_node"])
             self._plant_future: Any = None
+            self.runtime.plant_node = _qualified(values["plant_node"], self.get_namespace())
+            self.create_subscription(ParameterEvent, "/parameter_events",
+                                     self._guarded("plant parameter event", self._on_plant_event),
+                                     qos_profile_parameter_events)
         self._matched_at: float | None = None
         self._startup_timer = self.create_timer(0.05, self._guarded("start-up", self._start_up), clock=steady)
 
@@ -202,7 +224,7 @@ class ControllerNode(Node):
             self._settle(f"plant parameters unusable ({result.reason}): using this node's own", warn=True)
             return
         model = self.runtime.control.config.model
-        self.runtime.model_source = f"plant node '{self.get_parameter('plant_node').value}'"
+        self.runtime.model_source = f"plant node {self.runtime.plant_node}"
         shape = "" if model.is_kostek else (
             f", static_ratio {model.static_ratio:g}, excitation_angle {model.excitation_angle:g} deg, "
             f"excitation_phase {model.excitation_phase:g} deg, track_inclination {model.track_inclination:g} deg")
@@ -210,6 +232,35 @@ class ControllerNode(Node):
             f", restitution {model.restitution:g}, landing_friction {model.landing_friction}")
         self._settle(f"model from {self.runtime.model_source}: mass {model.mass:g} kg, mu {model.mu:g}, "
                      f"gravity {model.gravity:g} m/s^2{shape}{flight}")
+
+    def _on_plant_event(self, msg: ParameterEvent) -> None:
+        """The plant node's parameters changed (``ros2 param set /slider
+        excitation_frequency 100.0``): the model follows, through this node's
+        own parameters (validated like any set), so the law inverts the plant
+        in force; what this node cannot take is warned about, and it keeps the
+        model it has."""
+        if msg.node != self.runtime.plant_node or not self._plant_settled:
+            return
+        new, changed = parameter_event_values(msg)
+        values = {name: value for name, value in {**new, **changed}.items() if name in FOLLOWED}
+        if not values:
+            return
+        words = ", ".join(f"{name} = {value!r}" for name, value in values.items())
+        try:
+            update = [Parameter(name, value=_typed(PARAMETERS[name], value)) for name, value in values.items()]
+            result = self.set_parameters_atomically(update)
+            reason = "" if result.successful else result.reason
+        except (TypeError, ValueError) as error:
+            reason = str(error)
+        if reason:
+            self.runtime.refuse(f"plant change {words}: {reason}")
+            self.get_logger().warning(f"plant {self.runtime.plant_node} changed {words}, which this controller "
+                                      f"cannot take ({reason}); it keeps inverting {plant_words(self.control)}")
+        else:
+            self.runtime.plant_changes += 1
+            self.get_logger().info(f"plant {self.runtime.plant_node} changed {words}: the model follows "
+                                   f"({plant_words(self.control)})")
+        self._publish_diagnostics()
 
     def _settle(self, message: str, warn: bool = False) -> None:
         (self.get_logger().warning if warn else self.get_logger().info)(message)
@@ -387,6 +438,12 @@ class ControllerNode(Node):
 
     def _parameters_set(self, changes: list[Parameter]) -> None:
         self._publish(self.runtime.control.output)
+
+
+def _qualified(node: str, namespace: str) -> str:
+    """The fully qualified name of ``node`` as seen from ``namespace`` (an
+    absolute name stays; a relative one is resolved in the namespace)."""
+    return node if node.startswith("/") else node_name(namespace, node)
 
 
 def _arrival(info: Any) -> int:

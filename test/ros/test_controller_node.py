@@ -17,6 +17,7 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.parameter import Parameter
 
+from friction_sim.core.control.law import speed_limit
 from friction_sim.core.model.params import SliderParams
 from friction_sim.ros.controller import ControllerNode
 from friction_sim.ros.slider import SliderNode
@@ -64,6 +65,49 @@ def test_controller_reads_the_plant_and_reports_diagnostics(ros: None) -> None:
         assert probe.set_parameter(f"{ns}/controller", "max_amplitude_ratio", 0.999)[0]
         successful, reason = probe.set_parameter(f"{ns}/controller", "target_speed", -3e-4)
         assert not successful and "target_speed" in reason
+    finally:
+        probe.close()
+        controller.destroy_node()
+        slider.destroy_node()
+
+
+def test_the_controller_follows_its_plant_s_parameter_changes_and_names_the_plant(ros: None) -> None:
+    """Issue 23, item 8: the README's ``ros2 param set /slider
+    excitation_frequency 100.0`` (and a drive force, a mass set as parameters)
+    reach the controller's model as they happen, through /parameter_events:
+    its diagnostics say 100 Hz, the sample limit is the new plant's, and they
+    name the plant node it inverts."""
+    ns = f"/c{uuid.uuid4().hex[:8]}"
+    slider = SliderNode(namespace=ns)
+    controller = ControllerNode(namespace=ns, parameter_overrides=[Parameter("diagnostics_period", value=0.1)])
+    probe = Probe(ns, slider, controller, outputs={"diagnostics": DiagnosticArray})
+
+    def status() -> dict[str, str]:
+        for msg in reversed(probe.received["diagnostics"]):
+            for s in msg.status:
+                if s.name == "controller":
+                    return {kv.key: kv.value for kv in s.values}
+        return {}
+
+    try:
+        assert probe.spin_until(lambda: controller.ready, 10.0)
+        before = controller.control.sample_limit
+        assert probe.set_parameter(f"{ns}/slider", "excitation_frequency", 100.0)[0]
+        assert probe.spin_until(lambda: controller.control.frequency == 100.0, 10.0), "the model follows f"
+        assert probe.set_parameter(f"{ns}/slider", "drive_force", 0.8)[0]
+        assert probe.spin_until(lambda: controller.control.drive_force == 0.8, 10.0), "and Fd"
+        assert probe.set_parameter(f"{ns}/slider", "mass", 2.0)[0]
+        assert probe.spin_until(lambda: controller.control.config.model.mass == 2.0, 10.0), "and the model"
+        # the old plant's limit holds until its windows have passed; then the new plant's is in force
+        assert probe.spin_until(lambda: controller.control.sample_limit == speed_limit(0.8, SliderParams(mass=2.0),
+                                                                                       100.0), 10.0)
+        assert controller.control.sample_limit == pytest.approx(2 * 0.8 / (2.0 * 100.0)) != before
+        assert controller.get_parameter("excitation_frequency").value == 100.0
+        assert probe.spin_until(lambda: status().get("plant_changes_followed") == "3", 10.0)
+        values = status()
+        assert values["plant_node"] == f"{ns}/slider" and values["model_source"] == f"plant node {ns}/slider"
+        assert values["excitation_frequency"] == "100.0" and "f = 100 Hz" in values["plant"], values
+        assert "m = 2 kg" in values["plant"] and "Fd = 0.8 N" in values["plant"], values["plant"]
     finally:
         probe.close()
         controller.destroy_node()
@@ -147,7 +191,7 @@ def test_controller_reads_the_general_model_from_the_plant(ros: None) -> None:
         assert probe.spin_until(lambda: controller.ready, 10.0)
         assert controller.control.config.model == SliderParams(**plant)
         assert controller.get_parameter("landing_friction").value == "none"
-        assert controller.runtime.model_source == "plant node 'slider'"
+        assert controller.runtime.model_source == f"plant node {ns}/slider"
         assert controller.control.target_speed == 2e-3 and controller.runtime.rejected == 0
         assert probe.set_parameter(f"{ns}/controller", "target_speed", 3e-3)[0]
         out = controller.control.output

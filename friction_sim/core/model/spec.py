@@ -212,8 +212,8 @@ MAX_AMPLITUDE_RATIO = Setting("max_amplitude_ratio", 0.95, "-", "largest Pa/(m g
 SETTLE_MARGIN = Setting(
     "settle_margin", 0.25, "periods",
     "how far a sample window keeps clear of a change of Pa, on top of the delivery jitter seen", 0.0, 5.0)
-PLANT_NODE = Setting("plant_node", "slider", "-", "node to read mass, mu, gravity and the window from at "
-                                                  "start-up ('' = none)")
+PLANT_NODE = Setting("plant_node", "slider", "-", "the plant node whose model, window, Fd and f are read at "
+                                                  "start-up and followed on /parameter_events ('' = none)")
 ACTIVE = Setting("active", True, "-", "regulate now; false: stand by (publish nothing) until a target arrives")
 
 # -- the nodes ---------------------------------------------------------------------
@@ -228,15 +228,16 @@ SLIDER_NODE = table(
 )
 CONTROLLER_NODE = table(
     MASS.described("model: slider mass m (the plant's parameters are replaced at start-up by plant_node's, if it "
-                   "answers within 5 s)"),
+                   "answers within 5 s, and follow its changes)"),
     MU.described("model: kinetic Coulomb friction coefficient"),
     GRAVITY.described("model: gravity g"),
     *(setting.described("model: " + setting.description) for setting in (
         STATIC_RATIO, EXCITATION_ANGLE, EXCITATION_PHASE, TRACK_INCLINATION, RESTITUTION, LANDING_FRICTION)),
-    EXCITATION_FREQUENCY.described("initial excitation frequency f; then it follows the topic", rule=""),
-    DRIVE_FORCE.described("initial drive force Fd; then it follows the topic"),
+    EXCITATION_FREQUENCY.described("initial excitation frequency f; then it follows the topic and plant_node's "
+                                   "parameter", rule=""),
+    DRIVE_FORCE.described("initial drive force Fd; then it follows the topic and plant_node's parameter"),
     TARGET_SPEED, INTEGRAL_GAIN, MAX_AMPLITUDE_RATIO, SETTLE_MARGIN,
-    MEAN_WINDOW_PERIODS.described("the slider's mean_velocity window (read from plant_node)"),
+    MEAN_WINDOW_PERIODS.described("the slider's mean_velocity window (read from plant_node, and followed)"),
     PLANT_NODE, ACTIVE, DIAGNOSTICS_PERIOD,
 )
 

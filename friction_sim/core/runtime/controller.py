@@ -11,19 +11,40 @@ as the slider node is around :class:`~friction_sim.core.runtime.realtime.Realtim
 * a target the node's own model refuses but the plant's may take waits for the
   plant's model (:meth:`RealtimeController.settle`);
 * a parameter set is judged whole on a copy (:meth:`RealtimeController.with_parameters`);
-* the conditions worth a warning (unreachable, runaway) are reported once each
-  time they begin (:meth:`RealtimeController.news`), and the status the node
-  publishes on ``diagnostics`` is built here (:meth:`RealtimeController.status`).
+* the conditions worth a warning (unreachable, runaway, a plant beyond its
+  model) are reported once each time they begin (:meth:`RealtimeController.news`),
+  and the status the node publishes on ``diagnostics`` is built here
+  (:meth:`RealtimeController.status`).
+
+A plant beyond its model: samples beyond the speed limit of every plant in
+force are refused (a glitch, a wrong message), but not for ever.  Once
+:func:`beyond_model_after` of them have come in a row (more than the windows
+still on their way after a change), the samples are the plant's: it runs
+faster than the model allows (it runs away, or its parameters are not the
+model's).  Then the controller says so once (a WARN with the reason and the
+plant it inverts), takes such samples again (counted in
+``samples_beyond_model``, not refused), and sets Pa to 0, the one amplitude
+that lets friction brake any slider of the model; the law's own state is
+kept.  The first sample back within the limit ends it: regulation goes on
+from that state.
 """
 
 from __future__ import annotations
 
 import copy
+import dataclasses
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from friction_sim.core.control.law import ControllerConfig, ControlOutput, MeanSpeedController, uses_closed_form
+from friction_sim.core.control.law import (
+    LIMIT_SLACK_SAMPLES,
+    ControllerConfig,
+    ControlOutput,
+    MeanSpeedController,
+    uses_closed_form,
+)
 from friction_sim.core.model import spec
 from friction_sim.core.model.params import plant_from
 from friction_sim.errors import ParameterError
@@ -43,6 +64,22 @@ def config_of(values: Mapping[str, Any]) -> ControllerConfig:
         integral_gain=values["integral_gain"], max_amplitude_ratio=values["max_amplitude_ratio"],
         mean_window_periods=values["mean_window_periods"], settle_margin=values["settle_margin"],
     )
+
+
+def beyond_model_after(config: ControllerConfig) -> int:
+    """Samples beyond the limit, in a row, that show a plant beyond its model:
+    past the mean window of samples still on their way after a change, and the
+    slack the law allows them (see the module doc)."""
+    return config.mean_window_periods + LIMIT_SLACK_SAMPLES
+
+
+def plant_words(control: MeanSpeedController) -> str:
+    """The plant the law inverts, in one line (for diagnostics and warnings)."""
+    config = control.config
+    model = config.model
+    form = "Kostek's closed form" if uses_closed_form(model, config.max_amplitude_ratio) else "the general model"
+    return (f"m = {model.mass:g} kg, mu = {model.mu:g}, g = {model.gravity:g} m/s^2, Fd = {control.drive_force:g} N, "
+            f"f = {control.frequency:g} Hz ({form})")
 
 
 @dataclass(frozen=True)
@@ -88,6 +125,14 @@ class RealtimeController:
         self.internal_errors = 0
         self.last_internal_error = ""
         self.model_source = "own parameters"
+        #: The plant node's fully qualified name ('' without one), and the changes of it followed.
+        self.plant_node = ""
+        self.plant_changes = 0
+        #: Why the plant is taken to be beyond its model ('' while it is not), its samples, the run refused.
+        self.beyond_model = ""
+        self.samples_beyond_model = 0
+        self._beyond_run = 0
+        self._warned_beyond = False
         self._refused_before_interval = 0
         self._warned_unreachable = False
         self._warned_runaway = False
@@ -122,15 +167,39 @@ class RealtimeController:
         if not regulating:
             self.control.clock.observe(t, now_ns)
             return None
+        if self.beyond_model:
+            if self._beyond_limit(speed):
+                return self._beyond(speed)
+            self.beyond_model = ""  # back within the limit: regulate from the state kept
         try:
             output = self.control.on_mean_velocity(speed, t, now_ns)
         except ParameterError as error:
+            self._beyond_run = self._beyond_run + 1 if self._beyond_limit(speed) else 0
+            if self._beyond_run >= beyond_model_after(self.control.config):
+                self.beyond_model = (
+                    f"{self._beyond_run} mean_velocity samples in a row beyond the limit of every plant in force "
+                    f"({self.control.sample_limit:.6g} m/s; the last {float(speed):.6g} m/s): the plant runs faster "
+                    f"than its model allows (it runs away, or it is not {plant_words(self.control)}); Pa set to 0 "
+                    "until a sample is back within the limit")
+                return self._beyond(speed)
             self.samples_rejected += 1
             self.last_sample_rejection = str(error)
             self.refuse(str(error))
             raise
+        self._beyond_run = 0
         self.samples_accepted += 1
         return output
+
+    def _beyond_limit(self, speed: Any) -> bool:
+        """A finite sample faster than any plant in force could creep."""
+        return (isinstance(speed, (int, float)) and not isinstance(speed, bool) and math.isfinite(speed)
+                and abs(speed) > self.control.sample_limit)
+
+    def _beyond(self, speed: float) -> ControlOutput:
+        """A sample of a plant beyond its model: taken (measured, counted), Pa 0."""
+        self.samples_beyond_model += 1
+        self.control.measured_speed = float(speed)
+        return dataclasses.replace(self.control.output, amplitude=0.0, applied_ratio=0.0)
 
     def settle(self) -> str:
         """The model is settled: judge the pending target; '' or the refusal's reason (counted)."""
@@ -196,6 +265,10 @@ class RealtimeController:
                             "slider slides on whatever the excitation; Pa set to 0")
         if output.unreachable != self._warned_unreachable and not output.unreachable:
             publish = True
+        if bool(self.beyond_model) != self._warned_beyond:
+            if self.beyond_model:
+                warnings.append(self.beyond_model)
+            publish, self._warned_beyond = True, bool(self.beyond_model)
         self._warned_unreachable, self._warned_runaway = output.unreachable, output.runaway
         return warnings, publish
 
@@ -210,6 +283,7 @@ class RealtimeController:
             (out.unreachable, "target unreachable"),
             (out.saturated and not out.unreachable, "saturated"),
             (out.runaway, "the drive beats friction (phi >= 1): no control over the speed"),
+            (bool(self.beyond_model), "the plant runs beyond its model: Pa 0"),
             (not ready, "waiting for the plant's parameters"),
             (ready and not self.active, "standing by for a target"),
             (refused_now > 0, f"{refused_now} inputs refused ({self.last_rejection})"),
@@ -227,6 +301,9 @@ class RealtimeController:
             "integral": out.integral, "saturated": out.saturated, "unreachable": out.unreachable,
             "runaway": out.runaway, "drive_force": self.control.drive_force,
             "excitation_frequency": self.control.frequency, "model_source": self.model_source,
+            "plant_node": self.plant_node, "plant": plant_words(self.control),
+            "plant_changes_followed": self.plant_changes, "plant_beyond_model": bool(self.beyond_model),
+            "samples_beyond_model": self.samples_beyond_model, "beyond_model_reason": self.beyond_model,
             "commands_accepted": self.accepted, "commands_rejected": self.rejected,
             "command_batches": self.command_batches,
             "last_rejection": self.last_rejection,
@@ -237,4 +314,5 @@ class RealtimeController:
         return Status(level, message, values)
 
 
-__all__ = ["CONFIG", "ERROR", "MODEL", "OK", "WARN", "RealtimeController", "Status", "config_of"]
+__all__ = ["CONFIG", "ERROR", "MODEL", "OK", "WARN", "RealtimeController", "Status", "beyond_model_after", "config_of",
+           "plant_words"]

@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 
 from friction_sim.core.model.spec import CONTROLLER_NODE, defaults
-from friction_sim.core.runtime.controller import ERROR, OK, WARN, RealtimeController
+from friction_sim.core.runtime.controller import ERROR, OK, WARN, RealtimeController, beyond_model_after
 from friction_sim.errors import ParameterError
 
 
@@ -80,3 +80,47 @@ def test_an_unreachable_target_is_news_once_and_again_when_it_is_reachable() -> 
     assert runtime.news(output) == ([], False)
     runtime.take_batch([("target_speed", 1e-4)])
     assert runtime.news(runtime.control.output) == ([], True)
+
+
+def test_a_plant_beyond_its_model_is_said_once_driven_to_pa_0_and_never_refused_for_ever() -> None:
+    """Issue 23, item 8: a slider that runs away (here: faster than any plant
+    of the model creeps) used to have every sample refused from then on.
+    Samples beyond the limit are refused for as many as may still be on their
+    way after a change; then the plant is taken to be beyond its model: one
+    warning with the reason and the plant, Pa 0, its samples taken (counted,
+    not refused); the first sample back within the limit resumes regulation
+    from the state kept."""
+    runtime = RealtimeController(values(target_speed=2e-4))
+    ns = 20_000_000
+    regulating = runtime.take_sample(1.5e-4, 0.02, ns, regulating=True)
+    assert regulating is not None and regulating.amplitude > 0.0
+    kept = runtime.control.output
+    after = beyond_model_after(runtime.control.config)
+    fast = 50.0 * runtime.control.sample_limit
+    for n in range(1, after):
+        with pytest.raises(ParameterError, match="mean_velocity"):
+            runtime.take_sample(fast, 0.02 * (n + 1), (n + 1) * ns, regulating=True)
+    assert runtime.samples_rejected == after - 1 and not runtime.beyond_model
+    outputs = [runtime.take_sample(fast * (1 + k), 0.02 * (after + k + 1), (after + k + 1) * ns, regulating=True)
+               for k in range(5)]
+    assert all(out is not None and out.amplitude == 0.0 for out in outputs), "Pa 0 while beyond the model"
+    assert runtime.samples_rejected == after - 1 and runtime.samples_beyond_model == 5, "taken, not refused"
+    assert runtime.control.measured_speed == fast * 5
+    warnings = [text for out in outputs for text in runtime.news(out)[0] if out is not None]
+    assert len(warnings) == 1 and "beyond the limit" in warnings[0] and "Pa set to 0" in warnings[0]
+    assert "m = 1 kg" in warnings[0] and "f = 50 Hz" in warnings[0], warnings[0]
+    status = runtime.status(namesake="", ready=True)
+    assert status.level == WARN and "beyond its model" in status.message
+    assert status.values["plant_beyond_model"] and status.values["samples_beyond_model"] == 5
+    assert runtime.control.output == kept, "the law's state is kept"
+    back = runtime.take_sample(1.5e-4, 1.0, 50 * ns, regulating=True)
+    assert back is not None and back.amplitude > 0.0 and not runtime.beyond_model
+    assert runtime.news(back) == ([], True), "back within the limit: diagnostics at once, no new warning"
+
+
+def test_the_status_names_the_plant_the_law_inverts() -> None:
+    runtime = RealtimeController(values(excitation_frequency=100.0, drive_force=0.8))
+    runtime.plant_node = "/feeder2/slider"
+    status = runtime.status(namesake="", ready=True).values
+    assert status["plant_node"] == "/feeder2/slider"
+    assert status["plant"] == "m = 1 kg, mu = 0.1, g = 10 m/s^2, Fd = 0.8 N, f = 100 Hz (Kostek's closed form)"
