@@ -32,13 +32,27 @@ SCENARIO_METADATA = "friction_sim_scenario"
 
 
 @dataclass(frozen=True)
+class OperatorAction:
+    """What an operator does at simulation time ``t`` (relative to the start),
+    beside the schedule: ``send`` publishes a command as it is, one the slider
+    refuses (its refusal is recorded on rejected_commands); ``calls`` calls the
+    slider's simulation-control services (pause, step, resume, reset) in order.
+    Neither changes the inputs the report's segments are made of."""
+
+    t: float
+    send: Command | None = None
+    calls: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
 class ExperimentSpec:
     """Everything an experiment needs (see ``run_experiment``).
 
     ``schedule`` holds the commands to publish, at simulation times relative
     to the experiment's start; ``log_path`` records the run (the slider's
     recording) to that MCAP file; ``notes`` are extra text entries of the
-    scenario metadata record (the scenario file's text, say).
+    scenario metadata record (the scenario file's text, say); ``operator``
+    holds what an operator does beside the schedule (:class:`OperatorAction`).
     """
 
     duration: float
@@ -53,6 +67,7 @@ class ExperimentSpec:
     log_rate: float = float(settings.LOG_RATE.default)
     name: str = "experiment"
     notes: dict[str, str] = field(default_factory=dict)
+    operator: Sequence[OperatorAction] = ()
 
     @property
     def initial_target(self) -> float | None:
@@ -147,6 +162,6 @@ def read_scenario_metadata(meta: Mapping[str, str]) -> ScenarioRecord | None:
 
 
 __all__ = [
-    "SCENARIO_METADATA", "ExperimentResult", "ExperimentSpec", "ScenarioRecord", "Status",
+    "SCENARIO_METADATA", "ExperimentResult", "ExperimentSpec", "OperatorAction", "ScenarioRecord", "Status",
     "read_scenario_metadata", "scenario_metadata", "schedule_from_json", "schedule_json",
 ]

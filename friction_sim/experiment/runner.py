@@ -19,7 +19,7 @@ import contextlib
 import math
 import time
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from friction_sim.core.model import spec as settings
@@ -30,6 +30,7 @@ from friction_sim.experiment.job import (
     SCENARIO_METADATA,
     ExperimentResult,
     ExperimentSpec,
+    OperatorAction,
     Status,
     scenario_metadata,
 )
@@ -72,7 +73,8 @@ def run_experiment(spec: ExperimentSpec, *, namespace: str | None = None, attach
         _collect_mean_velocity(driver, result)
         plant = _Attached(spec, driver, executor) if attach else _InProcess(spec, ns, executor, result)
         _wait_until_connected(executor, publishers, spec.controller, plant)
-        _play(spec, plant, executor, publishers, result, progress)
+        operator = _OperatorHands(driver, executor, publishers, spec.operator)
+        _play(spec, plant, executor, publishers, result, progress, operator)
     finally:
         if plant is not None:
             plant.close()
@@ -95,8 +97,9 @@ def run_standalone(spec: ExperimentSpec, *, namespace: str | None = None, attach
 
 
 def _play(spec: ExperimentSpec, plant: _InProcess | _Attached, executor: Any, publishers: dict[str, Any],
-          result: ExperimentResult, progress: Progress | None) -> None:
-    """Publish each scheduled command when simulation time reaches it."""
+          result: ExperimentResult, progress: Progress | None, operator: _OperatorHands) -> None:
+    """Publish each scheduled command when simulation time reaches it (and do
+    what the operator does at its time)."""
     pending = sorted(spec.schedule, key=lambda c: c.t)
     start = plant.now()
     _start_recording(spec, plant.recorder, start)
@@ -110,6 +113,7 @@ def _play(spec: ExperimentSpec, plant: _InProcess | _Attached, executor: Any, pu
             if not plant.RECORDS_TARGETS:
                 _record_unseen(plant.recorder, command.at(now + start))
             target = command.values.get("target_speed", target)
+        operator.act(now, start)
         executor.spin_once(timeout_sec=0.0005)
         if progress is not None and time.monotonic() - last_progress > 0.25:
             progress(_status(spec, now, target, plant.inputs(), result))
@@ -296,6 +300,45 @@ def _set_parameters(driver: Any, executor: Any, node: str, values: dict[str, Any
     for name, result in zip(values, future.result().results):
         if not result.successful:
             raise ExperimentError(f"{node} refused {name}: {result.reason}")
+
+
+class _OperatorHands:
+    """Does the scenario's operator actions when simulation time reaches them:
+    publishes a command as it is, or calls the slider's control services in
+    order, each waited for (its answer, refused or not, is the slider's to record)."""
+
+    CALL_TIMEOUT = 10.0
+
+    def __init__(self, driver: Any, executor: Any, publishers: dict[str, Any],
+                 actions: Sequence[OperatorAction]) -> None:
+        from std_srvs.srv import Trigger
+
+        self._executor, self._publishers = executor, publishers
+        self._pending = sorted(actions, key=lambda action: action.t)
+        names = {name for action in actions for name in action.calls}
+        self._clients = {name: driver.create_client(Trigger, f"slider/{name}") for name in sorted(names)}
+        self._request = Trigger.Request
+
+    def act(self, now: float, start: float) -> None:
+        while self._pending and self._pending[0].t <= now:
+            action = self._pending.pop(0)
+            if action.send is not None:
+                self._publishers[action.send.name].publish(command_message(action.send.at(now + start)))
+            for name in action.calls:
+                self._call(name)
+
+    def _call(self, name: str) -> None:
+        client = self._clients[name]
+        deadline = time.monotonic() + self.CALL_TIMEOUT
+        while not client.service_is_ready():
+            if time.monotonic() > deadline:
+                raise ExperimentError(f"the slider's ~/{name} service did not answer within {self.CALL_TIMEOUT:g} s")
+            self._executor.spin_once(timeout_sec=0.01)
+        future = client.call_async(self._request())
+        while not future.done():
+            if time.monotonic() > deadline:
+                raise ExperimentError(f"the slider's ~/{name} call got no answer within {self.CALL_TIMEOUT:g} s")
+            self._executor.spin_once(timeout_sec=0.01)
 
 
 def _command_publishers(driver: Any) -> dict[str, Any]:

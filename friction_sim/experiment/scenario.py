@@ -22,6 +22,9 @@ A scenario is a YAML file::
       - {t: 9.0, external_wrench: {x: 0.0, z: 1.0}}
     expect:                         # optional acceptance criteria, checked after the run
       - {t: 5.0, within: 0.01, periods: 3, overshoot: 0.1}
+    operator:                       # optional: what an operator does beside the schedule
+      - {t: 9.5, send: {excitation_amplitude: -1.0}}   # a command the slider refuses
+      - {t: 9.8, calls: [pause, step, step, resume]}   # the slider's ~/pause, ~/step, ...
 
 An ``expect`` entry says: after the change at ``t`` the mean speed is within
 ``within`` (relative) of the target in force in at most ``periods`` excitation
@@ -32,6 +35,12 @@ a :class:`ScenarioError` naming the file, the line, the key and the reason.
 The plant and every open-loop command are validated with the same rules the
 slider applies (an amplitude above the weight is valid: the slider hops), and
 a ``target_speed`` needs a controller.
+
+``operator`` entries change none of the inputs the report is made of: a
+``send`` must be a command the slider refuses in the state the schedule
+leaves at its time (one it would take belongs in the schedule), and
+``calls`` must leave the slider running (a pause is resumed, steps only
+while paused, all at that time).
 """
 
 from __future__ import annotations
@@ -45,10 +54,10 @@ import yaml
 
 from friction_sim.core.control.law import ControllerConfig, MeanSpeedController
 from friction_sim.core.model import spec as settings
-from friction_sim.core.model.commands import COMMANDS, Command, apply
+from friction_sim.core.model.commands import COMMANDS, CONTROLS, PAUSE, RESUME, STEP, Command, apply, in_force
 from friction_sim.core.model.params import Inputs, SliderParams, check_load, plant_from
 from friction_sim.errors import FrictionSimError, ParameterError, ScenarioError
-from friction_sim.experiment.job import ExperimentSpec
+from friction_sim.experiment.job import ExperimentSpec, OperatorAction
 from friction_sim.io.paramfile import read_params_file
 
 #: Keys of ``plant:``: the plant and those inputs the slider takes as parameters.
@@ -60,8 +69,9 @@ _DERIVED_CONTROLLER_KEYS = ("excitation_frequency", "drive_force", "mean_window_
 #: Keys of ``controller:``: the controller node's other parameters.
 CONTROLLER_KEYS = tuple(name for name in settings.CONTROLLER_NODE if name not in _DERIVED_CONTROLLER_KEYS)
 TOP_KEYS = ("name", "description", "duration", "real_time_factor", "output", "log_rate", "plant",
-            "plant_params", "controller", "schedule", "namespace", "expect")
+            "plant_params", "controller", "schedule", "namespace", "expect", "operator")
 EXPECT_KEYS = ("t", "within", "periods", "overshoot")
+OPERATOR_KEYS = ("t", "send", "calls")
 
 Entry = tuple[yaml.Node, Any]  # a YAML node and its plain value
 
@@ -92,6 +102,7 @@ class Scenario:
     namespace: str | None = None
     description: str = ""
     expect: tuple[Expectation, ...] = ()
+    operator: tuple[OperatorAction, ...] = ()
     source: str = field(default="", repr=False)  # the YAML text, kept with the recording
 
     @property
@@ -115,7 +126,7 @@ class Scenario:
             duration=self.duration, schedule=self.schedule, plant=self.params, inputs=self.inputs,
             controller=self.controller is not None, controller_parameters=controller,
             real_time_factor=self.real_time_factor, log_rate=self.log_rate, name=self.name,
-            notes={"scenario": self.source},
+            notes={"scenario": self.source}, operator=self.operator,
         )
 
 
@@ -199,12 +210,13 @@ class YamlParser:
         params, inputs = self.plant(top, rate)
         controller = self.controller(top.get("controller"), params, inputs)
         schedule = _Schedule(self, params, inputs, rate, controller).read(top.get("schedule"), duration)
+        operator = _Operator(self, params, inputs, schedule).read(top.get("operator"), duration)
         return Scenario(
             name=name, duration=duration, params=params, inputs=inputs, schedule=schedule,
             controller=controller, real_time_factor=rate, output=_text(top, "output", Path("out") / name, Path),
             log_rate=log_rate, namespace=_text(top, "namespace", None, str),
             description=_text(top, "description", "", str), expect=self.expectations(top.get("expect"), schedule),
-            source=text,
+            operator=operator, source=text,
         )
 
     def expectations(self, entry: Entry | None, schedule: tuple[Command, ...]) -> tuple[Expectation, ...]:
@@ -375,8 +387,67 @@ class _Schedule:
         self.params, self.inputs = params, inputs
 
 
+class _Operator:
+    """Reads the ``operator`` list (see the module docstring)."""
+
+    def __init__(self, parser: YamlParser, params: SliderParams, inputs: Inputs,
+                 schedule: tuple[Command, ...]) -> None:
+        self.parser, self.params, self.inputs, self.schedule = parser, params, inputs, schedule
+
+    def read(self, entry: Entry | None, duration: float) -> tuple[OperatorAction, ...]:
+        if entry is None:
+            return ()
+        if not isinstance(entry[0], yaml.SequenceNode):
+            raise self.parser.fail(entry[0], "operator must be a list of {t: ..., send: {...}} or "
+                                             "{t: ..., calls: [...]}")
+        return tuple(self.action(item, duration) for item in entry[0].value)
+
+    def action(self, item: yaml.Node, duration: float) -> OperatorAction:
+        fields = self.parser.mapping(item, OPERATOR_KEYS, "an operator entry")
+        if "t" not in fields or ("send" in fields) == ("calls" in fields):
+            raise self.parser.fail(item, "an operator entry needs 't' and one of 'send' or 'calls'")
+        t = self.parser.number(fields["t"], "t")
+        if not 0.0 <= t < duration:
+            raise self.parser.fail(fields["t"][0], f"t = {t!r} rejected: must be in [0, duration = {duration!r}) s")
+        if "send" in fields:
+            return OperatorAction(t, send=self.refused(fields["send"], t))
+        return OperatorAction(t, calls=self.calls(fields["calls"]))
+
+    def refused(self, entry: Entry, t: float) -> Command:
+        """The command to send: one the slider refuses in the state in force at ``t``."""
+        given = self.parser.mapping(entry[0], tuple(COMMANDS), "send")
+        if len(given) != 1:
+            raise self.parser.fail(entry[0], f"send sets exactly one of {', '.join(COMMANDS)}")
+        (name, value), = given.items()
+        spec = COMMANDS[name]
+        if len(spec.fields) != 1:
+            raise self.parser.fail(value[0], f"send {name}: only one-number commands ({name} has several fields)")
+        command = Command(t, name, {spec.fields[0]: self.parser.number(value, name)})
+        params, inputs = in_force(self.schedule, self.params, self.inputs, t)
+        try:
+            apply(command, params, inputs)
+        except ParameterError:
+            return command
+        raise self.parser.fail(value[0], f"send {name} = {value[1]!r} at t = {t!r} s: the slider would take it "
+                                         "(put it in the schedule; send is for a command it refuses)")
+
+    def calls(self, entry: Entry) -> tuple[str, ...]:
+        """Simulation-control calls that leave the slider running."""
+        node, names = entry
+        if not (isinstance(names, list) and names and all(name in CONTROLS for name in names)):
+            raise self.parser.fail(node, f"calls must be a list of {', '.join(CONTROLS)} (found {names!r})")
+        paused = False
+        for name in names:
+            if (name == PAUSE and paused) or (name in (RESUME, STEP) and not paused):
+                raise self.parser.fail(node, f"calls {names!r}: {name} while {'paused' if paused else 'running'}")
+            paused = name == PAUSE or (paused and name != RESUME)
+        if paused:
+            raise self.parser.fail(node, f"calls {names!r}: end with resume (the run must go on)")
+        return tuple(names)
+
+
 __all__ = [
-    "CONTROLLER_KEYS", "PLANT_KEYS", "Expectation", "Scenario", "YamlParser", "compose_mapping",
+    "CONTROLLER_KEYS", "OPERATOR_KEYS", "PLANT_KEYS", "Expectation", "Scenario", "YamlParser", "compose_mapping",
     "load_scenario",
     "parse_scenario",
 ]

@@ -90,15 +90,18 @@ def test_make_demo_runs_and_its_recording_fills_every_panel_of_the_shipped_layou
     layout = load_layout()
     wanted = {resolve(path)[0] for panel, config in layout["configById"].items() for path in panel_paths(panel, config)}
     assert wanted >= {"/pose", "/events", "/sim_control", "/target_speed", "/diagnostics"}, wanted
-    # The demo sends no refused command and makes no pause/step/reset call yet, so the panels
-    # of those two are still empty (issue 23 stays open for that); every other panel is filled.
-    unfilled = {"/rejected_commands", "/sim_control"}
     topics = recording.topics
-    for topic in sorted(wanted - unfilled):
+    for topic in sorted(wanted):
         assert topic in topics, f"{topic}: the layout reads it, the demo recording has {sorted(topics)}"
         channel = topics[topic]
         assert recording.counts.get(channel.id, 0) > 0, f"{topic}: no message in the demo recording"
     demo = yaml.safe_load((ROOT / "config" / "demo.yaml").read_text())
+    decoded = [(raw.topic, recording.decode(raw)) for raw in recording.messages
+               if raw.topic in ("/sim_control", "/rejected_commands")]
+    calls = [name for action in demo["operator"] for name in action.get("calls", [])]
+    assert [msg.name for topic, msg in decoded if topic == "/sim_control"] == calls
+    refused = [{kv.key: kv.value for kv in msg.values} for topic, msg in decoded if topic == "/rejected_commands"]
+    assert refused == [{"excitation_amplitude": "-1.0"}], refused
     targets = [entry["target_speed"] for entry in demo["schedule"] if "target_speed" in entry]
     seen = [recording.decode(raw).data for raw in recording.messages if raw.topic == "/target_speed"]
     assert seen == targets, "each target the demo sends is recorded once, as the slider saw it"

@@ -106,6 +106,17 @@ BAD = [
     ("duration: 1.0\ncontroller:\n  target_speed: -0.001\n", 3, ("target_speed", "-0.001", "sign")),
     ("duration: 1.0\ncontroller: {}\nschedule:\n  - {t: 0.2, drive_force: -0.7}\n"
      "  - {t: 0.5, target_speed: 0.0002}\n", 5, ("target_speed", "0.0002", "-0.7")),
+    ("duration: 1.0\noperator:\n  - {t: 0.5, send: {drive_force: 0.5}}\n", 3,
+     ("drive_force = 0.5", "would take it")),
+    ("duration: 1.0\nschedule:\n  - {t: 0.2, drive_force: 2.0}\noperator:\n"
+     "  - {t: 0.5, send: {drive_force: 0.5}}\n", 5, ("would take it",)),
+    ("duration: 1.0\noperator:\n  - {t: 0.5, calls: [pause, step]}\n", 3, ("end with resume",)),
+    ("duration: 1.0\noperator:\n  - {t: 0.5, calls: [step]}\n", 3, ("step while running",)),
+    ("duration: 1.0\noperator:\n  - {t: 0.5, calls: [pause, pause, resume]}\n", 3, ("pause while paused",)),
+    ("duration: 1.0\noperator:\n  - {t: 0.5, calls: [stop]}\n", 3, ("pause, resume, step, reset",)),
+    ("duration: 1.0\noperator:\n  - {t: 0.5}\n", 3, ("one of 'send' or 'calls'",)),
+    ("duration: 1.0\noperator:\n  - {t: 1.5, calls: [reset]}\n", 3, ("t = 1.5", "duration")),
+    ("duration: 1.0\noperator:\n  - {t: 0.5, send: {external_wrench: {x: 1.0}}}\n", 3, ("one-number",)),
     ("duration: [1\n", 2, ("not valid YAML",)),
     ("- just a list\n", None, ("mapping",)),
 ]
@@ -137,6 +148,19 @@ def test_a_hopping_plant_and_amplitudes_above_the_weight_are_valid() -> None:
     assert [c.values for c in scenario.schedule] == [
         {"excitation_amplitude": 40.0}, {"external_force_x": 0.0, "external_force_z": -6.0},
         {"external_force_x": 0.0, "external_force_z": 12.0}]
+
+
+def test_operator_actions_are_read_in_order_and_change_no_input() -> None:
+    """Issue 23, defect 2 (the demo fills the refusal and control panels): a
+    command the slider refuses (a negative amplitude) and control calls that
+    leave the slider running, beside the schedule, not in it."""
+    scenario = parse_scenario("duration: 2.0\nschedule:\n  - {t: 0.2, drive_force: 0.5}\noperator:\n"
+                              "  - {t: 0.5, send: {excitation_amplitude: -1.0}}\n"
+                              "  - {t: 0.8, calls: [pause, step, reset, resume, reset]}\n")
+    first, second = scenario.operator
+    assert first.t == 0.5 and first.send == Command(0.5, "excitation_amplitude", {"excitation_amplitude": -1.0})
+    assert second.t == 0.8 and second.calls == ("pause", "step", "reset", "resume", "reset") and second.send is None
+    assert scenario.spec().operator == scenario.operator and len(scenario.schedule) == 1
 
 
 @pytest.mark.parametrize(("text", "line", "words"), BAD)
