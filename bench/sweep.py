@@ -19,7 +19,8 @@ scalar loop slow: there 2 local workers must beat it a hundredfold, with
 be told).
 Every run's rows are checked equal (to the last bit between (b) and (c), to
 1e-12 against (a)).  It prints points per second, slider-periods per second and
-the speedups over (a), the cluster start-up time (not in the rates), and then
+the speedups over (a), the cluster start-up time with the workers loading the
+compiled engine (about a second each, in parallel; not in the rates), and then
 what a 64-core cluster would take for the shipped example
 config/sweep_conveyor.yaml, from two measurements: the example cut into 64
 and into 256 chunks, each chunk timed in one process, and Dask's cost per
@@ -122,6 +123,7 @@ def compare(name: str, sweep: Sweep, scalar_sweep: Sweep) -> None:
         for workers in (1, 2):
             start = time.perf_counter()
             with DaskExecutor(workers=workers) as executor:
+                executor.load_engine()  # what a sweep does before its first chunk
                 startup = time.perf_counter() - start
                 seconds, results[workers] = timed(sweep, executor, out / f"dask{workers}.parquet", "compiled")
                 if workers == 2:

@@ -111,6 +111,12 @@ class SerialExecutor:
         return None
 
 
+def _load_compiled_engine() -> None:
+    """Run on each Dask worker: one tiny population, which loads the compiled
+    kernels from the cache (or compiles them)."""
+    run_batch({"drive_force": [0.7]}, settle_periods=1, periods=1, threads=1)
+
+
 class DaskExecutor:
     """Chunks as tasks of a ``dask.distributed`` cluster: a ``LocalCluster`` of
     ``workers`` single-threaded worker processes (default: one per core) or,
@@ -125,6 +131,7 @@ class DaskExecutor:
         self.client: Any = None
         self.cluster: Any = None
         self.description = ""
+        self._engine_loaded = False
 
     def __enter__(self) -> DaskExecutor:
         try:
@@ -155,10 +162,30 @@ class DaskExecutor:
         if self.cluster is not None:
             self.cluster.close()
         self.client = self.cluster = None
+        self._engine_loaded = False
+
+    def load_engine(self) -> None:
+        """Load the compiled engine in every worker now, all at once (about a
+        second each from the cache), so that no chunk pays for it and a
+        worker without a usable engine fails here, once.  Done before the
+        first compiled chunk; idempotent."""
+        if self._engine_loaded:
+            return
+        try:
+            self.client.run(_load_compiled_engine)
+        except FrictionSimError:
+            raise
+        except Exception as error:  # a worker without friction_sim, or one that died
+            raise SweepRunError(f"the cluster's workers cannot load the compiled engine: "
+                                f"{one_line(error, with_type=True)}") from error
+        self._engine_loaded = True
 
     def run(self, sweep: Sweep, indices: Sequence[int], engine: str) -> Iterator[Chunk]:
         """Submit every chunk; yield each result as it arrives (each once)."""
         from distributed import as_completed
+
+        if engine == "compiled":
+            self.load_engine()
 
         futures = {self.client.submit(run_chunk, sweep, index, engine, 1, key=f"friction-sim-{sweep.identity}-{index}",
                                       pure=False): index for index in indices}
