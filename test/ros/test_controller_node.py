@@ -27,6 +27,15 @@ from ros_harness import Probe, kill_if_running
 ROOT = Path(__file__).resolve().parents[2]
 
 
+def controller_status(probe: Probe) -> dict[str, str]:
+    """The values of the newest ``controller`` status the probe received ({} before one)."""
+    for msg in reversed(probe.received["diagnostics"]):
+        for status in msg.status:
+            if status.name == "controller":
+                return {kv.key: kv.value for kv in status.values}
+    return {}
+
+
 # -- over real topics -------------------------------------------------------------
 
 
@@ -46,15 +55,8 @@ def test_controller_reads_the_plant_and_reports_diagnostics(ros: None) -> None:
         assert probe.spin_until(lambda: controller.runtime.rejected == 2, 15.0)
         assert controller.control.target_speed == 0.0002
 
-        def status() -> dict[str, str]:
-            for msg in reversed(probe.received["diagnostics"]):
-                for s in msg.status:
-                    if s.name == "controller":
-                        return {kv.key: kv.value for kv in s.values}
-            return {}
-
-        assert probe.spin_until(lambda: status().get("commands_rejected") == "2", 10.0)
-        values = status()
+        assert probe.spin_until(lambda: controller_status(probe).get("commands_rejected") == "2", 10.0)
+        values = controller_status(probe)
         for key in ("target_speed", "measured_mean_speed", "feedforward_ratio", "applied_ratio", "integral",
                     "saturated", "unreachable"):
             assert key in values
@@ -81,14 +83,6 @@ def test_the_controller_follows_its_plant_s_parameter_changes_and_names_the_plan
     slider = SliderNode(namespace=ns)
     controller = ControllerNode(namespace=ns, parameter_overrides=[Parameter("diagnostics_period", value=0.1)])
     probe = Probe(ns, slider, controller, outputs={"diagnostics": DiagnosticArray})
-
-    def status() -> dict[str, str]:
-        for msg in reversed(probe.received["diagnostics"]):
-            for s in msg.status:
-                if s.name == "controller":
-                    return {kv.key: kv.value for kv in s.values}
-        return {}
-
     try:
         assert probe.spin_until(lambda: controller.ready, 10.0)
         before = controller.control.sample_limit
@@ -103,8 +97,8 @@ def test_the_controller_follows_its_plant_s_parameter_changes_and_names_the_plan
                                                                                        100.0), 10.0)
         assert controller.control.sample_limit == pytest.approx(2 * 0.8 / (2.0 * 100.0)) != before
         assert controller.get_parameter("excitation_frequency").value == 100.0
-        assert probe.spin_until(lambda: status().get("plant_changes_followed") == "3", 10.0)
-        values = status()
+        assert probe.spin_until(lambda: controller_status(probe).get("plant_changes_followed") == "3", 10.0)
+        values = controller_status(probe)
         assert values["plant_node"] == f"{ns}/slider" and values["model_source"] == f"plant node {ns}/slider"
         assert values["excitation_frequency"] == "100.0" and "f = 100 Hz" in values["plant"], values
         assert "m = 2 kg" in values["plant"] and "Fd = 0.8 N" in values["plant"], values["plant"]
