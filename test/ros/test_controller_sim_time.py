@@ -114,7 +114,9 @@ def test_a_target_changed_while_paused_integrates_no_mixed_window(sim_time: bool
         feeder.step_periods(5)
         moved = [abs(_correction(out) - before) for out in feeder.outputs[seen:]]
         assert len(moved) > 10 and max(moved) < 1e-9, moved
-        assert feeder.speeds()[-1] == pytest.approx(3e-4, rel=1e-6)
+        # The matched model inverts exactly: the plant runs at the commanded r U* = (1 + before) U*.  (At
+        # start-up a loaded machine can integrate a mixed window, so before need not be 0: CI saw -0.4.)
+        assert feeder.speeds()[-1] == pytest.approx(3e-4 * (1.0 + before), rel=1e-6)
     finally:
         feeder.close()
 
