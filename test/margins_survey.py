@@ -41,11 +41,15 @@ def run(name: str, changes: dict[str, str], args: list[str], out: Path) -> dict[
     """One pytest run under ``changes``; the worst ratio per test."""
     # PYTHONPYCACHEPREFIX: fresh bytecode, since the hook needs the asserts rewritten with it on
     env = {**os.environ, **changes, "MARGINS_OUT": str(out), "PYTHONPYCACHEPREFIX": str(out.parent / "pycache")}
-    command = [sys.executable, "-m", "pytest", "-q", "-p", "margins_plugin", "-p", "no:cacheprovider",
+    command = [sys.executable, "-m", "pytest", "-q", "-rf", "-p", "margins_plugin", "-p", "no:cacheprovider",
                "-o", "enable_assertion_pass_hook=true", *args]
     done = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True)
-    tail = done.stdout.strip().splitlines()[-1:] or ["(no output)"]
+    lines = done.stdout.strip().splitlines()
+    tail = lines[-1:] or ["(no output)"]
     print(f"{name:12s} {tail[0]}", flush=True)
+    for line in lines:  # a failure is named, not only counted
+        if line.startswith(("FAILED ", "ERROR ")):
+            print(f"{'':12s} {line}", flush=True)
     data = json.loads(out.read_text()) if out.exists() else {}
     return {test: (float(ratio), str(where)) for test, (ratio, where) in data.items()}
 
