@@ -44,8 +44,8 @@ parameter set; what it cannot take is warned about and counted), and its
 diagnostics name the plant it inverts (``plant_node``, ``plant``).  A plant
 that runs beyond its model is handled as
 :mod:`friction_sim.core.runtime.controller` says: one warning, Pa 0, its
-samples taken, regulation again once they are back within the limit.  An initial ``target_speed`` that
-only the plant's model allows (a target without a drive force, for a
+samples taken, regulation again once they are back within the limit.
+An initial ``target_speed`` that only the plant's model allows (a target without a drive force, for a
 tilted vibration) waits for that model and is judged then.  Beyond Kostek's model (or with
 max_amplitude_ratio >= 1) the law inverts the general mean speed on its
 rising branch (see :mod:`friction_sim.core.control.law`).  With ``active`` false it stands by, publishing
@@ -214,8 +214,7 @@ class ControllerNode(Node):
         try:
             values = [Parameter.from_parameter_msg(_named(name, value)).value
                       for name, value in zip(names, response.values, strict=True)]
-            update = [Parameter(name, value=_typed(PARAMETERS[name], value))
-                      for name, value in zip(names, values) if value is not None]
+            update = _own_parameters(dict(zip(names, values)))
         except (TypeError, ValueError) as error:
             self._settle(f"plant parameters unusable ({error}): using this node's own", warn=True)
             return
@@ -247,8 +246,7 @@ class ControllerNode(Node):
             return
         words = ", ".join(f"{name} = {value!r}" for name, value in values.items())
         try:
-            update = [Parameter(name, value=_typed(PARAMETERS[name], value)) for name, value in values.items()]
-            result = self.set_parameters_atomically(update)
+            result = self.set_parameters_atomically(_own_parameters(values))
             reason = "" if result.successful else result.reason
         except (TypeError, ValueError) as error:
             reason = str(error)
@@ -438,6 +436,13 @@ class ControllerNode(Node):
 
     def _parameters_set(self, changes: list[Parameter]) -> None:
         self._publish(self.runtime.control.output)
+
+
+def _own_parameters(values: dict[str, Any]) -> list[Parameter]:
+    """The plant's parameter values as this node's parameters of the same
+    names (a value the plant does not have, None, is left out)."""
+    return [Parameter(name, value=_typed(PARAMETERS[name], value)) for name, value in values.items()
+            if value is not None]
 
 
 def _qualified(node: str, namespace: str) -> str:
