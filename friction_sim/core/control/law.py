@@ -405,7 +405,7 @@ class MeanSpeedController:
         speed = float(speed)
         if not math.isfinite(speed):
             raise ParameterError("mean_velocity", speed, "must be finite [m/s]")
-        if abs(speed) > self._envelope:
+        if self.beyond_limit(speed):
             raise ParameterError("mean_velocity", speed, self._limit_words())
         if self._settling > 0:
             self._settling -= 1
@@ -545,6 +545,11 @@ class MeanSpeedController:
             integral=u_target * (self._ratio - 1.0),
             saturated=saturated, unreachable=unreachable, runaway=runaway,
         )
+
+    def beyond_limit(self, speed: float) -> bool:
+        """Whether a finite ``speed`` [m/s] is faster than any plant in force
+        could creep (the refusal of :meth:`on_mean_velocity`)."""
+        return math.isfinite(speed) and abs(speed) > self._envelope
 
     @property
     def sample_limit(self) -> float:

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -191,9 +190,8 @@ class RealtimeController:
         return output
 
     def _beyond_limit(self, speed: Any) -> bool:
-        """A finite sample faster than any plant in force could creep."""
-        return (isinstance(speed, (int, float)) and not isinstance(speed, bool) and math.isfinite(speed)
-                and abs(speed) > self.control.sample_limit)
+        """A number the law refuses as faster than any plant in force could creep."""
+        return isinstance(speed, (int, float)) and not isinstance(speed, bool) and self.control.beyond_limit(speed)
 
     def _beyond(self, speed: float) -> ControlOutput:
         """A sample of a plant beyond its model: taken (measured, counted), Pa 0."""
