@@ -288,15 +288,11 @@ def _set_parameters(driver: Any, executor: Any, node: str, values: dict[str, Any
     from rclpy.parameter_client import AsyncParameterClient
 
     client = AsyncParameterClient(driver, node)
-    deadline = time.monotonic() + 10.0
-    while not client.services_are_ready():
-        if time.monotonic() > deadline:
-            raise ExperimentError(f"no node '{node}' answers in {driver.get_namespace()} "
-                                  "(start it first, e.g. friction-sim feeder --ros-args -r __ns:=...)")
-        executor.spin_once(timeout_sec=0.05)
+    _spin_until(executor, client.services_are_ready, 10.0,
+                f"no node '{node}' answers in {driver.get_namespace()} "
+                "(start it first, e.g. friction-sim feeder --ros-args -r __ns:=...)")
     future = client.set_parameters(_overrides(values))
-    while not future.done():
-        executor.spin_once(timeout_sec=0.05)
+    _spin_until(executor, future.done, math.inf, "")
     for name, result in zip(values, future.result().results):
         if not result.successful:
             raise ExperimentError(f"{node} refused {name}: {result.reason}")
@@ -329,16 +325,10 @@ class _OperatorHands:
 
     def _call(self, name: str) -> None:
         client = self._clients[name]
-        deadline = time.monotonic() + self.CALL_TIMEOUT
-        while not client.service_is_ready():
-            if time.monotonic() > deadline:
-                raise ExperimentError(f"the slider's ~/{name} service did not answer within {self.CALL_TIMEOUT:g} s")
-            self._executor.spin_once(timeout_sec=0.01)
-        future = client.call_async(self._request())
-        while not future.done():
-            if time.monotonic() > deadline:
-                raise ExperimentError(f"the slider's ~/{name} call got no answer within {self.CALL_TIMEOUT:g} s")
-            self._executor.spin_once(timeout_sec=0.01)
+        _spin_until(self._executor, client.service_is_ready, self.CALL_TIMEOUT,
+                    f"the slider's ~/{name} service did not answer within {self.CALL_TIMEOUT:g} s")
+        _spin_until(self._executor, client.call_async(self._request()).done, self.CALL_TIMEOUT,
+                    f"the slider's ~/{name} call got no answer within {self.CALL_TIMEOUT:g} s")
 
 
 def _command_publishers(driver: Any) -> dict[str, Any]:
@@ -363,12 +353,18 @@ def _wait_until_connected(executor: Any, publishers: dict[str, Any], controller:
     has published its time)."""
     nodes = (SLIDER, CONTROLLER) if controller else (SLIDER,)
     needed = {entry.name for node in nodes for entry in consumed_by(node)}
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
+    _spin_until(executor, lambda: all(publishers[name].get_subscription_count() >= 1 for name in needed)
+                and plant.ready(), timeout, f"the experiment's nodes did not connect within {timeout:g} s")
+
+
+def _spin_until(executor: Any, done: Callable[[], bool], seconds: float, failure: str) -> None:
+    """Spin ``executor`` until ``done()``; an ExperimentError saying ``failure``
+    after ``seconds`` of wall time (math.inf: wait for ever)."""
+    deadline = time.monotonic() + seconds
+    while not done():
+        if time.monotonic() > deadline:
+            raise ExperimentError(failure)
         executor.spin_once(timeout_sec=0.01)
-        if all(publishers[name].get_subscription_count() >= 1 for name in needed) and plant.ready():
-            return
-    raise ExperimentError(f"the experiment's nodes did not connect within {timeout:g} s")
 
 
 def _shift(result: ExperimentResult, start: float) -> None:
