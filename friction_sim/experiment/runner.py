@@ -227,9 +227,12 @@ class _Attached:
         self.driver = driver
         self._stamp_ns = -1
         self._params, self._inputs = spec.plant, spec.inputs
-        _set_parameters(driver, executor, "slider", _plant_values(spec))
+        # The controller first: it follows its plant's parameter changes, and an active one answers
+        # each with a Pa that would overwrite the scenario's amplitude on the slider; stood by
+        # (an open-loop start), it publishes nothing.
         if spec.controller:
             _set_parameters(driver, executor, "controller", _controller_values(spec))
+        _set_parameters(driver, executor, "slider", _plant_values(spec))
         self.recorder = _attached_recorder(spec, driver.get_namespace())
         for topic in self.RECORDED:
             driver.create_subscription(message_class(TOPIC_TYPES[topic]), topic, self._keeper(topic), 100)
