@@ -147,7 +147,10 @@ class DaskExecutor:
             else:
                 self.cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
                                             host="127.0.0.1", dashboard_address="127.0.0.1:0",
-                                            silence_logs=logging.ERROR)
+                                            # A worker's failure reaches us as its task's exception; its own
+                                            # log only adds shutdown races (a heartbeat to a scheduler that
+                                            # has just closed, logged with a traceback).
+                                            silence_logs=logging.CRITICAL)
                 self.client = Client(self.cluster)
                 self.description = f"local Dask cluster, {self.workers} worker process(es)"
         except OSError as error:  # distributed raises OSError (TimeoutError) when no scheduler answers
