@@ -154,8 +154,12 @@ def run_node(
             print(f"{prog}: error: {one_line(error)}", file=sys.stderr)
             code = EXIT_FAULT
     except Exception as error:  # noqa: BLE001 - one line, never a traceback
-        print(f"{prog}: internal error, stopping: {one_line(error)}", file=sys.stderr)
-        code = EXIT_FAULT
+        # After a signal shut the context down, rclpy's bindings may fail on the way
+        # out (seen: "Unable to convert call argument '0' to Python object" from the
+        # wait set): a normal shutdown too.  Before it, an internal fault.
+        if rclpy.ok():
+            print(f"{prog}: internal error, stopping: {one_line(error)}", file=sys.stderr)
+            code = EXIT_FAULT
     finally:
         for node in nodes:
             try:
