@@ -41,7 +41,9 @@ PLANT_OPTIONS = tuple(setting for setting in (*spec.PLANT.values(), *spec.INPUTS
 #: The plant settings ``umap`` takes (``--mu --static-ratio --angle --phase
 #: --inclination --restitution --landing-friction``): U = V f/(g mu) depends on
 #: them, not on the mass or g.  At their defaults U is Kostek's closed form.
-MODEL_OPTIONS = tuple(setting for setting in spec.PLANT.values() if setting.name not in ("mass", "gravity"))
+#: (The map's axes are Fd and Pa: the force actuator's.)
+MODEL_OPTIONS = tuple(setting for setting in spec.PLANT.values()
+                      if setting.name not in ("mass", "gravity", "actuator", *spec.EXCITER))
 
 class _NonFinite(float):
     """A NaN or inf that takes Setting.check's full path: its fast path lets inf

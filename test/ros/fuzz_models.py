@@ -140,7 +140,7 @@ class SliderModel(ParameterModel):
         self.values.update(values)
         return Verdict(True)
 
-    def in_force(self) -> dict[str, float]:
+    def in_force(self) -> dict[str, float | str]:
         """What the diagnostics must report, by key."""
         return {
             "drive_force": self.inputs.drive_force,
@@ -148,6 +148,10 @@ class SliderModel(ParameterModel):
             "excitation_frequency": self.inputs.excitation_frequency,
             "external_force_x": self.inputs.external_force_x,
             "external_force_z": self.inputs.external_force_z,
+            "drive_level": self.inputs.drive_level,
+            "actuator": self.params.actuator,
+            "natural_frequency": self.params.natural_frequency,
+            "damping_ratio": self.params.damping_ratio,
             "real_time_factor": self.rate,
             "publish_rate": self.publish_rate,
             "mass": self.params.mass,

@@ -378,7 +378,8 @@ class SliderRig(Rig):
         model = self.model
         for key, expected in model.in_force().items():
             if key in values:
-                assert _number(values[key]) == expected, \
+                got = values[key] if isinstance(expected, str) else _number(values[key])
+                assert got == expected, \
                     f"diagnostics {key} = {values[key]}, but {expected!r} is in force"
         rejected = int(values["commands_rejected"])
         assert model.rejected.holds(rejected), \
@@ -386,7 +387,8 @@ class SliderRig(Rig):
         shared = [k for k in values if k in model.values and k not in self.by_topic]
         answered = self.client.get(shared)
         for key in shared:
-            assert _number(values[key]) == answered[key], \
+            got = values[key] if isinstance(answered[key], str) else _number(values[key])
+            assert got == answered[key], \
                 f"get_parameters {key} = {answered[key]!r}, but the simulation has {values[key]} in force"
         for key in ("sim_time", "real_time_factor", "tick_rate", "drive_force", "excitation_amplitude",
                     "excitation_frequency", "phi", "amplitude_ratio"):
@@ -429,7 +431,7 @@ class SliderRig(Rig):
         then every parameter at once."""
         model = self.model
         if full or model.inputs.external_force_x != 0.0 or model.inputs.external_force_z != 0.0:
-            self.reset_parameters([("excitation_amplitude", 0.0)])
+            self.reset_parameters([("actuator", "force"), ("excitation_amplitude", 0.0)])
             self.client.publish("external_wrench", self.client.message("external_wrench", {}))
             self.ticked()
         defaults = [(name, s.default) for name, s in spec.SLIDER_NODE.items() if not s.start_only]

@@ -43,10 +43,11 @@ import numpy as np
 from numba.extending import register_jitable
 
 from friction_sim.core.model import params as _params
+from friction_sim.core.physics import exciter as _exciter
 from friction_sim.core.physics import plant as _plant
 from friction_sim.core.physics import roots as _roots
 from friction_sim.core.physics import segment as _segment
-from friction_sim.core.physics.plant import kostek_applies, plant
+from friction_sim.core.physics.plant import excitation, kostek_applies, plant
 from friction_sim.core.physics.roots import NEVER
 from friction_sim.core.physics.segment import FLIGHT, STUCK, evaluate, next_step, to_cycle, travel
 
@@ -65,12 +66,12 @@ KINDS = 5
 #: The columns of the per-slider inputs, in the order of ``plant``'s arguments.
 COLUMNS = ("mass", "mu", "gravity", "static_ratio", "excitation_angle", "excitation_phase", "track_inclination",
            "restitution", "drive_force", "excitation_amplitude", "excitation_frequency", "external_force_x",
-           "external_force_z")
+           "external_force_z", "natural_frequency", "damping_ratio", "full_drive_acceleration", "drive_level")
 #: The result codes of one slider (``status``).
 DONE, NO_PROGRESS = 0, 1
 
 #: The modules whose plain functions the compiled code calls: the physics, written once.
-PHYSICS = (_roots, _plant, _segment)
+PHYSICS = (_roots, _exciter, _plant, _segment)
 
 
 def _register() -> None:
@@ -137,8 +138,8 @@ def _memo_slot(phase0: float, v0: float, vz0: float, mode: int, closing: int) ->
 
 
 @numba.njit(cache=True)
-def _run_one(values: np.ndarray, impulsive: bool, can_slip: bool, settle: int, end: int, times: np.ndarray,
-             shortcut: bool, window: np.ndarray, counts: np.ndarray, samples: np.ndarray,
+def _run_one(values: np.ndarray, impulsive: bool, resonant: bool, can_slip: bool, settle: int, end: int,
+             times: np.ndarray, shortcut: bool, window: np.ndarray, counts: np.ndarray, samples: np.ndarray,
              sample_modes: np.ndarray, memo_keys: np.ndarray, memo_steps: Any, memo_owner: np.ndarray,
              owner: int) -> int:
     """Advance one slider from rest at t = 0, phase 0, x = 0 to the start of period
@@ -152,9 +153,10 @@ def _run_one(values: np.ndarray, impulsive: bool, can_slip: bool, settle: int, e
     mass, mu, gravity, static_ratio, angle = values[0], values[1], values[2], values[3], values[4]
     psi, inclination, restitution, drive, amplitude = values[5], values[6], values[7], values[8], values[9]
     frequency, force_x, force_z = values[10], values[11], values[12]
-    kostek = kostek_applies(angle, inclination, static_ratio, amplitude, mass * gravity, force_z)
+    amplitude, lag = excitation(mass, resonant, amplitude, frequency, values[13], values[14], values[15], values[16])
+    kostek = not resonant and kostek_applies(angle, inclination, static_ratio, amplitude, mass * gravity, force_z)
     p = plant(mass, mu, gravity, static_ratio, angle, psi, inclination, restitution, impulsive, drive, amplitude,
-              frequency, force_x, force_z, kostek, kostek and can_slip)
+              frequency, force_x, force_z, lag, kostek, kostek and can_slip)
     omega = p.omega
     # the segment (its start offset s0 is its time: the anchor is t = 0 at phase 0, period 0)
     mode, s0, x0, xl, v0, vz0, z0, phase0 = STUCK, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
@@ -277,8 +279,8 @@ def _run_one(values: np.ndarray, impulsive: bool, can_slip: bool, settle: int, e
 
 
 @numba.njit(parallel=True, cache=True)
-def _run_all(values: np.ndarray, impulsive: np.ndarray, can_slip: np.ndarray, settle: int, end: int,
-             times: np.ndarray, shortcut: bool, window: np.ndarray, counts: np.ndarray, samples: np.ndarray,
+def _run_all(values: np.ndarray, impulsive: np.ndarray, resonant: np.ndarray, can_slip: np.ndarray, settle: int,
+             end: int, times: np.ndarray, shortcut: bool, window: np.ndarray, counts: np.ndarray, samples: np.ndarray,
              sample_modes: np.ndarray, status: np.ndarray, blocks: int) -> None:
     """Every slider, in ``blocks`` blocks of neighbours handed to the cores (more
     blocks than cores, so a block of bouncers does not leave a core idle at the
@@ -289,19 +291,20 @@ def _run_all(values: np.ndarray, impulsive: np.ndarray, can_slip: np.ndarray, se
         memo_keys = np.zeros((MEMO, 7))
         memo_owner = np.full(MEMO, -1, np.int64)
         memo_steps = [next_step(plant(1.0, 0.1, 10.0, 1.0, 90.0, 0.0, 0.0, 0.0, True, 0.7, 5.0, 50.0, 0.0, 0.0,
-                                      True, True), STUCK, 0.0, 0.0, 0.0, 0.0, 0, False)] * MEMO
+                                      0.0, True, True), STUCK, 0.0, 0.0, 0.0, 0.0, 0, False)] * MEMO
         for i in range(first, stop):
-            status[i] = _run_one(values[i], impulsive[i], can_slip[i], settle, end, times, shortcut, window[i],
-                                 counts[i], samples[i], sample_modes[i], memo_keys, memo_steps, memo_owner, i)
+            status[i] = _run_one(values[i], impulsive[i], resonant[i], can_slip[i], settle, end, times, shortcut,
+                                 window[i], counts[i], samples[i], sample_modes[i], memo_keys, memo_steps, memo_owner,
+                                 i)
 
 
 @numba.njit(cache=True)
-def _margins(values: np.ndarray, margins: np.ndarray) -> None:
+def _margins(values: np.ndarray, resonant: np.ndarray, margins: np.ndarray) -> None:
     """slip_margin of every slider of Kostek's model (the others slip or not by their general onsets)."""
     for i in range(values.shape[0]):
         row = values[i]
         weight = row[0] * row[2]
-        if kostek_applies(row[4], row[6], row[3], row[9], weight, row[12]):
+        if not resonant[i] and kostek_applies(row[4], row[6], row[3], row[9], weight, row[12]):
             margins[i] = _plant.slip_margin(abs(row[8] + row[11]), weight - row[12] - row[9], row[1])
         else:
             margins[i] = 1
@@ -322,7 +325,8 @@ def prepare(progress: Callable[[str], None] | None = None) -> float:
     it hands chunks to local workers, so they load the cache instead of compiling
     side by side."""
     started = time.perf_counter()
-    run({name: np.ones(1) for name in COLUMNS} | {"landing_friction": np.array(["none"])}, lambda i: True, 0, 1,
+    run({name: np.ones(1) for name in COLUMNS} | {"landing_friction": np.array(["none"]),
+                                                  "actuator": np.array(["force"])}, lambda i: True, 0, 1,
         np.zeros(1), False, 1, progress)
     return time.perf_counter() - started
 
@@ -341,6 +345,7 @@ def run(columns: dict[str, np.ndarray], exact_can_slip: Callable[[int], bool], s
     n = len(columns["mass"])
     values = np.ascontiguousarray(np.stack([np.asarray(columns[name], dtype=np.float64) for name in COLUMNS], axis=1))
     impulsive = np.asarray(columns["landing_friction"] == "impulsive", dtype=np.bool_)
+    resonant = np.asarray(columns["actuator"] == "resonant", dtype=np.bool_)
     sample_times = np.zeros(0) if times is None else np.ascontiguousarray(times, dtype=np.float64)
     k = sample_times.size
     window = np.zeros((n, 2, 3))
@@ -356,13 +361,13 @@ def run(columns: dict[str, np.ndarray], exact_can_slip: Callable[[int], bool], s
                      f"{COMPILE_SECONDS} s; cached in {CACHE_DIR})")
         started = time.perf_counter()
         numba.set_num_threads(max(1, min(threads or _CONFIG.NUMBA_NUM_THREADS, _CONFIG.NUMBA_NUM_THREADS)))
-        _margins(values, margins)
+        _margins(values, resonant, margins)
         can_slip = margins > 0
         for i in np.flatnonzero(margins == 0):
             can_slip[i] = exact_can_slip(int(i))
         blocks = min(n, 16 * _CONFIG.NUMBA_NUM_THREADS)
-        _run_all(values, impulsive, can_slip, settle, settle + count, sample_times, shortcut, window, counts, samples,
-                 modes, status, blocks)
+        _run_all(values, impulsive, resonant, can_slip, settle, settle + count, sample_times, shortcut, window,
+                 counts, samples, modes, status, blocks)
         if progress is not None and compiling:
             progress(f"population engine compiled in {time.perf_counter() - started:.0f} s")
     stalled = np.flatnonzero(status == NO_PROGRESS)

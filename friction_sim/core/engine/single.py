@@ -52,11 +52,13 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from friction_sim.core.engine.actuator import Exciter, ExciterState
+from friction_sim.core.engine.sampling import evaluate_many
 from friction_sim.core.model.events import MODES as _MODES
 from friction_sim.core.model.events import CycleMark, Event, EventKind, Mode, SliderState, Trajectory
 from friction_sim.core.model.params import Inputs, SliderParams, require_finite
 from friction_sim.core.physics.plant import Plant, plant_of
-from friction_sim.core.physics.roots import NEVER, TWO_PI, reduce_phase, remainders_many, two_sum
+from friction_sim.core.physics.roots import NEVER, TWO_PI, reduce_phase, two_sum
 from friction_sim.core.physics.segment import (
     FLIGHT,
     LANDING,
@@ -69,9 +71,8 @@ from friction_sim.core.physics.segment import (
     offset,
     to_cycle,
     travel,
-    x_axis,
-    z_axis,
 )
+from friction_sim.core.physics.transient import transient_evaluate, transient_motion, transient_step
 from friction_sim.errors import ParameterError, SimulationFault
 
 #: Steps kept in the memo (one per distinct segment start under the plant in force).
@@ -87,6 +88,10 @@ MAX_TIME = 2.0**53
 #: handful (a landing, a lift-off at once, a slip onset).
 MAX_EVENTS_AT_ONE_INSTANT = 1000
 MAX_POSITION = 1e100
+#: Under the exciter's transient a segment's next event is sought this many
+#: periods ahead at a time (a slow transient may last millions of periods):
+#: without one by then, a new segment starts there from the same motion.
+LOOK_AHEAD_PERIODS = 64
 #: Event kinds by the numbers of :mod:`friction_sim.core.physics.segment`.
 _KINDS = tuple(EventKind)
 
@@ -141,41 +146,6 @@ class _Checkpoint:
         vars(slider).update(self.attributes)
 
 
-def _axis_many(h: Any, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(w, start + integral of w, dw/dt) of a Harmonic at an array of times."""
-    c1, s2, c2 = remainders_many(h.omega * tau)
-    w = h.w0 + h.g0 * tau + h.k * (h.cos0 * c1 - h.sin0 * s2)
-    moved = h.start + (h.w0 * tau + 0.5 * h.g0 * tau * tau + h.kk * (h.cos0 * s2 - h.sin0 * c2))
-    return w, moved, h.b0 + h.b1 * np.sin(h.phase0 + h.omega * tau)
-
-
-def _evaluate_many(p: Plant, seg: Segment, tau: np.ndarray) -> tuple[np.ndarray, ...]:
-    """:func:`~friction_sim.core.physics.segment.evaluate` at an array of times (numpy's
-    sin: within an ulp or two of libm's, so a sampled state may differ from
-    :meth:`Slider.state` at the same time in its last bits)."""
-    mode = seg.mode
-    theta = seg.phase0 + p.omega * tau
-    zero = tau * 0.0
-    if mode == FLIGHT:
-        v, moved, rate = _axis_many(x_axis(p, mode, seg.v0, seg.phase0), tau)
-        vz, z, _ = _axis_many(z_axis(p, seg.phase0, seg.vz0, seg.z0), tau)
-        return seg.x0 + (seg.xl + moved), v, rate, zero, zero, theta, z, vz
-    sin_theta = np.sin(theta)
-    if p.kostek:
-        normal = p.n0 - p.pa * sin_theta
-        if mode == STUCK:
-            return seg.x0 + zero, zero, zero, -p.tangential.b0 + zero, normal, theta, zero, zero
-        h = x_axis(p, mode, seg.v0, seg.phase0)
-        w, moved, _ = _axis_many(h, tau)
-        return (seg.x0 + (seg.xl + mode * moved), mode * w, mode * (h.b0 + h.b1 * sin_theta), -mode * p.mu * normal,
-                normal, theta, zero, zero)
-    normal = p.n0 - p.pa * sin_theta if p.pa else p.n0 + zero
-    if mode == STUCK:
-        force = p.tangential.b0 + p.tangential.b1 * np.sin(theta + p.tangential.delta)
-        return seg.x0 + zero, zero, zero, -force, normal, theta, zero, zero
-    w, moved, rate = _axis_many(x_axis(p, mode, seg.v0, seg.phase0), tau)
-    return (seg.x0 + (seg.xl + mode * moved), mode * w, mode * rate, -mode * p.mu * normal, normal, theta, zero,
-            zero)
 # --------------------------------------------------------------------------
 # The slider: owns the state, advances it event by event.
 # --------------------------------------------------------------------------
@@ -243,6 +213,9 @@ class Slider:
             if phase == 0.0:
                 self._marks.append(CycleMark(0, self._t, x0, 0.0))
         self._set_plant(self._params, self._inputs, in_flight=False)
+        self._exciter = Exciter(self._params, self._inputs, t0=self._t) if self._params.resonant else None
+        self._c = 0j  # the exciter's transient force at the segment's start (0: none, or the force actuator)
+        self._look_until = -NEVER  # where the segment's search under the transient ends
         self._set_anchor(self._t, 0, phase)
         self._start(Segment(STUCK, 0.0, self._t, x0, 0.0, 0.0, 0.0, 0.0, phase, 0))
 
@@ -311,8 +284,14 @@ class Slider:
     def state(self) -> SliderState:
         """The state at the current time :attr:`t`."""
         seg = self._seg
-        x, v, acc, friction, normal, theta, z, vz = evaluate(self._plant, seg.mode, seg.x0, seg.xl, seg.v0, seg.vz0,
-                                                             seg.z0, seg.phase0, self._t - seg.t0)
+        if self._c:
+            assert self._exciter is not None
+            x, v, acc, friction, normal, theta, z, vz = transient_evaluate(
+                self._plant, seg.mode, seg.x0, seg.xl, seg.v0, seg.vz0, seg.z0, seg.phase0, self._c, self._exciter.lam,
+                self._t - seg.t0)
+        else:
+            x, v, acc, friction, normal, theta, z, vz = evaluate(self._plant, seg.mode, seg.x0, seg.xl, seg.v0,
+                                                                 seg.vz0, seg.z0, seg.phase0, self._t - seg.t0)
         return SliderState(self._t, x, v, acc, friction, normal, theta % TWO_PI, _MODES[seg.mode], z, vz)
 
     # -- advancing -------------------------------------------------------------
@@ -326,6 +305,8 @@ class Slider:
                                          f"and <= {MAX_TIME:g} s")
         happened: list[Event] = []
         while True:
+            if self._c and self._transient_boundary(t):
+                continue
             if self._next_mark_s <= self._next_s:  # by phase: a mark and an event may round to one t
                 if self._next_mark_t > t:
                     break
@@ -352,7 +333,7 @@ class Slider:
             last = int(np.searchsorted(times, self._next_t, side="left"))
             if last > first:
                 seg = self._seg
-                values = _evaluate_many(self._plant, seg, times[first:last] - seg.t0)
+                values = self._evaluate_many(seg, times[first:last] - seg.t0)
                 for column, value in zip(columns, values):
                     column[first:last] = value
                 columns[5][first:last] %= TWO_PI
@@ -443,8 +424,10 @@ class Slider:
         elif mode == FLIGHT:
             self._flight_time += duration
 
-    def _rebase(self, params: SliderParams, inputs: Inputs) -> None:
-        """Start a new segment at the current time from the current state."""
+    def _rebase(self, params: SliderParams, inputs: Inputs, boundary: str = "") -> None:
+        """Start a new segment at the current time from the current state; at a
+        ``boundary`` of the exciter's transient nothing else changes: it has
+        ``settled`` (dropped), or the look-ahead ended (``look``: kept as it is)."""
         seg, plant, t = self._seg, self._plant, self._t
         tau = t - seg.t0
         phase, cycles = reduce_phase(seg.phase0 + plant.omega * tau, seg.cycles)
@@ -453,13 +436,23 @@ class Slider:
             x, xl, v, vz, z = seg.x0, seg.xl, 0.0, 0.0, 0.0
             self._stuck_time += tau
         else:
-            moved, v, vz, z = moved_and_velocities(plant, mode, seg.v0, seg.vz0, seg.z0, seg.phase0, tau)
+            moved, v, vz, z = self._motion(plant, seg, tau)
             x, xl = two_sum(seg.x0, seg.xl + moved)
             if mode == FLIGHT:
                 self._flight_time += tau
             else:
                 mode, vz, z = (STUCK if v == 0.0 else (1 if v > 0.0 else -1)), 0.0, 0.0
         self._set_plant(params, inputs, seg.mode == FLIGHT)
+        if boundary:
+            assert self._exciter is not None
+            if boundary == "settled":
+                self._exciter = self._exciter.settled(t)
+        elif not params.resonant:
+            self._exciter = None
+        elif self._exciter is None:
+            self._exciter = Exciter(params, inputs, t0=t)
+        else:
+            self._exciter = self._exciter.change(params, inputs, self._plant, t, phase)
         if inputs.excitation_frequency != self._frequency:
             self._set_anchor(t, cycles, phase)
         self._start(Segment(mode, t - self._origin, t, x, xl, v, vz, max(z, 0.0), phase, cycles))
@@ -468,13 +461,23 @@ class Slider:
         """Start ``seg`` and schedule its next event (worked out once per distinct
         start: see :class:`~friction_sim.core.physics.segment.Step`)."""
         self._seg = seg
-        key = (seg.mode, seg.phase0, seg.v0, seg.vz0, seg.z0, seg.closing, seg.grounded)
-        step = self._steps.get(key)
-        if step is None:
-            if len(self._steps) >= _CACHE_LIMIT:
-                self._steps.clear()
-            step = self._steps[key] = next_step(self._plant, seg.mode, seg.phase0, seg.v0, seg.vz0, seg.z0,
-                                                seg.closing, seg.grounded)
+        exciter = self._exciter
+        if exciter is not None and exciter.active(seg.t0):  # under the exciter's transient: no memo
+            self._c = exciter.force(seg.t0)
+            horizon = min(exciter.settles_at - seg.t0, LOOK_AHEAD_PERIODS / self._frequency)
+            self._look_until = seg.t0 + horizon
+            step = transient_step(self._plant, self._c, exciter.lam, horizon, seg.mode, seg.phase0, seg.v0, seg.vz0,
+                                  seg.z0, seg.closing, seg.grounded)
+        else:
+            self._c = 0j
+            key = (seg.mode, seg.phase0, seg.v0, seg.vz0, seg.z0, seg.closing, seg.grounded)
+            cached = self._steps.get(key)
+            if cached is None:
+                if len(self._steps) >= _CACHE_LIMIT:
+                    self._steps.clear()
+                cached = self._steps[key] = next_step(self._plant, seg.mode, seg.phase0, seg.v0, seg.vz0, seg.z0,
+                                                      seg.closing, seg.grounded)
+            step = cached
         self._step = step
         s = seg.s0
         if step.tied:  # tied to a phase: timed from the anchor (offset, inlined), never before the segment's start
@@ -520,6 +523,46 @@ class Slider:
         self._counts[kind] += 1
         return event
 
+    # -- internals: the resonant exciter ------------------------------------------
+
+    def _motion(self, plant: Plant, seg: Segment, tau: float) -> tuple[float, float, float, float]:
+        """(x(tau) - x(0), v, vz, z) ``tau`` into ``seg`` (with the exciter's transient, if it has one)."""
+        if self._c:
+            assert self._exciter is not None
+            return transient_motion(plant, seg.mode, self._c, self._exciter.lam, seg.v0, seg.vz0, seg.z0, seg.phase0,
+                                    tau)
+        return moved_and_velocities(plant, seg.mode, seg.v0, seg.vz0, seg.z0, seg.phase0, tau)
+
+    def _evaluate_many(self, seg: Segment, tau: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The state at an array of times into ``seg`` (with the transient: one by one)."""
+        if not self._c:
+            return evaluate_many(self._plant, seg.mode, seg.x0, seg.xl, seg.v0, seg.vz0, seg.z0, seg.phase0, tau)
+        assert self._exciter is not None
+        rows = [transient_evaluate(self._plant, seg.mode, seg.x0, seg.xl, seg.v0, seg.vz0, seg.z0, seg.phase0,
+                                   self._c, self._exciter.lam, float(each)) for each in tau]
+        return tuple(np.array(column, dtype=float) for column in zip(*rows))
+
+    def _transient_boundary(self, t: float) -> bool:
+        """If the segment's look-ahead under the transient ends (or the transient
+        settles) before its next event, the next period start and ``t``, start a
+        new segment there: the same motion, its next event sought on."""
+        boundary = max(self._look_until, self._seg.t0)
+        if boundary > t or boundary > self._next_t or (self._marks is not None and boundary > self._next_mark_t):
+            return False
+        assert self._exciter is not None
+        self._t = boundary
+        self._rebase(self._params, self._inputs, "settled" if boundary >= self._exciter.settles_at else "look")
+        return True
+
+    @property
+    def exciter(self) -> ExciterState | None:
+        """The resonant exciter's state now (None with the force actuator)."""
+        if self._exciter is None:
+            return None
+        seg = self._seg
+        theta = seg.phase0 + self._plant.omega * (self._t - seg.t0)
+        return self._exciter.state(self._t, theta)
+
     def _schedule_mark(self) -> None:
         """Aim at the start of period ``_next_mark_n``, timed from the anchor."""
         if self._marks is not None:
@@ -537,7 +580,9 @@ class Slider:
         if seg.mode == STUCK:  # only x is needed: no full state evaluation
             x, stuck = seg.x0, stuck + tau
         else:
-            x = seg.x0 + (seg.xl + travel(self._plant, seg.mode, seg.v0, seg.phase0, tau))
+            moved = (self._motion(self._plant, seg, tau)[0] if self._c
+                     else travel(self._plant, seg.mode, seg.v0, seg.phase0, tau))
+            x = seg.x0 + (seg.xl + moved)
             flight += tau if seg.mode == FLIGHT else 0.0
         assert self._marks is not None
         self._marks.append(CycleMark(n, t, x, stuck, flight))

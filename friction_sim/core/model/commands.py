@@ -52,9 +52,11 @@ COMMANDS: dict[str, CommandSpec] = {
         CommandSpec("drive_force", ("drive_force",), _FLOAT64, ("data",), (SLIDER, CONTROLLER),
                     "Fd [N] along +x (negative drives backwards)"),
         CommandSpec("excitation_amplitude", ("excitation_amplitude",), _FLOAT64, ("data",), (SLIDER,),
-                    "Pa [N] >= 0 (above m g cos(alpha) - Fz the slider hops)"),
+                    "Pa [N] >= 0 (above m g cos(alpha) - Fz the slider hops; the resonant actuator refuses it)"),
         CommandSpec("excitation_frequency", ("excitation_frequency",), _FLOAT64, ("data",), (SLIDER, CONTROLLER),
-                    "f [Hz] > 0; the phase stays continuous"),
+                    "f [Hz] > 0; the phase stays continuous (resonant actuator: the drive frequency)"),
+        CommandSpec("drive_level", ("drive_level",), _FLOAT64, ("data",), (SLIDER,),
+                    "u in [0, 1], the resonant actuator's drive level (the force actuator refuses it)"),
         CommandSpec("external_wrench", ("external_force_x", "external_force_z"), "geometry_msgs/msg/WrenchStamped",
                     ("wrench.force.x", "wrench.force.z"), (SLIDER,),
                     "extra force held until the next message: force.x tangential [N], force.z normal [N] "
@@ -164,13 +166,33 @@ def apply(command: Command, params: SliderParams, inputs: Inputs) -> tuple[Slide
     """The plant and inputs after ``command``, validated as one new state.
 
     Raises :class:`ParameterError` (and nothing changes) if a value is out of
-    its range; the error names the field the command changed.  Fields the plant does not have (a target
-    speed) leave it as it is.
+    its range, or if a command topic sets the input the actuator in force does
+    not use (``excitation_amplitude`` for the resonant one, ``drive_level`` for
+    the force one); the error names the field the command changed.  Fields the
+    plant does not have (a target speed) leave it as it is.
     """
     plant, changes = command.plant, command.inputs
     new_params = params.replace(**plant) if plant else params
     new_inputs = inputs.replace(**changes) if changes else inputs
+    if command.name != PARAMETERS:  # (a parameter is configuration: it may hold the other actuator's value)
+        _check_actuator(new_params, inputs, new_inputs)
     return new_params, new_inputs
+
+
+#: The input each actuator takes for the size of the excitation, and the one it does not.
+_ACTUATOR_INPUT = {"force": ("excitation_amplitude", "drive_level"), "resonant": ("drive_level", "excitation_amplitude")}
+
+
+def _check_actuator(params: SliderParams, before: Inputs, after: Inputs) -> None:
+    """Refuse a command that changes the input the actuator in force does not use
+    (it would change nothing: a user who sends it means the other one), naming
+    the one it does."""
+    used, unused = _ACTUATOR_INPUT[params.actuator]
+    if getattr(after, unused) != getattr(before, unused):
+        setting = spec.INPUTS[used]
+        raise ParameterError(unused, getattr(after, unused),
+                             f"is not used by actuator {params.actuator}: set {used} ({setting.range_text()} "
+                             f"{setting.unit}) instead")
 
 
 def apply_all(commands: Iterable[Command], params: SliderParams, inputs: Inputs) -> tuple[SliderParams, Inputs]:

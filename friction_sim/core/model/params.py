@@ -64,7 +64,10 @@ class SliderParams:
     line to the track (90: purely normal, Kostek's model); excitation_phase
     psi [deg] of the tangential component; track_inclination alpha [deg]
     (> 0: conveying uphill); restitution e of a landing; landing_friction,
-    the tangential impulse at a landing ("impulsive" or "none").
+    the tangential impulse at a landing ("impulsive" or "none"); actuator,
+    what vibrates the slideway ("force": Pa as set; "resonant": the exciter
+    of :mod:`friction_sim.core.physics.exciter`, with natural_frequency f_n
+    [Hz], damping_ratio zeta and full_drive_acceleration A [m/s^2]).
     """
 
     mass: float = float(spec.MASS.default)
@@ -76,9 +79,19 @@ class SliderParams:
     track_inclination: float = float(spec.TRACK_INCLINATION.default)
     restitution: float = float(spec.RESTITUTION.default)
     landing_friction: str = str(spec.LANDING_FRICTION.default)
+    actuator: str = str(spec.ACTUATOR.default)
+    natural_frequency: float = float(spec.NATURAL_FREQUENCY.default)
+    damping_ratio: float = float(spec.DAMPING_RATIO.default)
+    full_drive_acceleration: float = float(spec.FULL_DRIVE_ACCELERATION.default)
 
     def __post_init__(self) -> None:
         _check_fields(self, spec.PLANT)
+        _check_across(self)
+
+    @property
+    def resonant(self) -> bool:
+        """The resonant actuator drives the slideway (else the force actuator: Pa as set)."""
+        return self.actuator == "resonant"
 
     @property
     def weight(self) -> float:
@@ -132,6 +145,7 @@ class Inputs:
     external_force_x: extra tangential force [N], added to Fd.
     external_force_z: extra force [N] along +z, away from the track; > 0 lifts
         (it unloads the contact, and can lift the slider off).
+    drive_level: u in [0, 1] of the resonant actuator (the force actuator ignores it).
     """
 
     drive_force: float = float(spec.DRIVE_FORCE.default)
@@ -139,6 +153,7 @@ class Inputs:
     excitation_frequency: float = float(spec.EXCITATION_FREQUENCY.default)
     external_force_x: float = float(spec.EXTERNAL_FORCE_X.default)
     external_force_z: float = float(spec.EXTERNAL_FORCE_Z.default)
+    drive_level: float = float(spec.DRIVE_LEVEL.default)
 
     def __post_init__(self) -> None:
         _check_fields(self, spec.INPUTS)
@@ -166,7 +181,15 @@ def _replace(instance: _T, changes: dict[str, Any]) -> _T:
         if setting is None:
             raise ParameterError(name, value, f"unknown field; known: {', '.join(settings)}")
         object.__setattr__(copy, name, setting.check(value))
+    _check_across(copy)
     return copy
+
+
+def _check_across(instance: Any) -> None:
+    """The cross-field rules of a validated type, in one place: a reason names the field to change."""
+    if isinstance(instance, SliderParams) and instance.resonant and instance.excitation_phase != 0.0:
+        raise ParameterError("excitation_phase", instance.excitation_phase,
+                             "must be 0 with actuator resonant (its slideway moves along one line)")
 
 
 def check_load(frequency: float, rate: float, field: str = "excitation_frequency") -> None:

@@ -153,8 +153,21 @@ RESTITUTION = Setting("restitution", 0.0, "-", "normal restitution e at landing 
 LANDING_FRICTION = Setting(
     "landing_friction", "impulsive", "-", "tangential impulse at landing: impulsive (Coulomb impact, bounded by "
     "mu times the normal impulse) or none (tangential velocity kept)", choices=("impulsive", "none"))
+ACTUATOR = Setting(
+    "actuator", "force", "-", "what vibrates the slideway: force (Pa and f set the excitation directly, the paper) "
+    "or resonant (a slideway on springs driven at drive_level and f: the excitation follows with its lag and "
+    "transients)", choices=("force", "resonant"), rule="resonant needs excitation_phase 0")
+NATURAL_FREQUENCY = Setting("natural_frequency", 50.0, "Hz", "resonant actuator: natural frequency f_n of the "
+                            "slideway on its springs", 1e-3, 20_000.0)
+DAMPING_RATIO = Setting("damping_ratio", 0.02, "-", "resonant actuator: damping ratio zeta (Q = 1/(2 zeta)); a "
+                        "change of drive settles with time constant 1/(2 pi zeta f_n)", 1e-4, 0.7)
+FULL_DRIVE_ACCELERATION = Setting(
+    "full_drive_acceleration", 10.0, "m/s^2", "resonant actuator: steady normal acceleration amplitude of the "
+    "slideway at full drive (drive_level 1) at resonance (f = f_n)", 0.0, 1e4)
 PLANT = table(MASS, MU, GRAVITY, STATIC_RATIO, EXCITATION_ANGLE, EXCITATION_PHASE, TRACK_INCLINATION, RESTITUTION,
-              LANDING_FRICTION)
+              LANDING_FRICTION, ACTUATOR, NATURAL_FREQUENCY, DAMPING_RATIO, FULL_DRIVE_ACCELERATION)
+#: The settings of the resonant actuator (ignored by the force actuator).
+EXCITER = table(NATURAL_FREQUENCY, DAMPING_RATIO, FULL_DRIVE_ACCELERATION)
 
 # -- the inputs ------------------------------------------------------------------
 
@@ -175,7 +188,10 @@ EXTERNAL_FORCE_X = Setting("external_force_x", 0.0, "N", "extra tangential force
                            -MAX_FORCE, MAX_FORCE)
 EXTERNAL_FORCE_Z = Setting("external_force_z", 0.0, "N", "extra force Fz along +z, away from the track; > 0 lifts",
                            -MAX_FORCE, MAX_FORCE)
-INPUTS = table(DRIVE_FORCE, EXCITATION_AMPLITUDE, EXCITATION_FREQUENCY, EXTERNAL_FORCE_X, EXTERNAL_FORCE_Z)
+DRIVE_LEVEL = Setting("drive_level", 0.5, "-", "resonant actuator: drive level u of the exciter (1: full drive; "
+                      "the force actuator ignores it)", 0.0, 1.0)
+INPUTS = table(DRIVE_FORCE, EXCITATION_AMPLITUDE, EXCITATION_FREQUENCY, EXTERNAL_FORCE_X, EXTERNAL_FORCE_Z,
+               DRIVE_LEVEL)
 
 # -- the real-time loop ------------------------------------------------------------
 
@@ -220,9 +236,9 @@ ACTIVE = Setting("active", True, "-", "regulate now; false: stand by (publish no
 
 SLIDER_NODE = table(
     MASS, MU, GRAVITY, STATIC_RATIO, EXCITATION_ANGLE, EXCITATION_PHASE, TRACK_INCLINATION, RESTITUTION,
-    LANDING_FRICTION,
+    LANDING_FRICTION, ACTUATOR, NATURAL_FREQUENCY, DAMPING_RATIO, FULL_DRIVE_ACCELERATION,
     DRIVE_FORCE.described("drive force Fd along +x; setting it acts like the topic"),
-    EXCITATION_AMPLITUDE, EXCITATION_FREQUENCY,
+    EXCITATION_AMPLITUDE, EXCITATION_FREQUENCY, DRIVE_LEVEL,
     PUBLISH_RATE, REAL_TIME_FACTOR, PUBLISH_CLOCK, MEAN_WINDOW_PERIODS, FRAME_ID, LOG_PATH, LOG_RATE,
     FOXGLOVE_PORT, FOXGLOVE_ADDRESS, STEP_PERIODS, STEP_TIME, DIAGNOSTICS_PERIOD,
 )

@@ -22,7 +22,8 @@ from fractions import Fraction
 from typing import Any, NamedTuple
 
 from friction_sim.core.model.params import Inputs, SliderParams, cos_degrees, sin_degrees
-from friction_sim.core.physics.roots import TWO_PI
+from friction_sim.core.physics.exciter import response, steady_acceleration
+from friction_sim.core.physics.roots import TWO_PI, hypot
 
 #: A rebound slower than this many units of g*cos(alpha)/omega (gravity would
 #: stop it within a millionth of a radian of excitation phase) is a plastic
@@ -37,50 +38,6 @@ class Form(NamedTuple):
     b0: float
     b1: float
     delta: float
-
-
-def _split(a: float) -> tuple[float, float]:
-    """Veltkamp's split of a (|a| < 2**996) into two halves of 26 bits, exactly."""
-    c = 134217729.0 * a  # 2**27 + 1
-    high = c - (c - a)
-    return high, a - high
-
-
-def _two_product(a: float, b: float) -> tuple[float, float]:
-    """(a*b rounded, its exact rounding error) (Dekker), without an fma."""
-    product = a * b
-    ah, al = _split(a)
-    bh, bl = _split(b)
-    return product, ((ah * bh - product) + ah * bl + al * bh) + al * bl
-
-
-def hypot(a: float, b: float) -> float:
-    """sqrt(a*a + b*b), correctly rounded but in rare hard cases, without overflow or
-    underflow.  Not math.hypot: CPython computes that its own way (its algorithm
-    changes between versions) and Numba calls libm's, which differ in the last bit
-    now and then, and one formulation must give one result everywhere.  The sum
-    of squares is formed exactly as a double-double (Dekker's products, no fma),
-    from operands scaled by a power of two into [0.5, 1), and the square root gets
-    one Newton correction from the exact residual."""
-    a, b = abs(a), abs(b)
-    if a == math.inf or b == math.inf:
-        return math.inf
-    if a != a or b != b:
-        return math.nan
-    big, small = (a, b) if a >= b else (b, a)
-    if big == 0.0 or small == 0.0:
-        return big
-    _, exponent = math.frexp(big)
-    x, y = math.ldexp(big, -exponent), math.ldexp(small, -exponent)  # exact unless y underflows (then negligible)
-    xx, xx_error = _two_product(x, x)
-    yy, yy_error = _two_product(y, y)
-    total = xx + yy
-    bb = total - xx
-    low = ((xx - (total - bb)) + (yy - bb)) + (xx_error + yy_error)  # two_sum's error plus the products'
-    h = math.sqrt(total + low)
-    hh, hh_error = _two_product(h, h)
-    h += ((total - hh) + (low - hh_error)) / (2.0 * h)
-    return math.ldexp(h, exponent)
 
 
 def form_of(constant: float, sin_part: float, cos_part: float) -> Form:
@@ -105,7 +62,11 @@ class Plant(NamedTuple):
     it lifts off, -R > 0; ``tangential``: Ft.  ``kostek``: Kostek's model applies
     (:func:`kostek_applies`: its own fast onsets and outcomes, the paper's case bit
     for bit); ``can_slip``: the slider can ever slip (:func:`can_ever_slip`);
-    ``direction``: the direction a slip from rest takes in Kostek's model, sign(Ft).
+    ``direction``: the direction a slip from rest takes in Kostek's model, sign(Ft);
+    ``lag``: the normal excitation is pa*sin(theta - lag) (the resonant
+    actuator's steady response lags its drive); ``cot_beta`` and ``mu_s``: what a
+    transient of the exciter's force adds to each form (see
+    :mod:`friction_sim.core.physics.transient`).
     """
 
     omega: float
@@ -128,6 +89,9 @@ class Plant(NamedTuple):
     kostek: bool
     can_slip: bool
     direction: int
+    lag: float  # the normal excitation is pa*sin(theta - lag) (the resonant actuator's lag; else 0)
+    cot_beta: float  # the tangential excitation per unit of the normal one
+    mu_s: float
 
 
 def kostek_applies(excitation_angle: Any, track_inclination: Any, static_ratio: Any, excitation_amplitude: Any,
@@ -141,9 +105,10 @@ def kostek_applies(excitation_angle: Any, track_inclination: Any, static_ratio: 
 
 
 def closed_form_applies(params: SliderParams, inputs: Inputs) -> bool:
-    """:func:`kostek_applies` for validated parameters and inputs."""
-    return bool(kostek_applies(params.excitation_angle, params.track_inclination, params.static_ratio,
-                               inputs.excitation_amplitude, params.weight, inputs.external_force_z))
+    """:func:`kostek_applies` for validated parameters and inputs (never with the resonant actuator)."""
+    return not params.resonant and bool(kostek_applies(
+        params.excitation_angle, params.track_inclination, params.static_ratio, inputs.excitation_amplitude,
+        params.weight, inputs.external_force_z))
 
 
 def slip_margin(excess_force: float, least_load: float, mu: float) -> int:
@@ -184,12 +149,14 @@ UNUSED = Form(0.0, 0.0, 0.0)
 def plant(mass: float, mu: float, gravity: float, static_ratio: float, excitation_angle: float,
           excitation_phase: float, track_inclination: float, restitution: float, impulsive: bool,
           drive_force: float, excitation_amplitude: float, excitation_frequency: float,
-          external_force_x: float, external_force_z: float, kostek: bool, can_slip: bool) -> Plant:
+          external_force_x: float, external_force_z: float, lag: float, kostek: bool, can_slip: bool) -> Plant:
     """The :class:`Plant` of one set of parameters and inputs (the fields of
     SliderParams and Inputs, ``impulsive`` for landing_friction "impulsive").
     ``kostek``: the slider takes Kostek's own onsets (:func:`kostek_applies`, and
     no flight under way: one goes on in the general model until the next
-    change); ``can_slip``: :func:`can_ever_slip` (Kostek's model only).  A
+    change); ``can_slip``: :func:`can_ever_slip` (Kostek's model only);
+    ``lag``: the normal excitation is Pa*sin(theta - lag), the tangential one
+    Pt*sin(theta + psi - lag) (0 but for the resonant actuator).  A
     Kostek plant, made every time a controller changes Pa, gets only the forms
     it uses."""
     m, pa = mass, excitation_amplitude
@@ -203,36 +170,78 @@ def plant(mass: float, mu: float, gravity: float, static_ratio: float, excitatio
         return Plant(omega, excitation_frequency, m, mu, restitution, impulsive,
                      REBOUND_FLOOR * max(n0, 0.0) / m / omega, n0, pa, Form(f0, 0.0, 0.0),
                      Form((f0 - mu * n0) / m, slip_b1, 0.0), Form((-1 * f0 - mu * n0) / m, slip_b1, 0.0),
-                     UNUSED, UNUSED, UNUSED, UNUSED, UNUSED, True, can_slip, 1 if ft > 0.0 else -1)
+                     UNUSED, UNUSED, UNUSED, UNUSED, UNUSED, True, can_slip, 1 if ft > 0.0 else -1, 0.0, 0.0, mu)
     mu_s = mu * static_ratio
     n0 = weight * cos_degrees(track_inclination) - external_force_z
     f0 = ft - weight * sin_degrees(track_inclination)
-    pt = pa * (cos_degrees(excitation_angle) / sin_degrees(excitation_angle))
-    psi = math.radians(excitation_phase)
+    cot_beta = cos_degrees(excitation_angle) / sin_degrees(excitation_angle)
+    pt = pa * cot_beta
+    psi = math.radians(excitation_phase) - lag
     ts, tc = (pt, 0.0) if psi == 0.0 else (pt * math.cos(psi), pt * math.sin(psi))
+    if lag == 0.0:  # (the force actuator: the forms as they always were, bit for bit)
+        return Plant(
+            omega, excitation_frequency, m, mu, restitution, impulsive, REBOUND_FLOOR * max(n0, 0.0) / m / omega, n0,
+            pa, form_of(f0, ts, tc),
+            form_of((f0 - mu * n0) / m, (ts + mu * pa) / m, tc / m),
+            form_of((-1 * f0 - mu * n0) / m, (-1 * ts + mu * pa) / m, -1 * tc / m),
+            form_of(f0 / m, ts / m, tc / m),
+            Form(-n0 / m, pa / m, 0.0),
+            form_of(f0 - mu_s * n0, ts + mu_s * pa, tc),
+            form_of(-1 * f0 - mu_s * n0, -1 * ts + mu_s * pa, -1 * tc),
+            Form(-n0, pa, 0.0),
+            False, True, 1 if ft > 0.0 else -1, 0.0, cot_beta, mu_s)
+    ns, nc = pa * math.cos(lag), -pa * math.sin(lag)  # pa*sin(theta - lag) = ns*sin(theta) + nc*cos(theta)
     return Plant(
         omega, excitation_frequency, m, mu, restitution, impulsive, REBOUND_FLOOR * max(n0, 0.0) / m / omega, n0, pa,
         form_of(f0, ts, tc),
-        form_of((f0 - mu * n0) / m, (ts + mu * pa) / m, tc / m),
-        form_of((-1 * f0 - mu * n0) / m, (-1 * ts + mu * pa) / m, -1 * tc / m),
+        form_of((f0 - mu * n0) / m, (ts + mu * ns) / m, (tc + mu * nc) / m),
+        form_of((-1 * f0 - mu * n0) / m, (-1 * ts + mu * ns) / m, (-1 * tc + mu * nc) / m),
         form_of(f0 / m, ts / m, tc / m),
-        Form(-n0 / m, pa / m, 0.0),
-        form_of(f0 - mu_s * n0, ts + mu_s * pa, tc),
-        form_of(-1 * f0 - mu_s * n0, -1 * ts + mu_s * pa, -1 * tc),
-        Form(-n0, pa, 0.0),
-        False, True, 1 if ft > 0.0 else -1)
+        form_of(-n0 / m, ns / m, nc / m),
+        form_of(f0 - mu_s * n0, ts + mu_s * ns, tc + mu_s * nc),
+        form_of(-1 * f0 - mu_s * n0, -1 * ts + mu_s * ns, -1 * tc + mu_s * nc),
+        form_of(-n0, ns, nc),
+        False, True, 1 if ft > 0.0 else -1, lag, cot_beta, mu_s)
+
+
+def excitation(mass: float, resonant: bool, amplitude: float, frequency: float, natural_frequency: float,
+               damping_ratio: float, full_drive_acceleration: float, drive_level: float) -> tuple[float, float]:
+    """(Pa, lag) of the steady normal excitation Pa*sin(theta - lag): the force
+    actuator's ``amplitude`` as set, or the resonant actuator's steady response
+    m*u*A*G(f/f_n) (:mod:`~friction_sim.core.physics.exciter`)."""
+    if not resonant:
+        return amplitude, 0.0
+    gain, lag = response(frequency, natural_frequency, damping_ratio)
+    return mass * steady_acceleration(drive_level, full_drive_acceleration, gain), lag
+
+
+def steady_excitation(params: SliderParams, inputs: Inputs) -> tuple[float, float]:
+    """(Pa, lag) of validated parameters and inputs: the normal excitation in steady
+    state, Pa*sin(theta - lag) (:func:`excitation`)."""
+    return excitation(params.mass, params.resonant, inputs.excitation_amplitude, inputs.excitation_frequency,
+                      params.natural_frequency, params.damping_ratio, params.full_drive_acceleration,
+                      inputs.drive_level)
+
+
+def steady_throw_number(params: SliderParams, inputs: Inputs) -> float:
+    """Gamma = Pa/(m*g*cos(alpha)) of the steady excitation (the resonant actuator's
+    steady Pa; :func:`~friction_sim.core.model.params.throw_number` for the force actuator's)."""
+    return steady_excitation(params, inputs)[0] / params.normal_weight
 
 
 def plant_of(params: SliderParams, inputs: Inputs, in_flight: bool = False) -> Plant:
     """The :class:`Plant` of validated parameters and inputs (``in_flight``: a
-    flight is under way, see :func:`plant`)."""
+    flight is under way, see :func:`plant`), in steady state (the single
+    slider adds the exciter's transient)."""
     mass, gravity, angle, inclination, ratio = (params.mass, params.gravity, params.excitation_angle,
                                                 params.track_inclination, params.static_ratio)
-    amplitude, external_force_z = inputs.excitation_amplitude, inputs.external_force_z
-    kostek = not in_flight and kostek_applies(angle, inclination, ratio, amplitude, mass * gravity, external_force_z)
+    amplitude, lag = steady_excitation(params, inputs)
+    external_force_z = inputs.external_force_z
+    kostek = not in_flight and not params.resonant and kostek_applies(angle, inclination, ratio, amplitude,
+                                                                      mass * gravity, external_force_z)
     return plant(mass, params.mu, gravity, ratio, angle, params.excitation_phase, inclination, params.restitution,
                  params.landing_friction == "impulsive", inputs.drive_force, amplitude, inputs.excitation_frequency,
-                 inputs.external_force_x, external_force_z, kostek, kostek and can_ever_slip(params, inputs))
+                 inputs.external_force_x, external_force_z, lag, kostek, kostek and can_ever_slip(params, inputs))
 
 
 def slip_form(p: Plant, direction: int) -> Form:

@@ -264,7 +264,7 @@ def impact(p: Plant, v: float, vz: float) -> tuple[float, float, bool]:
 
 def normal_force(p: Plant, theta: float) -> float:
     """The contact force R at phase ``theta`` (in contact)."""
-    return p.n0 - p.pa * math.sin(theta)
+    return p.n0 - p.pa * math.sin(theta - p.lag)
 
 
 def tangential_force(p: Plant, theta: float) -> float:
@@ -293,7 +293,7 @@ def evaluate(p: Plant, mode: int, x0: float, xl: float, v0: float, vz0: float, z
         w, moved = harmonic_at(h, tau)
         return (x0 + (xl + mode * moved), mode * w, mode * (h.b0 + h.b1 * sin_theta), -mode * p.mu * normal, normal,
                 theta, 0.0, 0.0)
-    normal = p.n0 - p.pa * math.sin(theta) if p.pa else p.n0 + zero
+    normal = p.n0 - p.pa * math.sin(theta - p.lag) if p.pa else p.n0 + zero
     if mode == STUCK:
         return x0 + zero, zero, zero, -tangential_force(p, theta), normal, theta, zero, zero
     h = x_axis(p, mode, v0, phase0)

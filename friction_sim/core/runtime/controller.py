@@ -48,8 +48,10 @@ from friction_sim.core.model import spec
 from friction_sim.core.model.params import plant_from
 from friction_sim.errors import ParameterError
 
-#: The plant's parameters that make up the controller's model.
-MODEL = tuple(spec.PLANT)
+#: The plant's parameters that make up the controller's model (those of the
+#: force actuator: the controller sets Pa; the resonant exciter's drive level
+#: is not among its outputs yet).
+MODEL = tuple(name for name in spec.PLANT if name in spec.CONTROLLER_NODE)
 #: Parameters that make up the ControllerConfig.
 CONFIG = {*MODEL, "integral_gain", "max_amplitude_ratio", "settle_margin", "mean_window_periods"}
 #: Diagnostic levels (diagnostic_msgs/DiagnosticStatus: OK, WARN, ERROR).

@@ -39,9 +39,10 @@ from friction_sim.core.meanspeed.urelation import Prediction
 from friction_sim.core.model import spec
 from friction_sim.core.model.commands import PARAMETERS, PAUSE, RESET, RESUME, STEP, Command, Outcome, apply, reason
 from friction_sim.core.model.events import CycleMark, Event, EventKind, SliderState
-from friction_sim.core.model.params import Inputs, SliderParams, check_load, throw_number
+from friction_sim.core.model.params import Inputs, SliderParams, check_load
 from friction_sim.core.model.records import PeriodSummary, Tick, share
 from friction_sim.core.model.spec import NS_PER_S
+from friction_sim.core.physics.plant import steady_throw_number
 from friction_sim.core.runtime.simclock import SimClock
 from friction_sim.errors import ParameterError, SimulationFault, one_line
 
@@ -523,7 +524,9 @@ class RealtimeSlider:
             "excitation_frequency": inputs.excitation_frequency,
             "external_force_x": inputs.external_force_x,
             "external_force_z": inputs.external_force_z,
-            "throw_number": throw_number(self.slider.params, inputs),
+            "drive_level": inputs.drive_level,
+            **self._exciter_report(),
+            "throw_number": steady_throw_number(self.slider.params, inputs),
             # the groups the prediction is made of: with an external force, the effective ones
             "phi": prediction.effective_phi,
             "amplitude_ratio": prediction.effective_amplitude_ratio,
@@ -549,6 +552,19 @@ class RealtimeSlider:
         stats.interval_flight_start, stats.interval_lift_offs_start, stats.interval_landings_start = (
             flight_time, lift_offs, landings)
         return report
+
+    def _exciter_report(self) -> dict[str, Any]:
+        """The actuator and, for the resonant one, the exciter's state now: the
+        amplitude of the part's normal excitation (steady plus the transient's
+        envelope) and its lag behind the drive (NaN for the force actuator,
+        whose excitation is Pa as set), with the slideway's f_n and zeta in force."""
+        state, params = self.slider.exciter, self.slider.params
+        report = {"actuator": params.actuator, "natural_frequency": params.natural_frequency,
+                  "damping_ratio": params.damping_ratio}
+        if state is None:
+            return {**report, "excitation_envelope": self.slider.inputs.excitation_amplitude,
+                    "exciter_lag_deg": math.nan}
+        return {**report, "excitation_envelope": state.amplitude, "exciter_lag_deg": math.degrees(state.lag)}
 
     def _flight_record(self) -> tuple[float, int, int]:
         """(time in flight [s], lift-offs, landings) since the start, up to the slider's time."""

@@ -26,8 +26,9 @@ from friction_sim.core.meanspeed.urelation import kostek_prediction, nondimensio
 from friction_sim.core.model import spec
 from friction_sim.core.model.commands import Command, apply_all
 from friction_sim.core.model.events import Event, EventKind, Trajectory
-from friction_sim.core.model.params import Inputs, SliderParams, require_finite, throw_number
+from friction_sim.core.model.params import Inputs, SliderParams, require_finite
 from friction_sim.core.model.records import share
+from friction_sim.core.physics.plant import steady_throw_number
 from friction_sim.errors import ParameterError
 
 Schedule = Sequence[Command]
@@ -199,7 +200,7 @@ def simulate(
         event_counts={kind.value: counts.get(kind, 0) for kind in EventKind},
         wall_time=wall, trajectory=trajectory,
         events=slider.events if sample_rate is not None else [],
-        flight_fraction=flight_fraction, throw_number=throw_number(params, inputs),
+        flight_fraction=flight_fraction, throw_number=steady_throw_number(params, inputs),
         u_closed_form=relation.closed_form, u_periodic=relation.periodic,
     )
 

@@ -43,7 +43,8 @@ EVENT_TOL = 1e-9
 
 def reference_schedule(start, schedule):
     """The core's (initial Inputs, Commands) as the reference's piecewise list."""
-    current = dataclasses.asdict(start)
+    known = {item.name for item in dataclasses.fields(ReferenceInputs)}  # (the force actuator's inputs)
+    current = {name: value for name, value in dataclasses.asdict(start).items() if name in known}
     out = [(0.0, ReferenceInputs(**current))]
     for command in grouped(schedule):
         current = {**current, **command.values}

@@ -1,0 +1,343 @@
+"""The part's motion while the resonant exciter's transient decays, written once.
+
+After a change of drive the part feels, on top of the steady forms of its
+:class:`~friction_sim.core.physics.plant.Plant`, the exciter's transient
+force Re(c*exp(lambda*tau)) normal to the track and cot(beta) times it along
+it (:mod:`friction_sim.core.physics.exciter`).  Every acceleration is then a
+constant, a sinusoid of the drive phase and a decaying sinusoid at the
+damped frequency, and every quantity still has a closed form: a speed and a
+position are its first and second integrals.
+
+The events are the first times such a closed form reaches zero.  No formula
+gives them, so :func:`first_time` finds them by branch and bound: an
+interval is ruled out only where the value at its middle is farther from
+zero than the largest slope times half its width (plus the rounding of the
+evaluation), so no root can be missed; an interval on which the slope keeps
+one sign holds at most one crossing, which is bisected to the last bit.
+
+Segments work as in :mod:`friction_sim.core.physics.segment` (the same modes,
+event kinds, guards and impact law, and the same :class:`Step`), only the
+event times come from :func:`first_time`.  The single slider uses these
+functions until the transient has settled (below rounding), then the
+steady ones again.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+from friction_sim.core.physics.exciter import exp_terms
+from friction_sim.core.physics.plant import Form, Plant, form_at, onset_form, slip_form
+from friction_sim.core.physics.roots import NEVER, TWO_PI, harmonic, harmonic_at, reduce_phase
+from friction_sim.core.physics.segment import (
+    BACKWARD,
+    FLIGHT,
+    FORWARD,
+    LANDING,
+    LIFT_OFF,
+    NO_STEP,
+    REVERSAL,
+    SLIP_START,
+    STICK,
+    STUCK,
+    Step,
+    impact,
+)
+
+#: Relative rounding allowance of one evaluation of a closed form (a few dozen
+#: operations on terms up to the sum of their magnitudes).
+ROUNDING = 1e-14
+
+
+class Signal(NamedTuple):
+    """A closed form of ``level`` 0 (an acceleration b0 + b1*sin(phase + omega*tau)
+    + Re(kc*exp(lam*tau))), 1 (its integral from ``w0``) or 2 (the integral of
+    that from ``z0``)."""
+
+    level: int
+    z0: float
+    w0: float
+    b0: float
+    b1: float
+    phase: float
+    omega: float
+    kc: complex
+    lam: complex
+
+
+def signal(level: int, form: Form, gain: float, c: complex, lam: complex, phase0: float, omega: float,
+           w0: float, z0: float) -> Signal:
+    """The closed form of ``level`` of an acceleration ``form`` plus ``gain`` times the
+    exciter's transient force Re(c*exp(lam*tau))."""
+    return Signal(level, z0, w0, form.b0, form.b1, phase0 + form.delta, omega, gain * c, lam)
+
+
+def value(s: Signal, tau: float) -> float:
+    """The signal at ``tau``."""
+    e0, e1, e2 = exp_terms(s.lam, tau)
+    if s.level == 0:
+        return s.b0 + s.b1 * math.sin(s.phase + s.omega * tau) + (s.kc * e0).real
+    w, z = harmonic_at(harmonic(s.w0, s.b0, s.b1, s.phase, s.omega, s.z0), tau)
+    return w + (s.kc * e1).real if s.level == 1 else z + (s.kc * e2).real
+
+
+def slope(s: Signal, tau: float) -> float:
+    """d/dtau of the signal at ``tau``."""
+    if s.level == 0:
+        e0 = exp_terms(s.lam, tau)[0]
+        return s.b1 * s.omega * math.cos(s.phase + s.omega * tau) + (s.kc * s.lam * e0).real
+    return value(Signal(s.level - 1, 0.0, s.w0, s.b0, s.b1, s.phase, s.omega, s.kc, s.lam), tau)
+
+
+def envelope(s: Signal, tau: float) -> float:
+    """|kc|*exp(-sigma*tau): the transient's size from ``tau`` on."""
+    return abs(s.kc) * math.exp(s.lam.real * tau)
+
+
+def slope_bound(s: Signal, a: float, b: float) -> float:
+    """An upper bound of |d/dtau signal| on [a, b]."""
+    env = envelope(s, a)
+    acceleration = abs(s.b0) + s.b1 + env
+    if s.level == 0:
+        return s.b1 * s.omega + env * abs(s.lam)
+    if s.level == 1:
+        return acceleration
+    speed = value(Signal(1, 0.0, s.w0, s.b0, s.b1, s.phase, s.omega, s.kc, s.lam), 0.5 * (a + b))
+    return abs(speed) + 0.5 * (b - a) * acceleration
+
+
+def curvature_bound(s: Signal, a: float, b: float) -> float:
+    """An upper bound of |d2/dtau2 signal| on [a, b]."""
+    env = envelope(s, a)
+    if s.level == 0:
+        return s.b1 * s.omega * s.omega + env * abs(s.lam) ** 2
+    if s.level == 1:
+        return s.b1 * s.omega + env * abs(s.lam)
+    return abs(s.b0) + s.b1 + env
+
+
+def slack(s: Signal, tau: float) -> float:
+    """The rounding allowance of an evaluation at ``tau``: ROUNDING times the sum of
+    the magnitudes of the terms."""
+    terms = abs(s.b0) + s.b1 + abs(s.kc)
+    if s.level >= 1:
+        terms = abs(s.w0) + terms * (tau + 2.0 / s.omega + 2.0 / abs(s.lam))
+    if s.level == 2:
+        terms = abs(s.z0) + terms * (tau + 2.0 / s.omega + 2.0 / abs(s.lam))
+    return ROUNDING * terms
+
+
+def _holds(x: float, positive: bool) -> bool:
+    """The condition sought: above zero (``positive``), else at or below it."""
+    return x > 0.0 if positive else x <= 0.0
+
+
+def _bisect(s: Signal, a: float, b: float, positive: bool) -> float:
+    """The first time on (a, b] where the condition holds, the condition failing at
+    a and holding at b, to the last bit."""
+    while True:
+        m = a + 0.5 * (b - a)
+        if m <= a or m >= b:
+            return b
+        if _holds(value(s, m), positive):
+            b = m
+        else:
+            a = m
+
+
+def first_time(s: Signal, lo: float, hi: float, positive: bool) -> float:
+    """The first time in [lo, hi] at which the signal is above zero (``positive``)
+    or at or below it (else); ``inf`` if there is none.  Scanned a drive
+    period at a time, each by branch and bound (see the module's docstring)."""
+    if lo > hi:
+        return NEVER
+    if _holds(value(s, lo), positive):
+        return lo
+    period = TWO_PI / s.omega
+    start = lo
+    while start < hi:
+        stop = min(hi, start + period)
+        found = _search(s, start, stop, positive)
+        if found != NEVER:
+            return found
+        start = stop
+    return NEVER
+
+
+def _search(s: Signal, lo: float, hi: float, positive: bool) -> float:
+    """:func:`first_time` on [lo, hi], the condition failing at lo."""
+    stack = [(lo, hi)]
+    while stack:
+        a, b = stack.pop()
+        half = 0.5 * (b - a)
+        m = a + half
+        f = value(s, m)
+        reach = slope_bound(s, a, b) * half + slack(s, m)
+        if (f - reach > 0.0) if not positive else (f + reach <= 0.0):
+            continue  # the condition cannot hold anywhere on [a, b]
+        if _holds(value(s, a), positive):
+            return a
+        fb_holds = _holds(value(s, b), positive)
+        if abs(slope(s, m)) > curvature_bound(s, a, b) * half:
+            if fb_holds:  # monotone: one crossing at most
+                return _bisect(s, a, b, positive)
+            continue
+        if m <= a or m >= b:
+            if fb_holds:
+                return b
+            continue
+        stack.append((m, b))
+        stack.append((a, m))
+    return NEVER
+
+
+# -- the gains of the transient force on each form ---------------------------------------------
+
+
+def slip_gain(p: Plant, direction: int) -> float:
+    """What a unit transient normal force adds to dw/dt (w = s*v) of a slip in ``direction``."""
+    return (direction * p.cot_beta + p.mu) / p.mass
+
+
+def onset_gain(p: Plant, direction: int) -> float:
+    """What it adds to the onset form s*Ft - mu_s*R."""
+    return direction * p.cot_beta + p.mu_s
+
+
+# -- a segment's next event --------------------------------------------------------------------
+
+
+def _after_window(s: Signal, lo: float, hi: float, guard: bool) -> float:
+    """The first time the signal rises above zero; with ``guard`` (the window just
+    closed: a restart at once could only come from rounding) only after it has
+    been at or below zero."""
+    if guard:
+        lo = first_time(s, lo, hi, False)
+    return first_time(s, lo, hi, True) if lo != NEVER else NEVER
+
+
+def _returns_to_zero(rate: Signal, speed: Signal, hi: float) -> float:
+    """When a speed that starts at ``speed.w0`` >= 0 first returns to zero; from
+    rest it must first rise (its rate above zero) and fall (at or below): 0 if
+    it never rises."""
+    lo = 0.0
+    if speed.w0 <= 0.0:
+        rising = first_time(rate, 0.0, hi, True)
+        if rising == NEVER:
+            return 0.0
+        lo = first_time(rate, rising, hi, False)
+        if lo == NEVER:
+            return NEVER
+    return first_time(speed, lo, hi, False)
+
+
+def transient_step(p: Plant, c: complex, lam: complex, horizon: float, mode: int, phase0: float, v0: float,
+                   vz0: float, z0: float, closing: int, grounded: bool) -> Step:
+    """:func:`~friction_sim.core.physics.segment.next_step` under the steady forms of
+    ``p`` plus the transient force Re(c*exp(lam*tau)): the next event before
+    ``horizon`` (when the transient settles), or none."""
+    omega = p.omega
+    kind, direction, delay = STICK, 0, NEVER
+    if mode == FLIGHT:
+        rate = signal(0, p.flight_z, 1.0 / p.mass, c, lam, phase0, omega, 0.0, 0.0)
+        speed = signal(1, p.flight_z, 1.0 / p.mass, c, lam, phase0, omega, vz0, 0.0)
+        height = signal(2, p.flight_z, 1.0 / p.mass, c, lam, phase0, omega, vz0, z0)
+        kind = LANDING
+        if z0 > 0.0:
+            delay = first_time(height, 0.0, horizon, False)
+        elif vz0 < 0.0:  # on the track and moving into it: lands at once
+            delay = 0.0
+        else:
+            apex = _returns_to_zero(rate, speed, horizon)
+            delay = first_time(height, apex, horizon, False) if apex != NEVER else NEVER
+    else:
+        lift = _after_window(signal(0, p.lift, 1.0, c, lam, phase0, omega, 0.0, 0.0), 0.0, horizon, grounded)
+        if mode == STUCK:
+            kind, delay = LIFT_OFF, lift
+            for s in (FORWARD, BACKWARD):
+                onset = _after_window(signal(0, onset_form(p, s), onset_gain(p, s), c, lam, phase0, omega, 0.0, 0.0),
+                                      0.0, horizon, closing == s)
+                if onset < delay:
+                    kind, direction, delay = SLIP_START, s, onset
+        else:
+            form, gain = slip_form(p, mode), slip_gain(p, mode)
+            stop = _returns_to_zero(signal(0, form, gain, c, lam, phase0, omega, 0.0, 0.0),
+                                    signal(1, form, gain, c, lam, phase0, omega, mode * v0, 0.0), horizon)
+            kind, delay = (LIFT_OFF, lift) if lift <= stop else (STICK, stop)
+    if delay == NEVER:
+        return NO_STEP
+    phase, whole = reduce_phase(phase0 + omega * delay, 0)
+    moved, v, vz, _ = transient_motion(p, mode, c, lam, v0, vz0, z0, phase0, delay)
+    if kind == SLIP_START:
+        return Step(delay, False, phase, whole, moved, v, vz, kind, direction, 0.0, 0.0, 0, False)
+    if kind == LIFT_OFF:
+        return Step(delay, False, phase, whole, moved, v, vz, kind, FLIGHT, v, 0.0, 0, False)
+    if kind == STICK:
+        force = transient_force(c, lam, delay)
+        after = 0
+        for s in (FORWARD, BACKWARD):
+            if after == 0 and form_at(onset_form(p, s), phase0 + omega * delay) + onset_gain(p, s) * force > 0.0:
+                after = s
+        if after == -mode:
+            return Step(delay, False, phase, whole, moved, v, vz, REVERSAL, after, 0.0, 0.0, 0, False)
+        return Step(delay, False, phase, whole, moved, v, vz, STICK, STUCK, 0.0, 0.0, mode, False)
+    v_after, vz_after, bounces = impact(p, v, vz)
+    if bounces:
+        return Step(delay, False, phase, whole, moved, v, vz, LANDING, FLIGHT, v_after, vz_after, 0, False)
+    after = STUCK if v_after == 0.0 else (FORWARD if v_after > 0.0 else BACKWARD)
+    return Step(delay, False, phase, whole, moved, v, vz, LANDING, after, v_after, 0.0, 0, delay == 0.0)
+
+
+# -- the state within a segment ----------------------------------------------------------------
+
+
+def transient_force(c: complex, lam: complex, tau: float) -> float:
+    """The transient normal force Re(c*exp(lam*tau)) [N]."""
+    return (c * exp_terms(lam, tau)[0]).real
+
+
+def transient_motion(p: Plant, mode: int, c: complex, lam: complex, v0: float, vz0: float, z0: float,
+                     phase0: float, tau: float) -> tuple[float, float, float, float]:
+    """(x(tau) - x(0), v, vz, z) ``tau`` into a segment: the steady closed forms plus
+    the integrals of the transient force."""
+    if mode == STUCK:
+        return 0.0, 0.0, 0.0, 0.0
+    _, e1, e2 = exp_terms(lam, tau)
+    if mode == FLIGHT:
+        along, normal = p.cot_beta / p.mass, 1.0 / p.mass
+        v, moved = _integrals(p.flight_x, phase0, p.omega, v0, 0.0, tau)
+        vz, z = _integrals(p.flight_z, phase0, p.omega, vz0, z0, tau)
+        return (moved + along * (c * e2).real, v + along * (c * e1).real, vz + normal * (c * e1).real,
+                z + normal * (c * e2).real)
+    gain = slip_gain(p, mode)
+    w, moved = _integrals(slip_form(p, mode), phase0, p.omega, mode * v0, 0.0, tau)
+    return mode * (moved + gain * (c * e2).real), mode * (w + gain * (c * e1).real), 0.0, 0.0
+
+
+def _integrals(form: Form, phase0: float, omega: float, w0: float, start: float, tau: float) -> tuple[float, float]:
+    """(w, start + integral of w) of dw/dt = form from w0: the steady part of a segment's closed forms,
+    as the root finders see it (no adjustment of a start from rest: the transient decides it)."""
+    return harmonic_at(harmonic(w0, form.b0, form.b1, phase0 + form.delta, omega, start), tau)
+
+
+def transient_evaluate(p: Plant, mode: int, x0: float, xl: float, v0: float, vz0: float, z0: float, phase0: float,
+                       c: complex, lam: complex, tau: float) -> tuple[float, float, float, float, float, float, float,
+                                                                       float]:
+    """(x, v, acceleration, friction force, normal force, phase, z, vz) ``tau`` into
+    a segment under the transient (see :func:`~friction_sim.core.physics.segment.evaluate`)."""
+    theta = phase0 + p.omega * tau
+    force = transient_force(c, lam, tau)
+    moved, v, vz, z = transient_motion(p, mode, c, lam, v0, vz0, z0, phase0, tau)
+    x = x0 + (xl + moved)
+    if mode == FLIGHT:
+        acc = form_at(p.flight_x, theta) + p.cot_beta / p.mass * force
+        return x, v, acc, 0.0, 0.0, theta, z, vz
+    normal = p.n0 - p.pa * math.sin(theta - p.lag) - force
+    if mode == STUCK:
+        return x, 0.0, 0.0, -(form_at(p.tangential, theta) + p.cot_beta * force), normal, theta, 0.0, 0.0
+    acc = mode * (form_at(slip_form(p, mode), theta) + slip_gain(p, mode) * force)
+    return x, v, acc, -mode * p.mu * normal, normal, theta, 0.0, 0.0
+
+
+__all__ = ["Signal", "first_time", "transient_evaluate", "transient_force", "transient_motion", "transient_step"]
