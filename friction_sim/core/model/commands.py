@@ -180,7 +180,8 @@ def apply(command: Command, params: SliderParams, inputs: Inputs) -> tuple[Slide
 
 
 #: The input each actuator takes for the size of the excitation, and the one it does not.
-_ACTUATOR_INPUT = {"force": ("excitation_amplitude", "drive_level"), "resonant": ("drive_level", "excitation_amplitude")}
+_ACTUATOR_INPUT = {"force": ("excitation_amplitude", "drive_level"),
+                   "resonant": ("drive_level", "excitation_amplitude")}
 
 
 def _check_actuator(params: SliderParams, before: Inputs, after: Inputs) -> None:
