@@ -37,9 +37,10 @@ from friction_sim.core.physics.exciter import response
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))
-from reference_exciter import ExciterCase, solve
+from reference_exciter import random_case, solve
 
 from _timing import median_time
+from helpers import exciter_states
 
 RESONANT = SliderParams(actuator="resonant")
 
@@ -80,33 +81,13 @@ def reference_agreement(cases: int) -> tuple[float, int, int]:
     the events compared and the cases with flight."""
     worst, events, flying = 0.0, 0, 0
     for seed in range(cases):
-        rng = np.random.default_rng(seed)
-        case = ExciterCase(
-            mu=float(rng.uniform(0.1, 0.6)), excitation_angle=float(rng.uniform(20.0, 90.0)),
-            track_inclination=float(rng.uniform(-5.0, 5.0)), static_ratio=float(rng.uniform(1.0, 1.5)),
-            restitution=float(rng.choice([0.0, 0.3])), drive_force=float(rng.uniform(-0.5, 1.0)),
-            natural_frequency=float(rng.uniform(45.0, 55.0)), damping_ratio=float(rng.uniform(0.01, 0.1)),
-            full_drive_acceleration=float(rng.uniform(10.0, 25.0)), drive_level=float(rng.uniform(0.4, 0.8)),
-            changes=((0.1 + float(rng.uniform(0.0, 0.02)), float(rng.uniform(0.2, 1.0))),))
+        case = random_case(np.random.default_rng(seed))
         reference = solve(case, 0.4)
-        params = RESONANT.replace(
-            mu=case.mu, excitation_angle=case.excitation_angle, track_inclination=case.track_inclination,
-            static_ratio=case.static_ratio, restitution=case.restitution, natural_frequency=case.natural_frequency,
-            damping_ratio=case.damping_ratio, full_drive_acceleration=case.full_drive_acceleration)
-        slider = Slider(params, Inputs(drive_force=case.drive_force, drive_level=case.drive_level))
-        rows = []
         times = np.linspace(0.0, 0.4, 81)[1:]
-        for t in times:
-            when, level = case.changes[0]
-            if slider.t < when <= t:
-                slider.advance_to(when)
-                slider.set_inputs(drive_level=level)
-            slider.advance_to(float(t))
-            state = slider.state()
-            rows.append((state.x, state.v, state.z, state.vz))
+        ours, slider = exciter_states(case, times)
         theirs = np.array([reference.at(float(t))[2:6] for t in times])
         scale = np.maximum(np.max(np.abs(theirs), axis=0), 1e-300)
-        worst = max(worst, float(np.max(np.abs(np.array(rows) - theirs) / scale)))
+        worst = max(worst, float(np.max(np.abs(ours - theirs) / scale)))
         events += len(reference.events)
         flying += slider.flight_time > 0.0
     return worst, events, flying

@@ -1,6 +1,7 @@
 """Helpers shared by the core tests: a time limit that turns a hang into a
 test failure (some inputs once looped forever at the edges of the slip
-window), and the mirror image of a command schedule."""
+window), the mirror image of a command schedule, and the core's run of a
+case of the exciter's reference (test/reference_exciter.py)."""
 
 from __future__ import annotations
 
@@ -84,3 +85,31 @@ def fail_on_poison(monkeypatch: Any) -> None:
             raise OverflowError("cannot convert float infinity to integer")
 
     monkeypatch.setattr(Slider, "set_plant", set_plant)
+
+
+def exciter_states(case: Any, times: Any) -> Any:
+    """The core's (x, v, z, vz) of a case of test/reference_exciter.py at ``times``
+    (ascending, > 0), its drive level steps taken at their times; and the slider."""
+    import numpy as np
+
+    from friction_sim.core.engine.single import Slider
+    from friction_sim.core.model.params import Inputs, SliderParams
+
+    params = SliderParams(
+        mass=case.mass, mu=case.mu, gravity=case.gravity, static_ratio=case.static_ratio,
+        excitation_angle=case.excitation_angle, track_inclination=case.track_inclination,
+        restitution=case.restitution, landing_friction="impulsive" if case.impulsive else "none",
+        actuator="resonant", natural_frequency=case.natural_frequency, damping_ratio=case.damping_ratio,
+        full_drive_acceleration=case.full_drive_acceleration)
+    slider = Slider(params, Inputs(drive_force=case.drive_force, excitation_frequency=case.frequency,
+                                   drive_level=case.drive_level), event_log_size=None)
+    rows = []
+    for t in times:
+        for when, level in case.changes:
+            if slider.t < when <= t:
+                slider.advance_to(when)
+                slider.set_inputs(drive_level=level)
+        slider.advance_to(float(t))
+        state = slider.state()
+        rows.append((state.x, state.v, state.z, state.vz))
+    return np.array(rows), slider

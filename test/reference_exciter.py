@@ -82,6 +82,18 @@ class ExciterCase:
         return (amplitude * e).imag, (1j * self.omega * amplitude * e).imag
 
 
+def random_case(rng: np.random.Generator) -> ExciterCase:
+    """A random coupled case that moves (the tests' and the bench's): a drive level
+    step at 0.1 s, some with restitution, flight included."""
+    return ExciterCase(
+        mu=float(rng.uniform(0.1, 0.6)), excitation_angle=float(rng.uniform(20.0, 90.0)),
+        track_inclination=float(rng.uniform(-5.0, 5.0)), static_ratio=float(rng.uniform(1.0, 1.5)),
+        restitution=float(rng.choice([0.0, 0.3])), drive_force=float(rng.uniform(-0.5, 1.0)),
+        natural_frequency=float(rng.uniform(45.0, 55.0)), damping_ratio=float(rng.uniform(0.01, 0.1)),
+        full_drive_acceleration=float(rng.uniform(10.0, 25.0)), drive_level=float(rng.uniform(0.4, 0.8)),
+        changes=((0.1 + float(rng.uniform(0.0, 0.02)), float(rng.uniform(0.2, 1.0))),))
+
+
 @dataclass
 class Trace:
     """The reference's dense solution: pieces of (t0, t1, mode, sol) and the events."""
@@ -256,4 +268,4 @@ def _after(case: ExciterCase, mode: int, name: str, mu_s: float, t: float, y: An
     return mode
 
 
-__all__ = ["ExciterCase", "Trace", "solve"]
+__all__ = ["ExciterCase", "Trace", "random_case", "solve"]

@@ -232,14 +232,24 @@ def general_step(p: Plant, mode: int, phase0: float, v0: float, vz0: float, z0: 
     phase, whole = reduce_phase(theta, 0)
     v, vz = velocities(p, mode, v0, vz0, z0, phase0, delay)
     moved = travel(p, mode, v0, phase0, delay)
+    return outcome(p, mode, kind, direction, stays(p, theta) if kind == STICK else 0, delay, tied, phase, whole,
+                   moved, v, vz)
+
+
+def outcome(p: Plant, mode: int, kind: int, direction: int, slips: int, delay: float, tied: bool, phase: float,
+            whole: int, moved: float, v: float, vz: float) -> Step:
+    """The :class:`Step` of an event of ``kind`` found ``delay`` into a segment in
+    ``mode`` (at ``phase`` of period ``whole``, after ``moved``, with velocities
+    v and vz just before): what follows it.  ``direction``: a slip start's;
+    ``slips``: at a slip's stop, the direction it would slip in at once (0: it
+    stays stuck; see :func:`~friction_sim.core.physics.plant.stays`)."""
     if kind == SLIP_START:
         return Step(delay, tied, phase, whole, moved, v, vz, kind, direction, 0.0, 0.0, 0, False)
     if kind == LIFT_OFF:
         return Step(delay, tied, phase, whole, moved, v, vz, kind, FLIGHT, v, 0.0, 0, False)
     if kind == STICK:
-        after = stays(p, theta)
-        if after == -mode:
-            return Step(delay, tied, phase, whole, moved, v, vz, REVERSAL, after, 0.0, 0.0, 0, False)
+        if slips == -mode:
+            return Step(delay, tied, phase, whole, moved, v, vz, REVERSAL, slips, 0.0, 0.0, 0, False)
         return Step(delay, tied, phase, whole, moved, v, vz, STICK, STUCK, 0.0, 0.0, mode, False)
     v_after, vz_after, bounces = impact(p, v, vz)
     if bounces:

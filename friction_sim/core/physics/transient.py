@@ -37,14 +37,18 @@ from friction_sim.core.physics.segment import (
     LANDING,
     LIFT_OFF,
     NO_STEP,
-    REVERSAL,
     SLIP_START,
     STICK,
     STUCK,
     Step,
-    impact,
+    outcome,
 )
 
+#: Under the exciter's transient a segment's next event is sought this many
+#: periods ahead at a time (a slow transient may last millions of periods):
+#: without one by then, the single slider starts a new segment there from the
+#: same motion, so no search scans more than this.
+LOOK_AHEAD_PERIODS = 64
 #: Relative rounding allowance of one evaluation of a closed form (a few dozen
 #: operations on terms up to the sum of their magnitudes).
 ROUNDING = 1e-14
@@ -75,9 +79,11 @@ def signal(level: int, form: Form, gain: float, c: complex, lam: complex, phase0
 
 def value(s: Signal, tau: float) -> float:
     """The signal at ``tau``."""
-    e0, e1, e2 = exp_terms(s.lam, tau)
-    if s.level == 0:
-        return s.b0 + s.b1 * math.sin(s.phase + s.omega * tau) + (s.kc * e0).real
+    if s.level == 0:  # (the root finders' hot path: the transient's value alone)
+        decay, angle = math.exp(s.lam.real * tau), s.lam.imag * tau
+        transient = decay * (s.kc.real * math.cos(angle) - s.kc.imag * math.sin(angle))
+        return s.b0 + s.b1 * math.sin(s.phase + s.omega * tau) + transient
+    _, e1, e2 = exp_terms(s.lam, tau)
     w, z = harmonic_at(harmonic(s.w0, s.b0, s.b1, s.phase, s.omega, s.z0), tau)
     return w + (s.kc * e1).real if s.level == 1 else z + (s.kc * e2).real
 
@@ -251,42 +257,35 @@ def transient_step(p: Plant, c: complex, lam: complex, horizon: float, mode: int
         else:
             apex = _returns_to_zero(rate, speed, horizon)
             delay = first_time(height, apex, horizon, False) if apex != NEVER else NEVER
+    elif mode == STUCK:  # each candidate is sought only before the earliest found so far
+        kind = SLIP_START
+        for s in (FORWARD, BACKWARD):
+            onset = _after_window(signal(0, onset_form(p, s), onset_gain(p, s), c, lam, phase0, omega, 0.0, 0.0),
+                                  0.0, min(delay, horizon), closing == s)
+            if onset < delay:
+                direction, delay = s, onset
+        lift = _after_window(signal(0, p.lift, 1.0, c, lam, phase0, omega, 0.0, 0.0), 0.0, min(delay, horizon),
+                             grounded)
+        if lift <= delay:  # (a lift-off at the same instant as an onset wins, as in the steady model)
+            kind, direction, delay = LIFT_OFF, 0, lift
     else:
-        lift = _after_window(signal(0, p.lift, 1.0, c, lam, phase0, omega, 0.0, 0.0), 0.0, horizon, grounded)
-        if mode == STUCK:
-            kind, delay = LIFT_OFF, lift
-            for s in (FORWARD, BACKWARD):
-                onset = _after_window(signal(0, onset_form(p, s), onset_gain(p, s), c, lam, phase0, omega, 0.0, 0.0),
-                                      0.0, horizon, closing == s)
-                if onset < delay:
-                    kind, direction, delay = SLIP_START, s, onset
-        else:
-            form, gain = slip_form(p, mode), slip_gain(p, mode)
-            stop = _returns_to_zero(signal(0, form, gain, c, lam, phase0, omega, 0.0, 0.0),
-                                    signal(1, form, gain, c, lam, phase0, omega, mode * v0, 0.0), horizon)
-            kind, delay = (LIFT_OFF, lift) if lift <= stop else (STICK, stop)
+        form, gain = slip_form(p, mode), slip_gain(p, mode)
+        stop = _returns_to_zero(signal(0, form, gain, c, lam, phase0, omega, 0.0, 0.0),
+                                signal(1, form, gain, c, lam, phase0, omega, mode * v0, 0.0), horizon)
+        lift = _after_window(signal(0, p.lift, 1.0, c, lam, phase0, omega, 0.0, 0.0), 0.0, min(stop, horizon),
+                             grounded)
+        kind, delay = (LIFT_OFF, lift) if lift <= stop else (STICK, stop)
     if delay == NEVER:
         return NO_STEP
     phase, whole = reduce_phase(phase0 + omega * delay, 0)
     moved, v, vz, _ = transient_motion(p, mode, c, lam, v0, vz0, z0, phase0, delay)
-    if kind == SLIP_START:
-        return Step(delay, False, phase, whole, moved, v, vz, kind, direction, 0.0, 0.0, 0, False)
-    if kind == LIFT_OFF:
-        return Step(delay, False, phase, whole, moved, v, vz, kind, FLIGHT, v, 0.0, 0, False)
-    if kind == STICK:
+    slips = 0
+    if kind == STICK:  # the direction it would slip in at once (the steady model's stays, with the transient)
         force = transient_force(c, lam, delay)
-        after = 0
         for s in (FORWARD, BACKWARD):
-            if after == 0 and form_at(onset_form(p, s), phase0 + omega * delay) + onset_gain(p, s) * force > 0.0:
-                after = s
-        if after == -mode:
-            return Step(delay, False, phase, whole, moved, v, vz, REVERSAL, after, 0.0, 0.0, 0, False)
-        return Step(delay, False, phase, whole, moved, v, vz, STICK, STUCK, 0.0, 0.0, mode, False)
-    v_after, vz_after, bounces = impact(p, v, vz)
-    if bounces:
-        return Step(delay, False, phase, whole, moved, v, vz, LANDING, FLIGHT, v_after, vz_after, 0, False)
-    after = STUCK if v_after == 0.0 else (FORWARD if v_after > 0.0 else BACKWARD)
-    return Step(delay, False, phase, whole, moved, v, vz, LANDING, after, v_after, 0.0, 0, delay == 0.0)
+            if slips == 0 and form_at(onset_form(p, s), phase0 + omega * delay) + onset_gain(p, s) * force > 0.0:
+                slips = s
+    return outcome(p, mode, kind, direction, slips, delay, False, phase, whole, moved, v, vz)
 
 
 # -- the state within a segment ----------------------------------------------------------------
@@ -321,6 +320,18 @@ def _integrals(form: Form, phase0: float, omega: float, w0: float, start: float,
     return harmonic_at(harmonic(w0, form.b0, form.b1, phase0 + form.delta, omega, start), tau)
 
 
+def slideway_acceleration(p: Plant, phase0: float, c: complex, lam: complex, tau: float) -> tuple[float, float]:
+    """(along, normal) [m/s^2]: the slideway's acceleration in the track frame ``tau``
+    into a segment that started at ``phase0``, what moves the part: -1/m times the
+    excitation forces it feels (the tangential and normal parts of Pa*sin, plus the
+    exciter's transient force Re(c*exp(lam*tau)) and cot(beta) times it)."""
+    theta = phase0 + p.omega * tau
+    force = transient_force(c, lam, tau) if c else 0.0
+    normal = p.pa * math.sin(theta - p.lag) + force
+    along = p.tangential.b1 * math.sin(theta + p.tangential.delta) + p.cot_beta * force
+    return -along / p.mass, -normal / p.mass
+
+
 def transient_evaluate(p: Plant, mode: int, x0: float, xl: float, v0: float, vz0: float, z0: float, phase0: float,
                        c: complex, lam: complex, tau: float) -> tuple[float, float, float, float, float, float, float,
                                                                        float]:
@@ -340,4 +351,5 @@ def transient_evaluate(p: Plant, mode: int, x0: float, xl: float, v0: float, vz0
     return x, v, acc, -mode * p.mu * normal, normal, theta, 0.0, 0.0
 
 
-__all__ = ["Signal", "first_time", "transient_evaluate", "transient_force", "transient_motion", "transient_step"]
+__all__ = ["LOOK_AHEAD_PERIODS", "Signal", "first_time", "slideway_acceleration", "transient_evaluate",
+           "transient_force", "transient_motion", "transient_step"]

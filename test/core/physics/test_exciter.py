@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from reference_exciter import ExciterCase, solve
+from reference_exciter import random_case, solve
 
 from friction_sim.core.engine.population import run_batch
 from friction_sim.core.engine.single import Slider
@@ -20,6 +20,8 @@ from friction_sim.core.model.events import EventKind
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.physics.exciter import response
 from friction_sim.core.physics.transient import Signal, first_time, value
+
+from helpers import exciter_states
 
 RESONANT = SliderParams(actuator="resonant")
 
@@ -138,48 +140,17 @@ def test_a_change_at_any_instant_keeps_the_slideway_and_the_phase_continuous() -
             assert after.qdd - before.qdd == pytest.approx(jump, abs=1e-12 * (abs(before.qdd) + 1.0))
 
 
-def _case(rng: np.random.Generator) -> ExciterCase:
-    """A random coupled case that moves: a drive level step at 0.1 s, flight included."""
-    return ExciterCase(
-        mu=float(rng.uniform(0.1, 0.6)), excitation_angle=float(rng.uniform(20.0, 90.0)),
-        track_inclination=float(rng.uniform(-5.0, 5.0)), static_ratio=float(rng.uniform(1.0, 1.5)),
-        restitution=float(rng.choice([0.0, 0.3])), drive_force=float(rng.uniform(-0.5, 1.0)),
-        natural_frequency=float(rng.uniform(45.0, 55.0)), damping_ratio=float(rng.uniform(0.01, 0.1)),
-        full_drive_acceleration=float(rng.uniform(10.0, 25.0)), drive_level=float(rng.uniform(0.4, 0.8)),
-        changes=((0.1 + float(rng.uniform(0.0, 0.02)), float(rng.uniform(0.2, 1.0))),))
-
-
-def _core(case: ExciterCase) -> Slider:
-    params = SliderParams(
-        mass=case.mass, mu=case.mu, gravity=case.gravity, static_ratio=case.static_ratio,
-        excitation_angle=case.excitation_angle, track_inclination=case.track_inclination,
-        restitution=case.restitution, landing_friction="impulsive" if case.impulsive else "none",
-        actuator="resonant", natural_frequency=case.natural_frequency, damping_ratio=case.damping_ratio,
-        full_drive_acceleration=case.full_drive_acceleration)
-    return Slider(params, Inputs(drive_force=case.drive_force, excitation_frequency=case.frequency,
-                                 drive_level=case.drive_level), event_log_size=None)
-
-
 @pytest.mark.parametrize("seed", range(12))
 def test_the_part_agrees_with_the_coupled_reference(seed: int) -> None:
-    case = _case(np.random.default_rng(seed))
+    case = random_case(np.random.default_rng(seed))
     reference = solve(case, 0.4)
-    slider = _core(case)
     times = np.linspace(0.0, 0.4, 81)[1:]
-    ours = []
-    for t in times:
-        for when, level in case.changes:
-            if slider.t < when <= t:
-                slider.advance_to(when)
-                slider.set_inputs(drive_level=level)
-        slider.advance_to(float(t))
-        state = slider.state()
-        ours.append((state.x, state.v, state.z, state.vz))
+    ours, slider = exciter_states(case, times)
     theirs = np.array([reference.at(float(t))[2:6] for t in times])
     # The reference integrates at rtol 1e-12 over ~1000 steps of T/40 (and polishes events to
     # 4 eps): its own error is below ~1e-9 of each quantity's range, the issue's target.
     scale = np.max(np.abs(theirs), axis=0)
-    assert np.all(np.abs(np.array(ours) - theirs) <= 1e-9 * scale + 1e-300)
+    assert np.all(np.abs(ours - theirs) <= 1e-9 * scale + 1e-300)
     kinds = [kind if not kind.startswith("slip_start") else EventKind.SLIP_START.value for _, kind in reference.events]
     assert [event.kind.value for event in slider.events] == kinds
     # event times to 1e-9 of a period (the same reference error, in time)
@@ -191,7 +162,7 @@ def test_the_reference_cases_include_flight_and_motion() -> None:
     # (the agreement above is not vacuous: the drawn cases slip, and some hop)
     kinds = set()
     for seed in range(12):
-        kinds |= {kind for _, kind in solve(_case(np.random.default_rng(seed)), 0.4).events}
+        kinds |= {kind for _, kind in solve(random_case(np.random.default_rng(seed)), 0.4).events}
     assert {"stick", "lift_off", "landing"} <= kinds
 
 
