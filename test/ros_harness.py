@@ -34,6 +34,7 @@ INPUTS = {
     "drive_force": Float64,
     "excitation_amplitude": Float64,
     "excitation_frequency": Float64,
+    "drive_level": Float64,
     "external_wrench": WrenchStamped,
     "target_speed": Float64,
 }

@@ -132,6 +132,7 @@ ROSDEP_KEYS = {
     'ros-jazzy-rclpy': {'rclpy', 'rcl_interfaces', 'builtin_interfaces', 'rosgraph_msgs',
                         'ament_index_python'},
     'ros-jazzy-common-interfaces': {'std_msgs', 'geometry_msgs', 'diagnostic_msgs', 'std_srvs'},
+    'ros-jazzy-sensor-msgs': {'sensor_msgs'},
     'numpy': {'python3-numpy'},
     'pyyaml': {'python3-yaml'},
     'mcap': {'mcap-ros2-support'},

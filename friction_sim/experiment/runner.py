@@ -232,7 +232,8 @@ class _Attached:
         # (an open-loop start), it publishes nothing.
         if spec.controller:
             _set_parameters(driver, executor, "controller", _controller_values(spec))
-        _set_parameters(driver, executor, "slider", _plant_values(spec))
+        _set_parameters(driver, executor, "slider", {name: value for name, value in _plant_values(spec).items()
+                                                     if not settings.SLIDER_NODE[name].start_only})
         self.recorder = _attached_recorder(spec, driver.get_namespace())
         for topic in self.RECORDED:
             driver.create_subscription(message_class(TOPIC_TYPES[topic]), topic, self._keeper(topic), 100)

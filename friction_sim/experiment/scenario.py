@@ -7,6 +7,7 @@ A scenario is a YAML file::
     real_time_factor: 1.0           # optional (default 1)
     output: out/demo                # optional folder (default out/<name>)
     log_rate: 1000.0                # optional state samples per simulated second
+    accelerometer_rate: 1000.0      # optional: the slider publishes (and records) its accelerometer
     plant:                          # the slider's parameters and initial inputs
       mass: 1.0                     #   (or plant_params: config/slider.yaml)
       mu: 0.1
@@ -68,7 +69,7 @@ PLANT_KEYS = tuple(name for name in (*settings.PLANT, *settings.INPUTS) if name 
 _DERIVED_CONTROLLER_KEYS = ("excitation_frequency", "drive_force", "mean_window_periods", "active")
 #: Keys of ``controller:``: the controller node's other parameters.
 CONTROLLER_KEYS = tuple(name for name in settings.CONTROLLER_NODE if name not in _DERIVED_CONTROLLER_KEYS)
-TOP_KEYS = ("name", "description", "duration", "real_time_factor", "output", "log_rate", "plant",
+TOP_KEYS = ("name", "description", "duration", "real_time_factor", "output", "log_rate", "accelerometer_rate", "plant",
             "plant_params", "controller", "schedule", "namespace", "expect", "operator")
 EXPECT_KEYS = ("t", "within", "periods", "overshoot")
 OPERATOR_KEYS = ("t", "send", "calls")
@@ -99,6 +100,7 @@ class Scenario:
     real_time_factor: float = 1.0
     output: Path = Path("out")
     log_rate: float = float(settings.LOG_RATE.default)
+    accelerometer_rate: float = float(settings.ACCELEROMETER_RATE.default)
     namespace: str | None = None
     description: str = ""
     expect: tuple[Expectation, ...] = ()
@@ -127,6 +129,7 @@ class Scenario:
             controller=self.controller is not None, controller_parameters=controller,
             real_time_factor=self.real_time_factor, log_rate=self.log_rate, name=self.name,
             notes={"scenario": self.source}, operator=self.operator,
+            slider_parameters={"accelerometer_rate": self.accelerometer_rate} if self.accelerometer_rate else {},
         )
 
 
@@ -187,6 +190,14 @@ class YamlParser:
             entries[key] = (value_node, yaml.safe_load(yaml.serialize(value_node)))
         return entries
 
+    def checked(self, entry: Entry, setting: settings.Setting) -> float:
+        """A number checked against ``setting`` (its range; the refusal names the line)."""
+        node, value = entry
+        try:
+            return float(setting.check(value))
+        except ParameterError as error:
+            raise self.fail(node, str(error)) from None
+
     def number(self, entry: Entry, key: str, *, positive: bool = False) -> float:
         """A finite number (> 0 with ``positive``)."""
         node, value = entry
@@ -206,6 +217,8 @@ class YamlParser:
             if "real_time_factor" in top else 1.0
         log_rate = self.number(top["log_rate"], "log_rate", positive=True) if "log_rate" in top \
             else float(settings.LOG_RATE.default)
+        accelerometer_rate = self.checked(top["accelerometer_rate"], settings.ACCELEROMETER_RATE) \
+            if "accelerometer_rate" in top else float(settings.ACCELEROMETER_RATE.default)
         name = str(top["name"][1]) if "name" in top else "experiment"
         params, inputs = self.plant(top, rate)
         controller = self.controller(top.get("controller"), params, inputs)
@@ -214,7 +227,7 @@ class YamlParser:
         return Scenario(
             name=name, duration=duration, params=params, inputs=inputs, schedule=schedule,
             controller=controller, real_time_factor=rate, output=_text(top, "output", Path("out") / name, Path),
-            log_rate=log_rate, namespace=_text(top, "namespace", None, str),
+            log_rate=log_rate, accelerometer_rate=accelerometer_rate, namespace=_text(top, "namespace", None, str),
             description=_text(top, "description", "", str), expect=self.expectations(top.get("expect"), schedule),
             operator=operator, source=text,
         )

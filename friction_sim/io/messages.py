@@ -64,7 +64,7 @@ from friction_sim.core.model.commands import (
     float_values,
 )
 from friction_sim.core.model.events import Event, EventKind, Mode, SliderState
-from friction_sim.core.model.records import PeriodSummary
+from friction_sim.core.model.records import Acceleration, PeriodSummary
 from friction_sim.core.model.spec import NS_PER_S
 from friction_sim.errors import RecordingError
 
@@ -84,6 +84,7 @@ TOPIC_TYPES: dict[str, str] = {
     "rejected_commands": "diagnostic_msgs/msg/DiagnosticStatus",
     PARAMETERS: "rcl_interfaces/msg/ParameterEvent",
     SIM_CONTROL: "diagnostic_msgs/msg/DiagnosticStatus",
+    "accelerometer": "sensor_msgs/msg/Imu",
 }
 #: Topics that hold accepted commands (``parameters`` holds other changes too).
 COMMAND_TOPICS = (*COMMANDS, PARAMETERS, SIM_CONTROL)
@@ -167,6 +168,27 @@ def mean_velocity_message(period: PeriodSummary, frame_id: str = "slideway") -> 
     time_msg(seconds_to_ns(period.t), msg.header.stamp)
     msg.header.frame_id = frame_id
     msg.twist.linear.x = period.mean_velocity
+    return msg
+
+
+#: The accelerometer's topic (sensor_msgs/Imu).
+ACCELEROMETER = "accelerometer"
+
+
+def imu_message(sample: Acceleration, frame_id: str = "slideway", noise: float = 0.0) -> Any:
+    """The accelerometer ``sample`` as sensor_msgs/Imu: linear_acceleration in
+    the track frame; orientation and angular velocity not provided (element 0
+    of their covariance -1, REP 145); the acceleration's covariance noise**2 on
+    the diagonal (all 0, unknown, without noise)."""
+    msg = message_class("sensor_msgs/msg/Imu")()
+    time_msg(seconds_to_ns(sample.t), msg.header.stamp)
+    msg.header.frame_id = frame_id
+    msg.orientation_covariance[0] = -1.0
+    msg.angular_velocity_covariance[0] = -1.0
+    msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z = sample.x, sample.y, sample.z
+    variance = noise * noise
+    msg.linear_acceleration_covariance[0] = msg.linear_acceleration_covariance[4] = variance
+    msg.linear_acceleration_covariance[8] = variance
     return msg
 
 
@@ -390,11 +412,9 @@ def key_values(values: Mapping[str, Any]) -> list[KeyValue]:
 
 
 __all__ = [
-    "COMMAND_TOPICS", "DEFAULT_NODE", "FLIGHT_EVENTS", "NS_PER_S", "SIM_CONTROL", "SLIDER_NODE", "STATE_TOPICS",
-    "TOPIC_TYPES",
-    "command_from_message", "command_message", "command_topic", "event_message", "fill_state_messages",
-    "mean_velocity_message", "message_class",
-    "node_name", "ns_to_seconds", "parameter_event_values", "parameter_python_value", "parameter_value",
-    "parameters_message",
+    "ACCELEROMETER", "COMMAND_TOPICS", "DEFAULT_NODE", "FLIGHT_EVENTS", "NS_PER_S", "SIM_CONTROL", "SLIDER_NODE",
+    "STATE_TOPICS", "TOPIC_TYPES", "command_from_message", "command_message", "command_topic", "event_message",
+    "fill_state_messages", "imu_message", "mean_velocity_message", "message_class", "node_name", "ns_to_seconds",
+    "parameter_event_values", "parameter_python_value", "parameter_value", "parameters_message",
     "rejection_message", "seconds_to_ns", "stamp_ns", "state_messages", "time_msg",
 ]

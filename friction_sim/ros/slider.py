@@ -87,11 +87,15 @@ from friction_sim.core.model.commands import (
 from friction_sim.core.model.commands import PARAMETERS as PARAMETER_COMMAND
 from friction_sim.core.model.events import SliderState
 from friction_sim.core.model.params import plant_from
+from friction_sim.core.model.records import Acceleration
+from friction_sim.core.runtime.accelerometer import Accelerometer
 from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import SimulationFault, one_line
 from friction_sim.io.messages import (
+    ACCELEROMETER,
     command_from_message,
     fill_state_messages,
+    imu_message,
     key_values,
     mean_velocity_message,
     message_class,
@@ -146,6 +150,8 @@ class SliderNode(Node):
             params, inputs, wall_ns=wall_ns(), real_time_factor=values["real_time_factor"],
             publish_rate=values["publish_rate"], mean_window_periods=values["mean_window_periods"],
             log_rate=values["log_rate"] if values["log_path"] else None, load_blame=_load_blame(values),
+            accelerometer=Accelerometer(values["accelerometer_rate"], values["accelerometer_noise"],
+                                        values["accelerometer_bias"], values["accelerometer_seed"]),
         )
         #: The exit code run_node ends with (0, or EXIT_RECORDING_FAILED after a failed recording).
         self.exit_code = 0
@@ -237,6 +243,9 @@ class SliderNode(Node):
         self._friction_pub = self._publisher(WrenchStamped, "friction_force")
         self._mean_pub = self._publisher(TwistStamped, "mean_velocity")
         self._diag_pub = self._publisher(DiagnosticArray, "diagnostics")
+        accelerometer = self._rt.accelerometer
+        self._imu_pub = self._publisher(message_class("sensor_msgs/msg/Imu"), ACCELEROMETER) if accelerometer else None
+        self._imu_noise = accelerometer.noise if accelerometer else 0.0
         self._pose, self._velocity, self._friction = PoseStamped(), TwistStamped(), WrenchStamped()
         self._clock_msg = ClockMsg()
         self._clock_pub: Any = None
@@ -439,11 +448,24 @@ class SliderNode(Node):
             self._friction_pub.publish(self._friction)
             for period in tick.periods:
                 self._mean_pub.publish(mean_velocity_message(period, self._frame_id))
+            self._publish_accelerations(tick.accelerations)
             self._last_published = state
             deliver_tick(self.sinks, tick, self._frame_id)
         with self._published:
             self._ticks_published = number
             self._published.notify_all()
+
+    def _publish_accelerations(self, samples: Sequence[Acceleration]) -> None:
+        """The accelerometer's samples of the tick, each at its own simulation time,
+        on the topic and to the recording and the live view."""
+        if self._imu_pub is None:
+            return
+        for sample in samples:
+            msg = imu_message(sample, self._frame_id, self._imu_noise)
+            self._imu_pub.publish(msg)
+            for sink in (self.recorder, self.live):
+                if sink is not None:
+                    sink.write(ACCELEROMETER, msg, seconds_to_ns(sample.t))
 
     def _hold_for_recorder(self) -> None:
         """The recorder makes a producer wait rather than drop a message; the

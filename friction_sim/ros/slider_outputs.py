@@ -14,7 +14,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 
 from friction_sim.core.model.commands import COMMANDS, PAUSE, RESET, RESUME, STEP, Outcome
 from friction_sim.core.model.events import SliderState
-from friction_sim.io.messages import SIM_CONTROL
+from friction_sim.io.messages import ACCELEROMETER, SIM_CONTROL
 
 
 def control_text(outcome: Outcome, state: SliderState) -> str:
@@ -51,6 +51,8 @@ def open_live_view(values: dict[str, Any], namespace: str, node: str, services: 
     topics: list[Any] = [*ADVERTISED, SIM_CONTROL, *COMMANDS, ("diagnostics", "diagnostic_msgs/msg/DiagnosticArray")]
     if values["publish_clock"]:
         topics.append(("/clock", "rosgraph_msgs/msg/Clock"))
+    if values["accelerometer_rate"]:
+        topics.append((ACCELEROMETER, "sensor_msgs/msg/Imu"))
     return LiveView(values["foxglove_port"], values["foxglove_address"], namespace=namespace, node=node,
                     advertise=topics, services=services)
 

@@ -74,3 +74,22 @@ def test_verify_fails_when_a_command_is_missing(real_recording: Path, tmp_path: 
     result = verify(read_recording(copy))
     assert not result.passed and result.worst_dx_t >= dropped / 1e9
     assert run(replay_args(copy, verify=True)) == 1
+
+
+def test_verify_re_simulates_the_resonant_actuator_and_its_drive_level(tmp_path: Path) -> None:
+    """Issue 21: drive_level is a recorded command; replay --verify re-simulates
+    the exciter's transients after each step (and the refused Pa commands stay refused)."""
+    from friction_sim.core.model.commands import Command
+
+    params = SliderParams(actuator="resonant", natural_frequency=52.0, excitation_angle=45.0, restitution=0.3)
+    schedule = [Command(0.1, "drive_level", {"drive_level": 0.95}), Command(0.35, "excitation_amplitude",
+                                                                           {"excitation_amplitude": 2.0}),
+                Command(0.5, "excitation_frequency", {"excitation_frequency": 52.0}),
+                Command(0.8, "drive_level", {"drive_level": 0.3})]
+    path = tmp_path / "resonant.mcap"
+    record_offline(path, params, Inputs(drive_level=0.5), schedule, duration=1.2, log_rate=2000.0)
+    recording = read_recording(path)
+    assert recording.count("drive_level") == 2 and recording.count("rejected_commands") == 1
+    result = verify(recording)
+    assert result.passed and result.commands >= 3 and result.samples > 2000
+    assert result.rel_dx <= 1e-9 and result.rel_dv <= 1e-9

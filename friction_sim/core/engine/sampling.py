@@ -14,6 +14,7 @@ import numpy as np
 from friction_sim.core.physics.plant import Plant
 from friction_sim.core.physics.roots import remainders_many
 from friction_sim.core.physics.segment import FLIGHT, STUCK, x_axis, z_axis
+from friction_sim.core.physics.transient import transient_evaluate
 
 
 def _axis_many(h: Any, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -25,10 +26,15 @@ def _axis_many(h: Any, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 
 def evaluate_many(p: Plant, mode: int, x0: float, xl: float, v0: float, vz0: float, z0: float, phase0: float,
-                  tau: np.ndarray) -> tuple[np.ndarray, ...]:
+                  tau: np.ndarray, c: complex = 0j, lam: complex = 0j) -> tuple[np.ndarray, ...]:
     """:func:`~friction_sim.core.physics.segment.evaluate` at an array of times (numpy's
     sin: within an ulp or two of libm's, so a sampled state may differ from
-    :meth:`~friction_sim.core.engine.single.Slider.state` at the same time in its last bits)."""
+    :meth:`~friction_sim.core.engine.single.Slider.state` at the same time in its last bits).
+    Under the exciter's transient force Re(``c``*exp(``lam``*tau)) the states are
+    :func:`~friction_sim.core.physics.transient.transient_evaluate`'s, one by one."""
+    if c:
+        rows = [transient_evaluate(p, mode, x0, xl, v0, vz0, z0, phase0, c, lam, float(each)) for each in tau]
+        return tuple(np.array(column, dtype=float) for column in zip(*rows))
     theta = phase0 + p.omega * tau
     zero = tau * 0.0
     if mode == FLIGHT:

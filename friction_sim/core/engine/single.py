@@ -72,7 +72,13 @@ from friction_sim.core.physics.segment import (
     to_cycle,
     travel,
 )
-from friction_sim.core.physics.transient import transient_evaluate, transient_motion, transient_step
+from friction_sim.core.physics.transient import (
+    LOOK_AHEAD_PERIODS,
+    slideway_acceleration,
+    transient_evaluate,
+    transient_motion,
+    transient_step,
+)
 from friction_sim.errors import ParameterError, SimulationFault
 
 #: Steps kept in the memo (one per distinct segment start under the plant in force).
@@ -88,10 +94,6 @@ MAX_TIME = 2.0**53
 #: handful (a landing, a lift-off at once, a slip onset).
 MAX_EVENTS_AT_ONE_INSTANT = 1000
 MAX_POSITION = 1e100
-#: Under the exciter's transient a segment's next event is sought this many
-#: periods ahead at a time (a slow transient may last millions of periods):
-#: without one by then, a new segment starts there from the same motion.
-LOOK_AHEAD_PERIODS = 64
 #: Event kinds by the numbers of :mod:`friction_sim.core.physics.segment`.
 _KINDS = tuple(EventKind)
 
@@ -534,13 +536,10 @@ class Slider:
         return moved_and_velocities(plant, seg.mode, seg.v0, seg.vz0, seg.z0, seg.phase0, tau)
 
     def _evaluate_many(self, seg: Segment, tau: np.ndarray) -> tuple[np.ndarray, ...]:
-        """The state at an array of times into ``seg`` (with the transient: one by one)."""
-        if not self._c:
-            return evaluate_many(self._plant, seg.mode, seg.x0, seg.xl, seg.v0, seg.vz0, seg.z0, seg.phase0, tau)
-        assert self._exciter is not None
-        rows = [transient_evaluate(self._plant, seg.mode, seg.x0, seg.xl, seg.v0, seg.vz0, seg.z0, seg.phase0,
-                                   self._c, self._exciter.lam, float(each)) for each in tau]
-        return tuple(np.array(column, dtype=float) for column in zip(*rows))
+        """The state at an array of times into ``seg`` (:func:`~friction_sim.core.engine.sampling.evaluate_many`)."""
+        lam = self._exciter.lam if self._exciter is not None else 0j
+        return evaluate_many(self._plant, seg.mode, seg.x0, seg.xl, seg.v0, seg.vz0, seg.z0, seg.phase0, tau, self._c,
+                             lam)
 
     def _transient_boundary(self, t: float) -> bool:
         """If the segment's look-ahead under the transient ends (or the transient
@@ -553,6 +552,13 @@ class Slider:
         self._t = boundary
         self._rebase(self._params, self._inputs, "settled" if boundary >= self._exciter.settles_at else "look")
         return True
+
+    def slideway_acceleration(self) -> tuple[float, float]:
+        """(along, normal) [m/s^2]: the slideway's acceleration now in the track frame
+        (:func:`~friction_sim.core.physics.transient.slideway_acceleration`)."""
+        seg = self._seg
+        lam = self._exciter.lam if self._exciter is not None else 0j
+        return slideway_acceleration(self._plant, seg.phase0, self._c, lam, self._t - seg.t0)
 
     @property
     def exciter(self) -> ExciterState | None:

@@ -52,6 +52,19 @@ class PeriodSummary:
 
 
 @dataclass(frozen=True)
+class Acceleration:
+    """One accelerometer sample at simulation time ``t`` [s]: the specific force
+    [m/s^2] a sensor on the slideway reads in the track frame (x along the track,
+    z normal to it, away from it): the slideway's acceleration less gravity, so
+    at rest it reads +g*cos(alpha) on z, as REP 145 has it."""
+
+    t: float
+    x: float
+    y: float
+    z: float
+
+
+@dataclass(frozen=True)
 class Tick:
     """The result of advancing to the present: the state now, the events on
     the way, the summaries of periods completed on the way and, when logging,
@@ -63,6 +76,8 @@ class Tick:
     samples: tuple[SliderState, ...] = ()
     #: Whether simulation time stands still (a paused tick passes no time).
     paused: bool = False
+    #: The accelerometer's samples on its grid passed on the way (none when it is off).
+    accelerations: tuple[Acceleration, ...] = ()
 
 
 __all__ = ["PeriodSummary", "Tick", "share"]

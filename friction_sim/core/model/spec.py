@@ -212,6 +212,19 @@ FOXGLOVE_ADDRESS = Setting("foxglove_address", "127.0.0.1", "-", "address the li
 DIAGNOSTICS_PERIOD = Setting("diagnostics_period", 1.0, "s", "wall-clock seconds between diagnostics messages "
                              "(the interval their rates and counts cover)", 0.05, 3600.0, start_only=True)
 
+# -- the accelerometer ------------------------------------------------------------------
+
+ACCELEROMETER_RATE = Setting(
+    "accelerometer_rate", 0.0, "Hz", "publish the slideway's acceleration on accelerometer (sensor_msgs/Imu, "
+    "track frame, gravity included) at this many samples per simulated second (0 = off)", 0.0, 100_000.0,
+    start_only=True)
+ACCELEROMETER_NOISE = Setting("accelerometer_noise", 0.0, "m/s^2", "standard deviation of the accelerometer's white "
+                              "noise, per axis and sample (seeded by accelerometer_seed)", 0.0, 1e6, start_only=True)
+ACCELEROMETER_BIAS = Setting("accelerometer_bias", 0.0, "m/s^2", "constant bias of the accelerometer on every axis",
+                             -1e6, 1e6, start_only=True)
+ACCELEROMETER_SEED = Setting("accelerometer_seed", 0, "-", "seed of the accelerometer's noise", 0, 2**31 - 1,
+                             start_only=True)
+
 # -- simulation control (the ~/step service) -------------------------------------------
 
 STEP_PERIODS = Setting("step_periods", 1, "periods", "excitation periods one ~/step call advances "
@@ -241,6 +254,7 @@ SLIDER_NODE = table(
     EXCITATION_AMPLITUDE, EXCITATION_FREQUENCY, DRIVE_LEVEL,
     PUBLISH_RATE, REAL_TIME_FACTOR, PUBLISH_CLOCK, MEAN_WINDOW_PERIODS, FRAME_ID, LOG_PATH, LOG_RATE,
     FOXGLOVE_PORT, FOXGLOVE_ADDRESS, STEP_PERIODS, STEP_TIME, DIAGNOSTICS_PERIOD,
+    ACCELEROMETER_RATE, ACCELEROMETER_NOISE, ACCELEROMETER_BIAS, ACCELEROMETER_SEED,
 )
 CONTROLLER_NODE = table(
     MASS.described("model: slider mass m (the plant's parameters are replaced at start-up by plant_node's, if it "

@@ -40,9 +40,10 @@ from friction_sim.core.model import spec
 from friction_sim.core.model.commands import PARAMETERS, PAUSE, RESET, RESUME, STEP, Command, Outcome, apply, reason
 from friction_sim.core.model.events import CycleMark, Event, EventKind, SliderState
 from friction_sim.core.model.params import Inputs, SliderParams, check_load
-from friction_sim.core.model.records import PeriodSummary, Tick, share
+from friction_sim.core.model.records import Acceleration, PeriodSummary, Tick, share
 from friction_sim.core.model.spec import NS_PER_S
 from friction_sim.core.physics.plant import steady_throw_number
+from friction_sim.core.runtime.accelerometer import Accelerometer, grid
 from friction_sim.core.runtime.simclock import SimClock
 from friction_sim.errors import ParameterError, SimulationFault, one_line
 
@@ -97,6 +98,7 @@ class RealtimeSlider:
         self, params: SliderParams, inputs: Inputs, *, wall_ns: int,
         real_time_factor: float = 1.0, publish_rate: float = 1000.0, mean_window_periods: int = 1,
         log_rate: float | None = None, load_blame: str = "excitation_frequency",
+        accelerometer: Accelerometer | None = None,
     ) -> None:
         """``load_blame`` names the setting a refusal of f x real_time_factor
         blames (``excitation_frequency`` or ``real_time_factor``): the one the user set."""
@@ -122,6 +124,9 @@ class RealtimeSlider:
         # What advancing produced since the last tick (commands advance too).
         self._events: list[Event] = []
         self._samples: list[SliderState] = []
+        self._accelerations: list[Acceleration] = []
+        #: The slideway's accelerometer (None: off), sampled on its own grid while advancing.
+        self.accelerometer: Accelerometer | None = accelerometer if accelerometer and accelerometer.rate else None
         self._periods: list[PeriodSummary] = []  # summaries made before a reset, for the next tick
         #: Why the run cannot go on ('' while it can): see :class:`SimulationFault`.
         self.fault = ""
@@ -372,28 +377,32 @@ class RealtimeSlider:
         if problem:
             self._fail(f"the state became non-finite ({problem})")
         events, samples, periods = self._events, tuple(self._samples), self._periods + self._new_periods()
-        self._events, self._samples, self._periods = [], [], []
-        return Tick(state, events, periods, samples, paused=self.clock.paused)
+        accelerations = tuple(self._accelerations)
+        self._events, self._samples, self._periods, self._accelerations = [], [], [], []
+        return Tick(state, events, periods, samples, paused=self.clock.paused, accelerations=accelerations)
 
     def _log_samples(self, t: float) -> None:
         """Advance through the log grid points up to ``t`` not logged yet,
-        keeping the exact state at each (and the events on the way).  Mostly
-        one point per tick: a scalar advance is cheaper than numpy here, and
-        cutting the time axis there does not change the motion."""
-        if self.log_rate is None:
-            return
-        last = math.floor(t * self.log_rate)
-        if (last + 1) / self.log_rate <= t:  # the rounded product may be one short ...
-            last += 1
-        elif last / self.log_rate > t:  # ... or one over
-            last -= 1
-        first = max(self._next_log_index, math.ceil(self.slider.t * self.log_rate * (1.0 - 1e-15)))
-        if last < first:
-            return
-        self._next_log_index = last + 1
-        for k in range(first, last + 1):
-            self._events.extend(self.slider.advance_to(max(k / self.log_rate, self.slider.t)))
-            self._samples.append(self.slider.state())
+        keeping the exact state at each (and the events on the way), and
+        through the accelerometer's grid, in time order.  Mostly one point per
+        tick: a scalar advance is cheaper than numpy here, and cutting the time
+        axis there does not change the motion."""
+        accelerometer = self.accelerometer
+        due = accelerometer.due(self.slider.t, t) if accelerometer is not None else range(0)
+        rate = self.log_rate or 1.0
+        logged = grid(rate, self._next_log_index, self.slider.t, t) if self.log_rate else range(0)
+        self._next_log_index = max(self._next_log_index, logged.stop)
+        points = [(k / rate, 0, k) for k in logged]
+        if due:
+            assert accelerometer is not None
+            points = sorted(points + [(k / accelerometer.rate, 1, k) for k in due])
+        for when, kind, k in points:
+            self._events.extend(self.slider.advance_to(max(when, self.slider.t)))
+            if kind:
+                assert accelerometer is not None
+                self._accelerations.append(accelerometer.read(self.slider, k))
+            else:
+                self._samples.append(self.slider.state())
 
     def _reachable(self, t: float, wall_ns: int) -> float:
         """``t``, or the time :data:`MAX_SAMPLES_PER_ADVANCE` log samples ahead
