@@ -97,6 +97,7 @@ demo: $(STAMP)
 	$(VENV)/bin/friction-sim umap --grid 101 --csv out/umap.csv --png out/umap.png
 	$(VENV)/bin/friction-sim trace --png out/demo/flight.png --angle 30 --mu 0.5 --amplitude 20 --drive-force 0
 	$(VENV)/bin/friction-sim conveyor --png out/demo/conveyor.png --csv out/demo/conveyor.csv
+	$(VENV)/bin/friction-sim resonance --png out/demo/resonance.png --natural-frequency 52 --from 40 --to 60
 	$(VENV)/bin/friction-sim experiment config/demo.yaml
 
 bench: $(STAMP)

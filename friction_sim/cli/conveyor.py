@@ -65,16 +65,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """``conveyor``: compute the sweep, write the CSV and the PNG, print the features."""
-    from friction_sim.cli.figures import conveyor_figure, save_figure
+    from friction_sim.cli.figures import conveyor_figure, save_outputs
 
     sweep = conveyor_sweep(args.points, args.slope_points, mu=args.mu, slope_gamma=args.slope_gamma,
                            slope_angle=args.slope_angle)
-    for line in features(sweep):
-        print(line)
-    table = args.csv if args.csv is not None else args.png.with_suffix(".csv")
-    print(f"wrote {write_conveyor_csv(sweep, table)}")
-    print(f"wrote {save_figure(conveyor_figure(sweep), args.png)}")
-    return 0
+    return save_outputs(features(sweep), args.png, args.csv, lambda path: write_conveyor_csv(sweep, path),
+                        lambda: conveyor_figure(sweep))
 
 
 VERBS = (Verb("conveyor", "the conveying figure: U against the throw number for vibration angles 15-60 degrees, and "

@@ -8,6 +8,8 @@ so the core and the nodes never pay for it.
 * :func:`conveyor_figure` is the general model's conveying figure: U
   against the throw number for several vibration angles, and against the
   track inclination (``friction-sim conveyor``).
+* :func:`tuning_figure` is a resonant feeder's tuning curve (``friction-sim
+  resonance``): amplitude, lag and mean speed against the drive frequency.
 * :func:`report_figure` is an experiment report's picture: target and
   measured mean speed, Pa, Fd and f against time.
 
@@ -18,7 +20,7 @@ Labels use mathtext (``$\\mu R$``), never spelled-out Greek.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -33,6 +35,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from friction_sim.core.meanspeed.conveyor import ConveyorSweep
+    from friction_sim.core.meanspeed.tuning import TuningCurve
 
 
 #: The resolution of every saved figure [dots per inch]: print quality, and
@@ -46,6 +49,17 @@ def save_figure(figure: Figure, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(path, dpi=FIGURE_DPI)
     return path
+
+
+def save_outputs(lines: Sequence[str], png: Path, csv: Path | None, write_table: Callable[[Path], Path],
+                 draw: Callable[[], Figure]) -> int:
+    """What a figure command ends with: print ``lines`` (what the figure shows),
+    write the table (to ``csv``, default beside the PNG) and the picture; exit code 0."""
+    for line in lines:
+        print(line)
+    print(f"wrote {write_table(csv if csv is not None else png.with_suffix('.csv'))}")
+    print(f"wrote {save_figure(draw(), png)}")
+    return 0
 
 
 def pyplot_free_figure(**kwargs: object) -> Figure:
@@ -276,6 +290,34 @@ def _fastest_sampled(result: SimulationResult, t_start: float, end: float) -> li
         t0, t1 = traj.t[inside[k]], traj.t[inside[k + 1]]
         found.append(float(t0 + (t1 - t0) * a0 / (a0 - a1)))
     return found
+
+
+def tuning_figure(curve: TuningCurve) -> Figure:
+    """The resonant feeder's tuning curve against the drive frequency: the
+    slideway's amplitude, its lag behind the drive (90 degrees at f_n) and the
+    mean conveying speed, f_n and the fastest frequency marked."""
+    fig = pyplot_free_figure(figsize=(7.0, 8.0), layout="constrained")
+    top, middle, bottom = fig.subplots(3, 1, sharex=True)
+    f, params = curve.frequency, curve.params
+    top.plot(f, curve.amplitude, color="tab:blue", linewidth=1.3)
+    top.set_ylabel(r"slideway amplitude [m/s$^2$]")
+    top.set_title(rf"Tuning curve: $f_n$ = {params.natural_frequency:g} Hz, $\zeta$ = {params.damping_ratio:g}, "
+                  rf"drive level {curve.inputs.drive_level:g}")
+    middle.plot(f, curve.lag_deg, color="tab:green", linewidth=1.3)
+    middle.axhline(90.0, color="0.4", linestyle=":", linewidth=0.9)
+    middle.set_ylabel("lag behind the drive [deg]")
+    bottom.plot(f, curve.mean_velocity * 1e3, color="black", linewidth=1.3)
+    best = curve.fastest
+    bottom.plot(f[best], curve.mean_velocity[best] * 1e3, "*", color="tab:red", markersize=11,
+                label=f"fastest: {f[best]:.4g} Hz")
+    bottom.axhline(0.0, color="black", linewidth=0.6)
+    bottom.set_ylabel("mean speed V [mm/s]")
+    bottom.set_xlabel("drive frequency f [Hz]")
+    bottom.legend(loc="upper left", fontsize=8)
+    for axes in (top, middle, bottom):
+        axes.axvline(params.natural_frequency, color="tab:red", linestyle="--", linewidth=0.9)
+        axes.grid(alpha=0.3)
+    return fig
 
 
 def conveyor_figure(sweep: ConveyorSweep) -> Figure:

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from friction_sim.core.meanspeed.conveyor import ConveyorSweep, Curve
+from friction_sim.core.meanspeed.tuning import TuningCurve
 from friction_sim.core.meanspeed.urelation import UMap
 from friction_sim.core.model.events import Event, Trajectory
 from friction_sim.core.model.spec import NS_PER_S
@@ -35,6 +36,23 @@ def write_umap_csv(umap: UMap, path: Path) -> Path:
         for i, ratio in enumerate(umap.amplitude_ratio):
             for j, phi in enumerate(umap.phi):
                 writer.writerow((repr(float(phi)), repr(float(ratio)), repr(float(umap.u[i, j]))))
+    return path
+
+
+#: The tuning curve's columns (``friction-sim resonance``).
+TUNING_COLUMNS = ("drive_frequency", "amplitude", "lag_deg", "mean_velocity", "flight_fraction")
+
+
+def write_tuning_csv(curve: TuningCurve, path: Path) -> Path:
+    """One row per drive frequency [Hz]: the slideway's normal acceleration
+    amplitude [m/s^2], its lag behind the drive [deg], the mean speed [m/s]
+    and the flight fraction (full precision)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as stream:
+        writer = csv.writer(stream)
+        writer.writerow(TUNING_COLUMNS)
+        for row in zip(curve.frequency, curve.amplitude, curve.lag_deg, curve.mean_velocity, curve.flight_fraction):
+            writer.writerow([repr(float(value)) for value in row])
     return path
 
 
