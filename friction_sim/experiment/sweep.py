@@ -209,6 +209,7 @@ class _SweepParser(ScenarioParser):
         grid = {key: self.grid_values(entry, key) for key, entry in self.section(top, "grid").items()}
         points = self.point_list(top.get("points"))
         random = {key: self.distribution(entry, key) for key, entry in self.section(top, "random").items()}
+        self.unused_inputs(fixed, grid, points, random)
         if random and "samples" not in top:
             raise self.fail(top["random"][0], "random values need 'samples' (parts per combination)")
         samples = self.integer(top["samples"], "samples", 1, MAX_POINTS) if "samples" in top else 1
@@ -231,6 +232,23 @@ class _SweepParser(ScenarioParser):
             description=str(top["description"][1]) if "description" in top else "", source=text,
             where=self.where, lines=self.lines,
         )
+
+    def unused_inputs(self, fixed: dict[str, Any], grid: dict[str, Any], points: dict[str, Any],
+                      random: dict[str, Any]) -> None:
+        """Refuse a sweep that varies or sets the input none of its actuators
+        uses: with only the resonant actuator, the excitation amplitude (and the
+        throw number or amplitude ratio that set it); with only the force
+        actuator, the drive level.  Every point would run the same plant."""
+        given = {**random, **fixed, **grid, **points}
+        actuators = {str(v) for v in np.atleast_1d(given.get("actuator", settings.ACTUATOR.default))}
+        unused = ({"excitation_amplitude", "throw_number", "amplitude_ratio"} if actuators == {"resonant"} else
+                  {"drive_level"} if actuators == {"force"} else set())
+        for key in sorted(unused & set(given)):
+            line = self.lines.get(key)
+            other = "drive_level" if key != "drive_level" else "excitation_amplitude (or throw_number)"
+            where = f"line {line}: " if line else ""
+            raise SweepError(f"{self.where}: {where}{key} is not used by actuator {actuators.pop()}: "
+                             f"set {other} instead")
 
     def section(self, top: dict[str, Entry], name: str) -> dict[str, Entry]:
         """A section of model keys (fixed, grid, random), remembering each key's line."""

@@ -16,6 +16,7 @@ from friction_sim.cli.progress import TerminalProgress
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.meanspeed.urelation import u_map
 from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.errors import FrictionSimError
 from friction_sim.experiment.sweep import FIELDS, Sweep, parse_sweep
 from friction_sim.experiment.sweep_run import (
     DaskExecutor,
@@ -218,3 +219,39 @@ def test_a_failing_chunk_is_named_and_picklable(monkeypatch: pytest.MonkeyPatch)
         run_chunk(parse_sweep(MIXED), 2, ENGINE)
     assert str(caught.value) == "chunk 2 (points 6..8): more than 1000 events at t = 0.5 s"
     assert str(pickle.loads(pickle.dumps(caught.value))) == str(caught.value)  # it crosses from a worker intact
+
+
+RESONANT = """
+name: tuning
+settle_periods: 10
+periods: 20
+fixed: {actuator: resonant, excitation_angle: 30, mu: 0.5, drive_force: 0.0, full_drive_acceleration: 20.0}
+grid:
+  natural_frequency: {from: 46.0, to: 54.0, num: 5}
+  damping_ratio: [0.02, 0.1]
+  drive_level: [0.5, 1.0]
+"""
+
+
+def test_the_exciter_is_swept_in_steady_state_as_the_single_slider_runs_it(tmp_path: Path) -> None:
+    """Issue 21: the exciter's parameters and the drive level are sweep axes (steady state)."""
+    columns = run(parse_sweep(RESONANT), tmp_path, "tuning", engine="compiled")
+    assert len(columns["mean_velocity"]) == 20 and set(columns["actuator"]) == {"resonant"}
+    for i in range(20):
+        expected, _ = scalar_mean_velocity(columns, i, 10, 20)
+        assert columns["mean_velocity"][i] == pytest.approx(expected, rel=1e-12, abs=1e-18)
+    by_level = {level: columns["mean_velocity"][columns["drive_level"] == level] for level in (0.5, 1.0)}
+    assert np.all(by_level[1.0] >= by_level[0.5]) and np.any(by_level[1.0] > 0.0)
+
+
+@pytest.mark.parametrize(("fixed", "axis", "named"), [
+    ("actuator: resonant", "throw_number: [0.5, 1.0]", "drive_level"),
+    ("actuator: resonant", "excitation_amplitude: [1.0, 2.0]", "drive_level"),
+    ("actuator: force", "drive_level: [0.5, 1.0]", "excitation_amplitude"),
+])
+def test_a_sweep_of_the_input_its_actuator_ignores_is_refused(fixed: str, axis: str, named: str) -> None:
+    text = f"periods: 10\nfixed: {{{fixed}}}\ngrid:\n  {axis}\n"
+    with pytest.raises(FrictionSimError) as error:
+        parse_sweep(text)
+    message = str(error.value)
+    assert "line 4" in message and axis.split(":")[0] in message and named in message and "\n" not in message
