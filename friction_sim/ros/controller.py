@@ -199,7 +199,7 @@ class ControllerNode(Node):
 
     def _poll_plant(self) -> None:
         if self._plant_future is None and self._plant.services_are_ready():
-            self._plant_future = self._plant.get_parameters([*MODEL, "mean_window_periods"])
+            self._plant_future = self._plant.get_parameters([*MODEL, "mean_window_periods", "actuator"])
         if self._plant_future is not None and self._plant_future.done():
             self._adopt_plant(self._plant_future.result())
         elif time.monotonic() > self._deadline:
@@ -210,11 +210,12 @@ class ControllerNode(Node):
         """Take the plant's model and window as this node's own parameters
         (validated and applied like any parameter change).  A model parameter
         the plant node does not declare (an older slider) keeps this node's value."""
-        names = [*MODEL, "mean_window_periods"]
+        names = [*MODEL, "mean_window_periods", "actuator"]
         try:
-            values = [Parameter.from_parameter_msg(_named(name, value)).value
-                      for name, value in zip(names, response.values, strict=True)]
-            update = _own_parameters(dict(zip(names, values)))
+            values = dict(zip(names, [Parameter.from_parameter_msg(_named(name, value)).value
+                                      for name, value in zip(names, response.values, strict=True)]))
+            self._follow_actuator(values.pop("actuator"))  # (None: an older slider, the force actuator)
+            update = _own_parameters(values)
         except (TypeError, ValueError) as error:
             self._settle(f"plant parameters unusable ({error}): using this node's own", warn=True)
             return
@@ -241,6 +242,10 @@ class ControllerNode(Node):
         if msg.node != self.runtime.plant_node or not self._plant_settled:
             return
         new, changed = parameter_event_values(msg)
+        if "actuator" in {**new, **changed}:
+            self._follow_actuator({**new, **changed}["actuator"])
+            self._publish_diagnostics()
+            self._publish(self.runtime.control.output)
         values = {name: value for name, value in {**new, **changed}.items() if name in FOLLOWED}
         if not values:
             return
@@ -259,6 +264,16 @@ class ControllerNode(Node):
             self.get_logger().info(f"plant {self.runtime.plant_node} changed {words}: the model follows "
                                    f"({plant_words(self.control)})")
         self._publish_diagnostics()
+
+    def _follow_actuator(self, actuator: Any) -> None:
+        """The plant's actuator: while it is not the force actuator (the resonant
+        one takes drive_level, not Pa) this controller publishes nothing and says why."""
+        actuator = str(actuator) if actuator is not None else "force"
+        if actuator != self.runtime.plant_actuator:
+            self.runtime.plant_actuator = actuator
+            if not self.runtime.drives_plant:
+                self.get_logger().warning(f"plant {self.runtime.plant_node} uses the {actuator} actuator, which "
+                                          f"takes drive_level: this controller sets Pa; standing by")
 
     def _settle(self, message: str, warn: bool = False) -> None:
         (self.get_logger().warning if warn else self.get_logger().info)(message)
@@ -370,7 +385,7 @@ class ControllerNode(Node):
     # -- publishing ---------------------------------------------------------------
 
     def _publish(self, output: ControlOutput) -> None:
-        if not (self.ready and self.runtime.active):
+        if not (self.ready and self.runtime.active and self.runtime.drives_plant):
             return
         control = self.runtime.control
         if output.amplitude != self._last_published:

@@ -129,6 +129,8 @@ class RealtimeController:
         #: The plant node's fully qualified name ('' without one), and the changes of it followed.
         self.plant_node = ""
         self.plant_changes = 0
+        #: The plant's actuator: this controller sets Pa, which only the force actuator takes.
+        self.plant_actuator = "force"
         #: Why the plant is taken to be beyond its model ('' while it is not), its samples, the run refused.
         self.beyond_model = ""
         self.samples_beyond_model = 0
@@ -272,6 +274,11 @@ class RealtimeController:
         self._warned_unreachable, self._warned_runaway = output.unreachable, output.runaway
         return warnings, publish
 
+    @property
+    def drives_plant(self) -> bool:
+        """Whether the plant takes this controller's output (Pa: the force actuator)."""
+        return self.plant_actuator == "force"
+
     def status(self, *, namesake: str, ready: bool) -> Status:
         """The diagnostics status now (``namesake``: the graph's warning about a node
         of the same name, or ''; ``ready``: the model settled and the output heard).
@@ -286,6 +293,8 @@ class RealtimeController:
             (bool(self.beyond_model), "the plant runs beyond its model: Pa 0"),
             (not ready, "waiting for the plant's parameters"),
             (ready and not self.active, "standing by for a target"),
+            (not self.drives_plant, f"the plant's actuator is {self.plant_actuator}: it takes drive_level, and "
+                                    f"this controller sets Pa; standing by"),
             (refused_now > 0, f"{refused_now} inputs refused ({self.last_rejection})"),
         ) if flag]
         if self.internal_errors:
@@ -301,7 +310,7 @@ class RealtimeController:
             "integral": out.integral, "saturated": out.saturated, "unreachable": out.unreachable,
             "runaway": out.runaway, "drive_force": self.control.drive_force,
             "excitation_frequency": self.control.frequency, "model_source": self.model_source,
-            "plant_node": self.plant_node, "plant": plant_words(self.control),
+            "plant_node": self.plant_node, "plant": plant_words(self.control), "plant_actuator": self.plant_actuator,
             "plant_changes_followed": self.plant_changes, "plant_beyond_model": bool(self.beyond_model),
             "samples_beyond_model": self.samples_beyond_model, "beyond_model_reason": self.beyond_model,
             "commands_accepted": self.accepted, "commands_rejected": self.rejected,
