@@ -11,11 +11,13 @@ from __future__ import annotations
 
 import argparse
 import logging
+import signal
 import sys
 import textwrap
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 import rclpy
 import rclpy.logging
@@ -113,6 +115,31 @@ def wall_ns() -> int:
     return time.monotonic_ns()
 
 
+class _InterruptFlag:
+    """Python's SIGINT handler, which raises KeyboardInterrupt, plus a flag that
+    it did: the interrupt may reach the node's loop disguised as another error
+    (see :func:`run_node`).  Installed from the main thread only (elsewhere it
+    cannot be, and the flag stays down); :meth:`restore` puts the previous back."""
+
+    def __init__(self) -> None:
+        self._event = threading.Event()
+        self._previous: Any = None
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._on_interrupt)
+
+    def _on_interrupt(self, signum: int, frame: Any) -> None:
+        self._event.set()
+        raise KeyboardInterrupt
+
+    def is_set(self) -> bool:
+        return self._event.is_set()
+
+    def restore(self) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+            self._previous = None
+
+
 def run_node(
     factory: Callable[[], Node | Sequence[Node]], args: Sequence[str] | None = None,
     *, prog: str = "friction_sim", help_text: str = "",
@@ -128,7 +155,8 @@ def run_node(
     refused = _own_arguments(prog, argv, help_text)
     if refused is not None:
         return refused
-    rclpy.init(args=argv)
+    interrupted = _InterruptFlag()
+    rclpy.init(args=argv)  # (rclpy's own handler chains to ours)
     bridge_python_logging()
     nodes: list[Node] = []
     executor = SingleThreadedExecutor()
@@ -154,10 +182,11 @@ def run_node(
             print(f"{prog}: error: {one_line(error)}", file=sys.stderr)
             code = EXIT_FAULT
     except Exception as error:  # noqa: BLE001 - one line, never a traceback
-        # After a signal shut the context down, rclpy's bindings may fail on the way
-        # out (seen: "Unable to convert call argument '0' to Python object" from the
-        # wait set): a normal shutdown too.  Before it, an internal fault.
-        if rclpy.ok():
+        # A SIGINT's KeyboardInterrupt raised while rclpy's bindings convert an
+        # argument comes out as their error ("Unable to convert call argument '0'
+        # to Python object", seen in CI), and after a signal has shut the context
+        # down the bindings may fail on the way out: both are a normal shutdown.
+        if not interrupted.is_set() and rclpy.ok():
             print(f"{prog}: internal error, stopping: {one_line(error)}", file=sys.stderr)
             code = EXIT_FAULT
     finally:
@@ -169,6 +198,7 @@ def run_node(
                 code = code or EXIT_FAULT
         executor.shutdown(timeout_sec=0.0)
         rclpy.try_shutdown()
+        interrupted.restore()
     return code or max((int(getattr(node, "exit_code", EXIT_OK)) for node in nodes), default=EXIT_OK)
 
 

@@ -6,6 +6,9 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
+import signal
+import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -134,8 +137,32 @@ def test_run_node_exit_codes(ros: None) -> None:
         assert run_node(lambda: _FaultyNode(), ["test"]) == EXIT_FAULT
         assert run_node(bad, ["test", "--help"]) == 0
         assert run_node(bad, ["test", "--no-such-flag"]) == EXIT_BAD_PARAMETER
+        # An interrupt that reaches the loop disguised as another error (rclpy's bindings
+        # report a KeyboardInterrupt raised while they convert an argument as their own
+        # error) ends normally; the same error without an interrupt is an internal fault.
+        assert run_node(lambda: _DisguisingNode(interrupt=True), ["test"]) == 0
+        assert run_node(lambda: _DisguisingNode(interrupt=False), ["test"]) == EXIT_FAULT
     finally:
         rclpy.init()
+
+
+class _DisguisingNode(Node):
+    """From its first timer tick: an error as rclpy's bindings raise it when a
+    SIGINT's KeyboardInterrupt comes during a conversion (after the SIGINT, with ``interrupt``)."""
+
+    def __init__(self, interrupt: bool) -> None:
+        super().__init__("disguising", namespace=namespace())
+        self.interrupt = interrupt
+        self.create_timer(0.05, self._tick)
+
+    def _tick(self) -> None:
+        try:
+            if self.interrupt:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(0.5)  # (the handler raises KeyboardInterrupt here)
+        except KeyboardInterrupt:
+            pass
+        raise RuntimeError("Unable to convert call argument '0' to Python object")
 
 
 class _FaultyNode(Node):
