@@ -38,7 +38,7 @@ from typing import NamedTuple
 from friction_sim.core.physics.roots import hypot
 
 #: A transient whose force is below this fraction of the plant's force scale
-#: (2**-60: a hundredth of the last bit of a double) changes no event time and
+#: (2**-60: a 256th of the last bit of a double of that size) changes no event time and
 #: no state by more than rounding: from then on it is dropped, exactly zero,
 #: and the motion is periodic again.
 SETTLED = 2.0**-60
