@@ -409,5 +409,6 @@ def test_a_frequency_the_real_time_loop_cannot_follow_is_refused(rig) -> None:  
     assert "excitation_frequency" in reason and "10000000.0" in reason and "20000" in reason
     assert node.realtime.slider.inputs.excitation_frequency == 50.0
     poses = len(probe.received["pose"])
-    probe.spin_for(0.3)
-    assert len(probe.received["pose"]) > poses + 100, "still publishing at ~1 kHz"
+    # It goes on publishing (how fast is the machine's speed: bench/node.py; a loaded CI
+    # machine once fell short of 100 poses in 0.3 s of wall time here).
+    assert probe.spin_until(lambda: len(probe.received["pose"]) > poses + 100, 10.0), "still publishing"
