@@ -372,7 +372,16 @@ class SliderRig(Rig):
         def newer(arrival: float, values: dict[str, str], msg: Any) -> bool:
             return "sim_time" in values and _number(values["sim_time"]) >= after - 1e-9
 
-        return diagnostics_after(self.client, newer, 5.0)
+        values = diagnostics_after(self.client, newer, 5.0)
+        # A refusal the node has not counted yet (rclpy's own refusals reach its count a
+        # moment after the set returns): wait for its count, not for a time (5 s at most,
+        # then compare() says what is missing).
+        deadline = time.monotonic() + 5.0
+        while int(values["commands_rejected"]) < self.model.rejected.low and time.monotonic() < deadline:
+            seen = _number(values["sim_time"])
+            values = diagnostics_after(
+                self.client, lambda arrival, later, msg, seen=seen: _number(later.get("sim_time", "-1")) > seen, 5.0)
+        return values
 
     def compare(self, values: dict[str, str]) -> None:
         model = self.model
