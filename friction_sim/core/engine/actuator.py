@@ -20,10 +20,9 @@ from friction_sim.core.physics.exciter import (
     eigenvalue,
     followed,
     force_transient,
-    response,
     settle_delay,
     slideway_state,
-    steady_acceleration,
+    steady_response,
     steady_slideway,
 )
 from friction_sim.core.physics.plant import Plant
@@ -105,9 +104,9 @@ class Exciter:
 
 def _steady(params: SliderParams, inputs: Inputs) -> tuple[float, float, float]:
     """(a_s, lag, omega): the steady response to the drive in force."""
-    gain, lag = response(inputs.excitation_frequency, params.natural_frequency, params.damping_ratio)
-    return (steady_acceleration(inputs.drive_level, params.full_drive_acceleration, gain), lag,
-            TWO_PI * inputs.excitation_frequency)
+    acceleration, lag = steady_response(inputs.drive_level, params.full_drive_acceleration,
+                                        inputs.excitation_frequency, params.natural_frequency, params.damping_ratio)
+    return acceleration, lag, TWO_PI * inputs.excitation_frequency
 
 
 def _eigenvalue(params: SliderParams) -> complex:

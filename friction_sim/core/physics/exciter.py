@@ -67,6 +67,15 @@ def steady_acceleration(drive_level: float, full_drive_acceleration: float, gain
     return drive_level * full_drive_acceleration * gain
 
 
+def steady_response(drive_level: float, full_drive_acceleration: float, frequency: float, natural_frequency: float,
+                    damping_ratio: float) -> tuple[float, float]:
+    """(u*A*G(f/f_n), lag): the slideway's steady normal acceleration amplitude
+    [m/s^2] and its lag behind the drive, the one rule the plant and the single
+    slider's exciter both take."""
+    gain, lag = response(frequency, natural_frequency, damping_ratio)
+    return steady_acceleration(drive_level, full_drive_acceleration, gain), lag
+
+
 def eigenvalue(natural_frequency: float, damping_ratio: float) -> complex:
     """lambda = -zeta*omega_n + i*omega_d: the slideway's free motion is Re(D*exp(lambda*t))."""
     omega_n = 2.0 * math.pi * natural_frequency
@@ -174,5 +183,4 @@ def exp_terms(lam: complex, tau: float) -> tuple[complex, complex, complex]:
 
 
 __all__ = ["SETTLED", "Response", "Slideway", "eigenvalue", "exp_terms", "followed", "force_transient", "rebased",
-           "response",
-           "settle_delay", "slideway_state", "steady_acceleration", "steady_slideway"]
+           "response", "settle_delay", "slideway_state", "steady_acceleration", "steady_response", "steady_slideway"]

@@ -22,7 +22,7 @@ from fractions import Fraction
 from typing import Any, NamedTuple
 
 from friction_sim.core.model.params import Inputs, SliderParams, cos_degrees, sin_degrees
-from friction_sim.core.physics.exciter import response, steady_acceleration
+from friction_sim.core.physics.exciter import steady_response
 from friction_sim.core.physics.roots import TWO_PI, hypot
 
 #: A rebound slower than this many units of g*cos(alpha)/omega (gravity would
@@ -201,8 +201,9 @@ def excitation(mass: float, resonant: bool, amplitude: float, frequency: float, 
     m*u*A*G(f/f_n) (:mod:`~friction_sim.core.physics.exciter`)."""
     if not resonant:
         return amplitude, 0.0
-    gain, lag = response(frequency, natural_frequency, damping_ratio)
-    return mass * steady_acceleration(drive_level, full_drive_acceleration, gain), lag
+    acceleration, lag = steady_response(drive_level, full_drive_acceleration, frequency, natural_frequency,
+                                        damping_ratio)
+    return mass * acceleration, lag
 
 
 def steady_excitation(params: SliderParams, inputs: Inputs) -> tuple[float, float]:
