@@ -392,14 +392,15 @@ class RealtimeSlider:
         rate = self.log_rate or 1.0
         logged = grid(rate, self._next_log_index, self.slider.t, t) if self.log_rate else range(0)
         self._next_log_index = max(self._next_log_index, logged.stop)
-        points = [(k / rate, 0, k) for k in logged]
-        if due:
-            assert accelerometer is not None
-            points = sorted(points + [(k / accelerometer.rate, 1, k) for k in due])
+        if accelerometer is None or not due:  # (every tick of a node without the accelerometer: no merge)
+            for k in logged:
+                self._events.extend(self.slider.advance_to(max(k / rate, self.slider.t)))
+                self._samples.append(self.slider.state())
+            return
+        points = sorted([(k / rate, 0, k) for k in logged] + [(k / accelerometer.rate, 1, k) for k in due])
         for when, kind, k in points:
             self._events.extend(self.slider.advance_to(max(when, self.slider.t)))
             if kind:
-                assert accelerometer is not None
                 self._accelerations.append(accelerometer.read(self.slider, k))
             else:
                 self._samples.append(self.slider.state())
