@@ -242,11 +242,12 @@ class ControllerNode(Node):
         if msg.node != self.runtime.plant_node or not self._plant_settled:
             return
         new, changed = parameter_event_values(msg)
-        if "actuator" in {**new, **changed}:
-            self._follow_actuator({**new, **changed}["actuator"])
+        event = {**new, **changed}
+        if "actuator" in event:
+            self._follow_actuator(event["actuator"])
             self._publish_diagnostics()
             self._publish(self.runtime.control.output)
-        values = {name: value for name, value in {**new, **changed}.items() if name in FOLLOWED}
+        values = {name: value for name, value in event.items() if name in FOLLOWED}
         if not values:
             return
         words = ", ".join(f"{name} = {value!r}" for name, value in values.items())
