@@ -149,7 +149,8 @@ class SliderNode(Node):
         self._rt = RealtimeSlider(
             params, inputs, wall_ns=wall_ns(), real_time_factor=values["real_time_factor"],
             publish_rate=values["publish_rate"], mean_window_periods=values["mean_window_periods"],
-            log_rate=values["log_rate"] if values["log_path"] else None, load_blame=_load_blame(values),
+            max_catch_up=values["max_catch_up"], load_blame=_load_blame(values),
+            log_rate=values["log_rate"] if values["log_path"] else None,
             accelerometer=Accelerometer(values["accelerometer_rate"], values["accelerometer_noise"],
                                         values["accelerometer_bias"], values["accelerometer_seed"]),
         )

@@ -82,7 +82,9 @@ def health(report: dict[str, Any], fault: str = "", name_problem: str = "") -> t
     if report["tick_rate"] < 0.8 * report["publish_rate"]:
         problems.append(f"tick rate {report['tick_rate']:.0f} Hz < 80% of {report['publish_rate']:g} Hz")
     if report["late_ticks"]:
-        problems.append(f"{report['late_ticks']} late ticks")
+        slipped = (f" ({report['stalls']} stalls in all: {report['time_slipped']:.3f} s not simulated, beyond "
+                   f"max_catch_up {report['max_catch_up']:g} s)") if report.get("stalls") else ""
+        problems.append(f"{report['late_ticks']} late ticks{slipped}")
     if report["commands_rejected_in_interval"]:
         problems.append(f"{report['commands_rejected_in_interval']} commands rejected ({report['last_rejection']})")
     if not problems:

@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import dataclasses
+import math
+import threading
+import time
 
 import pytest
 
 from friction_sim.experiment.acceptance import acceptance_scenarios, judge
+from friction_sim.experiment import runner
 from friction_sim.experiment.runner import run_experiment
 
 
@@ -26,3 +30,41 @@ def test_acceptance_case_in_closed_loop(ros: None, case) -> None:  # type: ignor
                              f"{m.settling_periods} periods (max {e.periods}), overshoot {m.overshoot:.3f} "
                              f"(max {e.overshoot})")
         assert m.steady_error <= e.within
+
+
+def _hold_the_interpreter(seconds: float) -> float:
+    """Hold the GIL for about ``seconds``, as a garbage collection does: every
+    Python thread of the process stops (``sum`` over a range runs in C and
+    never lets go).  Returns the time it held it."""
+    n, fastest = 200_000, math.inf
+    for _ in range(5):  # the fastest of a few: a trial the machine preempted would undersize the hold
+        start = time.perf_counter()
+        sum(range(n))
+        fastest = min(fastest, time.perf_counter() - start)
+    rate = n / max(fastest, 1e-6)
+    start = time.perf_counter()
+    sum(range(int(rate * seconds)))
+    return time.perf_counter() - start
+
+
+def test_a_stall_of_the_host_does_not_run_the_plant_ahead_of_its_controller(
+        ros: None, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Case 3 with the whole process stalled for 0.4 s of wall time just after the
+    drive force steps (the slider has taken it, the controller not yet): the
+    slider simulates at most max_catch_up of the stall, so the controller's
+    answer still comes within the period limit.  Simulating the whole stall at
+    once ran the plant 9 periods open loop (11 periods to settle, CI)."""
+    case = next(c for c in acceptance_scenarios() if c.name == "acceptance_3_drive_step")
+    held: list[float] = []
+    publish = runner.command_message
+
+    def command_message(command):  # type: ignore[no-untyped-def]
+        if "drive_force" in command.values:
+            threading.Timer(0.005, lambda: held.append(_hold_the_interpreter(0.4))).start()
+        return publish(command)
+
+    monkeypatch.setattr(runner, "command_message", command_message)
+    result = run_experiment(dataclasses.replace(case, real_time_factor=0.5).spec())
+    assert held and held[0] > 0.2, f"the stall must outlast 10 periods at half speed (held {held} s)"
+    (verdict,) = judge(case, result)
+    assert verdict.met, verdict.metrics

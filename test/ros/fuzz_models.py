@@ -154,6 +154,7 @@ class SliderModel(ParameterModel):
             "damping_ratio": self.params.damping_ratio,
             "real_time_factor": self.rate,
             "publish_rate": self.publish_rate,
+            "max_catch_up": float(self.values["max_catch_up"]),
             "mass": self.params.mass,
             "mu": self.params.mu,
             "gravity": self.params.gravity,

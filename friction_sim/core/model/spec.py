@@ -198,6 +198,9 @@ INPUTS = table(DRIVE_FORCE, EXCITATION_AMPLITUDE, EXCITATION_FREQUENCY, EXTERNAL
 MAX_MEAN_WINDOW = 10_000
 PUBLISH_RATE = Setting("publish_rate", 1000.0, "Hz", "state publishing rate", 1.0, 10_000.0)
 REAL_TIME_FACTOR = Setting("real_time_factor", 1.0, "-", "simulated seconds per wall second", 1e-3, 1e3)
+MAX_CATCH_UP = Setting("max_catch_up", 0.02, "s", "wall time a late tick simulates at most (at least two ticks): "
+                       "the rest of a longer stall of the host is not simulated, so the plant never runs on "
+                       "ahead of its controllers; counted in diagnostics (stalls, time_slipped)", 1e-3, 3600.0)
 PUBLISH_CLOCK = Setting("publish_clock", False, "-", "publish simulation time on /clock")
 MEAN_WINDOW_PERIODS = Setting("mean_window_periods", 1, "periods", "whole periods averaged in mean_velocity",
                               1, MAX_MEAN_WINDOW)
@@ -252,8 +255,8 @@ SLIDER_NODE = table(
     LANDING_FRICTION, ACTUATOR, NATURAL_FREQUENCY, DAMPING_RATIO, FULL_DRIVE_ACCELERATION,
     DRIVE_FORCE.described("drive force Fd along +x; setting it acts like the topic"),
     EXCITATION_AMPLITUDE, EXCITATION_FREQUENCY, DRIVE_LEVEL,
-    PUBLISH_RATE, REAL_TIME_FACTOR, PUBLISH_CLOCK, MEAN_WINDOW_PERIODS, FRAME_ID, LOG_PATH, LOG_RATE,
-    FOXGLOVE_PORT, FOXGLOVE_ADDRESS, STEP_PERIODS, STEP_TIME, DIAGNOSTICS_PERIOD,
+    PUBLISH_RATE, REAL_TIME_FACTOR, MAX_CATCH_UP, PUBLISH_CLOCK, MEAN_WINDOW_PERIODS, FRAME_ID, LOG_PATH,
+    LOG_RATE, FOXGLOVE_PORT, FOXGLOVE_ADDRESS, STEP_PERIODS, STEP_TIME, DIAGNOSTICS_PERIOD,
     ACCELEROMETER_RATE, ACCELEROMETER_NOISE, ACCELEROMETER_BIAS, ACCELEROMETER_SEED,
 )
 CONTROLLER_NODE = table(

@@ -5,7 +5,10 @@ holds everything that is not message conversion:
 
 * :class:`SimClock` turns a monotonic wall clock into simulation time
   (elapsed wall time times the real-time factor), so a late or missed timer
-  tick never changes the physics: the next tick simply advances further.
+  tick never changes the physics: the next tick advances further, by at most
+  ``max_catch_up``.  A longer stall of the host (a garbage collection) stalls the
+  controllers too; simulating it at once would run the plant on ahead of their
+  answers, which no real plant does: the rest is not simulated (time slips).
 * Commands take effect at the simulation time at which they are handled,
   are validated once (:mod:`friction_sim.core.model.params`), and are counted; a
   rejected command leaves the last valid inputs in force.
@@ -98,7 +101,7 @@ class RealtimeSlider:
         self, params: SliderParams, inputs: Inputs, *, wall_ns: int,
         real_time_factor: float = 1.0, publish_rate: float = 1000.0, mean_window_periods: int = 1,
         log_rate: float | None = None, load_blame: str = "excitation_frequency",
-        accelerometer: Accelerometer | None = None,
+        accelerometer: Accelerometer | None = None, max_catch_up: float | None = None,
     ) -> None:
         """``load_blame`` names the setting a refusal of f x real_time_factor
         blames (``excitation_frequency`` or ``real_time_factor``): the one the user set."""
@@ -106,6 +109,9 @@ class RealtimeSlider:
         check_load(inputs.excitation_frequency, self.clock.rate, load_blame)
         self.slider = Slider(params, inputs, event_log_size=1000, cycle_log_size=_MARK_BACKLOG)
         self.publish_rate = float(spec.PUBLISH_RATE.check(publish_rate))
+        self._set_catch_up(None if max_catch_up is None else float(spec.MAX_CATCH_UP.check(max_catch_up)))
+        #: Stalls of the host whose rest was not simulated, and the simulated seconds given up (see _set_catch_up).
+        self.stalls, self.time_slipped = 0, 0.0
         self._window: deque[CycleMark] = deque(maxlen=2)
         self.set_mean_window(mean_window_periods)
         self._last_mark_n = -1
@@ -206,11 +212,10 @@ class RealtimeSlider:
     def configure(self, values: Mapping[str, Any], wall_ns: int) -> Outcome:
         """A set of node parameters, checked and applied as one new state, now.
 
-        ``values`` may hold plant and input fields (the physics, applied as one
-        ``parameters`` command), ``real_time_factor``, ``publish_rate`` and
-        ``mean_window_periods``.  Everything is checked against the state in
-        force before anything changes: the whole set takes effect, or none of
-        it (the refusal names the field that was set).
+        ``values`` may hold plant and input fields (the physics, applied as one ``parameters``
+        command), ``real_time_factor``, ``publish_rate``, ``max_catch_up`` and ``mean_window_periods``.
+        Everything is checked against the state in force before anything changes: the whole set
+        takes effect, or none of it (the refusal names the field that was set).
         """
         t = self._advance(wall_ns)
         physics = {k: v if isinstance(v, str) else float(v) for k, v in values.items()
@@ -222,6 +227,8 @@ class RealtimeSlider:
             check_load(inputs.excitation_frequency, rate,
                        "real_time_factor" if "real_time_factor" in values else "excitation_frequency")
             publish_rate = float(spec.PUBLISH_RATE.check(values.get("publish_rate", self.publish_rate)))
+            catch_up = float(spec.MAX_CATCH_UP.check(values["max_catch_up"])) if "max_catch_up" in values \
+                else self.max_catch_up
             window = int(spec.MEAN_WINDOW_PERIODS.check(values.get("mean_window_periods",
                                                                    self.mean_window_periods)))
         except ParameterError as error:
@@ -231,6 +238,7 @@ class RealtimeSlider:
             return self._refuse(command, f"{', '.join(values)}: {problem}")
         self.clock.set_rate(rate, wall_ns)
         self.publish_rate = publish_rate
+        self._set_catch_up(catch_up)
         self.set_mean_window(window)
         if physics:
             self.accepted += 1
@@ -348,6 +356,11 @@ class RealtimeSlider:
 
     # -- settings -----------------------------------------------------------
 
+    def _set_catch_up(self, seconds: float | None) -> None:
+        """``max_catch_up``, never under two ticks (None, for a synthetic clock or a test: no limit)."""
+        self.max_catch_up = seconds
+        self.clock.catch_up_ns = None if seconds is None else round(max(seconds, 2.0 / self.publish_rate) * NS_PER_S)
+
     def set_mean_window(self, periods: int) -> None:
         """Average the mean velocity over the last ``periods`` whole periods."""
         periods = spec.MEAN_WINDOW_PERIODS.check(periods)
@@ -406,8 +419,11 @@ class RealtimeSlider:
                 self._samples.append(self.slider.state())
 
     def _reachable(self, t: float, wall_ns: int) -> float:
-        """``t``, or the time :data:`MAX_SAMPLES_PER_ADVANCE` log samples ahead
-        if that is sooner; then simulation time is held there (it falls behind)."""
+        """``t`` (after a stall: the clock's catch-up limit, where the rest slips), or the time
+        :data:`MAX_SAMPLES_PER_ADVANCE` log samples ahead if sooner; simulation time is held there."""
+        if slipped := self.clock.slip(wall_ns):
+            self.stalls += 1
+            self.time_slipped += slipped / NS_PER_S
         if self.log_rate is None or t - self.slider.t <= MAX_SAMPLES_PER_ADVANCE / self.log_rate:
             return t
         limit_ns = math.floor((self.slider.t + MAX_SAMPLES_PER_ADVANCE / self.log_rate) * NS_PER_S)
@@ -439,9 +455,10 @@ class RealtimeSlider:
                 self._log_samples(end)
                 self._events.extend(self.slider.advance_to(end))
                 if end >= t:
-                    return
+                    break
         except Exception as error:  # noqa: BLE001 - whatever the core raised, the run cannot go on
             self._fail(f"advancing failed ({one_line(error, with_type=True)})")
+        self.clock.reached(round(self.slider.t * NS_PER_S))
 
     def _fail(self, why: str) -> None:
         """Stop for good: every later call raises the same fault."""
@@ -528,6 +545,7 @@ class RealtimeSlider:
             "commands_rejected": self.rejected,
             "commands_rejected_in_interval": self.rejected - self._rejected_before_interval,
             "ticks_behind_in_interval": self.behind - self._behind_before_interval,
+            "max_catch_up": self.max_catch_up, "stalls": self.stalls, "time_slipped": self.time_slipped,
             "last_rejection": self.last_rejection,
             "drive_force": inputs.drive_force,
             "excitation_amplitude": inputs.excitation_amplitude,

@@ -23,11 +23,16 @@ class SimClock:
     command is stamped with is exactly the time the core computed it for.
     """
 
-    def __init__(self, rate: float, wall_ns: int, sim_start_ns: int = 0) -> None:
+    def __init__(self, rate: float, wall_ns: int, sim_start_ns: int = 0, catch_up_ns: int | None = None) -> None:
         self._rate = require_positive("real_time_factor", rate)
         self._wall0 = wall_ns
         self._sim0 = sim_start_ns
         self._paused = False
+        #: Wall time [ns] the clock may run past the simulation time reached
+        #: (:meth:`reached`); None: any.  Beyond it readings stand still until
+        #: :meth:`slip` gives the rest up (a stall of the host).
+        self.catch_up_ns = catch_up_ns
+        self._reached_ns = sim_start_ns
 
     @property
     def rate(self) -> float:
@@ -42,8 +47,34 @@ class SimClock:
         """Simulation time [ns] at wall time ``wall_ns``."""
         if self._paused:
             return self._sim0
+        now, cap = self._running_ns(wall_ns), self._cap_ns()
+        return now if cap is None or now <= cap else cap
+
+    def _running_ns(self, wall_ns: int) -> int:
         elapsed = wall_ns - self._wall0
         return self._sim0 + (elapsed if self._rate == 1.0 else round(self._rate * elapsed))
+
+    def _cap_ns(self) -> int | None:
+        if self.catch_up_ns is None:
+            return None
+        return self._reached_ns + (self.catch_up_ns if self._rate == 1.0 else round(self._rate * self.catch_up_ns))
+
+    def reached(self, sim_ns: int) -> None:
+        """The simulation has been advanced to ``sim_ns``: readings may run
+        ``catch_up_ns`` of wall time past it."""
+        self._reached_ns = sim_ns
+
+    def slip(self, wall_ns: int) -> int:
+        """After a stall: if the clock ran further than ``catch_up_ns`` past the
+        time reached, it goes on from there (readings stood there meanwhile, so
+        it never runs backwards); the rest of the stall is not simulated.
+        Returns the simulated nanoseconds given up (0: no stall)."""
+        cap = None if self._paused else self._cap_ns()
+        now = self._running_ns(wall_ns)
+        if cap is None or now <= cap:
+            return 0
+        self._sim0, self._wall0 = cap, wall_ns
+        return now - cap
 
     def pause(self, wall_ns: int) -> None:
         """Stop simulation time at its value at ``wall_ns`` (exactly: it stays there)."""

@@ -46,3 +46,88 @@ def test_within_its_share_the_clock_is_followed_exactly() -> None:
     rt = RealtimeSlider(SliderParams(), Inputs(), wall_ns=0, real_time_factor=2.0, log_rate=1000.0)
     rt.tick(NS_PER_S // 10)
     assert rt.behind == 0 and rt.slider.t == 0.2
+
+
+MS = NS_PER_S // 1000
+
+
+def _ticking(rt: RealtimeSlider, wall: int, ticks: int, step: int = MS) -> int:
+    """``ticks`` ticks ``step`` ns apart from ``wall``; returns the wall time of the last."""
+    for _ in range(ticks):
+        wall += step
+        rt.tick(wall)
+    return wall
+
+
+def test_a_stall_of_the_host_is_simulated_only_up_to_max_catch_up() -> None:
+    """A tick 0.5 s late (a garbage collection) simulates max_catch_up of it
+    (times the real-time factor): the rest slips, counted, and the clock is
+    followed exactly again from there."""
+    rt = RealtimeSlider(SliderParams(), Inputs(), wall_ns=0, real_time_factor=0.5, max_catch_up=0.02)
+    wall = _ticking(rt, 0, 10)
+    assert rt.slider.t == 0.005 and rt.stalls == 0
+    readings = [rt.now(wall + k * MS) for k in range(0, 500, 7)]
+    assert readings == sorted(readings) and readings[-1] == 0.005 + 0.5 * 0.02, \
+        "readings during the stall run up to the catch-up limit and stand there"
+    wall += 500 * MS
+    rt.tick(wall)
+    assert rt.slider.t == 0.005 + 0.5 * 0.02, "the late tick simulates 20 ms of wall time at half speed"
+    assert rt.now(wall) == rt.slider.t and rt.diagnostics(wall)["sim_time"] == rt.slider.t, "no step back"
+    assert rt.stalls == 1 and rt.time_slipped == 0.5 * 0.48
+    _ticking(rt, wall, 4)
+    assert rt.slider.t == 0.015 + 0.5 * 0.004 and rt.stalls == 1
+    report = rt.diagnostics(wall + 4 * MS)
+    assert report["sim_time"] == rt.slider.t and (report["stalls"], report["time_slipped"], report["max_catch_up"]) == (1, 0.24, 0.02)
+
+
+def test_a_late_tick_within_max_catch_up_catches_up_in_full() -> None:
+    rt = RealtimeSlider(SliderParams(), Inputs(), wall_ns=0, max_catch_up=0.02)
+    rt.tick(20 * MS)
+    assert rt.slider.t == 0.02 and rt.stalls == 0
+
+
+def test_max_catch_up_is_never_less_than_two_ticks() -> None:
+    """At publish_rate 10 Hz ticks are 100 ms apart: on time, they never slip."""
+    rt = RealtimeSlider(SliderParams(), Inputs(), wall_ns=0, publish_rate=10.0, max_catch_up=0.02)
+    wall = _ticking(rt, 0, 5, 100 * MS)
+    assert rt.slider.t == 0.5 and rt.stalls == 0
+    rt.tick(wall + 250 * MS)
+    assert rt.slider.t == 0.7 and rt.stalls == 1
+
+
+def test_a_pause_is_not_a_stall() -> None:
+    rt = RealtimeSlider(SliderParams(), Inputs(), wall_ns=0, max_catch_up=0.02)
+    rt.tick(MS)
+    rt.pause(MS)
+    rt.tick(5 * NS_PER_S)
+    rt.resume(5 * NS_PER_S)
+    rt.tick(5 * NS_PER_S + MS)
+    assert rt.slider.t == 0.002 and rt.stalls == 0
+
+
+def test_max_catch_up_is_a_setting_checked_at_the_edge() -> None:
+    rt = RealtimeSlider(SliderParams(), Inputs(), wall_ns=0, max_catch_up=0.02)
+    assert rt.configure({"max_catch_up": 0.5}, MS).accepted and rt.max_catch_up == 0.5
+    refused = rt.configure({"max_catch_up": 0.0}, 2 * MS)
+    assert not refused.accepted and "max_catch_up" in refused.reason and "0.0" in refused.reason
+    assert rt.max_catch_up == 0.5
+    rt.tick(2 * MS + 400 * MS)
+    assert rt.stalls == 0, "within the new limit"
+
+
+def test_a_stall_does_not_change_the_motion() -> None:
+    """The states a slider logs across a slip are the exact motion: only the
+    mapping of wall time to simulation time moved."""
+    inputs = Inputs(excitation_frequency=20.0)
+    rt = RealtimeSlider(SliderParams(), inputs, wall_ns=0, log_rate=1000.0, max_catch_up=0.02)
+    samples = []
+    wall = 0
+    for gap in (MS, 300 * MS, MS, 700 * MS, 5 * MS):
+        wall += gap
+        samples.extend(rt.tick(wall).samples)
+    assert rt.stalls == 2
+    assert [s.t for s in samples] == [k / 1000.0 for k in range(len(samples))], "one unbroken log grid"
+    reference = Slider(SliderParams(), inputs)
+    for state in samples:
+        reference.advance_to(state.t)
+        assert reference.state() == state
