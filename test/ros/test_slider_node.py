@@ -265,11 +265,20 @@ def test_clock_is_published_when_asked_and_advertised_only_then(ros: None) -> No
         node.destroy_node()
 
 
-def test_a_stalled_timer_does_not_change_the_physics(rig) -> None:  # type: ignore[no-untyped-def]
+@pytest.mark.parametrize("max_catch_up", [spec.MAX_CATCH_UP.default, 10.0])
+def test_a_stalled_timer_does_not_change_the_physics(rig, max_catch_up: float) -> None:  # type: ignore[no-untyped-def]
+    """A tick thread stalled for 0.25 s: with the default max_catch_up (0.02 s)
+    the late tick simulates 0.02 s of it and the rest slips, counted; with 10 s
+    it simulates the whole stall at once.  Either way the motion is exact and
+    simulation time follows the wall clock again, lagging by the slip."""
     node, probe, _ = rig
+    assert node.set_parameters([Parameter("max_catch_up", value=max_catch_up)])[0].successful
     probe.spin_for(0.2)
+    clock, rt = node.realtime.clock, node.realtime
     with node._lock:  # noqa: SLF001 - stall the tick thread: ticks are missed
-        before_ns = round(node.realtime.slider.t * 1e9)  # the last tick before the stall
+        before_ns = round(rt.slider.t * 1e9)  # the last tick before the stall
+        wall1, slipped1, stalls1 = time.monotonic_ns(), rt.time_slipped, rt.stalls
+        lag1 = wall1 - clock.now_ns(wall1)
         time.sleep(0.25)
 
     def after() -> list[int]:
@@ -277,11 +286,15 @@ def test_a_stalled_timer_does_not_change_the_physics(rig) -> None:  # type: igno
 
     assert probe.spin_until(lambda: len(after()) >= 5, 10.0)
     gaps = np.diff([before_ns, *after()[:5]]) / 1e9
-    assert gaps.max() > 0.2, "simulation time followed the wall clock over the stall"
-    # Simulation time stays with the wall clock to well under a millisecond.
-    clock = node.realtime.clock
-    wall = time.monotonic_ns()
-    assert abs(clock.now_ns(wall) - (wall - clock._wall0)) < 1_000_000  # noqa: SLF001
+    if max_catch_up > 0.25:
+        assert gaps.max() > 0.2, "simulation time followed the wall clock over the stall"
+    else:
+        assert gaps.max() <= max_catch_up + 1e-9, "the late tick simulated at most max_catch_up of the stall"
+        assert rt.stalls > stalls1 and rt.time_slipped - slipped1 > 0.2
+    # Simulation time follows the wall clock again, behind by what slipped, to well under a millisecond.
+    wall2 = time.monotonic_ns()
+    lag2 = wall2 - clock.now_ns(wall2)
+    assert abs((lag2 - lag1) - (rt.time_slipped - slipped1) * 1e9) < 1_000_000
     exact = Slider(SliderParams(), Inputs())
     last = probe.received["pose"][-1]
     exact.advance_to(stamp_ns(last) / 1e9)
