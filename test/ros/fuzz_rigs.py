@@ -306,8 +306,8 @@ class SliderRig(Rig):
     def new_model(self) -> SliderModel:
         #: Inputs a topic changed since their parameter was last set (the two differ then).
         self.by_topic: set[str] = set()
-        #: Contact forces published after this many had arrived reflect the model.
-        self._synced = self.client.counts["friction_force"]
+        #: Contact forces stamped after this simulation time [ns] reflect the model.
+        self._synced_ns = self.client.last_pose_ns or 0
         return SliderModel({"log_path": str(self.recording), "log_rate": LOG_RATE,
                             "diagnostics_period": DIAGNOSTICS_PERIOD})
 
@@ -358,14 +358,13 @@ class SliderRig(Rig):
             if now != before[field]:
                 self.by_topic.add(field)
         self.model.inputs = self.model.inputs.replace(**{f: _number(values[f]) for f in spec.INPUTS})
-        self._synced = self.client.counts["friction_force"]  # the burst was handled before these
+        self._synced_ns = round(_number(values["sim_time"]) * 1e9)  # the burst was handled by then
         self.ticked()
         return values
 
     def fresh_diagnostics(self) -> dict[str, str]:
         """Computed after a tick that took every command so far (its sim_time is later)."""
         self.ticked()
-        self._synced = self.client.counts["friction_force"]
         assert self.client.last_pose_ns is not None
         after = self.client.last_pose_ns / 1e9
 
@@ -374,14 +373,24 @@ class SliderRig(Rig):
 
         values = diagnostics_after(self.client, newer, 5.0)
         # A refusal the node has not counted yet (rclpy's own refusals reach its count a
-        # moment after the set returns): wait for its count, not for a time (5 s at most,
-        # then compare() says what is missing).
+        # moment after the set returns), or a command a loaded machine delivered later than
+        # the ticks waited for: wait for the node's count and inputs in force, not for a time
+        # (5 s at most, then compare() says what is missing).
         deadline = time.monotonic() + 5.0
-        while int(values["commands_rejected"]) < self.model.rejected.low and time.monotonic() < deadline:
+        while (int(values["commands_rejected"]) < self.model.rejected.low or not self._in_force(values)) \
+                and time.monotonic() < deadline:
             seen = _number(values["sim_time"])
             values = diagnostics_after(
                 self.client, lambda arrival, later, msg, seen=seen: _number(later.get("sim_time", "-1")) > seen, 5.0)
+        # Computed after every input was taken: the states stamped later show the plant in force (one
+        # that arrives later may be older: a backlog of messages is taken topic by topic).
+        self._synced_ns = round(_number(values["sim_time"]) * 1e9)
         return values
+
+    def _in_force(self, values: dict[str, str]) -> bool:
+        """Whether the diagnostics report what the model has in force."""
+        return all((values[key] if isinstance(expected, str) else _number(values[key])) == expected
+                   for key, expected in self.model.in_force().items() if key in values)
 
     def compare(self, values: dict[str, str]) -> None:
         model = self.model
@@ -420,8 +429,13 @@ class SliderRig(Rig):
         mu_s = params.static_ratio * params.mu
         slack = 1e-9 * (params.weight + abs(inputs.external_force_z) + pa)
         low, high = max(0.0, load - pa), max(0.0, load + pa)
+        def later() -> list[Any]:
+            return [m for m in self.client.since("friction_force", 0) if stamp_ns(m) > self._synced_ns]
+
+        assert self.client.spin_until(lambda: len(later()) >= 3, 5.0 + 3 / self.model.publish_rate), \
+            f"no contact forces stamped after {self._synced_ns} ns arrived"
         flying = {stamp_ns(m) for m in self.client.since("pose", 0) if m.pose.position.z > 0.0}
-        for msg in self.client.since("friction_force", self._synced):
+        for msg in later():
             normal, friction = msg.wrench.force.z, msg.wrench.force.x
             if stamp_ns(msg) in flying:
                 assert normal == 0.0 and friction == 0.0, \
