@@ -9,8 +9,8 @@ import time
 
 import pytest
 
-from friction_sim.experiment.acceptance import acceptance_scenarios, judge
 from friction_sim.experiment import runner
+from friction_sim.experiment.acceptance import acceptance_scenarios, judge
 from friction_sim.experiment.runner import run_experiment
 
 
