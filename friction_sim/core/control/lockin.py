@@ -1,0 +1,120 @@
+"""The slideway's vibration, period by period, from accelerometer samples: the
+measurement of a controller that works through a resonant exciter (numpy only).
+
+An industrial feeder controller does not see the excitation force; it sees the
+slideway's acceleration.  Each excitation period of the slider ends where the
+drive phase is a whole turn, and the slider stamps its ``mean_velocity`` sample
+there, so a controller knows from two consecutive stamps t0 < t1 that the drive
+phase was 2*pi*(t - t0)/(t1 - t0) in between.  Over the accelerometer's normal
+readings of that period it fits, by least squares,
+
+    a_z(t) = c + I*sin(theta) + Q*cos(theta),
+
+three unknowns: exact for a vibration at the drive frequency plus a constant
+(gravity, a bias) whatever the sample times, and the least-squares estimate
+under white noise (its error is about the noise over sqrt(samples/2)).  In
+steady state the part feels P = -m*q'' = m*u*A*G*sin(theta - lag)
+(:mod:`friction_sim.core.physics.exciter`) and the sensor reads the slideway's
+q'' = -P/m (the specific force, gravity aside): so the amplitude of P per unit
+mass is hypot(I, Q) and its lag behind the drive is the phase of -(I + i*Q)
+measured backwards, pi/2 at resonance.  While a transient decays the fit is the
+period's best sinusoid at the drive frequency: the lock-in's reading of the
+envelope, which is what a technician's instrument shows.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+from friction_sim.errors import ParameterError
+
+#: A period's fit needs at least this many samples (three unknowns, and one to spare).
+MIN_SAMPLES = 4
+
+
+@dataclass(frozen=True)
+class Vibration:
+    """One period's reading: ``amplitude`` [m/s^2] of the slideway's normal
+    acceleration at the drive frequency (the part feels mass times it), the
+    ``lag`` [rad, in (-pi, pi]] of the part's force behind the drive (pi/2 at
+    resonance, less below it, more above), the constant part ``offset``
+    [m/s^2] (g*cos(alpha) and the sensor's bias), over [t_start, t_end] from
+    ``samples`` readings."""
+
+    t_start: float
+    t_end: float
+    amplitude: float
+    lag: float
+    offset: float
+    samples: int
+
+
+def fit_period(times: Iterable[float], normal: Iterable[float], t_start: float, t_end: float) -> Vibration:
+    """The least-squares reading of one period from the samples (t, a_z) in it
+    (see the module doc); a :class:`ParameterError` if the period is empty or
+    holds fewer than :data:`MIN_SAMPLES` samples."""
+    t = np.asarray(list(times), dtype=float)
+    z = np.asarray(list(normal), dtype=float)
+    if not t_end > t_start:
+        raise ParameterError("period", (t_start, t_end), "must end after it starts")
+    if t.size < MIN_SAMPLES or t.size != z.size:
+        raise ParameterError("samples", int(t.size), f"a period needs at least {MIN_SAMPLES} accelerometer samples")
+    theta = 2.0 * math.pi * (t - t_start) / (t_end - t_start)
+    design = np.column_stack([np.ones_like(theta), np.sin(theta), np.cos(theta)])
+    (offset, in_phase, quadrature), *_ = np.linalg.lstsq(design, z, rcond=None)
+    # q'' = -P/m = -R sin(theta - lag) = I sin(theta) + Q cos(theta): I = -R cos(lag), Q = R sin(lag)
+    lag = math.atan2(float(quadrature), -float(in_phase))
+    return Vibration(t_start, t_end, math.hypot(float(in_phase), float(quadrature)), lag, float(offset), int(t.size))
+
+
+class LockIn:
+    """Collects accelerometer readings and period boundaries (the slider's
+    mean_velocity stamps), which may arrive in any order between the two
+    topics, and reads each period once all its samples have come (a sample at
+    or after its end has arrived: each topic arrives in order)."""
+
+    def __init__(self, keep: float = 0.5) -> None:
+        self._samples: deque[tuple[float, float]] = deque()
+        self._bounds: deque[float] = deque(maxlen=4096)  # bounded if readings() is never asked for
+        self._latest = -math.inf
+        self._keep = keep  # seconds of samples kept before the oldest open period (a late boundary)
+
+    def add_sample(self, t: float, normal: float) -> None:
+        """An accelerometer reading: the normal specific force [m/s^2] at simulation time ``t``."""
+        if t > self._latest:
+            self._latest = t
+        self._samples.append((t, normal))
+
+    def add_boundary(self, t: float) -> None:
+        """A period ended at ``t`` (drive phase a whole turn): a mean_velocity stamp."""
+        if not self._bounds or t > self._bounds[-1]:
+            self._bounds.append(t)
+
+    def forget(self) -> None:
+        """Drop everything (the plant was reset or its time jumped)."""
+        self._samples.clear()
+        self._bounds.clear()
+        self._latest = -math.inf
+
+    def readings(self) -> list[Vibration]:
+        """The periods completed since the last call, oldest first (a period with
+        too few samples is skipped: the accelerometer is off or too slow)."""
+        done: list[Vibration] = []
+        while len(self._bounds) >= 2 and self._latest >= self._bounds[1]:
+            start, end = self._bounds.popleft(), self._bounds[0]
+            inside = [(t, z) for t, z in self._samples if start <= t <= end]
+            if len(inside) >= MIN_SAMPLES:
+                times, normal = zip(*inside, strict=True)
+                done.append(fit_period(times, normal, start, end))
+        oldest = self._bounds[0] if self._bounds else self._latest
+        while self._samples and self._samples[0][0] < oldest - self._keep:
+            self._samples.popleft()
+        return done
+
+
+__all__ = ["MIN_SAMPLES", "LockIn", "Vibration", "fit_period"]
