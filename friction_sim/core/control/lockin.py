@@ -44,7 +44,7 @@ class Vibration:
     ``lag`` [rad, in (-pi, pi]] of the part's force behind the drive (pi/2 at
     resonance, less below it, more above), the constant part ``offset``
     [m/s^2] (g*cos(alpha) and the sensor's bias), over [t_start, t_end] from
-    ``samples`` readings."""
+    ``samples`` readings at ``times``."""
 
     t_start: float
     t_end: float
@@ -52,6 +52,8 @@ class Vibration:
     lag: float
     offset: float
     samples: int
+    #: The sample times the fit was made from (a model's own reading can be made at the same times).
+    times: tuple[float, ...] = ()
 
 
 def fit_period(times: Iterable[float], normal: Iterable[float], t_start: float, t_end: float) -> Vibration:
@@ -69,7 +71,8 @@ def fit_period(times: Iterable[float], normal: Iterable[float], t_start: float, 
     (offset, in_phase, quadrature), *_ = np.linalg.lstsq(design, z, rcond=None)
     # q'' = -P/m = -R sin(theta - lag) = I sin(theta) + Q cos(theta): I = -R cos(lag), Q = R sin(lag)
     lag = math.atan2(float(quadrature), -float(in_phase))
-    return Vibration(t_start, t_end, math.hypot(float(in_phase), float(quadrature)), lag, float(offset), int(t.size))
+    return Vibration(t_start, t_end, math.hypot(float(in_phase), float(quadrature)), lag, float(offset), int(t.size),
+                     tuple(float(x) for x in t))
 
 
 class LockIn:
