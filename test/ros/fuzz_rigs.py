@@ -387,18 +387,19 @@ class SliderRig(Rig):
         self._synced_ns = round(_number(values["sim_time"]) * 1e9)
         return values
 
+    def _disagreements(self, values: dict[str, str]) -> list[str]:
+        """What the diagnostics report differently from what the model has in force."""
+        return [f"diagnostics {key} = {values[key]}, but {expected!r} is in force"
+                for key, expected in self.model.in_force().items()
+                if key in values and (values[key] if isinstance(expected, str) else _number(values[key])) != expected]
+
     def _in_force(self, values: dict[str, str]) -> bool:
-        """Whether the diagnostics report what the model has in force."""
-        return all((values[key] if isinstance(expected, str) else _number(values[key])) == expected
-                   for key, expected in self.model.in_force().items() if key in values)
+        return not self._disagreements(values)
 
     def compare(self, values: dict[str, str]) -> None:
         model = self.model
-        for key, expected in model.in_force().items():
-            if key in values:
-                got = values[key] if isinstance(expected, str) else _number(values[key])
-                assert got == expected, \
-                    f"diagnostics {key} = {values[key]}, but {expected!r} is in force"
+        wrong = self._disagreements(values)
+        assert not wrong, wrong[0]
         rejected = int(values["commands_rejected"])
         assert model.rejected.holds(rejected), \
             f"diagnostics count {rejected} refused commands; {model.rejected.low}..{model.rejected.high} were refused"

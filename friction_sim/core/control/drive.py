@@ -57,6 +57,7 @@ import numpy as np
 
 from friction_sim.core.control.lockin import MIN_SAMPLES, Vibration, fit_period
 from friction_sim.core.model import spec
+from friction_sim.core.model.params import SliderParams
 from friction_sim.core.physics.exciter import (
     Slideway,
     eigenvalue,
@@ -70,19 +71,6 @@ from friction_sim.core.physics.exciter import (
 REGULARIZATION = 1e-2
 #: Tracking moves the drive frequency by at most this fraction per period.
 MAX_FREQUENCY_STEP = 0.005
-
-
-@dataclass(frozen=True)
-class ExciterModel:
-    """The controller's model of the exciter, in the plant's parameters' units."""
-
-    natural_frequency: float = float(spec.NATURAL_FREQUENCY.default)
-    damping_ratio: float = float(spec.DAMPING_RATIO.default)
-    full_drive_acceleration: float = float(spec.FULL_DRIVE_ACCELERATION.default)
-
-    def __post_init__(self) -> None:
-        for setting in (spec.NATURAL_FREQUENCY, spec.DAMPING_RATIO, spec.FULL_DRIVE_ACCELERATION):
-            object.__setattr__(self, setting.name, float(setting.check(getattr(self, setting.name))))
 
 
 def natural_frequency_from_lag(frequency: float, lag: float, damping_ratio: float) -> float:
@@ -133,9 +121,11 @@ def _close(a: float, b: float) -> bool:
 
 class DriveLoop:
     """Drive level (and frequency, with tracking) per period, from the amplitude
-    wanted and the lock-in's readings (see the module doc)."""
+    wanted and the lock-in's readings (see the module doc).  ``model`` is the
+    controller's model of the plant, as the outer law's: its natural_frequency,
+    damping_ratio and full_drive_acceleration are the exciter's data sheet."""
 
-    def __init__(self, model: ExciterModel, frequency: float, drive_level: float, *, smoothing: float = 0.3,
+    def __init__(self, model: SliderParams, frequency: float, drive_level: float, *, smoothing: float = 0.3,
                  correction_gain: float = 0.1, tracking: bool = False) -> None:
         self.model = model
         self.frequency = float(spec.EXCITATION_FREQUENCY.check(frequency))
@@ -263,13 +253,13 @@ class DriveLoop:
 
     def _track(self) -> None:
         """Move the drive frequency toward the natural frequency (lag 90 degrees)."""
-        step = MAX_FREQUENCY_STEP * self.frequency
-        target = min(max(self.natural_frequency, self.frequency - step), self.frequency + step)
+        target = self.frequency + _limited(self.natural_frequency - self.frequency,
+                                           MAX_FREQUENCY_STEP * self.frequency)
         if target != self.frequency:
             self.frequency = float(spec.EXCITATION_FREQUENCY.check(target))
 
 
 __all__ = [
     "LAG_LEARNING", "MAX_FREQUENCY_STEP", "MAX_GAIN_CORRECTION", "MAX_LAG_CORRECTION", "REGULARIZATION", "DriveLoop",
-    "ExciterModel", "lag_sensitivity", "natural_frequency_from_lag",
+    "lag_sensitivity", "natural_frequency_from_lag",
 ]

@@ -13,15 +13,15 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
-from friction_sim.core.control.drive import DriveLoop, ExciterModel, natural_frequency_from_lag
+from friction_sim.core.control.drive import DriveLoop, natural_frequency_from_lag
 from friction_sim.core.control.law import ControllerConfig, MeanSpeedController
 from friction_sim.core.control.lockin import LockIn
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.model.params import Inputs, SliderParams
-from friction_sim.core.physics.exciter import response
+from friction_sim.core.physics.exciter import response, steady_response
 from friction_sim.core.runtime.accelerometer import Accelerometer
 
-PLANT = ExciterModel(natural_frequency=52.0, damping_ratio=0.02, full_drive_acceleration=20.0)
+PLANT = SliderParams(actuator="resonant", natural_frequency=52.0, damping_ratio=0.02, full_drive_acceleration=20.0)
 RATE = 1000.0  # accelerometer samples per simulated second
 
 
@@ -36,21 +36,20 @@ class Run:
     per_drive: list[float] = field(default_factory=list)
 
 
-def closed_loop(periods: int, targets: dict[int, float], *, plant: ExciterModel = PLANT,
-                model: ExciterModel = PLANT, inner: bool = True, tracking: bool = False,
+def closed_loop(periods: int, targets: dict[int, float], *, plant: SliderParams = PLANT,
+                model: SliderParams = PLANT, inner: bool = True, tracking: bool = False,
                 natural_frequency_at: tuple[int, float] | None = None, noise: float = 0.0,
                 delay: float = 0.0) -> Run:
     """``periods`` periods from steady state; ``targets`` {period: target mean speed};
     ``inner`` False: today's controller, Pa through the model's steady gain."""
     frequency = 50.0
-    params = SliderParams(actuator="resonant", natural_frequency=plant.natural_frequency,
-                          damping_ratio=plant.damping_ratio, full_drive_acceleration=plant.full_drive_acceleration)
     law = MeanSpeedController(ControllerConfig(model=SliderParams()), drive_force=0.7, frequency=frequency,
                               target_speed=targets[0])
-    loop = DriveLoop(model, frequency, 0.0, tracking=tracking)
-    level = min(loop.level_for(law.output.amplitude / params.mass), 1.0)
+    per_level, _ = steady_response(1.0, model.full_drive_acceleration, frequency, model.natural_frequency,
+                                   model.damping_ratio)
+    level = min(law.output.amplitude / plant.mass / per_level, 1.0)
     loop = DriveLoop(model, frequency, level, tracking=tracking)
-    slider = Slider(params, Inputs(excitation_frequency=frequency, drive_level=level))
+    slider = Slider(plant, Inputs(excitation_frequency=frequency, drive_level=level))
     sensor, lockin, run = Accelerometer(RATE, noise=noise, seed=5), LockIn(), Run()
     t = x = 0.0
     for k in range(periods):
@@ -61,7 +60,7 @@ def closed_loop(periods: int, targets: dict[int, float], *, plant: ExciterModel 
         readings = lockin.readings()
         for reading in readings:
             run.per_drive.append(reading.amplitude / max(level, 1e-12))
-        wanted = law.output.amplitude / params.mass
+        wanted = law.output.amplitude / plant.mass
         if inner:
             level, new_frequency = loop.boundary(t, wanted, readings)
         else:
@@ -139,13 +138,13 @@ def _settled(run: Run, target: float, start: int) -> bool:
 
 
 @pytest.mark.parametrize("model", [
-    ExciterModel(natural_frequency=52.0, damping_ratio=0.02, full_drive_acceleration=26.0),
-    ExciterModel(natural_frequency=52.0, damping_ratio=0.02, full_drive_acceleration=15.0),
-    ExciterModel(natural_frequency=53.0, damping_ratio=0.02, full_drive_acceleration=20.0),
-    ExciterModel(natural_frequency=51.0, damping_ratio=0.02, full_drive_acceleration=20.0),
-    ExciterModel(natural_frequency=52.0, damping_ratio=0.03, full_drive_acceleration=20.0),
+    PLANT.replace(natural_frequency=52.0, damping_ratio=0.02, full_drive_acceleration=26.0),
+    PLANT.replace(natural_frequency=52.0, damping_ratio=0.02, full_drive_acceleration=15.0),
+    PLANT.replace(natural_frequency=53.0, damping_ratio=0.02, full_drive_acceleration=20.0),
+    PLANT.replace(natural_frequency=51.0, damping_ratio=0.02, full_drive_acceleration=20.0),
+    PLANT.replace(natural_frequency=52.0, damping_ratio=0.03, full_drive_acceleration=20.0),
 ], ids=["A+30%", "A-25%", "fn+1Hz", "fn-1Hz", "zeta 0.03"])
-def test_a_wrong_model_is_corrected_by_the_accelerometer(model: ExciterModel) -> None:
+def test_a_wrong_model_is_corrected_by_the_accelerometer(model: SliderParams) -> None:
     """The controller's data sheet is off (A, f_n or zeta): the readings correct
     the model's gain and natural frequency, and the speed settles on its target."""
     run = closed_loop(250, {0: 0.0003}, model=model)
