@@ -17,12 +17,19 @@ exciter (f_n, zeta, A, through the core's own exciter functions,
 :mod:`friction_sim.core.physics.exciter`): at each period boundary (drive phase
 a whole turn, the slider's mean_velocity stamp) it knows the slideway's state
 (q, q') from the drive levels it applied.  It plans the next two periods'
-levels so that the slideway is in the steady motion of a reference level two
-periods on (two real unknowns, two equations: deadbeat on the state), applies
-the first and plans again at the next boundary.  The reference moves from the
-level in force toward the one asked for by ``smoothing`` of the way per
-period, so the envelope rises without overshoot (0.3: a step of the target
-settles within 2 % in about 9 periods on that plant, with none).
+levels so that the slideway comes near the steady motion of a reference level
+two periods on (two real unknowns: least squares on the state, pulled toward
+the reference's own level by :data:`REGULARIZATION`), applies the first and
+plans again at the next boundary.  The reference moves from the level in
+force toward the one asked for by ``smoothing`` of the way per period, so the
+envelope rises with hardly any overshoot (0.3: a step of the target settles
+within 2 % in about 12 periods on that plant, overshooting 2 %).
+
+A window whose level stepped by more than :data:`LEARNING_STEP` at its start
+is not learnt from (when the level took effect the model cannot know), and
+:attr:`DriveLoop.steady` tells the outer law when a mean speed measured
+answers the amplitude it asked for.  The boundaries are the slider's
+mean_velocity stamps, every ``cycles`` drive periods (its mean window).
 
 What the model gets wrong the accelerometer corrects.  Each period's lock-in
 reading (:mod:`friction_sim.core.control.lockin`) is compared with the model's
@@ -44,8 +51,9 @@ the load on the slideway.
 Figures (test/core/control/test_drive.py, the exact resonant slider in the
 loop, drive levels taken at period boundaries): the mean-speed steps of
 acceptance case 1 on f_n = 52 Hz, zeta = 0.02 at 50 Hz settle within 2 % in
-9 and 10 periods with no overshoot, against 28 and 29 periods and 27 % and
-19 % overshoot for the drive stepped through the steady gain.
+12 and 12 periods with 1.8 % and 1.4 % overshoot (19 periods, 5 %, with the
+levels taking effect half a period late), against 28 and 29 periods and 27 %
+and 19 % overshoot for the drive stepped through the steady gain.
 """
 
 from __future__ import annotations
@@ -67,8 +75,11 @@ from friction_sim.core.physics.exciter import (
     steady_slideway,
 )
 
-#: The plan's pull toward the reference's level, relative to its authority over the state.
-REGULARIZATION = 1e-2
+#: The plan's pull toward the reference's level, relative to its authority over the state: as
+#: strong as the state's own pull, so the levels do not swing far from the reference's; a level
+#: that takes effect later than planned (a message's way, the plant's tick) then leaves little
+#: transient behind (on ROS at 1 kHz ticks 1e-2 rang for 40 periods, 1.0 settles in 13).
+REGULARIZATION = 1.0
 #: Tracking moves the drive frequency by at most this fraction per period.
 MAX_FREQUENCY_STEP = 0.005
 
@@ -87,6 +98,12 @@ MAX_GAIN_CORRECTION = 0.05
 MAX_LAG_CORRECTION = 0.3
 #: The fraction of the way to the natural frequency a reading's lag shows that the model goes.
 LAG_LEARNING = 0.3
+#: A window whose level stepped by more than this fraction at its start is not learnt from.
+LEARNING_STEP = 0.05
+#: A reading whose lag is further than this [rad] from the model's teaches f_n, not the gain.
+LAG_FIRST = 0.05
+#: A reading further than this from the model's own (relative amplitude) means the slideway is not steady yet.
+AGREEMENT = 0.02
 
 
 def lag_sensitivity(ratio: float, damping_ratio: float) -> float:
@@ -100,11 +117,11 @@ def lag_sensitivity(ratio: float, damping_ratio: float) -> float:
 
 @dataclass(frozen=True)
 class _Planned:
-    """A period this loop drove: its start, length and drive level, and the
+    """A window this loop drove: its start, drive frequency and level, and the
     model's slideway over it."""
 
     t_start: float
-    period: float
+    frequency: float
     level: float
     way: Slideway
 
@@ -126,8 +143,10 @@ class DriveLoop:
     damping_ratio and full_drive_acceleration are the exciter's data sheet."""
 
     def __init__(self, model: SliderParams, frequency: float, drive_level: float, *, smoothing: float = 0.3,
-                 correction_gain: float = 0.1, tracking: bool = False) -> None:
+                 correction_gain: float = 0.1, tracking: bool = False, cycles: int = 1) -> None:
         self.model = model
+        #: Drive periods between two boundaries (the slider's mean_window_periods).
+        self.cycles = int(spec.MEAN_WINDOW_PERIODS.check(cycles))
         self.frequency = float(spec.EXCITATION_FREQUENCY.check(frequency))
         self.drive_level = float(spec.DRIVE_LEVEL.check(drive_level))
         self.smoothing, self.correction_gain, self.tracking = smoothing, correction_gain, tracking
@@ -138,6 +157,10 @@ class DriveLoop:
         self._reference = self._amplitude(self.drive_level)  # [m/s^2]: a frequency move keeps its meaning
         self._way = steady_slideway(self._amplitude(self.drive_level), self._lag(), self._omega(), self._lam())
         self._planned: list[_Planned] = []
+        self._last_boundary: float | None = None
+        #: Boundaries in a row with the same amplitude asked for and the reference on it (see :attr:`steady`).
+        self._steady_boundaries = 0
+        self._asked = math.nan
 
     # -- the model in force -----------------------------------------------------------
 
@@ -164,21 +187,48 @@ class DriveLoop:
     # -- one period boundary ----------------------------------------------------------
 
     def boundary(self, t: float, wanted_amplitude: float, readings: list[Vibration]) -> tuple[float, float]:
-        """At the period boundary ``t`` (drive phase a whole turn): take the
-        readings of periods that have ended, then decide the (drive level,
-        frequency) for the coming period, the level in [0, 1]."""
+        """At the boundary ``t`` (drive phase a whole turn, the end of a window of
+        :attr:`cycles` periods): take the readings of windows that have ended,
+        then decide the (drive level, frequency) for the coming window, the
+        level in [0, 1].  The time since the previous boundary is what the
+        level in force drove (a boundary missed, a lost sample, is one long window)."""
         for reading in readings:
             self._correct(reading)
-        elapsed = 1.0 / self.frequency  # the period that ended, at the frequency it ran at
+        span = self.cycles / self.frequency
+        elapsed = t - self._last_boundary if self._last_boundary is not None and t > self._last_boundary else span
+        self._last_boundary = t
         if self.tracking:
             self._track()
         reachable = min(max(wanted_amplitude, 0.0), self._amplitude(1.0))
         self._reference += self.smoothing * (reachable - self._reference)
-        level = min(max(self._plan(elapsed, 1.0 / self.frequency), 0.0), 1.0)
+        near = abs(reachable - self._reference) <= 1e-2 * max(reachable, 1e-12)
+        asked_before, self._asked = self._asked, wanted_amplitude
+        self._steady_boundaries = self._steady_boundaries + 1 if near and wanted_amplitude == asked_before else 0
+        level = min(max(self._plan(elapsed, self.cycles / self.frequency), 0.0), 1.0)
         self._way = self._driven(self._way, elapsed, level)
         self.drive_level = level
-        self._planned = [*self._planned[-63:], _Planned(t, 1.0 / self.frequency, level, self._way)]
+        self._planned = [*self._planned[-63:], _Planned(t, self.frequency, level, self._way)]
         return level, self.frequency
+
+    @property
+    def steady(self) -> bool:
+        """Whether the slideway's amplitude is where the outer loop asked: the same
+        amplitude has been asked for, the reference within 1 % of it and the
+        readings within :data:`AGREEMENT` of the model's, since two windows (the
+        plan's horizon) and one
+        time constant 1/(zeta omega_n) of the slideway ago (what the plan leaves
+        of a transient, from a level that took effect later than planned, has
+        decayed by e then).  Until then a mean speed measured is not yet the
+        answer to the amplitude asked for."""
+        decay = self.frequency / (2.0 * math.pi * self.model.damping_ratio * self.natural_frequency)
+        return self._steady_boundaries > 2 + math.ceil(decay / self.cycles)
+
+    def set_frequency(self, frequency: float) -> None:
+        """The drive frequency was set from outside (a command, the plant's
+        parameter): the coming windows are planned at it.  The model's motion in
+        the window under way keeps the frequency it was planned at; what that
+        misses, the next readings correct."""
+        self.frequency = float(spec.EXCITATION_FREQUENCY.check(frequency))
 
     def _driven(self, way: Slideway, tau: float, level: float) -> Slideway:
         """The slideway ``tau`` into ``way``, from then on driven at ``level`` (model in force)."""
@@ -224,21 +274,26 @@ class DriveLoop:
         :data:`MAX_GAIN_CORRECTION` and :data:`MAX_LAG_CORRECTION` per reading.
         With the model right the two readings agree to rounding and nothing moves."""
         planned = self._planned_for(reading)
-        if planned is None or len(reading.times) < MIN_SAMPLES or not reading.amplitude > 0.0:
+        if planned is None or len(reading.times) < MIN_SAMPLES or not reading.amplitude > 0.0 or self._stepped(planned):
             return
-        normal = [slideway_state(planned.way, 2.0 * math.pi * (t - planned.t_start) / planned.period,
+        normal = [slideway_state(planned.way, 2.0 * math.pi * planned.frequency * (t - planned.t_start),
                                  t - planned.t_start)[2] for t in reading.times]
-        expected = fit_period(reading.times, normal, reading.t_start, reading.t_end)
+        expected = fit_period(reading.times, normal, reading.t_start, reading.t_end, reading.cycles)
         if not expected.amplitude > 0.0:
             return
-        driven = 1.0 / planned.period
+        if abs(reading.amplitude / expected.amplitude - 1.0) > AGREEMENT:
+            self._steady_boundaries = 0  # the plant is not where the model put it (a load, a wrong model)
+        driven = planned.frequency
+        lag_error = math.remainder(reading.lag - expected.lag, 2.0 * math.pi)
         steady_lag = response(driven, self.natural_frequency, self.model.damping_ratio).lag + _limited(
-            math.remainder(reading.lag - expected.lag, 2.0 * math.pi), MAX_LAG_CORRECTION)
+            lag_error, MAX_LAG_CORRECTION)
         if 0.0 < steady_lag < math.pi:
             natural = natural_frequency_from_lag(driven, steady_lag, self.model.damping_ratio)
             rate = LAG_LEARNING * lag_sensitivity(driven / self.natural_frequency, self.model.damping_ratio)
             self.natural_frequency += _limited(rate * (natural - self.natural_frequency),
                                                MAX_FREQUENCY_STEP * self.natural_frequency)
+        if abs(lag_error) > LAG_FIRST:
+            return  # f_n is off: the amplitude's error is mostly the resonance curve's, not the gain's
         factor = math.exp(_limited(self.correction_gain * math.log(reading.amplitude / expected.amplitude),
                                    MAX_GAIN_CORRECTION))
         self.gain_ratio *= factor
@@ -246,6 +301,17 @@ class DriveLoop:
         # scales with it, so a gain learnt is not taken for a transient the plan would then chase.
         way = self._way
         self._way = way._replace(amplitude=way.amplitude * factor, d=way.d * factor)
+
+    def _stepped(self, planned: _Planned) -> bool:
+        """Whether the level stepped by more than :data:`LEARNING_STEP` at the window's
+        start: when exactly a level takes effect at the plant (a message's way, the
+        plant's tick) the model cannot know, and the error of that moment, times the
+        step, would be learnt as a wrong gain or f_n.  Such windows teach nothing."""
+        index = self._planned.index(planned)
+        if index == 0:
+            return False
+        before = self._planned[index - 1].level
+        return abs(planned.level - before) > LEARNING_STEP * max(planned.level, before)
 
     def _planned_for(self, reading: Vibration) -> _Planned | None:
         """The period this loop drove that ``reading`` is of (None: not one of the last 64)."""
@@ -260,6 +326,6 @@ class DriveLoop:
 
 
 __all__ = [
-    "LAG_LEARNING", "MAX_FREQUENCY_STEP", "MAX_GAIN_CORRECTION", "MAX_LAG_CORRECTION", "REGULARIZATION", "DriveLoop",
-    "lag_sensitivity", "natural_frequency_from_lag",
+    "AGREEMENT", "LAG_FIRST", "LAG_LEARNING", "LEARNING_STEP", "MAX_FREQUENCY_STEP", "MAX_GAIN_CORRECTION",
+    "MAX_LAG_CORRECTION", "REGULARIZATION", "DriveLoop", "lag_sensitivity", "natural_frequency_from_lag",
 ]

@@ -35,6 +35,8 @@ from friction_sim.errors import ParameterError
 
 #: A period's fit needs at least this many samples (three unknowns, and one to spare).
 MIN_SAMPLES = 4
+#: Samples kept at most while waiting for a window's end.
+MAX_SAMPLES = 200_000
 
 
 @dataclass(frozen=True)
@@ -54,25 +56,28 @@ class Vibration:
     samples: int
     #: The sample times the fit was made from (a model's own reading can be made at the same times).
     times: tuple[float, ...] = ()
+    #: Drive periods between t_start and t_end (the slider's mean window).
+    cycles: int = 1
 
 
-def fit_period(times: Iterable[float], normal: Iterable[float], t_start: float, t_end: float) -> Vibration:
-    """The least-squares reading of one period from the samples (t, a_z) in it
-    (see the module doc); a :class:`ParameterError` if the period is empty or
-    holds fewer than :data:`MIN_SAMPLES` samples."""
+def fit_period(times: Iterable[float], normal: Iterable[float], t_start: float, t_end: float,
+               cycles: int = 1) -> Vibration:
+    """The least-squares reading of one window of ``cycles`` drive periods from
+    the samples (t, a_z) in it (see the module doc); a :class:`ParameterError`
+    if the window is empty or holds fewer than :data:`MIN_SAMPLES` samples."""
     t = np.asarray(list(times), dtype=float)
     z = np.asarray(list(normal), dtype=float)
     if not t_end > t_start:
         raise ParameterError("period", (t_start, t_end), "must end after it starts")
     if t.size < MIN_SAMPLES or t.size != z.size:
         raise ParameterError("samples", int(t.size), f"a period needs at least {MIN_SAMPLES} accelerometer samples")
-    theta = 2.0 * math.pi * (t - t_start) / (t_end - t_start)
+    theta = 2.0 * math.pi * cycles * (t - t_start) / (t_end - t_start)
     design = np.column_stack([np.ones_like(theta), np.sin(theta), np.cos(theta)])
     (offset, in_phase, quadrature), *_ = np.linalg.lstsq(design, z, rcond=None)
     # q'' = -P/m = -R sin(theta - lag) = I sin(theta) + Q cos(theta): I = -R cos(lag), Q = R sin(lag)
     lag = math.atan2(float(quadrature), -float(in_phase))
     return Vibration(t_start, t_end, math.hypot(float(in_phase), float(quadrature)), lag, float(offset), int(t.size),
-                     tuple(float(x) for x in t))
+                     tuple(float(x) for x in t), cycles)
 
 
 class LockIn:
@@ -81,8 +86,12 @@ class LockIn:
     topics, and reads each period once all its samples have come (a sample at
     or after its end has arrived: each topic arrives in order)."""
 
-    def __init__(self, keep: float = 0.5) -> None:
-        self._samples: deque[tuple[float, float]] = deque()
+    def __init__(self, keep: float = 0.5, cycles: int = 1) -> None:
+        #: Drive periods between two boundaries (the slider's mean_window_periods).
+        self.cycles = cycles
+        # Bounded if boundaries stop coming (a controller standing by): 200,000 samples, 2 s at the
+        # accelerometer's top rate, more than any window needs at a rate that resolves its drive period.
+        self._samples: deque[tuple[float, float]] = deque(maxlen=MAX_SAMPLES)
         self._bounds: deque[float] = deque(maxlen=4096)  # bounded if readings() is never asked for
         self._latest = -math.inf
         self._keep = keep  # seconds of samples kept before the oldest open period (a late boundary)
@@ -113,11 +122,11 @@ class LockIn:
             inside = [(t, z) for t, z in self._samples if start <= t <= end]
             if len(inside) >= MIN_SAMPLES:
                 times, normal = zip(*inside, strict=True)
-                done.append(fit_period(times, normal, start, end))
+                done.append(fit_period(times, normal, start, end, self.cycles))
         oldest = self._bounds[0] if self._bounds else self._latest
         while self._samples and self._samples[0][0] < oldest - self._keep:
             self._samples.popleft()
         return done
 
 
-__all__ = ["MIN_SAMPLES", "LockIn", "Vibration", "fit_period"]
+__all__ = ["MAX_SAMPLES", "MIN_SAMPLES", "LockIn", "Vibration", "fit_period"]

@@ -3,7 +3,8 @@ the exact resonant slider in the core: the accelerometer read by the lock-in,
 the outer mean-speed law asking for Pa, the drive loop answering with the drive
 level (and frequency).  The plant of the issue's acceptance cases: f_n = 52 Hz,
 zeta = 0.02 (Q = 25), driven at 50 Hz; drive levels apply at period
-boundaries here (the ROS node is not wired to this loop yet)."""
+boundaries here, or a set fraction of a period later (the ROS node's run of
+the same loop: test/ros/test_controller_resonant.py and acceptance cases 7-9)."""
 
 from __future__ import annotations
 
