@@ -174,12 +174,12 @@ class ControllerConfig:
     """The controller's model of the plant and its tuning.
 
     integral_gain: fraction of each clean sample's error (in U) added to I.
-    max_amplitude_ratio: the largest a = Pa/(m*g) applied (above 1 the slider
-        hops; the law then, or for any model other than Kostek's, inverts the
-        general mean speed on its rising branch).
+    max_amplitude_ratio: the largest a = Pa/(m*g) applied (above 1 the slider hops; the law then, or
+        for any model other than Kostek's, inverts the general mean speed on its rising branch).
     settle_margin: extra fraction of a period a sample's window must keep
         clear of the last change of Pa (message latencies), on top of the
         delivery jitter observed in the recent samples.
+    secant: learn the plant's slope from two clean samples (off behind an inner loop: its residue is noise).
     """
 
     model: SliderParams = SliderParams()
@@ -187,6 +187,7 @@ class ControllerConfig:
     max_amplitude_ratio: float = 0.95
     mean_window_periods: int = 1
     settle_margin: float = 0.25
+    secant: bool = True
 
     def __post_init__(self) -> None:
         for setting in (spec.INTEGRAL_GAIN, spec.MAX_AMPLITUDE_RATIO, spec.MEAN_WINDOW_PERIODS, spec.SETTLE_MARGIN):
@@ -448,7 +449,7 @@ class MeanSpeedController:
         if not (0.0 < command < math.inf):
             return  # U_cmd underflows: nothing to scale
         step = config.integral_gain * error
-        if self._last_clean is not None:
+        if config.secant and self._last_clean is not None:
             previous_command, previous_error = self._last_clean
             moved = command - previous_command
             slope = (previous_error - error) / moved if moved != 0.0 else 0.0
@@ -578,8 +579,7 @@ def _clamp(value: float, low: float, high: float) -> float:
     return min(max(value, low), high)
 
 
-# The controller decides once per sample, mostly on unchanged inputs: remember
-# the last answers of the (exact, but iterative) relation.
+# Once per sample, mostly on unchanged inputs: the last answers of the (exact, iterative) relation.
 @lru_cache(maxsize=64)
 def _u_top(phi: float, top: float) -> float:
     return float(u_map(phi, top))
