@@ -9,7 +9,9 @@ Subscriptions: ``target_speed`` (std_msgs/Float64, m/s), ``mean_velocity``
 takes, so the model follows the plant's inputs).
 Publications: ``excitation_amplitude`` (std_msgs/Float64, Pa in N) after each
 mean_velocity sample taken and after each batch of commands that changed
-something; ``diagnostics`` (DiagnosticArray, status name ``controller``,
+something, while the plant's actuator is the force actuator; with the resonant
+actuator ``drive_level`` (std_msgs/Float64) instead, and ``excitation_frequency``
+when resonance tracking moves the drive (see below); ``diagnostics`` (DiagnosticArray, status name ``controller``,
 stamped by the node's clock like the slider's) every ``diagnostics_period``
 (1 s) and whenever the
 target becomes unreachable or reachable again or an internal error occurs.
@@ -56,6 +58,18 @@ something has subscribed to ``excitation_amplitude`` for 0.5 s (or 5 s have
 passed): a command published while discovery is still matching the two ends
 can arrive late, and the controller would misjudge when its output took
 effect.
+
+With the plant's ``actuator`` resonant the law's Pa is what the slideway's
+vibration should come to, and the inner loop (:mod:`friction_sim.core.runtime.drive`)
+gets it there: the node subscribes to the slider's ``accelerometer``
+(sensor_msgs/Imu, linear_acceleration.z, stamped at each sample's simulation
+time), and at each mean_velocity stamp (a window's end, the drive phase a
+whole turn) it publishes the drive level for the next window, with
+``track_resonance`` also the drive frequency.  The exciter's data (f_n, zeta, A)
+are read from plant_node at start-up and not followed afterwards: a load on
+the slideway moves them without telling anyone, and the inner loop learns that
+from the accelerometer.  With ``inner_loop`` false the level is the model's
+steady gain's answer to each new Pa (no accelerometer needed).
 """
 
 from __future__ import annotations
@@ -80,6 +94,7 @@ from friction_sim.core.control.law import ControlOutput, MeanSpeedController
 from friction_sim.core.model import spec
 from friction_sim.core.model.commands import CONTROLLER, consumed_by
 from friction_sim.core.runtime.controller import MODEL, RealtimeController, plant_words
+from friction_sim.core.runtime.drive import DriveCommand
 from friction_sim.errors import ParameterError, one_line
 from friction_sim.io.messages import (
     command_from_message,
@@ -103,13 +118,20 @@ COMMAND_HOLD_OFF = 0.02
 
 PLANT_TIMEOUT = 5.0
 #: The plant node's parameters the controller reads at start-up and follows as they change.
-FOLLOWED = (*MODEL, "mean_window_periods", "drive_force", "excitation_frequency")
+FOLLOWED = (*(name for name in MODEL if name not in spec.EXCITER), "mean_window_periods", "drive_force",
+            "excitation_frequency")
+#: The accelerometer's queue: a millisecond's samples arrive between two executor turns at most ...
+ACCELEROMETER_DEPTH = 100
 DISCOVERY_SETTLE = 0.5
 #: The node's parameters: declared once in the one vocabulary.
 PARAMETERS = spec.CONTROLLER_NODE
 PUBLICATIONS = (
     ("excitation_amplitude", "std_msgs/msg/Float64",
-     "data = Pa [N] for the plant, after each mean_velocity sample and each batch of commands"),
+     "data = Pa [N] for the plant (force actuator), after each mean_velocity sample and each batch of commands"),
+    ("drive_level", "std_msgs/msg/Float64",
+     "data = u in [0, 1] (resonant actuator), after each mean_velocity sample (and at start-up)"),
+    ("excitation_frequency", "std_msgs/msg/Float64",
+     "data = the drive frequency [Hz] (resonant actuator, track_resonance), when tracking moves it"),
     ("diagnostics", "diagnostic_msgs/msg/DiagnosticArray",
      "status 'controller', every diagnostics_period (1 s) and when"
      " the target becomes (un)reachable or an internal error occurs"),
@@ -128,9 +150,14 @@ class ControllerNode(Node):
         self._reported_errors: set[str] = set()
         self._last_published: float | None = None
         self.output_listeners: list[Callable[[ControlOutput], None]] = []
+        #: Called with each drive command published (resonant actuator).
+        self.drive_listeners: list[Callable[[DriveCommand], None]] = []
+        self._last_level: float | None = None
         self._warn = ThrottledWarning(self.get_logger())
         self._amplitude_pub = self.create_publisher(Float64, "excitation_amplitude", QOS_DEPTH)
         self._diag_pub = self.create_publisher(DiagnosticArray, "diagnostics", QOS_DEPTH)
+        self._level_pub = self.create_publisher(Float64, "drive_level", QOS_DEPTH)
+        self._frequency_pub = self.create_publisher(Float64, "excitation_frequency", QOS_DEPTH)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._gate = PolledGroup(open=True)
         self._commands = [  # target_speed, drive_force, excitation_frequency
@@ -147,6 +174,8 @@ class ControllerNode(Node):
         self._hold_off.cancel()
         self.create_subscription(TwistStamped, "mean_velocity",
                                  self._guarded("mean_velocity callback", self._on_mean_velocity), QOS_DEPTH)
+        self.create_subscription(message_class("sensor_msgs/msg/Imu"), "accelerometer",
+                                 self._guarded("accelerometer callback", self._on_acceleration), ACCELEROMETER_DEPTH)
         self.names = NameWatch(self)
         self.create_timer(values["diagnostics_period"], self._guarded("diagnostics", self._publish_diagnostics),
                           clock=steady)
@@ -185,7 +214,8 @@ class ControllerNode(Node):
             self._poll_plant()
             return
         now = time.monotonic()
-        if self._amplitude_pub.get_subscription_count() == 0:
+        output_pub = self._amplitude_pub if self.runtime.drive is None else self._level_pub
+        if output_pub.get_subscription_count() == 0:
             self._matched_at = None
             if now < self._deadline:
                 return
@@ -199,7 +229,7 @@ class ControllerNode(Node):
 
     def _poll_plant(self) -> None:
         if self._plant_future is None and self._plant.services_are_ready():
-            self._plant_future = self._plant.get_parameters([*MODEL, "mean_window_periods", "actuator"])
+            self._plant_future = self._plant.get_parameters([*MODEL, "mean_window_periods", "drive_level"])
         if self._plant_future is not None and self._plant_future.done():
             self._adopt_plant(self._plant_future.result())
         elif time.monotonic() > self._deadline:
@@ -210,11 +240,12 @@ class ControllerNode(Node):
         """Take the plant's model and window as this node's own parameters
         (validated and applied like any parameter change).  A model parameter
         the plant node does not declare (an older slider) keeps this node's value."""
-        names = [*MODEL, "mean_window_periods", "actuator"]
+        names = [*MODEL, "mean_window_periods", "drive_level"]
         try:
             values = dict(zip(names, [Parameter.from_parameter_msg(_named(name, value)).value
                                       for name, value in zip(names, response.values, strict=True)]))
-            self._follow_actuator(values.pop("actuator"))  # (None: an older slider, the force actuator)
+            level = values.pop("drive_level")  # the resonant plant's level in force: the inner loop starts there
+            self.runtime.plant_drive_level = None if level is None else float(level)
             update = _own_parameters(values)
         except (TypeError, ValueError) as error:
             self._settle(f"plant parameters unusable ({error}): using this node's own", warn=True)
@@ -225,13 +256,17 @@ class ControllerNode(Node):
             return
         model = self.runtime.control.config.model
         self.runtime.model_source = f"plant node {self.runtime.plant_node}"
+        model = self.runtime.drive.model if self.runtime.drive is not None else model
         shape = "" if model.is_kostek else (
             f", static_ratio {model.static_ratio:g}, excitation_angle {model.excitation_angle:g} deg, "
             f"excitation_phase {model.excitation_phase:g} deg, track_inclination {model.track_inclination:g} deg")
         flight = "" if model == model.replace(restitution=0.0, landing_friction="impulsive") else (
             f", restitution {model.restitution:g}, landing_friction {model.landing_friction}")
+        exciter = "" if not model.resonant else (
+            f", resonant actuator f_n {model.natural_frequency:g} Hz, zeta {model.damping_ratio:g}, "
+            f"A {model.full_drive_acceleration:g} m/s^2 (this node sets drive_level)")
         self._settle(f"model from {self.runtime.model_source}: mass {model.mass:g} kg, mu {model.mu:g}, "
-                     f"gravity {model.gravity:g} m/s^2{shape}{flight}")
+                     f"gravity {model.gravity:g} m/s^2{shape}{flight}{exciter}")
 
     def _on_plant_event(self, msg: ParameterEvent) -> None:
         """The plant node's parameters changed (``ros2 param set /slider
@@ -243,10 +278,6 @@ class ControllerNode(Node):
             return
         new, changed = parameter_event_values(msg)
         event = {**new, **changed}
-        if "actuator" in event:
-            self._follow_actuator(event["actuator"])
-            self._publish_diagnostics()
-            self._publish(self.runtime.control.output)
         values = {name: value for name, value in event.items() if name in FOLLOWED}
         if not values:
             return
@@ -265,16 +296,6 @@ class ControllerNode(Node):
             self.get_logger().info(f"plant {self.runtime.plant_node} changed {words}: the model follows "
                                    f"({plant_words(self.control)})")
         self._publish_diagnostics()
-
-    def _follow_actuator(self, actuator: Any) -> None:
-        """The plant's actuator: while it is not the force actuator (the resonant
-        one takes drive_level, not Pa) this controller publishes nothing and says why."""
-        actuator = str(actuator) if actuator is not None else "force"
-        if actuator != self.runtime.plant_actuator:
-            self.runtime.plant_actuator = actuator
-            if not self.runtime.drives_plant:
-                self.get_logger().warning(f"plant {self.runtime.plant_node} uses the {actuator} actuator, which "
-                                          f"takes drive_level: this controller sets Pa; standing by")
 
     def _settle(self, message: str, warn: bool = False) -> None:
         (self.get_logger().warning if warn else self.get_logger().info)(message)
@@ -350,7 +371,14 @@ class ControllerNode(Node):
             self._warn(f"{error}; sample ignored")
             return
         if output is not None:
-            self._publish(output)
+            self._publish(output, boundary=t)
+
+    def _on_acceleration(self, msg: Any) -> None:
+        """An accelerometer sample for the inner loop (its normal specific force)."""
+        try:
+            self.runtime.take_acceleration(ns_to_seconds(stamp_ns(msg.header.stamp)), msg.linear_acceleration.z)
+        except ParameterError as error:
+            self._warn(f"{error}; sample ignored")
 
     # -- unexpected errors ------------------------------------------------------------
 
@@ -385,17 +413,47 @@ class ControllerNode(Node):
 
     # -- publishing ---------------------------------------------------------------
 
-    def _publish(self, output: ControlOutput) -> None:
-        if not (self.ready and self.runtime.active and self.runtime.drives_plant):
+    def _publish(self, output: ControlOutput, boundary: float | None = None) -> None:
+        """Publish the law's decision: Pa (force actuator), or the drive level
+        (resonant: the inner loop's at a window's end ``boundary``, the steady
+        gain's otherwise)."""
+        if not (self.ready and self.runtime.active):
             return
         control = self.runtime.control
-        if output.amplitude != self._last_published:
+        if output.amplitude != self._last_published:  # the plant's answer to the old Pa is no sample of the new
             control.clock.note_change(wall_ns(), 1.0 / control.frequency, self._sim_time())
             self._last_published = output.amplitude
-        self._amplitude_pub.publish(Float64(data=output.amplitude))
+        if self.runtime.drive is not None:
+            self._publish_drive(boundary)
+        else:
+            self._amplitude_pub.publish(Float64(data=output.amplitude))
         self._warn_on_conditions(output)
         for listener in self.output_listeners:
             listener(output)
+
+    def _publish_drive(self, boundary: float | None) -> None:
+        """The drive level (and a frequency tracking moved).  The inner loop
+        decides at boundaries only (its model starts from the plant's level in
+        force, and plans from there); without it each new Pa is answered at once.
+        A window judged by the law must lie after the slideway settled: the
+        change is noted while the loop still moves the amplitude."""
+        drive, control = self.runtime.drive, self.runtime.control
+        assert drive is not None
+        if boundary is not None:
+            command = self.runtime.drive_boundary(boundary)
+        elif not drive.inner_loop:
+            command = self.runtime.steady_drive()
+        else:
+            return
+        assert command is not None
+        if command.frequency_changed:
+            self._frequency_pub.publish(Float64(data=command.frequency))
+        if drive.inner_loop and not drive.settled:
+            control.clock.note_change(wall_ns(), 1.0 / control.frequency, boundary)
+        self._last_level = command.level
+        self._level_pub.publish(Float64(data=command.level))
+        for listener in self.drive_listeners:
+            listener(command)
 
     def _sim_time(self) -> float | None:
         """The simulation time [s] of the node's clock under ``use_sim_time``
@@ -447,7 +505,7 @@ class ControllerNode(Node):
         except ParameterError as error:
             self.get_logger().warning(f"parameter {error}; value kept")  # one per set: a service call each
             return SetParametersResult(successful=False, reason=str(error))
-        self.runtime.adopt(candidate, values)
+        self.runtime.adopt(candidate, values, current)
         return SetParametersResult(successful=True)
 
     def _parameters_set(self, changes: list[Parameter]) -> None:

@@ -21,7 +21,7 @@ from typing import Any
 
 from friction_sim.core.model import spec
 from friction_sim.core.model.commands import PARAMETERS, Command, apply
-from friction_sim.core.model.params import Inputs, SliderParams, check_load
+from friction_sim.core.model.params import Inputs, SliderParams, check_load, plant_from
 from friction_sim.errors import ParameterError
 
 from fuzz_strategies import USE_SIM_TIME
@@ -239,8 +239,14 @@ class ControllerModel(ParameterModel):
         ok, countable, values = self.declared_check(items)
         if not ok:
             return self.refuse(items, countable)
+        merged = {**self.values, **values}
+        try:  # the model's own cross-field rules (resonant actuator: excitation_phase 0)
+            plant_from({name: merged[name] for name in spec.PLANT if name in merged})
+        except ParameterError:
+            self.rejected.add(1, len(items))
+            return Verdict(False, cross_field=True)
         drive, target = self.drive_force, self.target
-        kostek = self._kostek({**self.values, **values})
+        kostek = self._kostek(merged)
         if kostek and target != 0.0 and (drive == 0.0 or _sign(target) != _sign(drive)):
             target = 0.0  # back on the paper's model: a target against the drive is dropped
         if "drive_force" in values:

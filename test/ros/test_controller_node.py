@@ -212,42 +212,12 @@ def test_a_plant_without_the_general_parameters_leaves_them_as_they_are(ros: Non
         def double(value: float) -> ParameterValue:
             return ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
 
-        answer = [double(2.0), double(0.2), double(9.81), *[ParameterValue() for _ in range(6)],
-                  ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=2),
-                  ParameterValue()]  # (and no actuator: the force actuator, the only one it had)
+        # (and no actuator, exciter or drive level: the force actuator, the only one it had)
+        answer = [double(2.0), double(0.2), double(9.81), *[ParameterValue() for _ in range(10)],
+                  ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=2), ParameterValue()]
         controller._adopt_plant(SimpleNamespace(values=answer))  # noqa: SLF001 - the reply of an older plant
         assert controller.control.config.model == SliderParams(mass=2.0, mu=0.2, gravity=9.81, excitation_angle=45.0)
         assert controller.control.config.mean_window_periods == 2
-        assert controller.runtime.drives_plant
+        assert controller.runtime.plant_actuator == "force" and controller.runtime.drive is None
     finally:
         controller.destroy_node()
-
-
-def test_the_controller_stands_by_while_its_plant_has_the_resonant_actuator(ros: None) -> None:
-    """Issue 21: the resonant actuator takes drive_level and refuses Pa, which this
-    controller sets; it publishes nothing and says why (no refused Pa at the
-    slider), and regulates again when the plant's actuator is the force one."""
-    from std_msgs.msg import Float64
-
-    ns = f"/c{uuid.uuid4().hex[:8]}"
-    slider = SliderNode(namespace=ns, parameter_overrides=[Parameter("actuator", value="resonant"),
-                                                           Parameter("diagnostics_period", value=0.1)])
-    controller = ControllerNode(namespace=ns, parameter_overrides=[Parameter("diagnostics_period", value=0.1)])
-    probe = Probe(ns, slider, controller, outputs={"diagnostics": DiagnosticArray, "excitation_amplitude": Float64})
-    try:
-        assert probe.spin_until(lambda: controller.ready, 10.0)
-        assert probe.spin_until(lambda: "resonant" in controller_status(probe).get("plant_actuator", ""), 10.0)
-        status = next(s for m in reversed(probe.received["diagnostics"]) for s in m.status if s.name == "controller")
-        assert "drive_level" in status.message and "standing by" in status.message
-        probe.send("target_speed", 3e-4)
-        assert probe.spin_until(lambda: controller.control.target_speed == 3e-4, 10.0)
-        assert probe.spin_until(lambda: len(probe.received["mean_velocity"]) >= 5 or slider.realtime.slider.t > 0.5,
-                                10.0)
-        assert probe.received["excitation_amplitude"] == [] and slider.realtime.rejected == 0
-        assert probe.set_parameter(f"{ns}/slider", "actuator", "force")[0]
-        assert probe.spin_until(lambda: len(probe.received["excitation_amplitude"]) > 0, 10.0), "regulating again"
-        assert probe.spin_until(lambda: controller_status(probe).get("plant_actuator") == "force", 10.0)
-    finally:
-        probe.close()
-        controller.destroy_node()
-        slider.destroy_node()

@@ -247,6 +247,11 @@ SETTLE_MARGIN = Setting(
 PLANT_NODE = Setting("plant_node", "slider", "-", "the plant node whose model, window, Fd and f are read at "
                                                   "start-up and followed on /parameter_events ('' = none)")
 ACTIVE = Setting("active", True, "-", "regulate now; false: stand by (publish nothing) until a target arrives")
+INNER_LOOP = Setting("inner_loop", True, "-", "resonant actuator: regulate the slideway's amplitude from the "
+                     "accelerometer, period by period (false: the drive level through the model's steady gain, "
+                     "no accelerometer needed)")
+TRACK_RESONANCE = Setting("track_resonance", False, "-", "resonant actuator, inner loop: move the drive frequency "
+                          "(published on excitation_frequency) to hold the slideway at resonance as its load moves f_n")
 
 # -- the nodes ---------------------------------------------------------------------
 
@@ -266,12 +271,17 @@ CONTROLLER_NODE = table(
     GRAVITY.described("model: gravity g"),
     *(setting.described("model: " + setting.description) for setting in (
         STATIC_RATIO, EXCITATION_ANGLE, EXCITATION_PHASE, TRACK_INCLINATION, RESTITUTION, LANDING_FRICTION)),
+    ACTUATOR.described("model: the plant's actuator; resonant: this node publishes drive_level, not "
+                       "excitation_amplitude"),
+    *(setting.described("model: " + setting.description + " (read from plant_node at start-up, not followed: a "
+                        "load change is what the inner loop learns)") for setting in (
+        NATURAL_FREQUENCY, DAMPING_RATIO, FULL_DRIVE_ACCELERATION)),
     EXCITATION_FREQUENCY.described("initial excitation frequency f; then it follows the topic and plant_node's "
                                    "parameter", rule=""),
     DRIVE_FORCE.described("initial drive force Fd; then it follows the topic and plant_node's parameter"),
     TARGET_SPEED, INTEGRAL_GAIN, MAX_AMPLITUDE_RATIO, SETTLE_MARGIN,
     MEAN_WINDOW_PERIODS.described("the slider's mean_velocity window (read from plant_node, and followed)"),
-    PLANT_NODE, ACTIVE, DIAGNOSTICS_PERIOD,
+    PLANT_NODE, ACTIVE, INNER_LOOP, TRACK_RESONANCE, DIAGNOSTICS_PERIOD,
 )
 
 

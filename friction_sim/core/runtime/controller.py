@@ -45,25 +45,34 @@ from friction_sim.core.control.law import (
     uses_closed_form,
 )
 from friction_sim.core.model import spec
-from friction_sim.core.model.params import plant_from
+from friction_sim.core.model.params import SliderParams, plant_from
+from friction_sim.core.runtime.drive import DriveCommand, DriveRuntime, drive_settings, outer_model
 from friction_sim.errors import ParameterError
 
-#: The plant's parameters that make up the controller's model (those of the
-#: force actuator: the controller sets Pa; the resonant exciter's drive level
-#: is not among its outputs yet).
+#: The plant's parameters that make up the controller's model (the resonant
+#: exciter's data sheet among them: with that actuator the controller sets the
+#: drive level through :mod:`friction_sim.core.runtime.drive`).
 MODEL = tuple(name for name in spec.PLANT if name in spec.CONTROLLER_NODE)
 #: Parameters that make up the ControllerConfig.
-CONFIG = {*MODEL, "integral_gain", "max_amplitude_ratio", "settle_margin", "mean_window_periods"}
+CONFIG = {*MODEL, "integral_gain", "max_amplitude_ratio", "settle_margin", "mean_window_periods", "inner_loop"}
+#: Parameters the inner loop is built from (a change of one starts it afresh).
+DRIVE = {*spec.EXCITER, "actuator", "inner_loop", "track_resonance", "mean_window_periods"}
 #: Diagnostic levels (diagnostic_msgs/DiagnosticStatus: OK, WARN, ERROR).
 OK, WARN, ERROR = 0, 1, 2
 
 
+def model_of(values: Mapping[str, Any]) -> SliderParams:
+    """The controller's model of the plant, exciter included, from the node's parameter values."""
+    return plant_from({name: values[name] for name in MODEL})[0]
+
+
 def config_of(values: Mapping[str, Any]) -> ControllerConfig:
-    """The law's configuration from the node's parameter values."""
+    """The law's configuration from the node's parameter values (its model sets Pa directly)."""
     return ControllerConfig(
-        model=plant_from({name: values[name] for name in MODEL})[0],
+        model=outer_model(model_of(values)),
         integral_gain=values["integral_gain"], max_amplitude_ratio=values["max_amplitude_ratio"],
         mean_window_periods=values["mean_window_periods"], settle_margin=values["settle_margin"],
+        secant=not (values["actuator"] == "resonant" and values.get("inner_loop", True)),
     )
 
 
@@ -113,6 +122,12 @@ class RealtimeController:
                                                frequency=values["excitation_frequency"])
             self.pending_target = values["target_speed"]
         self.active: bool = values["active"]
+        #: The inner loop while the plant's actuator is resonant, else None.
+        self.drive: DriveRuntime | None = None
+        #: The plant's drive level when the controller started (its parameter), if known.
+        self.plant_drive_level: float | None = None
+        self._drive_values: dict[str, Any] = {}
+        self._rebuild_drive(values)
         #: Commands taken; inputs refused (commands, parameter values, samples), with the latest reason.
         self.accepted = 0
         self.rejected = 0
@@ -129,8 +144,6 @@ class RealtimeController:
         #: The plant node's fully qualified name ('' without one), and the changes of it followed.
         self.plant_node = ""
         self.plant_changes = 0
-        #: The plant's actuator: this controller sets Pa, which only the force actuator takes.
-        self.plant_actuator = "force"
         #: Why the plant is taken to be beyond its model ('' while it is not), its samples, the run refused.
         self.beyond_model = ""
         self.samples_beyond_model = 0
@@ -159,8 +172,11 @@ class RealtimeController:
                 refusals.append(str(verdict))
                 continue
             self.accepted += 1
-            if field == "target_speed":
+            if field == "target_speed" and not self.active:
                 self.active = True
+                self._rebuild_drive(self._drive_values)  # the plant was steered by others meanwhile
+            if field == "excitation_frequency" and self.drive is not None:
+                self.drive.follow_frequency(self.control.frequency)
         return refusals
 
     def take_sample(self, speed: float, t: float, now_ns: int, regulating: bool) -> ControlOutput | None:
@@ -234,11 +250,66 @@ class RealtimeController:
             raise
         return candidate
 
-    def adopt(self, control: MeanSpeedController, values: Mapping[str, Any]) -> None:
-        """Take a parameter set judged by :meth:`with_parameters`."""
+    def adopt(self, control: MeanSpeedController, values: Mapping[str, Any], current: Mapping[str, Any]) -> None:
+        """Take a parameter set judged by :meth:`with_parameters` (``current``:
+        every parameter's value before it)."""
         self.control = control
+        was_active = self.active
         if "active" in values or "target_speed" in values:
             self.active = values.get("active", True) or "target_speed" in values
+        if values.keys() & DRIVE or (self.active and not was_active):
+            self._rebuild_drive({**current, **values})
+        elif "excitation_frequency" in values and self.drive is not None:
+            self.drive.follow_frequency(control.frequency)
+
+    # -- the inner loop (resonant actuator) ---------------------------------------------
+
+    def _rebuild_drive(self, values: Mapping[str, Any]) -> None:
+        """The inner loop for the model in ``values`` (None for the force actuator),
+        starting from the level the model's steady gain gives for the Pa asked for."""
+        self._drive_values = {name: values[name] for name in (*MODEL, *DRIVE) if name in values}
+        model = model_of(values) if all(name in values for name in MODEL) else None
+        if model is None or not model.resonant:
+            self.drive = None
+            return
+        inner_loop, tracking, cycles = drive_settings(values)
+        # The plant runs at the level this loop last drove, or at the one it started with.
+        level = self.drive.loop.drive_level if self.drive is not None else self.plant_drive_level
+        self.drive = DriveRuntime(model, self.control.frequency, self.wanted_amplitude(), inner_loop=inner_loop,
+                                  tracking=tracking, cycles=cycles, level=level)
+
+    def wanted_amplitude(self) -> float:
+        """The slideway's normal acceleration amplitude the law asks for [m/s^2]: Pa/m."""
+        return self.control.output.amplitude / self.control.config.model.mass
+
+    def take_acceleration(self, t: float, normal: float) -> None:
+        """An accelerometer sample; one that is not finite is refused (counted,
+        ParameterError).  Without the inner loop it is only counted."""
+        if self.drive is None:
+            return
+        reason = self.drive.take_acceleration(t, normal)
+        if reason:
+            self.refuse(reason)
+            raise ParameterError("accelerometer", normal, "must be finite [m/s^2]")
+
+    def drive_boundary(self, t: float) -> DriveCommand | None:
+        """A window of the plant ended at ``t``: the drive for the next (None:
+        the force actuator).  The law follows a drive frequency tracking moved."""
+        if self.drive is None:
+            return None
+        command = self.drive.boundary(t, self.wanted_amplitude())
+        if command.frequency_changed:
+            self.control.set_frequency(command.frequency)
+        return command
+
+    def steady_drive(self) -> DriveCommand | None:
+        """The drive level the model's steady gain gives for the Pa asked for now
+        (each new Pa without the inner loop); None for the force actuator."""
+        if self.drive is None:
+            return None
+        level = self.drive.steady_level(self.wanted_amplitude())
+        self.drive.loop.drive_level = level
+        return DriveCommand(level, self.drive.frequency, False, self.drive.per_drive)
 
     def internal_error(self, reason: str) -> None:
         """Count an unexpected error (reported as ERROR from now on)."""
@@ -275,9 +346,9 @@ class RealtimeController:
         return warnings, publish
 
     @property
-    def drives_plant(self) -> bool:
-        """Whether the plant takes this controller's output (Pa: the force actuator)."""
-        return self.plant_actuator == "force"
+    def plant_actuator(self) -> str:
+        """The plant's actuator in the model: force (this node sets Pa) or resonant (the drive level)."""
+        return "resonant" if self.drive is not None else "force"
 
     def status(self, *, namesake: str, ready: bool) -> Status:
         """The diagnostics status now (``namesake``: the graph's warning about a node
@@ -293,8 +364,9 @@ class RealtimeController:
             (bool(self.beyond_model), "the plant runs beyond its model: Pa 0"),
             (not ready, "waiting for the plant's parameters"),
             (ready and not self.active, "standing by for a target"),
-            (not self.drives_plant, f"the plant's actuator is {self.plant_actuator}: it takes drive_level, and "
-                                    f"this controller sets Pa; standing by"),
+            (self.drive is not None and self.drive.inner_loop and self.active and self.drive.samples == 0,
+             "no accelerometer samples: the inner loop drives by the model alone (set the slider's "
+             "accelerometer_rate)"),
             (refused_now > 0, f"{refused_now} inputs refused ({self.last_rejection})"),
         ) if flag]
         if self.internal_errors:
@@ -319,6 +391,7 @@ class RealtimeController:
             "samples_accepted": self.samples_accepted, "samples_rejected": self.samples_rejected,
             "last_sample_rejection": self.last_sample_rejection, "sample_limit": self.control.sample_limit,
             "internal_errors": self.internal_errors, "last_internal_error": self.last_internal_error,
+            **(self.drive.values() if self.drive is not None else {}),
         }
         return Status(level, message, values)
 

@@ -32,7 +32,7 @@ def test_a_target_only_the_plant_s_model_allows_waits_for_it() -> None:
     runtime = RealtimeController(values(drive_force=0.0, target_speed=1e-4))
     assert runtime.pending_target == 1e-4 and runtime.control.output.target_speed == 0.0
     current = values(drive_force=0.0, target_speed=0.0)
-    runtime.adopt(runtime.with_parameters({"excitation_angle": 30.0, "mu": 0.5}, current), {})
+    runtime.adopt(runtime.with_parameters({"excitation_angle": 30.0, "mu": 0.5}, current), {}, current)
     assert runtime.settle() == "" and runtime.pending_target is None
     assert runtime.control.output.target_speed == 1e-4
 

@@ -1,0 +1,120 @@
+"""The inner loop's runtime without ROS (core/runtime/drive.py, and its part of
+core/runtime/controller.py): the exact resonant slider sampled as the slider
+node samples it, fed as the node feeds it."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import pytest
+
+from friction_sim.core.engine.single import Slider
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.model.spec import CONTROLLER_NODE, defaults
+from friction_sim.core.physics.exciter import steady_response
+from friction_sim.core.runtime.accelerometer import Accelerometer
+from friction_sim.core.runtime.controller import RealtimeController
+from friction_sim.core.runtime.drive import DriveCommand, DriveRuntime, outer_model
+from friction_sim.errors import ParameterError
+
+PLANT = SliderParams(actuator="resonant", natural_frequency=52.0, damping_ratio=0.02, full_drive_acceleration=20.0)
+
+
+def values(**changes: Any) -> dict[str, Any]:
+    model = {name: getattr(PLANT, name) for name in ("actuator", "natural_frequency", "damping_ratio",
+                                                       "full_drive_acceleration")}
+    return {**defaults(CONTROLLER_NODE), **model, "plant_node": "", **changes}
+
+
+def drive(runtime: DriveRuntime, periods: int, wanted: float, *, cycles: int = 1,
+          level: float = 0.6) -> list[DriveCommand]:
+    """The exact plant in steady state at ``level``, a boundary every ``cycles``
+    periods, the accelerometer at 1 kHz; the commands of the boundaries."""
+    slider = Slider(PLANT, Inputs(drive_level=level))
+    sensor, commands = Accelerometer(1000.0), []
+    t = 0.0
+    for _ in range(periods):
+        command = runtime.boundary(t, wanted)
+        commands.append(command)
+        slider.set_inputs(drive_level=command.level, excitation_frequency=command.frequency)
+        end = t + cycles / command.frequency
+        for k in sensor.due(t, end):
+            slider.advance_to(max(k / 1000.0, slider.t))
+            sample = sensor.read(slider, k)
+            assert runtime.take_acceleration(sample.t, sample.z) == ""
+        slider.advance_to(end)
+        t = end
+    return commands
+
+
+@pytest.mark.parametrize("cycles", [1, 3])
+def test_the_loop_holds_the_amplitude_asked_for_over_windows_of_several_periods(cycles: int) -> None:
+    """A mean window of ``cycles`` periods: the lock-in reads each window over its
+    whole number of drive periods, and the level settles on the one whose steady
+    amplitude is the one asked for (the lock-in's reading per unit drive is the
+    resonance curve's)."""
+    per_level = steady_response(1.0, 20.0, 50.0, 52.0, 0.02)[0]
+    runtime = DriveRuntime(PLANT, 50.0, 5.0, inner_loop=True, tracking=False, cycles=cycles, level=0.6)
+    drive(runtime, 120 // cycles, 5.0, cycles=cycles)
+    assert runtime.loop.drive_level == pytest.approx(5.0 / per_level, rel=1e-6)
+    assert runtime.per_drive == pytest.approx(per_level, rel=1e-6)
+    assert runtime.last_reading is not None and runtime.last_reading.cycles == cycles
+    assert runtime.windows_read >= 120 // cycles - 2 and runtime.loop.steady
+
+
+def test_an_echo_of_a_published_frequency_is_not_a_command() -> None:
+    runtime = DriveRuntime(PLANT, 50.0, 5.0, inner_loop=True, tracking=True, cycles=1, level=0.6)
+    published = [c.frequency for c in drive(runtime, 30, 5.0) if c.frequency_changed]
+    moved = runtime.frequency
+    assert moved > 50.5 and len(published) > 2, "tracking moved toward f_n = 52 Hz"
+    runtime.follow_frequency(published[-2])  # an earlier step of its own, arriving late: ignored
+    assert runtime.frequency == moved
+    runtime.follow_frequency(40.0)  # a frequency it never published: a command
+    assert runtime.frequency == 40.0
+
+
+def test_a_stamp_that_goes_back_starts_the_loop_afresh() -> None:
+    """A reset of the slider: the model restarts at the level in force and the lock-in forgets."""
+    runtime = DriveRuntime(PLANT, 50.0, 5.0, inner_loop=True, tracking=False, cycles=1, level=0.6)
+    drive(runtime, 10, 5.0)
+    level = runtime.loop.drive_level
+    before = runtime.loop
+    runtime.boundary(0.0, 5.0)
+    assert runtime.loop is not before and runtime.lockin.readings() == []
+    assert runtime.loop.drive_level != level or runtime.loop.gain_ratio == 1.0
+
+
+def test_a_sample_that_is_not_finite_is_refused_and_counted() -> None:
+    runtime = RealtimeController(values())
+    assert runtime.drive is not None
+    with pytest.raises(ParameterError, match="accelerometer"):
+        runtime.take_acceleration(0.1, math.nan)
+    assert runtime.rejected == 1 and "nan" in runtime.last_rejection
+    assert runtime.drive.samples_refused == 1 and runtime.drive.samples == 0
+    runtime.take_acceleration(0.1, 9.0)
+    assert runtime.drive.samples == 1
+
+
+def test_the_law_sees_the_plant_as_a_force_actuator_and_the_runtime_follows_the_actuator() -> None:
+    """The outer law inverts Pa (its model's actuator is the force one, so the
+    general mean speed never reads a drive level); the inner loop exists while
+    the model's actuator is resonant, and a set of parameters switches it."""
+    runtime = RealtimeController(values())
+    assert runtime.control.config.model == outer_model(PLANT) and runtime.plant_actuator == "resonant"
+    assert not runtime.control.config.secant, "behind the inner loop the law takes plain integral steps"
+    current = values()
+    change = {"actuator": "force"}
+    runtime.adopt(runtime.with_parameters(change, current), change, current)
+    assert runtime.drive is None and runtime.plant_actuator == "force" and runtime.control.config.secant
+    assert runtime.drive_boundary(0.02) is None and runtime.steady_drive() is None
+
+
+def test_without_the_inner_loop_each_level_is_the_steady_gain_s() -> None:
+    runtime = RealtimeController(values(inner_loop=False))
+    assert runtime.drive is not None and runtime.control.config.secant
+    command = runtime.drive_boundary(0.02)
+    assert command is not None and not command.frequency_changed
+    per_level = steady_response(1.0, 20.0, 50.0, 52.0, 0.02)[0]
+    assert command.level == pytest.approx(runtime.control.output.amplitude / per_level, rel=1e-12)
+    assert runtime.drive.lockin.readings() == [], "no lock-in without the inner loop"

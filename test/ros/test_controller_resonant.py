@@ -1,0 +1,153 @@
+"""The controller node through the resonant actuator (issue 21, item 3) over
+real topics: it reads the slider's accelerometer, publishes drive_level (never
+Pa, which that actuator refuses), tracks the resonance on request, and refuses
+a sample that is not finite.  (The loop itself is tested against the exact
+slider in test/core/control/test_drive.py; the acceptance cases 7-9 in
+test/experiment/test_acceptance.py.)"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import TwistStamped
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import Imu
+from std_msgs.msg import Float64
+
+from friction_sim.core.physics.exciter import steady_response
+from friction_sim.ros.controller import ControllerNode
+from friction_sim.ros.slider import SliderNode
+
+from ros_harness import Probe, diagnostics_values, namespace
+
+#: The issue's plant: f_n = 52 Hz, zeta = 0.02 (Q = 25), driven at 50 Hz.
+EXCITER = {"actuator": "resonant", "natural_frequency": 52.0, "damping_ratio": 0.02,
+           "full_drive_acceleration": 20.0}
+TARGET = 2e-4
+
+
+def _nodes(ns: str, slider_extra: dict[str, Any],
+           controller_extra: dict[str, Any]) -> tuple[SliderNode, ControllerNode]:
+    slider = SliderNode(namespace=ns, parameter_overrides=[Parameter(k, value=v) for k, v in {
+        **EXCITER, "drive_level": 0.6, "diagnostics_period": 0.1, **slider_extra}.items()])
+    controller = ControllerNode(namespace=ns, parameter_overrides=[Parameter(k, value=v) for k, v in {
+        "target_speed": TARGET, "diagnostics_period": 0.1, **controller_extra}.items()])
+    return slider, controller
+
+
+def _probe(ns: str, *nodes: Any) -> Probe:
+    return Probe(ns, *nodes, outputs={"diagnostics": DiagnosticArray, "excitation_amplitude": Float64,
+                                      "drive_level": Float64, "mean_velocity": TwistStamped})
+
+
+def _controller_values(probe: Probe) -> dict[str, str]:
+    for msg in reversed(probe.received["diagnostics"]):
+        if msg.status and msg.status[0].name == "controller":
+            return diagnostics_values(msg)
+    return {}
+
+
+def _per_drive_at(frequency: float) -> float:
+    """The slideway's steady amplitude per unit drive [m/s^2] at ``frequency``."""
+    return steady_response(1.0, 20.0, frequency, 52.0, 0.02)[0]
+
+
+def test_the_inner_loop_regulates_the_speed_through_the_drive_level(ros: None) -> None:
+    """The slider starts at drive level 0.6; the controller reads the level in
+    force, regulates the mean speed to its target through drive_level alone,
+    and its lock-in reads the plant's steady amplitude per unit drive."""
+    ns = namespace()
+    slider, controller = _nodes(ns, {"accelerometer_rate": 1000.0}, {})
+    probe = _probe(ns, slider, controller)
+    try:
+        assert probe.spin_until(lambda: controller.ready, 15.0)
+        assert controller.runtime.drive is not None and controller.runtime.plant_drive_level == 0.6
+        # 80 windows: the start's transient (one time constant is 7.7 periods) is long gone
+        assert probe.spin_until(lambda: len(probe.received["mean_velocity"]) >= 80, 60.0)
+        assert probe.spin_until(lambda: int(_controller_values(probe).get("windows_read", "0")) >= 60, 10.0)
+    finally:
+        probe.close()
+        controller.destroy_node()
+        slider.destroy_node()
+    assert probe.received["excitation_amplitude"] == [], "the resonant actuator takes no Pa"
+    assert slider.realtime.rejected == 0, "the slider refused nothing the controller sent"
+    levels = [m.data for m in probe.received["drive_level"]]
+    assert len(levels) >= 60 and all(0.0 <= level <= 1.0 for level in levels)
+    speeds = [m.twist.linear.x for m in probe.received["mean_velocity"][-10:]]
+    # the issue's settling band (2 %), reached within 30 periods of a step; these are 70 periods on
+    assert all(abs(v - TARGET) <= 0.02 * TARGET for v in speeds), speeds
+    values = _controller_values(probe)
+    # at steady state the lock-in's reading per unit drive is the resonance curve's, to what the
+    # loop's level still moves by between two windows (its corrections are a fraction of a percent)
+    assert float(values["amplitude_per_drive"]) == pytest.approx(_per_drive_at(50.0), rel=5e-3)
+    assert values["plant_actuator"] == "resonant" and values["inner_loop"] == "True"
+    assert int(values["accelerometer_samples"]) > 1000 and values["accelerometer_samples_refused"] == "0"
+
+
+def test_without_the_inner_loop_the_level_is_the_steady_gain_s_answer(ros: None) -> None:
+    """inner_loop false: no accelerometer needed; each level is Pa/m over the
+    model's steady amplitude per unit drive (today's law through the exciter)."""
+    ns = namespace()
+    slider, controller = _nodes(ns, {}, {"inner_loop": False})
+    probe = _probe(ns, slider, controller)
+    try:
+        assert probe.spin_until(lambda: controller.ready, 15.0)
+        assert probe.spin_until(lambda: len(probe.received["drive_level"]) >= 5, 30.0)
+        assert probe.spin_until(lambda: bool(_controller_values(probe)), 10.0)
+    finally:
+        probe.close()
+        controller.destroy_node()
+        slider.destroy_node()
+    wanted = controller.control.output.amplitude / 1.0
+    # the same division the runtime does, by the same steady_response: equal to rounding
+    assert probe.received["drive_level"][-1].data == pytest.approx(min(wanted / _per_drive_at(50.0), 1.0),
+                                                                   rel=1e-12)
+    assert probe.received["excitation_amplitude"] == []
+    assert "accelerometer" not in _controller_values(probe).get("message", "")
+
+
+def test_tracking_brings_the_drive_to_resonance_and_the_law_follows(ros: None) -> None:
+    """track_resonance: the drive frequency moves from 50 Hz toward f_n = 52 Hz
+    on excitation_frequency; the slider takes it, and the law inverts the
+    plant at the frequency in force."""
+    ns = namespace()
+    slider, controller = _nodes(ns, {"accelerometer_rate": 1000.0}, {"track_resonance": True})
+    probe = _probe(ns, slider, controller)
+    try:
+        assert probe.spin_until(lambda: controller.ready, 15.0)
+        # 52 Hz is 8 steps of 0.5 % away; the lag tells f_n within a few windows
+        assert probe.spin_until(lambda: abs(slider.realtime.slider.inputs.excitation_frequency - 52.0) < 0.1, 60.0)
+        inputs = slider.realtime.slider
+        assert probe.spin_until(lambda: controller.control.frequency == inputs.inputs.excitation_frequency, 10.0)
+    finally:
+        probe.close()
+        controller.destroy_node()
+        slider.destroy_node()
+    assert slider.realtime.rejected == 0
+
+
+def test_an_accelerometer_sample_that_is_not_finite_is_refused(ros: None) -> None:
+    ns = namespace()
+    slider, controller = _nodes(ns, {"accelerometer_rate": 1000.0}, {})
+    probe = _probe(ns, slider, controller)
+    publisher = probe.node.create_publisher(Imu, "accelerometer", 10)
+    try:
+        assert probe.spin_until(lambda: controller.ready, 15.0)
+        assert probe.spin_until(lambda: publisher.get_subscription_count() >= 1, 10.0)
+        bad = Imu()
+        bad.linear_acceleration.z = math.nan
+        probe.spin_for(0.3)  # both ends of the new connection matched
+        publisher.publish(bad)
+        assert probe.spin_until(lambda: controller.runtime.rejected >= 1, 10.0)
+        assert "accelerometer" in controller.runtime.last_rejection and "nan" in controller.runtime.last_rejection
+        windows = controller.runtime.drive.windows_read if controller.runtime.drive else 0
+        assert probe.spin_until(lambda: controller.runtime.drive is not None
+                                and controller.runtime.drive.windows_read > windows + 5, 10.0), "it goes on"
+    finally:
+        probe.close()
+        controller.destroy_node()
+        slider.destroy_node()
+    assert controller.runtime.internal_errors == 0
