@@ -10,6 +10,7 @@ them; the tests assert them.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -53,6 +54,9 @@ def judge(scenario: Scenario, result: ExperimentResult) -> list[Verdict]:
     initial = scenario.initial_target or 0.0
     for expectation in scenario.expect:
         end = next(t for t in starts if t > expectation.t)
+        if expectation.quantity == "amplitude_per_drive":
+            verdicts.append(_judge_per_drive(scenario, result, expectation, end))
+            continue
         target = target_at(scenario, expectation.t, initial)
         before = target_at(scenario, expectation.t - 1e-9, initial)
         if before == target or _unreachable(scenario, before, expectation.t - 1e-9):
@@ -62,6 +66,19 @@ def judge(scenario: Scenario, result: ExperimentResult) -> list[Verdict]:
         met = metrics.settling_periods <= expectation.periods and not metrics.overshoot > expectation.overshoot
         verdicts.append(Verdict(expectation, target, metrics, met))
     return verdicts
+
+
+def _judge_per_drive(scenario: Scenario, result: ExperimentResult, expectation: Expectation,
+                     end: float) -> Verdict:
+    """The amplitude per unit drive back within tolerance of its value before the change."""
+    series = [(t, per_drive) for t, _, _, per_drive in result.drive if math.isfinite(per_drive)]
+    before = [value for t, value in series if t <= expectation.t]
+    target = before[-1] if before else math.nan
+    frequency = next((f for t, _, f, _ in reversed(result.drive) if t <= expectation.t),
+                     inputs_at(scenario, expectation.t).excitation_frequency)
+    metrics = step_metrics(series, expectation.t, end, target, target, frequency, expectation.within)
+    met = metrics.settling_periods <= expectation.periods and not metrics.overshoot > expectation.overshoot
+    return Verdict(expectation, target, metrics, met)
 
 
 def inputs_at(scenario: Scenario, t: float) -> Inputs:

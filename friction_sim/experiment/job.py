@@ -102,12 +102,15 @@ class ExperimentResult:
     """Time series of one run (simulation time in s relative to its start; speeds in m/s, forces in N).
 
     ``amplitude`` is the controller's output at the time it decided;
-    ``commands`` are the scheduled commands as the driver published them, at
-    the time it did.
+    ``drive`` (resonant actuator) its drive commands then: (t, drive level,
+    drive frequency [Hz], the latest window's slideway amplitude per unit drive
+    [m/s^2], nan until one is read); ``commands`` are the scheduled commands as
+    the driver published them, at the time it did.
     """
 
     mean_velocity: list[tuple[float, float]] = field(default_factory=list)
     amplitude: list[tuple[float, float]] = field(default_factory=list)
+    drive: list[tuple[float, float, float, float]] = field(default_factory=list)
     commands: list[Command] = field(default_factory=list)
     duration: float = 0.0
 

@@ -23,7 +23,16 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from friction_sim.core.model import spec as settings
-from friction_sim.core.model.commands import COMMANDS, CONTROLLER, SLIDER, Command, Outcome, apply, consumed_by
+from friction_sim.core.model.commands import (
+    COMMANDS,
+    CONTROLLER,
+    PARAMETERS,
+    SLIDER,
+    Command,
+    Outcome,
+    apply,
+    consumed_by,
+)
 from friction_sim.core.model.params import Inputs
 from friction_sim.errors import ExperimentError, ParameterError
 from friction_sim.experiment.job import (
@@ -108,7 +117,10 @@ def _play(spec: ExperimentSpec, plant: _InProcess | _Attached, executor: Any, pu
     while (now := plant.now() - start) < spec.duration:
         while pending and pending[0].t <= now:
             command = pending.pop(0)
-            publishers[command.name].publish(command_message(command.at(now + start)))
+            if command.name == PARAMETERS:  # a plant parameter (a load on the slideway): set, not published
+                plant.set_parameters(dict(command.values))
+            else:
+                publishers[command.name].publish(command_message(command.at(now + start)))
             result.commands.append(command.at(now))
             if not plant.RECORDS_TARGETS:
                 _record_unseen(plant.recorder, command.at(now + start))
@@ -183,6 +195,8 @@ class _InProcess:
                 self.close()  # the slider's tick thread and recorder must not outlive the failure
                 raise
             controller.output_listeners.append(lambda out: result.amplitude.append((self.now(), out.amplitude)))
+            controller.drive_listeners.append(lambda drive: result.drive.append(
+                (self.now(), drive.level, drive.frequency, drive.per_drive)))
             self.nodes.append(controller)
         for node in self.nodes:
             executor.add_node(node)
@@ -200,6 +214,12 @@ class _InProcess:
     def ready(self) -> bool:
         """Whether every node is ready (a controller has its plant's parameters)."""
         return all(getattr(node, "ready", True) for node in self.nodes)
+
+    def set_parameters(self, values: dict[str, Any]) -> None:
+        """Set the slider's parameters (as ``ros2 param set`` would); a refusal is an ExperimentError."""
+        result = self.slider.set_parameters_atomically(_overrides(values))
+        if not result.successful:
+            raise ExperimentError(f"the slider refused {values}: {result.reason}")
 
     def close(self) -> None:
         """Destroy the nodes (the slider finishes its recording)."""
@@ -224,7 +244,7 @@ class _Attached:
     RECORDS_TARGETS = False
 
     def __init__(self, spec: ExperimentSpec, driver: Any, executor: Any) -> None:
-        self.driver = driver
+        self.driver, self.executor = driver, executor
         self._stamp_ns = -1
         self._params, self._inputs = spec.plant, spec.inputs
         # The controller first: it follows its plant's parameter changes, and an active one answers
@@ -269,6 +289,11 @@ class _Attached:
     def ready(self) -> bool:
         """Whether the slider has published its time yet."""
         return self._stamp_ns >= 0
+
+    def set_parameters(self, values: dict[str, Any]) -> None:
+        """Set the slider's parameters through its parameter service."""
+        _set_parameters(self.driver, self.executor, "slider", values)
+        self._follow(Command(self.now(), PARAMETERS, values))
 
     def close(self) -> None:
         """Finish this process's recording."""
@@ -375,6 +400,8 @@ def _shift(result: ExperimentResult, start: float) -> None:
     """Express every time relative to the experiment's start."""
     result.mean_velocity = [(t - start, v) for t, v in result.mean_velocity if t >= start]
     result.amplitude = [(t - start, a) for t, a in result.amplitude if t >= start]
+    result.drive = [(t - start, level, frequency, per_drive) for t, level, frequency, per_drive in result.drive
+                    if t >= start]
 
 
 __all__ = ["ExperimentResult", "ExperimentSpec", "Status", "run_experiment", "run_standalone"]

@@ -8,6 +8,7 @@ A scenario is a YAML file::
     output: out/demo                # optional folder (default out/<name>)
     log_rate: 1000.0                # optional state samples per simulated second
     accelerometer_rate: 1000.0      # optional: the slider publishes (and records) its accelerometer
+    accelerometer_noise: 0.1        # optional: its white noise [m/s^2] (seeded, reproducible)
     plant:                          # the slider's parameters and initial inputs
       mass: 1.0                     #   (or plant_params: config/slider.yaml)
       mu: 0.1
@@ -21,6 +22,7 @@ A scenario is a YAML file::
       - {t: 1.0, excitation_amplitude: 6.0}
       - {t: 5.0, target_speed: 0.0003}
       - {t: 9.0, external_wrench: {x: 0.0, z: 1.0}}
+      - {t: 9.2, parameters: {natural_frequency: 49.4}}   # a slider parameter (a load on the slideway)
     expect:                         # optional acceptance criteria, checked after the run
       - {t: 5.0, within: 0.01, periods: 3, overshoot: 0.1}
     operator:                       # optional: what an operator does beside the schedule
@@ -29,7 +31,10 @@ A scenario is a YAML file::
 
 An ``expect`` entry says: after the change at ``t`` the mean speed is within
 ``within`` (relative) of the target in force in at most ``periods`` excitation
-periods, overshooting by at most ``overshoot`` of the step (optional).
+periods, overshooting by at most ``overshoot`` of the step (optional).  With
+``quantity: amplitude_per_drive`` (a controller of a resonant plant) it is
+the slideway's amplitude per unit drive, as the controller's lock-in reads it,
+that comes back within ``within`` of its value before the change.
 
 Everything is checked before anything starts: an unknown key or a bad value is
 a :class:`ScenarioError` naming the file, the line, the key and the reason.
@@ -55,8 +60,19 @@ import yaml
 
 from friction_sim.core.control.law import ControllerConfig, MeanSpeedController
 from friction_sim.core.model import spec as settings
-from friction_sim.core.model.commands import COMMANDS, CONTROLS, PAUSE, RESUME, STEP, Command, apply, in_force
+from friction_sim.core.model.commands import (
+    COMMANDS,
+    CONTROLS,
+    PARAMETERS,
+    PAUSE,
+    RESUME,
+    STEP,
+    Command,
+    apply,
+    in_force,
+)
 from friction_sim.core.model.params import Inputs, SliderParams, check_load, plant_from
+from friction_sim.core.runtime.drive import outer_model
 from friction_sim.errors import FrictionSimError, ParameterError, ScenarioError
 from friction_sim.experiment.job import ExperimentSpec, OperatorAction
 from friction_sim.io.paramfile import read_params_file
@@ -69,9 +85,12 @@ PLANT_KEYS = tuple(name for name in (*settings.PLANT, *settings.INPUTS) if name 
 _DERIVED_CONTROLLER_KEYS = ("excitation_frequency", "drive_force", "mean_window_periods", "active")
 #: Keys of ``controller:``: the controller node's other parameters.
 CONTROLLER_KEYS = tuple(name for name in settings.CONTROLLER_NODE if name not in _DERIVED_CONTROLLER_KEYS)
-TOP_KEYS = ("name", "description", "duration", "real_time_factor", "output", "log_rate", "accelerometer_rate", "plant",
+TOP_KEYS = ("name", "description", "duration", "real_time_factor", "output", "log_rate", "accelerometer_rate",
+            "accelerometer_noise", "plant",
             "plant_params", "controller", "schedule", "namespace", "expect", "operator")
-EXPECT_KEYS = ("t", "within", "periods", "overshoot")
+EXPECT_KEYS = ("t", "within", "periods", "overshoot", "quantity")
+#: What an expect entry may judge.
+QUANTITIES = ("mean_speed", "amplitude_per_drive")
 OPERATOR_KEYS = ("t", "send", "calls")
 
 Entry = tuple[yaml.Node, Any]  # a YAML node and its plain value
@@ -85,6 +104,8 @@ class Expectation:
     within: float
     periods: int
     overshoot: float = math.inf
+    #: What is judged: the mean speed, or the amplitude per unit drive (see the module doc).
+    quantity: str = "mean_speed"
 
 
 @dataclass(frozen=True)
@@ -101,6 +122,7 @@ class Scenario:
     output: Path = Path("out")
     log_rate: float = float(settings.LOG_RATE.default)
     accelerometer_rate: float = float(settings.ACCELEROMETER_RATE.default)
+    accelerometer_noise: float = float(settings.ACCELEROMETER_NOISE.default)
     namespace: str | None = None
     description: str = ""
     expect: tuple[Expectation, ...] = ()
@@ -129,7 +151,9 @@ class Scenario:
             controller=self.controller is not None, controller_parameters=controller,
             real_time_factor=self.real_time_factor, log_rate=self.log_rate, name=self.name,
             notes={"scenario": self.source}, operator=self.operator,
-            slider_parameters={"accelerometer_rate": self.accelerometer_rate} if self.accelerometer_rate else {},
+            slider_parameters={name: value for name, value in (("accelerometer_rate", self.accelerometer_rate),
+                                                               ("accelerometer_noise", self.accelerometer_noise))
+                               if value},
         )
 
 
@@ -219,15 +243,22 @@ class YamlParser:
             else float(settings.LOG_RATE.default)
         accelerometer_rate = self.checked(top["accelerometer_rate"], settings.ACCELEROMETER_RATE) \
             if "accelerometer_rate" in top else float(settings.ACCELEROMETER_RATE.default)
+        accelerometer_noise = self.checked(top["accelerometer_noise"], settings.ACCELEROMETER_NOISE) \
+            if "accelerometer_noise" in top else float(settings.ACCELEROMETER_NOISE.default)
         name = str(top["name"][1]) if "name" in top else "experiment"
         params, inputs = self.plant(top, rate)
         controller = self.controller(top.get("controller"), params, inputs)
         schedule = _Schedule(self, params, inputs, rate, controller).read(top.get("schedule"), duration)
+        if "expect" in top and not (controller is not None and params.resonant) and any(
+                e.quantity == "amplitude_per_drive" for e in self.expectations(top["expect"], schedule)):
+            raise self.fail(top["expect"][0], "quantity amplitude_per_drive needs a controller and a plant with "
+                                              "actuator resonant (its lock-in reads the amplitude)")
         operator = _Operator(self, params, inputs, schedule).read(top.get("operator"), duration)
         return Scenario(
             name=name, duration=duration, params=params, inputs=inputs, schedule=schedule,
             controller=controller, real_time_factor=rate, output=_text(top, "output", Path("out") / name, Path),
-            log_rate=log_rate, accelerometer_rate=accelerometer_rate, namespace=_text(top, "namespace", None, str),
+            log_rate=log_rate, accelerometer_rate=accelerometer_rate, accelerometer_noise=accelerometer_noise,
+            namespace=_text(top, "namespace", None, str),
             description=_text(top, "description", "", str), expect=self.expectations(top.get("expect"), schedule),
             operator=operator, source=text,
         )
@@ -251,8 +282,12 @@ class YamlParser:
             raise self.fail(fields["t"][0], f"t = {t!r}: no scheduled command at that time to judge")
         periods = self.number(fields["periods"], "periods", positive=True)
         overshoot = self.number(fields["overshoot"], "overshoot") if "overshoot" in fields else math.inf
+        quantity = str(fields["quantity"][1]) if "quantity" in fields else "mean_speed"
+        if quantity not in QUANTITIES:
+            raise self.fail(fields["quantity"][0], f"quantity = {quantity!r} rejected: must be one of "
+                                                   f"{', '.join(QUANTITIES)}")
         return Expectation(t=t, within=self.number(fields["within"], "within", positive=True), periods=int(periods),
-                           overshoot=overshoot)
+                           overshoot=overshoot, quantity=quantity)
 
     def plant(self, top: dict[str, Entry], rate: float) -> tuple[SliderParams, Inputs]:
         """The plant and initial inputs (``plant:`` or ``plant_params:``), checked as the slider would."""
@@ -321,7 +356,7 @@ class YamlParser:
 
 def _controller_model(values: dict[str, Any], params: SliderParams, inputs: Inputs) -> MeanSpeedController:
     """The controller the node would build from ``values`` (raises what it would refuse)."""
-    model = params.replace(**{k: values[k] for k in settings.PLANT if k in values})
+    model = outer_model(params.replace(**{k: values[k] for k in settings.PLANT if k in values}))
     config = ControllerConfig(model=model, **{k: values[k] for k in (
         "integral_gain", "max_amplitude_ratio", "settle_margin") if k in values})
     return MeanSpeedController(config, drive_force=inputs.drive_force, frequency=inputs.excitation_frequency,
@@ -362,7 +397,7 @@ class _Schedule:
 
     def command(self, item: yaml.Node, duration: float) -> Command:
         """One schedule entry: its time and exactly one command topic with its value."""
-        entries = self.parser.mapping(item, ("t", *COMMANDS), "a schedule entry")
+        entries = self.parser.mapping(item, ("t", *COMMANDS, PARAMETERS), "a schedule entry")
         if "t" not in entries:
             raise self.parser.fail(item, "a schedule entry needs 't' (simulation time in s)")
         t = self.parser.number(entries["t"], "t")
@@ -370,16 +405,22 @@ class _Schedule:
             raise self.parser.fail(entries["t"][0], f"t = {t!r} rejected: must be in [0, duration = {duration!r}) s")
         names = [k for k in entries if k != "t"]
         if len(names) != 1:
-            raise self.parser.fail(item, f"a schedule entry sets exactly one of {', '.join(COMMANDS)} "
+            raise self.parser.fail(item, f"a schedule entry sets exactly one of {', '.join((*COMMANDS, PARAMETERS))} "
                                          f"(found {', '.join(names) or 'none'})")
         name = names[0]
         if not Command(t, name).for_slider and self.controller is None:
             raise self.parser.fail(entries[name][0], f"{name} needs a controller: add a 'controller:' section")
         return Command(t, name, self.values(name, entries[name]))
 
-    def values(self, name: str, entry: Entry) -> dict[str, float]:
+    def values(self, name: str, entry: Entry) -> dict[str, Any]:
         """The command's fields: a number for a one-field command; for several
-        (external_wrench), a mapping keyed by their message fields (x, z), 0 when left out."""
+        (external_wrench), a mapping keyed by their message fields (x, z), 0 when
+        left out; for ``parameters``, slider parameters as in ``plant:``."""
+        if name == PARAMETERS:
+            given = self.parser.mapping(entry[0], PLANT_KEYS, PARAMETERS)
+            if not given:
+                raise self.parser.fail(entry[0], "parameters must set at least one slider parameter")
+            return {key: self.parser.plant_value(value, key) for key, value in given.items()}
         spec = COMMANDS[name]
         if len(spec.fields) == 1:
             return {spec.fields[0]: self.parser.number(entry, name)}

@@ -56,7 +56,8 @@ def test_the_shipped_scenarios_load_and_judge_something() -> None:
     scenarios = acceptance_scenarios()
     assert [s.name for s in scenarios] == [
         "acceptance_1_matched", "acceptance_2_mu_plus_20", "acceptance_3_drive_step",
-        "acceptance_4_unreachable", "acceptance_5_frequency_step", "acceptance_6_tilted_hopping"]
+        "acceptance_4_unreachable", "acceptance_5_frequency_step", "acceptance_6_tilted_hopping",
+        "acceptance_7_resonant_steps", "acceptance_8_resonant_load", "acceptance_9_resonant_noise"]
     assert all(s.expect and s.closed_loop for s in scenarios)
     demo = load_scenario(config_dir() / "demo.yaml")
     assert 14.0 <= demo.duration <= 16.0 and demo.closed_loop
@@ -117,6 +118,17 @@ BAD = [
     ("duration: 1.0\noperator:\n  - {t: 0.5}\n", 3, ("one of 'send' or 'calls'",)),
     ("duration: 1.0\noperator:\n  - {t: 1.5, calls: [reset]}\n", 3, ("t = 1.5", "duration")),
     ("duration: 1.0\noperator:\n  - {t: 0.5, send: {external_wrench: {x: 1.0}}}\n", 3, ("one-number",)),
+    ("duration: 1.0\nschedule:\n  - {t: 0.5, parameters: {natural_frequency: 0.0}}\n", 3,
+     ("natural_frequency", "0.0", "[0.001, 20000] Hz")),
+    ("duration: 1.0\nschedule:\n  - {t: 0.5, parameters: {publish_rate: 10.0}}\n", 3,
+     ("unknown key 'publish_rate'",)),
+    ("duration: 1.0\nschedule:\n  - {t: 0.5, parameters: {}}\n", 3, ("at least one",)),
+    ("duration: 1.0\naccelerometer_noise: -1\n", 2, ("accelerometer_noise", "-1", "[0, 1e+06]")),
+    ("duration: 1.0\ncontroller: {}\nschedule:\n  - {t: 0.5, drive_force: 0.5}\nexpect:\n"
+     "  - {t: 0.5, within: 0.02, periods: 9, quantity: amplitude_per_drive}\n", 6,
+     ("amplitude_per_drive", "resonant")),
+    ("duration: 1.0\nschedule:\n  - {t: 0.5, drive_force: 0.5}\nexpect:\n"
+     "  - {t: 0.5, within: 0.02, periods: 9, quantity: speed}\n", 5, ("quantity", "'speed'", "mean_speed")),
     ("duration: [1\n", 2, ("not valid YAML",)),
     ("- just a list\n", None, ("mapping",)),
 ]
