@@ -1,10 +1,12 @@
 """Benchmark of the mean-speed controller.
 
-* acceptance (issues 4, 11): the acceptance cases in closed loop over real
+* acceptance (issues 4, 11, 21): the acceptance cases in closed loop over real
   topics, slider and controller in this process, real time.  Prints settling
   time (excitation periods), overshoot and steady error per step, and draws
-  target, measured mean speed and Pa against time for every case into
-  one PNG.
+  target, measured mean speed and Pa (the drive level on a resonant plant)
+  against time for every case into one PNG.  The cases on the resonant exciter
+  (7-9) run twice: with the inner loop, and with today's law through the
+  exciter's steady gain (``inner_loop: false``) for comparison.
 * flood (issue 10): the ``controller`` console script in its own process,
   regulating (this process sends it mean_velocity samples at 50 Hz, as a
   slider at 50 Hz would); its CPU share (from /proc) over windows of a few
@@ -24,6 +26,7 @@ Run: make bench   (or .venv/bin/python bench/controller.py [--part flood] [--png
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import random
 import statistics
@@ -43,7 +46,8 @@ from geometry_msgs.msg import TwistStamped
 from rclpy.executors import SingleThreadedExecutor
 from std_msgs.msg import Float64
 
-from friction_sim.experiment.acceptance import acceptance_scenarios, judge
+from friction_sim.experiment.acceptance import Verdict, acceptance_scenarios, judge
+from friction_sim.experiment.job import ExperimentSpec
 from friction_sim.experiment.report import command_label
 from friction_sim.experiment.runner import ExperimentResult, run_experiment
 from friction_sim.experiment.scenario import Scenario
@@ -175,7 +179,7 @@ def flood_bench(rate: int, count: int, seconds: float) -> None:
 def draw(runs: list[tuple[Scenario, ExperimentResult]], path: Path) -> None:
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(9.0, 13.0), layout="constrained")
+    fig = Figure(figsize=(9.0, 2.2 * len(runs)), layout="constrained")
     axes = fig.subplots(len(runs), 1)
     for ax, (case, result) in zip(axes, runs):
         t = [s for s, _ in result.mean_velocity]
@@ -194,11 +198,17 @@ def draw(runs: list[tuple[Scenario, ExperimentResult]], path: Path) -> None:
         ax.set_ylabel("mean speed [mm/s]")
         ax.set_title(case.description, fontsize=10)
         right = ax.twinx()
-        if result.amplitude:
-            right.step([s for s, _ in result.amplitude], [a for _, a in result.amplitude], where="post",
-                       color="tab:red", linewidth=0.9, label="Pa")
-        right.set_ylabel("Pa [N]", color="tab:red")
-        right.set_ylim(0.0, 10.0)
+        if result.drive:
+            right.step([s for s, *_ in result.drive], [level for _, level, *_ in result.drive], where="post",
+                       color="tab:red", linewidth=0.9, label="drive level")
+            right.set_ylabel("drive level", color="tab:red")
+            right.set_ylim(0.0, 1.0)
+        else:
+            if result.amplitude:
+                right.step([s for s, _ in result.amplitude], [a for _, a in result.amplitude], where="post",
+                           color="tab:red", linewidth=0.9, label="Pa")
+            right.set_ylabel("Pa [N]", color="tab:red")
+            right.set_ylim(0.0, 10.0)
         for command in result.commands:
             if command.name != "target_speed":
                 ax.axvline(command.t, color="0.6", linewidth=0.8)
@@ -208,6 +218,30 @@ def draw(runs: list[tuple[Scenario, ExperimentResult]], path: Path) -> None:
     axes[-1].set_xlabel("simulation time [s]")
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
+
+
+def variants(case: Scenario) -> list[tuple[str, ExperimentSpec]]:
+    """The runs of a case: as shipped, and on a resonant plant also today's law
+    through the steady gain (the inner loop off)."""
+    spec = case.spec()
+    if not case.params.resonant:
+        return [("", spec)]
+    today = dataclasses.replace(spec, controller_parameters={**spec.controller_parameters, "inner_loop": False,
+                                                             "track_resonance": False})
+    return [(" (inner loop)", spec), (" (today's law, drive through the steady gain)", today)]
+
+
+def verdict_line(verdict: Verdict) -> str:
+    """One judged expectation, in a line."""
+    e, m = verdict.expectation, verdict.metrics
+    if e.quantity == "amplitude_per_drive":
+        what = f"amplitude per unit drive back to {verdict.target:.2f} m/s^2"
+    else:
+        what = f"target {verdict.target * 1e3:.2f} mm/s"
+    return (f"    change at {e.t:.1f} s, {what}: within {e.within:.0%} after {m.settling_periods} periods "
+            f"(limit {e.periods}); overshoot {m.overshoot:.1%}" + (f" (limit {e.overshoot:.0%})" if e.overshoot < 1
+                                                                  else "")
+            + f"; steady error {m.steady_error:.1e}  [{'met' if verdict.met else 'MISSED'}]")
 
 
 def main() -> int:
@@ -225,15 +259,12 @@ def main() -> int:
         if args.part in ("all", "flood"):
             flood_bench(args.flood_rate, args.windows, args.window)
         for case in acceptance_scenarios() if args.part in ("all", "acceptance") else ():
-            result = run_experiment(case.spec())
-            runs.append((case, result))
-            print(f"{case.name}: {case.description}")
-            for verdict in judge(case, result):
-                e, m = verdict.expectation, verdict.metrics
-                print(f"    change at {e.t:.1f} s, target {verdict.target * 1e3:.2f} mm/s: within {e.within:.0%} "
-                      f"after {m.settling_periods} periods (limit {e.periods}); overshoot {m.overshoot:.1%}"
-                      + (f" (limit {e.overshoot:.0%})" if e.overshoot < 1 else "")
-                      + f"; steady error {m.steady_error:.1e}  [{'met' if verdict.met else 'MISSED'}]")
+            for variant, spec in variants(case):
+                result = run_experiment(spec)
+                runs.append((dataclasses.replace(case, description=case.description + variant), result))
+                print(f"{case.name}{variant}: {case.description}")
+                for verdict in judge(case, result):
+                    print(verdict_line(verdict))
     finally:
         rclpy.try_shutdown()
     if runs:

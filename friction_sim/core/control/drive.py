@@ -48,6 +48,12 @@ by at most :data:`MAX_FREQUENCY_STEP` of itself per period: at resonance the
 lag is 90 degrees and the amplitude per unit drive the largest, A, whatever
 the load on the slideway.
 
+Each reading is judged against the model the window was planned with (its
+f_n and gain, kept with the plan): readings arrive a window or two after the
+window they read, and a correction added to what earlier readings had already
+moved counted the same error twice (on ROS the drive frequency then swung
++-0.7 Hz around resonance for seconds after a load change).
+
 Figures (test/core/control/test_drive.py, the exact resonant slider in the
 loop, drive levels taken at period boundaries): the mean-speed steps of
 acceptance case 1 on f_n = 52 Hz, zeta = 0.02 at 50 Hz settle within 2 % in
@@ -117,13 +123,17 @@ def lag_sensitivity(ratio: float, damping_ratio: float) -> float:
 
 @dataclass(frozen=True)
 class _Planned:
-    """A window this loop drove: its start, drive frequency and level, and the
-    model's slideway over it."""
+    """A window this loop drove: its start, drive frequency and level, the
+    model's slideway over it, and the model's natural frequency and gain ratio
+    it was planned with (a reading corrects those, not what later readings
+    have made of them already)."""
 
     t_start: float
     frequency: float
     level: float
     way: Slideway
+    natural_frequency: float
+    gain_ratio: float
 
 
 def _limited(value: float, limit: float) -> float:
@@ -207,7 +217,8 @@ class DriveLoop:
         level = min(max(self._plan(elapsed, self.cycles / self.frequency), 0.0), 1.0)
         self._way = self._driven(self._way, elapsed, level)
         self.drive_level = level
-        self._planned = [*self._planned[-63:], _Planned(t, self.frequency, level, self._way)]
+        self._planned = [*self._planned[-63:], _Planned(t, self.frequency, level, self._way, self.natural_frequency,
+                                                        self.gain_ratio)]
         return level, self.frequency
 
     @property
@@ -268,9 +279,10 @@ class DriveLoop:
     def _correct(self, reading: Vibration) -> None:
         """A reading of a period this loop drove, against the model's own reading
         of that period at the same sample times (its predicted motion, transient
-        included): the gain scales by the measured over the predicted amplitude,
-        and the difference of lag moves the model's steady lag, whose natural
-        frequency the model takes (see the module doc); each by at most
+        included): the measured over the predicted amplitude shows the gain ratio,
+        and the difference of lag the steady lag, so the natural frequency, of
+        the plant (each against the model the window was planned with); the
+        model moves toward them (see the module doc), by at most
         :data:`MAX_GAIN_CORRECTION` and :data:`MAX_LAG_CORRECTION` per reading.
         With the model right the two readings agree to rounding and nothing moves."""
         planned = self._planned_for(reading)
@@ -285,7 +297,7 @@ class DriveLoop:
             self._steady_boundaries = 0  # the plant is not where the model put it (a load, a wrong model)
         driven = planned.frequency
         lag_error = math.remainder(reading.lag - expected.lag, 2.0 * math.pi)
-        steady_lag = response(driven, self.natural_frequency, self.model.damping_ratio).lag + _limited(
+        steady_lag = response(driven, planned.natural_frequency, self.model.damping_ratio).lag + _limited(
             lag_error, MAX_LAG_CORRECTION)
         if 0.0 < steady_lag < math.pi:
             natural = natural_frequency_from_lag(driven, steady_lag, self.model.damping_ratio)
@@ -294,8 +306,8 @@ class DriveLoop:
                                                MAX_FREQUENCY_STEP * self.natural_frequency)
         if abs(lag_error) > LAG_FIRST:
             return  # f_n is off: the amplitude's error is mostly the resonance curve's, not the gain's
-        factor = math.exp(_limited(self.correction_gain * math.log(reading.amplitude / expected.amplitude),
-                                   MAX_GAIN_CORRECTION))
+        shown = planned.gain_ratio * reading.amplitude / expected.amplitude  # the gain ratio the reading shows
+        factor = math.exp(_limited(self.correction_gain * math.log(shown / self.gain_ratio), MAX_GAIN_CORRECTION))
         self.gain_ratio *= factor
         # The motion of a linear slideway scales with its gain: the model's own motion, transient and all,
         # scales with it, so a gain learnt is not taken for a transient the plan would then chase.
