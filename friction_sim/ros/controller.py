@@ -553,9 +553,13 @@ def help_text() -> str:
     """What ``controller --help`` prints after the usage line."""
     sample = ("mean_velocity", "geometry_msgs/msg/TwistStamped",
               "the slider's mean speed [m/s] per window (refused if no plant in force could creep that fast)")
+    accelerometer = ("accelerometer", "sensor_msgs/msg/Imu",
+                     "the slideway's acceleration (resonant actuator: the inner loop reads linear_acceleration.z)")
     return node_help("The mean-speed controller: publishes the excitation amplitude Pa that makes the slider "
                      "creep at target_speed (exact U-relation feedforward, integral action on the measured "
-                     "mean speed).", PARAMETERS, CONTROLLER, PUBLICATIONS, CONTROLLER_EXIT_CODES, [sample])
+                     "mean speed); on a resonant plant the drive level that brings the slideway's vibration to "
+                     "that Pa, from its accelerometer.", PARAMETERS, CONTROLLER, PUBLICATIONS, CONTROLLER_EXIT_CODES,
+                     [sample, accelerometer])
 
 
 def main(args: Sequence[str] | None = None) -> int:
