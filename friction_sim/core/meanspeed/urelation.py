@@ -53,6 +53,7 @@ value, bit for bit, wherever this one applies) and its inverse lives in
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -236,37 +237,77 @@ def amplitude_ratio_for(u: ArrayLike, phi: ArrayLike, max_ratio: float = 1.0) ->
         u_top = np.where(candidates, u_map(np.where(candidates, mag, 0.5), np.where(candidates, hi, 0.5)), 0.0)
         reachable = candidates & (target <= u_top)
         if np.any(reachable):
-            a[reachable] = _invert(target[reachable], mag[reachable], lo[reachable], hi[reachable], u_top[reachable])
+            mag_r = mag[reachable]
+            a[reachable] = _invert(target[reachable], lo[reachable], hi[reachable], u_top[reachable],
+                                   lambda x, index: _u_and_slope(mag_r[index], x))
     return _result(a, u, phi)
 
 
-def _invert(
-    target: NDArray[np.float64], phi: NDArray[np.float64],
-    lo: NDArray[np.float64], hi: NDArray[np.float64], f_hi: NDArray[np.float64],
-) -> NDArray[np.float64]:
-    """Solve U(phi, a) = target for a in [lo, hi] (U(lo) = 0 < target <= U(hi)).
+def drive_ratio_for(u: ArrayLike, a: ArrayLike) -> Any:
+    """The inverse relation in phi: the drive ratio phi = Fd/(mu*m*g) with
+    U(phi, a) = u, for 0 <= a < 1 (scalars or arrays, broadcast together).
 
-    Newton's method with the exact slope dU/da, every iterate kept inside the
+    U rises monotonically with phi, from 0 at the motion boundary phi = 1 - a
+    to a/(2*pi) at phi = 1 (dU/dphi = psi_C**2/(8*pi**2) > 0), so the answer
+    is unique.  u = 0 gives the largest phi at which the slider still stands,
+    1 - a: the apparent friction coefficient over mu at breakaway.  NaN where
+    |u| > a/(2*pi) (only phi > 1 would go faster: it accelerates without
+    bound).  Negative u mirrors: phi(-u, a) = -phi(u, a).  The friction that
+    vibration leaves a slider moving at U is mu_app = phi*mu.
+    """
+    u_arr, a_arr = np.broadcast_arrays(np.asarray(u, float), np.asarray(a, float))
+    _check_ratio(a_arr)
+    target = np.abs(u_arr)
+    phi = np.full(u_arr.shape, np.nan)
+    boundary = 1.0 - a_arr
+    phi[target == 0.0] = boundary[target == 0.0]
+    u_top = a_arr / _TWO_PI
+    phi[(target == u_top) & (target > 0.0)] = 1.0
+    inside = (target > 0.0) & (target < u_top)
+    if np.any(inside):
+        a_in = a_arr[inside]
+        phi[inside] = _invert(target[inside], boundary[inside], np.ones(a_in.shape), u_top[inside],
+                              lambda x, index: _u_and_phi_slope(x, a_in[index]))
+    return _result(np.where(u_arr < 0.0, -phi, phi), u, a)
+
+
+def _invert(
+    target: NDArray[np.float64], lo: NDArray[np.float64], hi: NDArray[np.float64], f_hi: NDArray[np.float64],
+    evaluate: Callable[[NDArray[np.float64], NDArray[np.intp]], tuple[NDArray[np.float64], NDArray[np.float64]]],
+) -> NDArray[np.float64]:
+    """Solve U(x) = target for x in [lo, hi] (U(lo) = 0 < target <= U(hi), U rising):
+    ``evaluate(x, index)`` gives U and its exact slope at x for the elements
+    ``index`` (x the amplitude ratio at a given phi, or phi at a given
+    amplitude ratio).
+
+    Newton's method with the exact slope, every iterate kept inside the
     shrinking bracket (bisection when Newton would leave it): a handful of
     iterations, which matters to a controller that inverts once per period.
+    Each element stops on its own (its value does not depend on its
+    neighbours): when U meets the target to rounding, the step or the bracket
+    is a few ulps (near the motion boundary U's rounding noise exceeds the
+    first test; the bracket still closes).
     """
-    a = lo + (hi - lo) * np.sqrt(target / f_hi)  # U grows roughly like (a - lo)^2 near the boundary
+    eps = np.finfo(float).eps
+    lo, hi = lo.copy(), hi.copy()
+    x = lo + (hi - lo) * np.sqrt(target / f_hi)  # U grows roughly like (x - lo)^2 near the boundary
+    active = np.arange(x.size)
     for _ in range(100):
-        u, slope = _u_and_slope(phi, a)
-        f = u - target
-        hi, lo = np.where(f > 0.0, a, hi), np.where(f > 0.0, lo, a)
+        xa = x[active]
+        u, slope = evaluate(xa, active)
+        f = u - target[active]
+        high, low = np.where(f > 0.0, xa, hi[active]), np.where(f > 0.0, lo[active], xa)
+        hi[active], lo[active] = high, low
         with np.errstate(divide="ignore", invalid="ignore"):
-            step = a - f / slope
-        step = np.where(np.isfinite(step) & (step > lo) & (step < hi), step, 0.5 * (lo + hi))
-        eps = np.finfo(float).eps
-        # Converged where U meets the target to rounding level (its rounding noise
-        # would otherwise keep Newton stepping to and fro), or the step is that small.
-        step = np.where(np.abs(f) <= 4.0 * eps * target, a, step)
-        done = np.abs(step - a) <= 4.0 * eps * a
-        a = step
-        if np.all(done):
+            step = xa - f / slope
+        step = np.where(np.isfinite(step) & (step > low) & (step < high), step, 0.5 * (low + high))
+        step = np.where(np.abs(f) <= 4.0 * eps * target[active], xa, step)
+        done = (np.abs(step - xa) <= 4.0 * eps * xa) | (high - low <= 4.0 * eps * xa)
+        x[active] = step
+        active = active[~done]
+        if active.size == 0:
             break
-    return a
+    return x
 
 
 def _u_and_slope(phi: NDArray[np.float64], a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -283,6 +324,19 @@ def _u_and_slope(phi: NDArray[np.float64], a: NDArray[np.float64]) -> tuple[NDAr
     c1, s2, _ = remainders_many(psi)
     travel[slipping] = _travel(a[slipping], sin_a, cos_a, psi)
     slope[slipping] = sin_a * c1 + cos_a * s2
+    return travel / _FOUR_PI2, slope / _FOUR_PI2
+
+
+def _u_and_phi_slope(phi: NDArray[np.float64],
+                     a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """U and dU/dphi where 1 - a < phi < 1: as for :func:`_u_and_slope`, psi_C and
+    theta_A move with phi but D is stationary in both, so only the explicit
+    term of D = (phi - 1)*psi**2/2 + ... remains: dD/dphi = psi_C**2/2."""
+    travel = np.zeros(phi.shape)
+    slope = np.full(phi.shape, np.nan)
+    slipping, sin_a, cos_a, psi = _periodic_slip(phi, a)
+    travel[slipping] = _travel(a[slipping], sin_a, cos_a, psi)
+    slope[slipping] = 0.5 * psi * psi
     return travel / _FOUR_PI2, slope / _FOUR_PI2
 
 
