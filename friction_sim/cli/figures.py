@@ -10,6 +10,8 @@ so the core and the nodes never pay for it.
   track inclination (``friction-sim conveyor``).
 * :func:`tuning_figure` is a resonant feeder's tuning curve (``friction-sim
   resonance``): amplitude, lag and mean speed against the drive frequency.
+* :func:`reduction_figure` is the paper's Fig. 4 claim (``friction-sim
+  reduction``): the apparent friction against the mean speed and Pa/Q.
 * :func:`report_figure` is an experiment report's picture: target and
   measured mean speed, Pa, Fd and f against time.
 
@@ -35,6 +37,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from friction_sim.core.meanspeed.conveyor import ConveyorSweep
+    from friction_sim.core.meanspeed.reduction import ReductionCurves
     from friction_sim.core.meanspeed.tuning import TuningCurve
 
 
@@ -317,6 +320,31 @@ def tuning_figure(curve: TuningCurve) -> Figure:
     for axes in (top, middle, bottom):
         axes.axvline(params.natural_frequency, color="tab:red", linestyle="--", linewidth=0.9)
         axes.grid(alpha=0.3)
+    return fig
+
+
+def reduction_figure(curves: ReductionCurves) -> Figure:
+    """The friction-reduction curve: mu_app/mu needed to slide at a mean speed,
+    against the speed at several Pa/Q (left) and against Pa/Q at several speeds
+    (right); 1 is the full Coulomb friction, below it what the vibration
+    removes (the paper's Fig. 4, without Lomakin's points: none are available)."""
+    fig = pyplot_free_figure(figsize=(11.0, 4.8), layout="constrained")
+    left, right = fig.subplots(1, 2, sharey=True)
+    params = curves.params
+    for ratio, row in zip(curves.ratios, curves.by_speed):
+        left.plot(curves.speeds * 1e3, row, linewidth=1.3, label=f"Pa/Q = {ratio:g}")
+    for speed, row in zip(curves.marked_speeds, curves.by_amplitude):
+        right.plot(curves.amplitudes, row, linewidth=1.3, label=f"V = {speed * 1e3:g} mm/s")
+    left.set_xlabel("mean speed V [mm/s]")
+    right.set_xlabel("amplitude ratio Pa/Q")
+    left.set_ylabel(r"apparent friction $\mu_{app}/\mu$")
+    model = "Kostek's model, exact" if curves.closed_form else "general model, simulated exactly"
+    fig.suptitle(rf"Friction reduction by vibration: $\mu$ = {params.mu:g}, m = {params.mass:g} kg, "
+                 rf"g = {params.gravity:g} m/s$^2$, f = {curves.frequency:g} Hz ({model})", fontsize=10)
+    for axes in (left, right):
+        axes.axhline(1.0, color="0.4", linestyle=":", linewidth=0.9)
+        axes.grid(alpha=0.3)
+        axes.legend(loc="lower right", fontsize=8)
     return fig
 
 

@@ -9,6 +9,7 @@ Subcommands::
     friction-sim simulate [plant options] --duration 2 [--settle 0.2] [--csv out.csv] [--json]
     friction-sim conveyor --png conveyor.png [--csv conveyor.csv] [--points 101]
     friction-sim resonance --png tuning.png [--from 40 --to 60] [--natural-frequency 52 --drive-level 0.5]
+    friction-sim reduction --png reduction.png [--ratios 0.2,0.6 --speeds 0.0005] [--angle 60]
     friction-sim slider [--params FILE] [--log run.mcap] [--foxglove [PORT]] [--ros-args ...]
     friction-sim controller [--params FILE] [--ros-args ...]
     friction-sim feeder [--slider-params FILE] [--controller-params FILE] [--log run.mcap] [--foxglove [PORT]]
@@ -34,7 +35,7 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any, NoReturn
 
-from friction_sim.cli import conveyor, experiments, motion, nodes, relation, replay, resonance, sweeps
+from friction_sim.cli import conveyor, experiments, motion, nodes, reduction, relation, replay, resonance, sweeps
 from friction_sim.cli.options import Verb, flag_of
 from friction_sim.errors import FrictionSimError, ParameterError
 
@@ -71,7 +72,7 @@ class _OneLineParser(argparse.ArgumentParser):
 
 
 #: The modules that declare the verbs (``VERBS``), in the order ``--help`` lists them.
-VERB_MODULES = (relation, motion, conveyor, resonance, nodes, experiments, replay, sweeps)
+VERB_MODULES = (relation, motion, conveyor, resonance, reduction, nodes, experiments, replay, sweeps)
 
 
 def verbs() -> tuple[Verb, ...]:

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from friction_sim.core.meanspeed.conveyor import ConveyorSweep, Curve
+from friction_sim.core.meanspeed.reduction import ReductionCurves
 from friction_sim.core.meanspeed.tuning import TuningCurve
 from friction_sim.core.meanspeed.urelation import UMap
 from friction_sim.core.model.events import Event, Trajectory
@@ -54,6 +55,34 @@ def write_tuning_csv(curve: TuningCurve, path: Path) -> Path:
         for row in zip(curve.frequency, curve.amplitude, curve.lag_deg, curve.mean_velocity, curve.flight_fraction):
             writer.writerow([repr(float(value)) for value in row])
     return path
+
+
+#: The friction-reduction CSV's columns (``friction-sim reduction``).
+REDUCTION_COLUMNS = ("view", "amplitude_ratio", "mean_speed", "apparent_friction_ratio", "apparent_friction")
+
+
+def write_reduction_csv(curves: ReductionCurves, path: Path) -> Path:
+    """One row per point of either view: ``view`` is ``speed`` (mu_app/mu against
+    the mean speed at a fixed amplitude ratio Pa/Q) or ``amplitude`` (against
+    Pa/Q at a fixed speed); mean speed in m/s; the apparent friction coefficient
+    itself, mu_app = mu times the ratio; empty where no stick-slip is that fast."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    mu = curves.params.mu
+    with path.open("w", newline="") as stream:
+        writer = csv.writer(stream)
+        writer.writerow(REDUCTION_COLUMNS)
+        for i, ratio in enumerate(curves.ratios):
+            for j, speed in enumerate(curves.speeds):
+                writer.writerow(_reduction_row("speed", ratio, speed, curves.by_speed[i, j], mu))
+        for i, speed in enumerate(curves.marked_speeds):
+            for j, ratio in enumerate(curves.amplitudes):
+                writer.writerow(_reduction_row("amplitude", ratio, speed, curves.by_amplitude[i, j], mu))
+    return path
+
+
+def _reduction_row(view: str, ratio: float, speed: float, phi: float, mu: float) -> tuple[str, ...]:
+    return (view, repr(float(ratio)), repr(float(speed)), *((repr(float(phi)), repr(float(phi * mu)))
+                                                           if math.isfinite(phi) else ("", "")))
 
 
 #: The conveyor CSV's columns: one row per point of either panel.
