@@ -8,6 +8,8 @@ many points of the general model.  It is a YAML file::
     periods: 50                     # whole periods averaged
     chunk_size: 2000                # points per batch-core call (a Dask task)
     seed: 7                         # the random stream of `random:` (default 0)
+    plant_params: calibrated.yaml   # optional ROS 2 parameters file (friction-sim calibrate's): the plant
+                                    #   settings the sections below do not set
     output: out/sweeps/parts.parquet  # optional (default out/sweeps/<name>.parquet)
     fixed:                          # one value for every point
       drive_force: 0.0
@@ -73,7 +75,8 @@ DERIVED: dict[str, tuple[str, Setting]] = {
         "drive_ratio", 0.7, "-", "phi = Fd/(mu m g); sets drive_force", -1e6, 1e6)),
 }
 KEYS = (*FIELDS, *DERIVED)
-TOP_KEYS = ("name", "description", "output", "settle_periods", "periods", "chunk_size", "seed", "fixed", "grid",
+TOP_KEYS = ("name", "description", "output", "settle_periods", "periods", "chunk_size", "seed", "plant_params", "fixed",
+            "grid",
             "points", "samples", "random")
 DISTRIBUTIONS: dict[str, tuple[str, ...]] = {
     "uniform": ("low", "high"),
@@ -170,13 +173,15 @@ def load_sweep(path: Path, *, chunk_size: int | None = None) -> Sweep:
         text = Path(path).read_text()
     except OSError as error:
         raise SweepError(f"{path}: cannot read: {error.strerror or error}") from error
-    return parse_sweep(text, str(path), chunk_size=chunk_size)
+    return parse_sweep(text, str(path), chunk_size=chunk_size, base=Path(path).parent)
 
 
-def parse_sweep(text: str, where: str = "<sweep>", *, chunk_size: int | None = None) -> Sweep:
-    """Validate sweep text completely, every point included."""
+def parse_sweep(text: str, where: str = "<sweep>", *, chunk_size: int | None = None,
+                base: Path = Path(".")) -> Sweep:
+    """Validate sweep text completely, every point included (``base``: the
+    folder a relative ``plant_params`` path is read from)."""
     root = compose_mapping(text, where, SweepError, "a sweep is a mapping of keys (periods, grid, random, ...)")
-    sweep = _SweepParser(where, Path(".")).sweep(root, text, chunk_size)
+    sweep = _SweepParser(where, base).sweep(root, text, chunk_size)
     for start in range(0, sweep.size, 1_000_000):
         check_points(sweep, materialize(sweep, start, min(start + 1_000_000, sweep.size)))
     return sweep
@@ -209,6 +214,10 @@ class _SweepParser(ScenarioParser):
         grid = {key: self.grid_values(entry, key) for key, entry in self.section(top, "grid").items()}
         points = self.point_list(top.get("points"))
         random = {key: self.distribution(entry, key) for key, entry in self.section(top, "random").items()}
+        if "plant_params" in top:  # a parameters file (a calibrated plant): what the sections do not set
+            given = {*fixed, *grid, *points, *random}
+            fixed = {**{key: value for key, value in self.params_file(top["plant_params"]).items()
+                        if key in settings.PLANT and key not in given}, **fixed}
         self.unused_inputs(fixed, grid, points, random)
         if random and "samples" not in top:
             raise self.fail(top["random"][0], "random values need 'samples' (parts per combination)")
@@ -474,7 +483,7 @@ def materialize(sweep: Sweep, start: int, stop: int) -> dict[str, np.ndarray]:
         default = setting.default
         columns[name] = given[name] if name in given else np.full(
             n, default, dtype=object if isinstance(default, str) else float)
-    _derive(columns, given)
+    derive_fields(columns, given)
     columns.update({key: given[key].astype(float) for key in DERIVED if key in given})
     return columns
 
@@ -487,8 +496,9 @@ def _degrees_cos(angles: np.ndarray) -> np.ndarray:
     return out
 
 
-def _derive(columns: dict[str, np.ndarray], given: dict[str, np.ndarray]) -> None:
-    """Fields set by derived keys: excitation_amplitude and drive_force."""
+def derive_fields(columns: dict[str, np.ndarray], given: dict[str, np.ndarray]) -> None:
+    """Fields set by derived keys: excitation_amplitude and drive_force (from the
+    mass, g, mu and slope in ``columns``; sweeps and calibration share it)."""
     weight = columns["mass"].astype(float) * columns["gravity"].astype(float)
     if "throw_number" in given:
         columns["excitation_amplitude"] = given["throw_number"] * weight * _degrees_cos(
@@ -526,6 +536,7 @@ def check_points(sweep: Sweep, columns: dict[str, np.ndarray]) -> None:
 
 
 __all__ = [
-    "BLOCK", "DERIVED", "FIELDS", "KEYS", "Distribution", "Sweep", "SweepError", "check_points", "load_sweep",
+    "BLOCK", "DERIVED", "FIELDS", "KEYS", "Distribution", "Sweep", "SweepError", "check_points", "derive_fields",
+    "load_sweep",
     "materialize", "parse_sweep",
 ]
