@@ -24,7 +24,7 @@ setup(
     # ROS 2 route: the console scripts a colcon build writes check it at start.
     # The extras are the packages only pip brings (the README's pip line).
     install_requires=['setuptools', 'numpy>=1.26', 'pyyaml>=6.0.1', 'matplotlib>=3.6.3', 'numba>=0.59',
-                      'mcap>=1.6', 'zstandard>=0.25', 'rosbags>=0.11.9'],
+                      'mcap>=1.6', 'zstandard>=0.25', 'rosbags>=0.11.9', 'scipy>=1.11.4'],
     extras_require={
         'sweep': ['dask>=2026.8', 'distributed>=2026.8', 'pyarrow>=25'],
         'live': ['foxglove-sdk>=0.30.3'],

@@ -126,7 +126,7 @@ def test_colcon_build_install_layout(tmp_path):
 # Each runtime requirement (requirements.txt) and the rosdep keys that bring it on a
 # ROS 2 Jazzy install: ROS packages by their own names, Python packages by the keys
 # of rosdep's python.yaml (ros/rosdistro, checked at 8468e88: python3-numpy,
-# python3-yaml, python3-matplotlib, python3-numba; pip keys mcap-ros2-support, which installs mcap,
+# python3-yaml, python3-matplotlib, python3-numba, python3-scipy; pip keys mcap-ros2-support, which installs mcap,
 # and python3-rosbags-pip).  A new requirement fails this test until it is mapped.
 ROSDEP_KEYS = {
     'ros-jazzy-rclpy': {'rclpy', 'rcl_interfaces', 'builtin_interfaces', 'rosgraph_msgs',
@@ -140,6 +140,7 @@ ROSDEP_KEYS = {
     'rosbags': {'python3-rosbags-pip'},
     'matplotlib': {'python3-matplotlib'},
     'numba': {'python3-numba'},
+    'scipy': {'python3-scipy'},
     # Sweeps only: rosdep has no key for these (ros/rosdistro 8468e88); package.xml says to pip-install them.
     'dask': set(),
     'distributed': set(),

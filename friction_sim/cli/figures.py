@@ -12,6 +12,8 @@ so the core and the nodes never pay for it.
   resonance``): amplitude, lag and mean speed against the drive frequency.
 * :func:`reduction_figure` is the paper's Fig. 4 claim (``friction-sim
   reduction``): the apparent friction against the mean speed and Pa/Q.
+* :func:`calibration_figure` is a calibration's check (``friction-sim
+  calibrate``): measured against fitted mean speed.
 * :func:`report_figure` is an experiment report's picture: target and
   measured mean speed, Pa, Fd and f against time.
 
@@ -39,6 +41,7 @@ if TYPE_CHECKING:
     from friction_sim.core.meanspeed.conveyor import ConveyorSweep
     from friction_sim.core.meanspeed.reduction import ReductionCurves
     from friction_sim.core.meanspeed.tuning import TuningCurve
+    from friction_sim.experiment.calibration import Calibration
 
 
 #: The resolution of every saved figure [dots per inch]: print quality, and
@@ -319,6 +322,35 @@ def tuning_figure(curve: TuningCurve) -> Figure:
     bottom.legend(loc="upper left", fontsize=8)
     for axes in (top, middle, bottom):
         axes.axvline(params.natural_frequency, color="tab:red", linestyle="--", linewidth=0.9)
+        axes.grid(alpha=0.3)
+    return fig
+
+
+def calibration_figure(calibration: Calibration) -> Figure:
+    """Measured against fitted mean speed over the points: against the first
+    setting that varies (the points sorted along it; each one's error bar its
+    standard deviation when given), and the fitted against the measured."""
+    fig = pyplot_free_figure(figsize=(11.0, 4.6), layout="constrained")
+    left, right = fig.subplots(1, 2)
+    m = calibration.measurements
+    numeric = [name for name, values in m.settings.items() if values.dtype.kind == "f"]
+    x = m.settings[numeric[0]] if numeric else np.arange(1, m.count + 1, dtype=float)
+    order = np.argsort(x, kind="stable")
+    errors = m.std[order] * 1e3 if m.std is not None else None
+    left.errorbar(x[order], m.speed[order] * 1e3, yerr=errors, fmt="o", color="black", markersize=4,
+                  label="measured")
+    left.plot(x[order], calibration.fitted_speed[order] * 1e3, "-", color="tab:red", linewidth=1.3, label="fitted")
+    left.set_xlabel(numeric[0] if numeric else "point")
+    left.set_ylabel("mean speed V [mm/s]")
+    left.legend(fontsize=8)
+    top = 1e3 * float(max(np.max(m.speed), np.max(calibration.fitted_speed)))
+    right.plot(m.speed * 1e3, calibration.fitted_speed * 1e3, "o", color="tab:blue", markersize=4)
+    right.plot([0.0, top], [0.0, top], ":", color="0.4", linewidth=0.9)
+    right.set_xlabel("measured V [mm/s]")
+    right.set_ylabel("fitted V [mm/s]")
+    fig.suptitle("Calibration: " + ", ".join(f"{e.name} = {e.value:.6g} ± {e.std_error:.2g}"
+                                              for e in calibration.estimates), fontsize=10)
+    for axes in (left, right):
         axes.grid(alpha=0.3)
     return fig
 

@@ -10,6 +10,7 @@ Subcommands::
     friction-sim conveyor --png conveyor.png [--csv conveyor.csv] [--points 101]
     friction-sim resonance --png tuning.png [--from 40 --to 60] [--natural-frequency 52 --drive-level 0.5]
     friction-sim reduction --png reduction.png [--ratios 0.2,0.6 --speeds 0.0005] [--angle 60]
+    friction-sim calibrate measurements.csv --fit mu,static_ratio [--fixed plant.yaml] [--set mass=0.02]
     friction-sim slider [--params FILE] [--log run.mcap] [--foxglove [PORT]] [--ros-args ...]
     friction-sim controller [--params FILE] [--ros-args ...]
     friction-sim feeder [--slider-params FILE] [--controller-params FILE] [--log run.mcap] [--foxglove [PORT]]
@@ -35,7 +36,18 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any, NoReturn
 
-from friction_sim.cli import conveyor, experiments, motion, nodes, reduction, relation, replay, resonance, sweeps
+from friction_sim.cli import (
+    calibrate,
+    conveyor,
+    experiments,
+    motion,
+    nodes,
+    reduction,
+    relation,
+    replay,
+    resonance,
+    sweeps,
+)
 from friction_sim.cli.options import Verb, flag_of
 from friction_sim.errors import FrictionSimError, ParameterError
 
@@ -72,7 +84,7 @@ class _OneLineParser(argparse.ArgumentParser):
 
 
 #: The modules that declare the verbs (``VERBS``), in the order ``--help`` lists them.
-VERB_MODULES = (relation, motion, conveyor, resonance, reduction, nodes, experiments, replay, sweeps)
+VERB_MODULES = (relation, motion, conveyor, resonance, reduction, nodes, experiments, replay, sweeps, calibrate)
 
 
 def verbs() -> tuple[Verb, ...]:

@@ -1,0 +1,68 @@
+"""``friction-sim calibrate``: fit the model to a feeder's measured operating points.
+
+The fit is :func:`friction_sim.experiment.calibration.calibrate`; the file
+formats are :mod:`friction_sim.experiment.measurements`'s; this module holds
+the command's options and writes the outputs: the calibrated plant as a ROS 2
+parameters file, the residual table as CSV and the check picture as PNG.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from friction_sim.cli.options import Verb, add_flag
+from friction_sim.core.model import spec
+from friction_sim.experiment.calibration import LOSSES, FitOptions, calibrate, summary, write_residuals
+from friction_sim.experiment.measurements import read_fixed, read_measurements
+
+F_SCALE = spec.Setting("f_scale", 1.0, "-", "where the robust loss starts, in standard deviations", 1e-6, 1e6)
+STARTS = spec.Setting("starts", 4, "-", "starting points: the settings given, then drawn across the bounds", 1, 1000)
+SEED = spec.Setting("seed", 0, "-", "seed of the starting points drawn", 0, 2**31 - 1)
+SETTLE = spec.Setting("settle_periods", 100, "periods", "whole periods simulated before averaging", 0, 100_000)
+PERIODS = spec.Setting("periods", 100, "periods", "whole periods averaged per point", 1, 100_000)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The ``calibrate`` options."""
+    parser.add_argument("measurements", type=Path, help="CSV of operating points: the varied settings, mean_speed "
+                                                         "[m/s] and optionally std [m/s]")
+    parser.add_argument("--fit", required=True, help="the plant parameters to fit, comma-separated (e.g. "
+                                                     "mu,static_ratio)")
+    parser.add_argument("--fixed", type=Path, help="the settings that do not vary: a YAML mapping in the sweeps' "
+                                                   "vocabulary, or a ROS 2 parameters file")
+    parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                        help="a fixed setting (repeatable; overrides --fixed)")
+    parser.add_argument("--loss", choices=LOSSES, default="linear",
+                        help="residual loss: linear (least squares), or soft_l1 / huber against outliers")
+    for setting in (F_SCALE, STARTS, SEED, SETTLE, PERIODS):
+        add_flag(parser, setting, setting.default)
+    parser.add_argument("--output", type=Path, default=Path("out/calibration"),
+                        help="folder of calibrated.yaml, residuals.csv and calibration.png (default out/calibration)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """``calibrate``: read, fit, print the estimates and write the outputs."""
+    from friction_sim.cli.figures import calibration_figure, save_figure
+
+    measurements = read_measurements(args.measurements)
+    fixed = read_fixed(args.fixed, args.set)
+    options = FitOptions(fit=tuple(name.strip() for name in args.fit.split(",") if name.strip()), loss=args.loss,
+                         f_scale=args.f_scale, starts=args.starts, seed=args.seed,
+                         settle_periods=args.settle_periods, periods=args.periods)
+    result = calibrate(measurements, fixed, options)
+    for line in summary(result):
+        print(line)
+    args.output.mkdir(parents=True, exist_ok=True)
+    plant = args.output / "calibrated.yaml"
+    plant.write_text(result.parameters_file())
+    print(f"wrote {plant} (slider --params, a scenario's or a sweep's plant_params)")
+    print(f"wrote {write_residuals(result, args.output / 'residuals.csv')}")
+    print(f"wrote {save_figure(calibration_figure(result), args.output / 'calibration.png')}")
+    return 0
+
+
+VERBS = (Verb("calibrate", "fit mu, static_ratio, restitution, exciter data... to measured mean speeds, with "
+              "standard errors, 95 % intervals and a calibrated parameters file", add_arguments, run),)
+
+__all__ = ["VERBS", "add_arguments", "run"]

@@ -1,0 +1,167 @@
+"""Measured operating points for ``friction-sim calibrate``: the CSV and the fixed settings.
+
+A measurements file is a CSV with a header row.  Each row is one operating
+point: the settings that vary between points, in the sweeps' vocabulary (any
+field of the model, ``core/model/spec.py``'s PLANT and INPUTS, or a derived
+key: ``throw_number``, ``amplitude_ratio``, ``drive_ratio``;
+:data:`friction_sim.experiment.sweep.DERIVED`), then ``mean_speed`` [m/s], the
+speed timed over a length of track, and optionally ``std`` [m/s], its standard
+deviation.  For example::
+
+    drive_level,excitation_frequency,mean_speed,std
+    0.4,50,0.00102,0.00003
+    0.6,50,0.00231,0.00004
+
+The settings that do not vary (the part's mass, the track's slope, the
+exciter's data) come from a YAML mapping in the same vocabulary, or a ROS 2
+parameters file (``/**: ros__parameters:``, as ``slider --params`` reads), and
+from ``--set name=value`` flags; what is given nowhere takes its default.
+
+Everything is checked before any fitting: a bad file is refused with its
+path, the line and the reason, as scenarios are (:class:`MeasurementsError`).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from friction_sim.errors import FrictionSimError, ParameterError
+from friction_sim.experiment.sweep import DERIVED, FIELDS, KEYS
+from friction_sim.io.paramfile import read_params_file
+
+#: The measured quantity and its optional standard deviation.
+SPEED, STD = "mean_speed", "std"
+
+
+class MeasurementsError(FrictionSimError):
+    """A measurements file or fixed setting that cannot be used, with where and why."""
+
+
+@dataclass(frozen=True)
+class Measurements:
+    """The operating points: ``settings`` name -> one value per point (numbers,
+    or text for a text setting), the measured ``speed`` [m/s] and its ``std``
+    (None: not given), from ``source`` (for messages)."""
+
+    settings: dict[str, np.ndarray]
+    speed: np.ndarray
+    std: np.ndarray | None
+    source: str
+
+    @property
+    def count(self) -> int:
+        return int(self.speed.size)
+
+
+def read_measurements(path: Path) -> Measurements:
+    """The points of a measurements CSV, each value checked against its setting's range."""
+    where = str(path)
+    try:
+        with Path(path).open(newline="") as stream:
+            lines = list(csv.reader(stream))
+    except (OSError, UnicodeDecodeError, csv.Error) as error:
+        raise MeasurementsError(f"{where}: cannot read: {error}") from None
+    rows = [(number, row) for number, row in enumerate(lines, start=1) if any(cell.strip() for cell in row)]
+    if not rows:
+        raise MeasurementsError(f"{where}: empty (expected a header row and one row per operating point)")
+    (header_line, header), body = rows[0], rows[1:]
+    names = [name.strip() for name in header]
+    _check_header(where, header_line, names)
+    columns: dict[str, list[Any]] = {name: [] for name in names}
+    for line, row in body:
+        if len(row) != len(names):
+            raise MeasurementsError(f"{where}: line {line}: {len(row)} values, the header has {len(names)}")
+        for name, cell in zip(names, row):
+            columns[name].append(_value(where, line, name, cell.strip()))
+    if not body:
+        raise MeasurementsError(f"{where}: no operating points (only the header)")
+    speed = np.asarray(columns.pop(SPEED), dtype=float)
+    std = np.asarray(columns.pop(STD), dtype=float) if STD in columns else None
+    settings = {name: np.asarray(values) if name in FIELDS and FIELDS[name].kind is str else
+                np.asarray(values, dtype=float) for name, values in columns.items()}
+    return Measurements(settings, speed, std, where)
+
+
+def _check_header(where: str, line: int, names: list[str]) -> None:
+    unknown = [name for name in names if name not in (*KEYS, SPEED, STD)]
+    if unknown:
+        raise MeasurementsError(f"{where}: line {line}: unknown column '{unknown[0]}' (columns: the model's settings, "
+                                f"{', '.join(DERIVED)}, {SPEED} [m/s] and optionally {STD} [m/s])")
+    repeated = next((name for name in names if names.count(name) > 1), None)
+    if repeated:
+        raise MeasurementsError(f"{where}: line {line}: column '{repeated}' given twice")
+    if SPEED not in names:
+        raise MeasurementsError(f"{where}: line {line}: no '{SPEED}' column (the measured mean speed [m/s])")
+    targets = [DERIVED[name][0] if name in DERIVED else name for name in names if name not in (SPEED, STD)]
+    twice = next((name for name in targets if targets.count(name) > 1), None)
+    if twice:
+        raise MeasurementsError(f"{where}: line {line}: {twice} is set by two columns")
+
+
+def _value(where: str, line: int, name: str, cell: str) -> Any:
+    """One cell, checked: a finite number in its setting's range (a text setting: one of its choices)."""
+    setting = FIELDS.get(name) or (DERIVED[name][1] if name in DERIVED else None)
+    if setting is not None and setting.kind is str:
+        try:
+            return setting.check(cell)
+        except ParameterError as error:
+            raise MeasurementsError(f"{where}: line {line}: {error}") from None
+    try:
+        value = float(cell)
+    except ValueError:
+        raise MeasurementsError(f"{where}: line {line}: {name} = {cell!r} is not a number") from None
+    if not math.isfinite(value):
+        raise MeasurementsError(f"{where}: line {line}: {name} = {cell!r} rejected: must be finite")
+    if name == STD and not value > 0.0:
+        raise MeasurementsError(f"{where}: line {line}: {STD} = {cell} rejected: must be > 0 [m/s]")
+    if setting is not None:
+        try:
+            setting.check(value)
+        except ParameterError as error:
+            raise MeasurementsError(f"{where}: line {line}: {error}") from None
+    return value
+
+
+def read_fixed(path: Path | None, flags: list[str]) -> dict[str, Any]:
+    """The fixed settings: a YAML mapping or a ROS 2 parameters file (its ``/**``
+    or ``slider`` section), then ``name=value`` flags; each checked."""
+    values: dict[str, Any] = {}
+    if path is not None:
+        values.update(_fixed_file(path))
+    for flag in flags:
+        name, sep, text = flag.partition("=")
+        if not sep:
+            raise MeasurementsError(f"--set {flag!r}: expected name=value")
+        values[name.strip()] = yaml.safe_load(text)
+    for name, value in values.items():
+        setting = FIELDS.get(name) or (DERIVED[name][1] if name in DERIVED else None)
+        if setting is None:
+            continue  # a node's other parameters (a parameters file holds them too): not the model's
+        try:
+            values[name] = setting.check(value)
+        except ParameterError as error:
+            raise MeasurementsError(f"fixed settings: {error}") from None
+    return {name: value for name, value in values.items() if name in KEYS}
+
+
+def _fixed_file(path: Path) -> dict[str, Any]:
+    """A plain mapping of settings, or a ROS 2 parameters file (through the one reader of those)."""
+    try:
+        document = yaml.safe_load(Path(path).read_text()) or {}
+    except (OSError, yaml.YAMLError) as error:
+        raise MeasurementsError(f"cannot read fixed settings {path}: {error}") from None
+    if not isinstance(document, dict):
+        raise MeasurementsError(f"{path}: expected a mapping of settings (or a ROS 2 parameters file)")
+    if any(key in document for key in ("/**", "slider", "/slider")):
+        return read_params_file(Path(path), "slider")
+    return dict(document)
+
+
+__all__ = ["SPEED", "STD", "Measurements", "MeasurementsError", "read_fixed", "read_measurements"]

@@ -1,0 +1,155 @@
+"""``friction-sim calibrate`` (issue 22, items 1 and 3): the model fitted to
+measured operating points, with honest uncertainty, and refused where the data
+cannot determine it.  Synthetic measurements come from the exact core
+(the population engine) at known parameters, plus seeded noise."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from friction_sim.core.engine.population import run_batch
+from friction_sim.core.model import spec
+from friction_sim.core.model.params import plant_from
+from friction_sim.experiment.calibration import CalibrationError, FitOptions, calibrate
+from friction_sim.experiment.measurements import Measurements, MeasurementsError, read_fixed, read_measurements
+from friction_sim.experiment.scenario import parse_scenario
+from friction_sim.experiment.sweep import materialize, parse_sweep
+from friction_sim.io.paramfile import read_params_file
+
+BIN = Path(sys.executable).parent
+#: Averaging windows of the synthetic truth and of the fit: the same, so the model can meet the data exactly.
+WINDOW = {"settle_periods": 50, "periods": 50}
+TRUTH = {"mu": 0.12, "static_ratio": 1.3}
+#: Operating points: Pa 5..8 N at Fd 0.7, 0.9 and 1.1 N (m = 1 kg, g = 10): every one moving.
+AMPLITUDE, DRIVE = (grid.ravel() for grid in np.meshgrid(np.linspace(5.0, 8.0, 4), np.array([0.7, 0.9, 1.1])))
+
+
+def speeds(**plant: Any) -> np.ndarray:
+    """The exact mean speeds [m/s] of the operating points for ``plant``."""
+    values: dict[str, Any] = {name: s.default for name, s in {**spec.PLANT, **spec.INPUTS}.items()}
+    values.update(plant, excitation_amplitude=AMPLITUDE, drive_force=DRIVE)
+    return np.asarray(run_batch(values, **WINDOW).mean_velocity)
+
+
+def points(speed: np.ndarray, std: np.ndarray | None = None) -> Measurements:
+    return Measurements({"excitation_amplitude": AMPLITUDE, "drive_force": DRIVE}, speed, std, "synthetic")
+
+
+def test_without_noise_the_fit_returns_the_truth() -> None:
+    """Two parameters from the defaults (mu 0.1, mu_s/mu 1): the truth to 1e-6
+    relative (the issue's target; it comes back to about 1e-14)."""
+    result = calibrate(points(speeds(**TRUTH)), {}, FitOptions(fit=("mu", "static_ratio"), **WINDOW))
+    for estimate in result.estimates:
+        assert estimate.value == pytest.approx(TRUTH[estimate.name], rel=1e-6)
+    assert np.max(np.abs(result.residuals)) <= 1e-12 * np.max(speeds(**TRUTH))
+
+
+@pytest.mark.parametrize(("name", "fixed"), [("mu", {"static_ratio": 1.3}), ("static_ratio", {"mu": 0.12})])
+def test_the_95_percent_intervals_cover_the_truth_in_90_to_99_percent_of_seeds(name: str,
+                                                                                fixed: dict[str, float]) -> None:
+    """100 seeds of white noise, 2 % of the largest speed, given as std: the
+    truth inside the 95 % interval in 90-99 % of them (binomial: 95 % +- 2.2 %
+    for 100 seeds).  Joint (mu, mu_s/mu) intervals are not covered that well
+    (about 70 %): the two correlate strongly and nonlinearly over such points,
+    and a linearized interval cannot say so; fit one at a time, or measure
+    where they act differently."""
+    truth = speeds(**TRUTH)
+    sigma = 0.02 * float(np.max(truth))
+    covered = 0
+    for seed in range(100):
+        noisy = truth + np.random.default_rng(seed).normal(0.0, sigma, truth.size)
+        result = calibrate(points(noisy, np.full(truth.size, sigma)), fixed, FitOptions(fit=(name,), starts=1,
+                                                                                      **WINDOW))
+        (estimate,) = result.estimates
+        covered += estimate.low <= TRUTH[name] <= estimate.high
+    assert 90 <= covered <= 99, covered
+
+
+def test_a_robust_loss_resists_an_outlier() -> None:
+    truth = speeds(**TRUTH)
+    sigma = 0.01 * float(np.max(truth))
+    noisy = truth + np.random.default_rng(1).normal(0.0, sigma, truth.size)
+    noisy[5] *= 3.0  # a mistimed run
+    plain = calibrate(points(noisy, np.full(truth.size, sigma)), {"static_ratio": 1.3},
+                      FitOptions(fit=("mu",), starts=1, **WINDOW))
+    robust = calibrate(points(noisy, np.full(truth.size, sigma)), {"static_ratio": 1.3},
+                       FitOptions(fit=("mu",), starts=1, loss="soft_l1", **WINDOW))
+    assert abs(robust.estimates[0].value - 0.12) < abs(plain.estimates[0].value - 0.12)
+    assert robust.estimates[0].low <= 0.12 <= robust.estimates[0].high
+
+
+def test_each_kind_of_refusal_says_why_in_one_line() -> None:
+    still = Measurements({"excitation_amplitude": np.array([0.5, 1.0, 1.5])}, np.zeros(3), None, "still.csv")
+    with pytest.raises(CalibrationError, match=r"every point lies in the no-motion region.*mu not identifiable"):
+        calibrate(still, {}, FitOptions(fit=("mu",), **WINDOW))
+    one = Measurements({"excitation_amplitude": np.array([5.0])}, np.array([3e-4]), None, "one.csv")
+    with pytest.raises(CalibrationError, match="1 points cannot determine 2 parameters"):
+        calibrate(one, {}, FitOptions(fit=("mu", "static_ratio"), **WINDOW))
+    only_amplitude = Measurements({"excitation_amplitude": AMPLITUDE[:4]}, speeds(**TRUTH)[:4], None, "a.csv")
+    with pytest.raises(CalibrationError, match=r"mu and mass correlate [+-]0\.99\d\d.*cannot tell them apart"):
+        calibrate(only_amplitude, {"drive_force": 0.7, "static_ratio": 1.3}, FitOptions(fit=("mu", "mass"), **WINDOW))
+    with pytest.raises(CalibrationError, match="not a plant parameter"):
+        FitOptions(fit=("friction",))
+    with pytest.raises(CalibrationError, match="both fitted and given"):
+        calibrate(points(speeds(**TRUTH)), {"mu": 0.1}, FitOptions(fit=("mu",), **WINDOW))
+
+
+@pytest.mark.parametrize(("text", "words"), [
+    ("excitation_amplitude,mean_speed\n5.0,0.0003\n6.0,fast\n", ("line 3", "mean_speed", "'fast'", "not a number")),
+    ("excitation_amplitude,speed\n5.0,0.0003\n", ("line 1", "unknown column 'speed'")),
+    ("excitation_amplitude\n5.0\n", ("line 1", "no 'mean_speed' column")),
+    ("excitation_amplitude,mean_speed\n-5.0,0.0003\n", ("line 2", "excitation_amplitude = -5.0", "[0, 1e+06]")),
+    ("excitation_amplitude,mean_speed,std\n5.0,0.0003,0\n", ("line 2", "std = 0", "> 0")),
+    ("excitation_amplitude,mean_speed\n5.0,0.0003,1\n", ("line 2", "3 values, the header has 2")),
+    ("throw_number,excitation_amplitude,mean_speed\n1,5,0.0003\n", ("excitation_amplitude is set by two columns",)),
+    ("excitation_amplitude,mean_speed\n", ("no operating points",)),
+])
+def test_a_bad_csv_is_refused_with_its_file_line_and_reason(tmp_path: Path, text: str,
+                                                             words: tuple[str, ...]) -> None:
+    path = tmp_path / "points.csv"
+    path.write_text(text)
+    with pytest.raises(MeasurementsError) as caught:
+        read_measurements(path)
+    message = str(caught.value)
+    assert message.startswith(str(path)) and "\n" not in message
+    for word in words:
+        assert word in message, message
+
+
+def test_the_command_writes_a_plant_that_the_slider_scenarios_and_sweeps_read_as_it_is(tmp_path: Path) -> None:
+    truth = speeds(**TRUTH)
+    lines = ["excitation_amplitude,drive_force,mean_speed"] + [f"{float(a)!r},{float(d)!r},{float(v)!r}"
+                                                               for a, d, v in zip(AMPLITUDE, DRIVE, truth)]
+    (tmp_path / "points.csv").write_text("\n".join(lines) + "\n")
+    (tmp_path / "fixed.yaml").write_text("static_ratio: 1.3\n")
+    out = tmp_path / "out"
+    done = subprocess.run([str(BIN / "friction-sim"), "calibrate", str(tmp_path / "points.csv"), "--fit", "mu",
+                           "--fixed", str(tmp_path / "fixed.yaml"), "--settle-periods", "50", "--periods", "50",
+                           "--output", str(out)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "95 % interval" in done.stdout and "residual" in done.stdout
+    assert (out / "calibration.png").stat().st_size > 10_000 and (out / "residuals.csv").is_file()
+    values = read_params_file(out / "calibrated.yaml", "slider")  # the slider's --params reader
+    params = plant_from(values)[0]
+    assert params.mu == pytest.approx(0.12, rel=1e-6) and params.static_ratio == 1.3
+    scenario = parse_scenario(f"duration: 1.0\nplant_params: {out / 'calibrated.yaml'}\n", "s.yaml")
+    assert scenario.params == params
+    sweep = parse_sweep(f"periods: 2\nplant_params: {out / 'calibrated.yaml'}\ngrid: {{drive_force: [0.5, 0.9]}}\n")
+    columns = materialize(sweep, 0, sweep.size)
+    assert np.all(columns["mu"] == params.mu) and np.all(columns["static_ratio"] == 1.3)
+    assert list(columns["drive_force"]) == [0.5, 0.9], "the sweep's own sections still set what they set"
+
+
+def test_fixed_settings_come_from_a_mapping_or_a_parameters_file_and_flags(tmp_path: Path) -> None:
+    (tmp_path / "plain.yaml").write_text("mass: 0.02\nthrow_number: 1.5\n")
+    (tmp_path / "ros.yaml").write_text("/**:\n  ros__parameters:\n    mass: 0.03\n    publish_rate: 500.0\n")
+    assert read_fixed(tmp_path / "plain.yaml", ["mu=0.3"]) == {"mass": 0.02, "throw_number": 1.5, "mu": 0.3}
+    assert read_fixed(tmp_path / "ros.yaml", []) == {"mass": 0.03}, "a node's other parameters are not the model's"
+    with pytest.raises(MeasurementsError, match="mu = -1"):
+        read_fixed(None, ["mu=-1"])
