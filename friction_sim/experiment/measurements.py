@@ -6,7 +6,7 @@ field of the model, ``core/model/spec.py``'s PLANT and INPUTS, or a derived
 key: ``throw_number``, ``amplitude_ratio``, ``drive_ratio``;
 :data:`friction_sim.experiment.sweep.DERIVED`), then ``mean_speed`` [m/s], the
 speed timed over a length of track, and optionally ``std`` [m/s], its standard
-deviation.  For example::
+deviation.  Blank lines and lines starting with ``#`` are skipped.  For example::
 
     drive_level,excitation_frequency,mean_speed,std
     0.4,50,0.00102,0.00003
@@ -68,7 +68,8 @@ def read_measurements(path: Path) -> Measurements:
             lines = list(csv.reader(stream))
     except (OSError, UnicodeDecodeError, csv.Error) as error:
         raise MeasurementsError(f"{where}: cannot read: {error}") from None
-    rows = [(number, row) for number, row in enumerate(lines, start=1) if any(cell.strip() for cell in row)]
+    rows = [(number, row) for number, row in enumerate(lines, start=1)
+            if any(cell.strip() for cell in row) and not row[0].lstrip().startswith("#")]
     if not rows:
         raise MeasurementsError(f"{where}: empty (expected a header row and one row per operating point)")
     (header_line, header), body = rows[0], rows[1:]

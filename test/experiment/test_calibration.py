@@ -153,3 +153,9 @@ def test_fixed_settings_come_from_a_mapping_or_a_parameters_file_and_flags(tmp_p
     assert read_fixed(tmp_path / "ros.yaml", []) == {"mass": 0.03}, "a node's other parameters are not the model's"
     with pytest.raises(MeasurementsError, match="mu = -1"):
         read_fixed(None, ["mu=-1"])
+
+
+def test_the_shipped_example_loads_with_its_comment_lines_skipped() -> None:
+    measurements = read_measurements(Path(__file__).resolve().parents[2] / "config" / "calibration_example.csv")
+    assert measurements.count == 8 and set(measurements.settings) == {"excitation_amplitude", "drive_force"}
+    assert measurements.std is not None and np.all(measurements.std == 2e-5)
