@@ -12,8 +12,9 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
-        # Parameter files, scenarios and the Foxglove layout (config/*.foxglove_layout.json).
-        ('share/' + package_name + '/config', glob('config/*.yaml') + glob('config/*.json')),
+        # Parameter files, scenarios, the Foxglove layout (config/*.foxglove_layout.json) and the
+        # calibration example (config/*.csv).
+        ('share/' + package_name + '/config', glob('config/*.yaml') + glob('config/*.json') + glob('config/*.csv')),
         # `ros2 launch friction_sim feeder.launch.py` looks in share/<package>/launch.
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
     ],

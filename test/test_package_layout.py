@@ -112,6 +112,7 @@ def test_colcon_build_install_layout(tmp_path):
     assert (prefix / 'share' / PKG / 'launch' / 'feeder.launch.py').is_file()
     assert (prefix / 'share' / PKG / 'config' / 'controller.yaml').is_file()
     assert (prefix / 'share' / PKG / 'config' / 'friction_sim.foxglove_layout.json').is_file()
+    assert (prefix / 'share' / PKG / 'config' / 'calibration_example.csv').is_file()
 
     # The build must not leave anything behind in the source tree.  (Only
     # colcon/setuptools artefacts are checked: other files may legitimately
