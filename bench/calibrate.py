@@ -1,0 +1,75 @@
+"""Benchmark of calibration (issue 22): how long ``friction-sim calibrate`` takes
+for 5, 20 and 100 measured points, fitting mu and mu_s/mu together with the
+command's defaults (4 starts, 100 + 100 periods per point).
+
+The points are synthetic (the exact model at mu = 0.12, mu_s/mu = 1.3 over drive
+forces 0.6-1.0 N and amplitudes 4-8 N, plus 1 % seeded noise, given as std).  A
+fit costs a number of model evaluations (one population-engine run over all
+points each); the baseline measured in the same run is one such evaluation, so
+the figures to compare between machines are the ratios.  Timings are medians
+of a few fits.  Prints figures only: a benchmark never passes or fails on timing.
+
+Run: make bench   (or .venv/bin/python bench/calibrate.py [--repeats 3])
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from friction_sim.core.engine.population import run_batch
+from friction_sim.core.model import spec
+from friction_sim.experiment.calibration import FitOptions, calibrate
+from friction_sim.experiment.measurements import Measurements
+
+from _timing import median_time
+
+TRUTH = {"mu": 0.12, "static_ratio": 1.3}
+WINDOW = {"settle_periods": 100, "periods": 100}
+
+
+def synthetic(count: int) -> Measurements:
+    """``count`` operating points spread over drive force and amplitude, with 1 % noise."""
+    rng = np.random.default_rng(count)
+    amplitude = rng.uniform(4.0, 8.0, count)
+    drive = rng.uniform(0.6, 1.0, count)
+    values: dict[str, Any] = {name: s.default for name, s in {**spec.PLANT, **spec.INPUTS}.items()}
+    values.update(TRUTH, excitation_amplitude=amplitude, drive_force=drive)
+    speed = np.asarray(run_batch(values, **WINDOW).mean_velocity)
+    sigma = 0.01 * float(np.max(speed))
+    return Measurements({"excitation_amplitude": amplitude, "drive_force": drive},
+                        speed + rng.normal(0.0, sigma, count), np.full(count, sigma), f"{count} synthetic points")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description="calibration fit time for 5, 20 and 100 points")
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    options = FitOptions(fit=("mu", "static_ratio"), **WINDOW)
+    print("bench/calibrate.py  fit mu and static_ratio, 4 starts, 100 + 100 periods per point")
+    print(f"{'points':>6} {'fit [s]':>9} {'evaluations':>12} {'one evaluation [ms]':>20} {'fit / evaluation':>17}"
+          f"   estimates")
+    for count in (5, 20, 100):
+        measurements = synthetic(count)
+        model_values: dict[str, Any] = {name: s.default for name, s in {**spec.PLANT, **spec.INPUTS}.items()}
+        model_values.update(TRUTH, **{k: v for k, v in measurements.settings.items()})
+        run_batch(model_values, **WINDOW)  # compiled already: the first call of this size pays nothing more
+        evaluation = median_time(lambda values=model_values: run_batch(values, **WINDOW), 5)
+        result = calibrate(measurements, {}, options)
+        fit = median_time(lambda points=measurements: calibrate(points, {}, options), args.repeats)
+        words = ", ".join(f"{e.name} {e.value:.5g} +- {e.std_error:.2g}" for e in result.estimates)
+        print(f"{count:>6} {fit:>9.3f} {result.evaluations:>12} {evaluation * 1e3:>20.2f} "
+              f"{fit / evaluation:>17.0f}   {words}")
+    print(f"(measured {time.strftime('%Y-%m-%d %H:%M')}; the machine is shared: compare the ratios)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
