@@ -13,7 +13,14 @@ from pathlib import Path
 
 from friction_sim.cli.options import Verb, add_flag
 from friction_sim.core.model import spec
-from friction_sim.experiment.calibration import LOSSES, FitOptions, calibrate, summary, write_residuals
+from friction_sim.experiment.calibration import (
+    LOSSES,
+    CalibrationError,
+    FitOptions,
+    calibrate,
+    summary,
+    write_residuals,
+)
 from friction_sim.experiment.measurements import read_fixed, read_measurements
 
 F_SCALE = spec.Setting("f_scale", 1.0, "-", "where the robust loss starts, in standard deviations", 1e-6, 1e6)
@@ -25,8 +32,9 @@ PERIODS = spec.Setting("periods", 100, "periods", "whole periods averaged per po
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The ``calibrate`` options."""
-    parser.add_argument("measurements", type=Path, help="CSV of operating points: the varied settings, mean_speed "
-                                                         "[m/s] and optionally std [m/s]")
+    parser.add_argument("measurements", type=Path, help="CSV of operating points (the varied settings, mean_speed "
+                                                         "[m/s] and optionally std [m/s]), or a recording (.mcap) "
+                                                         "whose trajectory to fit")
     parser.add_argument("--fit", required=True, help="the plant parameters to fit, comma-separated (e.g. "
                                                      "mu,static_ratio)")
     parser.add_argument("--fixed", type=Path, help="the settings that do not vary: a YAML mapping in the sweeps' "
@@ -43,23 +51,46 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """``calibrate``: read, fit, print the estimates and write the outputs."""
+    options = FitOptions(fit=tuple(name.strip() for name in args.fit.split(",") if name.strip()), loss=args.loss,
+                         f_scale=args.f_scale, starts=args.starts, seed=args.seed,
+                         settle_periods=args.settle_periods, periods=args.periods)
+    if args.measurements.suffix == ".mcap":
+        return _recording(args, options)
     from friction_sim.cli.figures import calibration_figure, save_figure
 
     measurements = read_measurements(args.measurements)
     fixed = read_fixed(args.fixed, args.set)
-    options = FitOptions(fit=tuple(name.strip() for name in args.fit.split(",") if name.strip()), loss=args.loss,
-                         f_scale=args.f_scale, starts=args.starts, seed=args.seed,
-                         settle_periods=args.settle_periods, periods=args.periods)
     result = calibrate(measurements, fixed, options)
     for line in summary(result):
         print(line)
-    args.output.mkdir(parents=True, exist_ok=True)
-    plant = args.output / "calibrated.yaml"
-    plant.write_text(result.parameters_file())
-    print(f"wrote {plant} (slider --params, a scenario's or a sweep's plant_params)")
+    _write_plant(args.output, result.parameters_file())
     print(f"wrote {write_residuals(result, args.output / 'residuals.csv')}")
     print(f"wrote {save_figure(calibration_figure(result), args.output / 'calibration.png')}")
     return 0
+
+
+def _recording(args: argparse.Namespace, options: FitOptions) -> int:
+    """A recording: fit its trajectory (the commands in force are the file's own)."""
+    from friction_sim.cli.figures import run_calibration_figure, save_figure
+    from friction_sim.experiment.calibration_run import calibrate_run
+    from friction_sim.io.reader import read_recording
+    from friction_sim.io.verify import recorded_run
+
+    if args.fixed is not None or args.set:
+        raise CalibrationError("--fixed and --set do not apply to a recording: its settings are the file's")
+    result = calibrate_run(recorded_run(read_recording(args.measurements)), options)
+    for line in result.summary():
+        print(line)
+    _write_plant(args.output, result.parameters_file())
+    print(f"wrote {save_figure(run_calibration_figure(result), args.output / 'calibration.png')}")
+    return 0
+
+
+def _write_plant(folder: Path, text: str) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    plant = folder / "calibrated.yaml"
+    plant.write_text(text)
+    print(f"wrote {plant} (slider --params, a scenario's or a sweep's plant_params)")
 
 
 VERBS = (Verb("calibrate", "fit mu, static_ratio, restitution, exciter data... to measured mean speeds, with "

@@ -42,6 +42,7 @@ if TYPE_CHECKING:
     from friction_sim.core.meanspeed.reduction import ReductionCurves
     from friction_sim.core.meanspeed.tuning import TuningCurve
     from friction_sim.experiment.calibration import Calibration
+    from friction_sim.experiment.calibration_run import RunCalibration
 
 
 #: The resolution of every saved figure [dots per inch]: print quality, and
@@ -352,6 +353,33 @@ def calibration_figure(calibration: Calibration) -> Figure:
                                               for e in calibration.estimates), fontsize=10)
     for axes in (left, right):
         axes.grid(alpha=0.3)
+    return fig
+
+
+def run_calibration_figure(result: RunCalibration) -> Figure:
+    """A fit to a recording: the recorded position and velocity (points) and the
+    fitted model's (line) against time, and each one's residual below."""
+    fig = pyplot_free_figure(figsize=(10.0, 7.0), layout="constrained")
+    (x_axes, v_axes), (dx_axes, dv_axes) = fig.subplots(2, 2, sharex=True)
+    run = result.run
+    tx, tv = run.pose_ns / 1e9, run.velocity_ns / 1e9
+    x_axes.plot(tx, run.x * 1e3, ".", color="0.5", markersize=2, label="recorded")
+    x_axes.plot(tx, result.fitted_x * 1e3, "-", color="tab:red", linewidth=1.0, label="fitted")
+    v_axes.plot(tv, run.v * 1e3, ".", color="0.5", markersize=2, label="recorded")
+    v_axes.plot(tv, result.fitted_v * 1e3, "-", color="tab:red", linewidth=1.0, label="fitted")
+    dx_axes.plot(tx, (run.x - result.fitted_x) * 1e6, ".", color="tab:blue", markersize=2)
+    dv_axes.plot(tv, (run.v - result.fitted_v) * 1e3, ".", color="tab:blue", markersize=2)
+    x_axes.set_ylabel("x [mm]")
+    v_axes.set_ylabel("v [mm/s]")
+    dx_axes.set_ylabel(r"recorded $-$ fitted x [$\mu$m]")
+    dv_axes.set_ylabel(r"recorded $-$ fitted v [mm/s]")
+    for axes in (dx_axes, dv_axes):
+        axes.set_xlabel("time [s]")
+    for axes in (x_axes, v_axes, dx_axes, dv_axes):
+        axes.grid(alpha=0.3)
+    x_axes.legend(fontsize=8)
+    fig.suptitle("Calibration against a recording: " + ", ".join(
+        f"{e.name} = {e.value:.6g} ± {e.std_error:.2g}" for e in result.estimates), fontsize=10)
     return fig
 
 

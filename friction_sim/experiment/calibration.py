@@ -34,6 +34,7 @@ from __future__ import annotations
 import csv
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -126,16 +127,8 @@ class Calibration:
         return np.asarray(self.measurements.speed - self.fitted_speed)
 
     def parameters_file(self) -> str:
-        """The calibrated plant as a ROS 2 parameters file: ``slider --params``,
-        a scenario's ``plant_params`` and a sweep's ``plant_params`` read it as it is."""
-        lines = ["# Calibrated by friction-sim calibrate from " + self.measurements.source,
-                 "# " + ", ".join(f"{e.name} = {e.value:.10g} +- {e.std_error:.3g} (95 %: {e.low:.6g} .. "
-                                  f"{e.high:.6g})" for e in self.estimates),
-                 "/**:", "  ros__parameters:"]
-        for name in spec.PLANT:
-            value = getattr(self.params, name)
-            lines.append(f"    {name}: {value}" if isinstance(value, str) else f"    {name}: {float(value)!r}")
-        return "\n".join(lines) + "\n"
+        """The calibrated plant as a ROS 2 parameters file (see :func:`parameters_file`)."""
+        return parameters_file(self.params, self.estimates, self.measurements.source)
 
 
 class _Model:
@@ -175,7 +168,6 @@ class _Model:
 def calibrate(measurements: Measurements, fixed: dict[str, Any], options: FitOptions) -> Calibration:
     """Fit ``options.fit`` to the measured speeds (see the module doc); a
     :class:`CalibrationError` if the data cannot determine them."""
-    from scipy.optimize import least_squares
 
     started = time.perf_counter()
     n, p = measurements.count, len(options.fit)
@@ -186,30 +178,15 @@ def calibrate(measurements: Measurements, fixed: dict[str, Any], options: FitOpt
                                                    "parameters"))
     model = _Model(measurements, fixed, options)
     scale = measurements.std if known else np.full(n, _rms(measurements.speed))
-    low, high = _bounds(options.fit)
 
     def residuals(x: np.ndarray) -> np.ndarray:
         return np.asarray((model.speed(x) - measurements.speed) / scale)
 
-    best = None
-    for start in _starts(options, fixed, low, high):
-        result = least_squares(residuals, start, bounds=(low, high), loss=options.loss, f_scale=options.f_scale,
-                               x_scale=_scales(start, low, high), diff_step=1e-7, xtol=1e-14, ftol=1e-14,
-                               gtol=1e-14, max_nfev=400)
-        if best is None or result.cost < best.cost:
-            best = result
-    assert best is not None
-    jacobian = np.asarray(best.jac, dtype=float)
-    _check_identifiable(jacobian, measurements, options)
+    best = fit_least_squares(residuals, options, fixed)
+    if not np.all(np.any(np.asarray(best.jac) != 0.0, axis=0)):
+        _refuse_unidentifiable(np.asarray(best.jac), measurements, options)
     dof = n - p
-    variance = 1.0 if known else float(np.sum(best.fun**2)) / dof
-    covariance = np.linalg.pinv(jacobian.T @ jacobian) * variance
-    errors = np.sqrt(np.diag(covariance))
-    correlation = covariance / np.outer(errors, errors)
-    _check_correlation(correlation, options.fit)
-    quantile = Z95 if known else _t95(dof)
-    estimates = tuple(Estimate(name, float(v), float(e), float(v - quantile * e), float(v + quantile * e))
-                      for name, v, e in zip(options.fit, best.x, errors))
+    estimates, correlation = estimates_from(best, options.fit, known, dof)
     values = model.values(best.x)
     params = plant_from({name: _scalar(values[name]) for name in spec.PLANT})[0]
     return Calibration(estimates, correlation, measurements, model.speed(best.x), params, known, dof,
@@ -225,13 +202,7 @@ def summary(calibration: Calibration) -> list[str]:
         f"the residuals' scatter ({c.degrees_of_freedom} degrees of freedom, t intervals)")
     lines = [f"calibrated from {m.count} points of {m.source} in {c.seconds:.2f} s ({c.starts} starts, "
              f"{c.evaluations} evaluations); uncertainty from {scatter}",
-             f"{'parameter':<24}{'estimate':>16}{'std error':>14}{'95 % interval':>34}"]
-    lines += [f"{e.name:<24}{e.value:>16.8g}{e.std_error:>14.3g}   [{e.low:.8g}, {e.high:.8g}]" for e in c.estimates]
-    names = [e.name for e in c.estimates]
-    lines.append("correlation: " + ("  ".join(names) if len(names) > 1 else "(one parameter)"))
-    if len(names) > 1:
-        lines += [f"  {name:<22}" + " ".join(f"{value:+.4f}" for value in row)
-                  for name, row in zip(names, c.correlation)]
+             *estimate_lines(c.estimates, c.correlation)]
     varied = list(m.settings)
     lines.append("point  " + "  ".join(f"{name:>14}" for name in varied)
                  + f"  {'measured m/s':>14}  {'fitted m/s':>14}  {'residual m/s':>14}")
@@ -259,6 +230,68 @@ def _cell(value: Any) -> str:
     return str(value) if isinstance(value, str) else f"{float(value):.10g}"
 
 
+def fit_least_squares(residuals: Callable[[np.ndarray], np.ndarray], options: FitOptions,
+                      given: dict[str, Any], first: np.ndarray | None = None) -> Any:
+    """SciPy's bounded least squares of ``residuals`` over ``options.fit`` from
+    each starting point (``first``, else the settings ``given``, then the ones
+    drawn), the best result kept (scipy.optimize.OptimizeResult)."""
+    from scipy.optimize import least_squares
+
+    low, high = _bounds(options.fit)
+    best = None
+    for start in _starts(options, given, low, high, first):
+        result = least_squares(residuals, start, bounds=(low, high), loss=options.loss, f_scale=options.f_scale,
+                               x_scale=_scales(start, low, high), diff_step=1e-7, xtol=1e-14, ftol=1e-14,
+                               gtol=1e-14, max_nfev=400)
+        if best is None or result.cost < best.cost:
+            best = result
+    assert best is not None
+    return best
+
+
+def estimates_from(best: Any, names: tuple[str, ...], known: bool, dof: int) -> tuple[tuple[Estimate, ...],
+                                                                                    np.ndarray]:
+    """Estimates with standard errors and 95 % intervals, and their correlation,
+    from the linearized covariance at the optimum (residuals in units of their
+    deviations: ``known``, or scaled by the residual variance over ``dof``);
+    refused if two parameters correlate beyond :data:`MAX_CORRELATION`."""
+    jacobian = np.asarray(best.jac, dtype=float)
+    variance = 1.0 if known else float(np.sum(best.fun**2)) / dof
+    covariance = np.linalg.pinv(jacobian.T @ jacobian) * variance
+    errors = np.sqrt(np.diag(covariance))
+    correlation = covariance / np.outer(errors, errors)
+    _check_correlation(correlation, names)
+    quantile = Z95 if known else _t95(dof)
+    estimates = tuple(Estimate(name, float(v), float(e), float(v - quantile * e), float(v + quantile * e))
+                      for name, v, e in zip(names, best.x, errors))
+    return estimates, correlation
+
+
+def parameters_file(params: SliderParams, estimates: tuple[Estimate, ...], source: str) -> str:
+    """A calibrated plant as a ROS 2 parameters file: ``slider --params``, a
+    scenario's ``plant_params`` and a sweep's ``plant_params`` read it as it is."""
+    lines = ["# Calibrated by friction-sim calibrate from " + source,
+             "# " + ", ".join(f"{e.name} = {e.value:.10g} +- {e.std_error:.3g} (95 %: {e.low:.6g} .. "
+                              f"{e.high:.6g})" for e in estimates),
+             "/**:", "  ros__parameters:"]
+    for name in spec.PLANT:
+        value = getattr(params, name)
+        lines.append(f"    {name}: {value}" if isinstance(value, str) else f"    {name}: {float(value)!r}")
+    return "\n".join(lines) + "\n"
+
+
+def estimate_lines(estimates: tuple[Estimate, ...], correlation: np.ndarray) -> list[str]:
+    """The estimates table and the correlation matrix, as lines of text."""
+    lines = [f"{'parameter':<24}{'estimate':>16}{'std error':>14}{'95 % interval':>34}"]
+    lines += [f"{e.name:<24}{e.value:>16.8g}{e.std_error:>14.3g}   [{e.low:.8g}, {e.high:.8g}]" for e in estimates]
+    names = [e.name for e in estimates]
+    lines.append("correlation: " + ("  ".join(names) if len(names) > 1 else "(one parameter)"))
+    if len(names) > 1:
+        lines += [f"  {name:<22}" + " ".join(f"{value:+.4f}" for value in row)
+                  for name, row in zip(names, correlation)]
+    return lines
+
+
 def _rms(speed: np.ndarray) -> float:
     """The measured speeds' RMS [m/s] (the residuals' unit without deviations; 1 mm/s if all are 0)."""
     rms = float(np.sqrt(np.mean(speed**2)))
@@ -280,11 +313,13 @@ def _scales(start: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
     return np.where(start != 0.0, np.abs(start), span)
 
 
-def _starts(options: FitOptions, fixed: dict[str, Any], low: np.ndarray, high: np.ndarray) -> list[np.ndarray]:
-    """The settings given (else the defaults), then ``starts - 1`` points drawn
-    (seeded) across the bounds: log-uniform within a decade either side for a
-    positive parameter whose range spans decades, uniform otherwise."""
-    first = np.array([float(fixed.get(n, FITTABLE[n].default)) for n in options.fit])
+def _starts(options: FitOptions, given: dict[str, Any], low: np.ndarray, high: np.ndarray,
+            first: np.ndarray | None = None) -> list[np.ndarray]:
+    """``first``, else the settings given (else the defaults), then ``starts - 1``
+    points drawn (seeded) across the bounds: log-uniform within a decade either
+    side for a positive parameter whose range spans decades, uniform otherwise."""
+    if first is None:
+        first = np.array([float(given.get(n, FITTABLE[n].default)) for n in options.fit])
     first = np.clip(first, low, high)
     rng = np.random.default_rng(options.seed)
     starts = [first]
@@ -301,11 +336,9 @@ def _starts(options: FitOptions, fixed: dict[str, Any], low: np.ndarray, high: n
     return starts
 
 
-def _check_identifiable(jacobian: np.ndarray, measurements: Measurements, options: FitOptions) -> None:
+def _refuse_unidentifiable(jacobian: np.ndarray, measurements: Measurements, options: FitOptions) -> None:
     """Refuse a parameter the speeds do not depend on, at any point."""
     dead = [name for name, column in zip(options.fit, jacobian.T) if not np.any(column != 0.0)]
-    if not dead:
-        return
     if not np.any(measurements.speed != 0.0):
         raise CalibrationError(f"every point lies in the no-motion region (mean speed 0 measured and predicted at "
                                f"all {measurements.count} points): {', '.join(dead)} not identifiable there; "
@@ -338,4 +371,5 @@ def _scalar(column: np.ndarray) -> Any:
 
 
 __all__ = ["FITTABLE", "LOSSES", "MAX_CORRELATION", "Calibration", "CalibrationError", "Estimate", "FitOptions",
-           "calibrate", "summary", "write_residuals"]
+           "calibrate", "estimate_lines", "estimates_from", "fit_least_squares", "parameters_file", "summary",
+           "write_residuals"]

@@ -213,6 +213,61 @@ def verify(recording: Recording, tolerance: float = DEFAULT_TOLERANCE) -> Verify
     )
 
 
+@dataclass(frozen=True)
+class RecordedRun:
+    """A recording as a calibration fits to it: where it came from, its initial
+    values, the slider's accepted commands (in force at their recorded times),
+    the log rate, and the recorded samples: position x [m] at ``pose_ns`` and
+    velocity v [m/s] at ``velocity_ns`` (log times, ascending)."""
+
+    path: str
+    initial: dict[str, Any]
+    commands: tuple[Command, ...]
+    log_rate: float | None
+    pose_ns: IntArray
+    x: FloatArray
+    velocity_ns: IntArray
+    v: FloatArray
+
+
+def recorded_run(recording: Recording) -> RecordedRun:
+    """Read what a calibration needs from ``recording`` (refused, as by verify, if
+    the recorder dropped messages: a lost command would be fitted as physics)."""
+    recording.refuse_dropped("calibrated against")
+    values = initial_parameters(recording)
+    initial_plant(recording, values)  # refuse missing or invalid initial values here, naming the file
+    commands = tuple(command for command in recorded_commands(recording) if command.for_slider)
+    pose: list[tuple[IntArray, FloatArray]] = []
+    velocity: list[tuple[IntArray, FloatArray]] = []
+    for block in state_blocks(recording, {"pose": POSITION_XZ, "velocity": VELOCITY_XZ}):
+        pose.append((block["pose"][0], block["pose"][1][:, 0]))
+        velocity.append((block["velocity"][0], block["velocity"][1][:, 0]))
+    pose_ns, x = _joined(pose)
+    velocity_ns, v = _joined(velocity)
+    return RecordedRun(str(recording.path), values, commands, _log_rate(recording, values), pose_ns, x,
+                       velocity_ns, v)
+
+
+def _joined(blocks: list[tuple[IntArray, FloatArray]]) -> tuple[IntArray, FloatArray]:
+    """One series from the chunks' pieces, in time order."""
+    if not blocks:
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    times = np.concatenate([t for t, _ in blocks])
+    values = np.concatenate([v for _, v in blocks])
+    order = np.argsort(times, kind="stable")
+    return times[order], values[order]
+
+
+def resimulate(run: RecordedRun, params: SliderParams, inputs: Inputs) -> tuple[FloatArray, FloatArray]:
+    """The exact re-simulation of ``run`` from the plant ``params`` and ``inputs``
+    (its commands applied at their times, as verify applies them): x at the
+    pose samples' times and v at the velocity samples'."""
+    replay = _Replay(Slider(params, inputs, event_log_size=0), list(run.commands), run.log_rate)
+    times_ns = np.unique(np.concatenate([run.pose_ns, run.velocity_ns]))
+    x, v, _, _ = replay.states(times_ns)
+    return x[np.searchsorted(times_ns, run.pose_ns)], v[np.searchsorted(times_ns, run.velocity_ns)]
+
+
 def initial_plant(recording: Recording, values: dict[str, Any] | None = None) -> tuple[SliderParams, Inputs]:
     """The plant and inputs the run started with (``values``: its initial values,
     default :func:`initial_parameters`), what verify and the report re-simulate
@@ -362,5 +417,6 @@ def _relative(difference: float, scale: float) -> float:
 
 
 __all__ = [
-    "DEFAULT_TOLERANCE", "VerifyResult", "initial_parameters", "recorded_commands", "sample_times", "verify",
+    "DEFAULT_TOLERANCE", "RecordedRun", "VerifyResult", "initial_parameters", "recorded_commands", "recorded_run",
+    "resimulate", "sample_times", "verify",
 ]

@@ -159,3 +159,67 @@ def test_the_shipped_example_loads_with_its_comment_lines_skipped() -> None:
     measurements = read_measurements(Path(__file__).resolve().parents[2] / "config" / "calibration_example.csv")
     assert measurements.count == 8 and set(measurements.settings) == {"excitation_amplitude", "drive_force"}
     assert measurements.std is not None and np.all(measurements.std == 2e-5)
+
+
+# -- from a recording (issue 22, item 2) ------------------------------------------------------------------------
+
+def _recorded(tmp_path: Path, **changes: Any) -> Any:
+    """A recording of the simulator itself: a part that hops (Pa 12 -> 14 N at 80 degrees), mu 0.12, e 0.3."""
+    from friction_sim.core.model.commands import Command
+    from friction_sim.core.model.params import Inputs, SliderParams
+    from friction_sim.io.offline import record_offline
+    from friction_sim.io.reader import read_recording
+    from friction_sim.io.verify import recorded_run
+
+    schedule = [Command(0.5, "excitation_amplitude", {"excitation_amplitude": 14.0}), *changes.pop("schedule", [])]
+    record_offline(tmp_path / "run.mcap", SliderParams(mu=0.12, restitution=0.3, excitation_angle=80.0),
+                   Inputs(excitation_amplitude=12.0, drive_force=0.9), schedule, duration=1.0, log_rate=1000.0)
+    return recorded_run(read_recording(tmp_path / "run.mcap"))
+
+
+def test_a_recording_gives_back_its_parameters_with_intervals_that_hold_them(tmp_path: Path) -> None:
+    """From the settings' defaults (mu 0.1, e 0), the commands in force read from
+    the file: without noise the truth to 1e-6; with white noise on the recorded
+    pose (1 um) and velocity (0.1 mm/s) the truth inside the 95 % intervals of
+    each of 3 seeds, and the noise of each series estimated within 10 %."""
+    import dataclasses
+
+    from friction_sim.experiment.calibration_run import calibrate_run
+
+    run = _recorded(tmp_path)
+    options = FitOptions(fit=("mu", "restitution"), starts=2)
+    exact = calibrate_run(run, options)
+    assert [e.value for e in exact.estimates] == pytest.approx([0.12, 0.3], rel=1e-6)
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        noisy = dataclasses.replace(run, x=run.x + rng.normal(0.0, 1e-6, run.x.size),
+                                    v=run.v + rng.normal(0.0, 1e-4, run.v.size))
+        result = calibrate_run(noisy, options)
+        for estimate, truth in zip(result.estimates, (0.12, 0.3)):
+            assert estimate.low <= truth <= estimate.high, (seed, estimate)
+        assert result.noise_x == pytest.approx(1e-6, rel=0.1) and result.noise_v == pytest.approx(1e-4, rel=0.1)
+
+
+def test_a_recording_that_changes_a_fitted_parameter_is_refused(tmp_path: Path) -> None:
+    from friction_sim.core.model.commands import PARAMETERS, Command
+    from friction_sim.experiment.calibration_run import calibrate_run
+
+    run = _recorded(tmp_path, schedule=[Command(0.7, PARAMETERS, {"mu": 0.2})])
+    with pytest.raises(CalibrationError, match="changes mu during the run"):
+        calibrate_run(run, FitOptions(fit=("mu",)))
+
+
+def test_the_command_fits_a_recording(tmp_path: Path) -> None:
+    _recorded(tmp_path)
+    done = subprocess.run([str(BIN / "friction-sim"), "calibrate", str(tmp_path / "run.mcap"), "--fit", "mu",
+                           "--starts", "1", "--output", str(tmp_path / "out")], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "1001 positions and 1001 velocities" in done.stdout
+    values = read_params_file(tmp_path / "out" / "calibrated.yaml", "slider")
+    assert values["mu"] == pytest.approx(0.12, rel=1e-6) and values["restitution"] == 0.3
+    assert (tmp_path / "out" / "calibration.png").stat().st_size > 10_000
+    refused = subprocess.run([str(BIN / "friction-sim"), "calibrate", str(tmp_path / "run.mcap"), "--fit", "mu",
+                              "--set", "mass=2", "--output", str(tmp_path / "o2")], capture_output=True, text=True,
+                             timeout=120)
+    assert refused.returncode == 2 and refused.stderr.count("\n") == 1 and "--set" in refused.stderr

@@ -1,0 +1,147 @@
+"""Fitting the model to a recorded run (``friction-sim calibrate run.mcap``).
+
+A recording holds the plant's initial values, every command that was in force
+and when, and the slider's trajectory: the position x and velocity v sampled
+on the log grid.  With the parameters being fitted replaced, the run is
+re-simulated exactly from the same commands (the re-simulation of ``replay
+--verify``, :func:`friction_sim.io.verify.resimulate`), and the fit minimizes
+the differences at every recorded sample.
+
+Position and velocity are measured by different means and in different units,
+each with its own noise, which the file does not state.  So the fit runs twice
+(the method of weighted least squares with estimated variances): first with
+each series in units of its own RMS, then with each in units of the scatter of
+its residuals from the first fit, starting from the first fit's answer; the
+intervals come from the second (:func:`~friction_sim.experiment.calibration.estimates_from`),
+the deviations then taken as known.  A fitted parameter that the recording
+itself changes mid-run (a ``ros2 param set`` on it) is refused: the run does
+not have one value of it to find.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from friction_sim.core.model.commands import PARAMETERS
+from friction_sim.core.model.params import Inputs, SliderParams, plant_from
+from friction_sim.errors import ParameterError
+from friction_sim.experiment.calibration import (
+    CalibrationError,
+    Estimate,
+    FitOptions,
+    estimate_lines,
+    estimates_from,
+    fit_least_squares,
+    parameters_file,
+)
+from friction_sim.io.verify import RecordedRun, resimulate
+
+
+@dataclass(frozen=True)
+class RunCalibration:
+    """The result of a fit to a recording: the estimates and their correlation,
+    the calibrated plant, the fitted trajectory at the recorded samples, and the
+    noise of each series the fit estimated [m, m/s]."""
+
+    run: RecordedRun
+    estimates: tuple[Estimate, ...]
+    correlation: np.ndarray
+    params: SliderParams
+    fitted_x: np.ndarray
+    fitted_v: np.ndarray
+    noise_x: float
+    noise_v: float
+    evaluations: int
+    seconds: float
+
+    def parameters_file(self) -> str:
+        return parameters_file(self.params, self.estimates, self.run.path)
+
+    def summary(self) -> list[str]:
+        """The estimates, their correlation and how well the trajectory is met, as lines of text."""
+        run = self.run
+        return [f"calibrated against {run.path}: {run.x.size} positions and {run.v.size} velocities, "
+                f"{len(run.commands)} commands in force, in {self.seconds:.2f} s ({self.evaluations} re-simulations)",
+                *estimate_lines(self.estimates, self.correlation),
+                f"residual RMS: x {self.noise_x:.3g} m, v {self.noise_v:.3g} m/s (the noise the fit attributes "
+                "to each series)"]
+
+
+class _Replays:
+    """The recording re-simulated for a vector of fitted values."""
+
+    def __init__(self, run: RecordedRun, names: tuple[str, ...]) -> None:
+        changed = sorted({name for command in run.commands if command.name == PARAMETERS
+                          for name in command.values if name in names})
+        if changed:
+            raise CalibrationError(f"{run.path}: the recording changes {', '.join(changed)} during the run: it has "
+                                   "no one value of it to fit")
+        if run.x.size + run.v.size <= len(names):
+            raise CalibrationError(f"{run.path}: {run.x.size + run.v.size} samples cannot determine "
+                                   f"{len(names)} parameters")
+        self.run, self.names = run, names
+        self.evaluations = 0
+
+    def plant(self, x: np.ndarray) -> tuple[SliderParams, Inputs]:
+        try:
+            return plant_from({**self.run.initial, **dict(zip(self.names, (float(v) for v in x)))})
+        except ParameterError as error:  # a cross-field rule of the plant (the bounds are the ranges)
+            raise CalibrationError(f"{self.run.path}: {error}") from None
+
+    def trajectory(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        self.evaluations += 1
+        return resimulate(self.run, *self.plant(x))
+
+
+def calibrate_run(run: RecordedRun, options: FitOptions) -> RunCalibration:
+    """Fit ``options.fit`` to the recorded trajectory (see the module doc)."""
+    started = time.perf_counter()
+    replays = _Replays(run, options.fit)
+    scale_x, scale_v = _rms(run.x), _rms(run.v)
+
+    def residuals_in(sx: float, sv: float) -> Callable[[np.ndarray], np.ndarray]:
+        def residuals(x: np.ndarray) -> np.ndarray:
+            sim_x, sim_v = replays.trajectory(x)
+            return np.concatenate([(sim_x - run.x) / sx, (sim_v - run.v) / sv])
+        return residuals
+
+    # The starts are the settings' defaults, not the file's values: those are what is in question
+    # (a recording of the simulator holds the truth).
+    given: dict[str, object] = {}
+    first = fit_least_squares(residuals_in(scale_x, scale_v), options, given)
+    sim_x, sim_v = replays.trajectory(first.x)
+    dof = run.x.size + run.v.size - len(options.fit)
+    inflation = math.sqrt((run.x.size + run.v.size) / dof)  # the residuals' scatter, for the parameters fitted
+    noise_x = max(_scatter(sim_x - run.x) * inflation, 1e-15 * scale_x)  # (a noise-free run: rounding)
+    noise_v = max(_scatter(sim_v - run.v) * inflation, 1e-15 * scale_v)
+    second = fit_least_squares(residuals_in(noise_x, noise_v), FitOptions(
+        fit=options.fit, loss=options.loss, f_scale=options.f_scale, starts=1, seed=options.seed,
+        settle_periods=options.settle_periods, periods=options.periods), given, first.x)
+    if not np.all(np.any(np.asarray(second.jac) != 0.0, axis=0)):
+        dead = [n for n, column in zip(options.fit, np.asarray(second.jac).T) if not np.any(column != 0.0)]
+        raise CalibrationError(f"{run.path}: {', '.join(dead)} changes nothing of the recorded trajectory: "
+                               "not identifiable from this run")
+    estimates, correlation = estimates_from(second, options.fit, True, dof)
+    fitted_x, fitted_v = replays.trajectory(second.x)
+    return RunCalibration(run, estimates, correlation, replays.plant(second.x)[0], fitted_x, fitted_v,
+                          _scatter(fitted_x - run.x), _scatter(fitted_v - run.v), replays.evaluations,
+                          time.perf_counter() - started)
+
+
+def _scatter(values: np.ndarray) -> float:
+    """The RMS of ``values`` (0 for none)."""
+    return float(np.sqrt(np.mean(values**2))) if values.size else 0.0
+
+
+def _rms(values: np.ndarray) -> float:
+    """A series' own size, its unit in the first fit (1 for a series that is all 0)."""
+    rms = _scatter(values)
+    return rms if rms > 0.0 else 1.0
+
+
+__all__ = ["RunCalibration", "calibrate_run"]
