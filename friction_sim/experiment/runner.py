@@ -126,7 +126,7 @@ def _play(spec: ExperimentSpec, plant: _InProcess | _Attached, executor: Any, pu
                 _record_unseen(plant.recorder, command.at(now + start))
             target = command.values.get("target_speed", target)
         operator.act(now, start)
-        executor.spin_once(timeout_sec=0.0005)
+        _spin_once(executor, 0.0005)
         if progress is not None and time.monotonic() - last_progress > 0.25:
             progress(_status(spec, now, target, plant.inputs(), result))
             last_progress = time.monotonic()
@@ -393,7 +393,20 @@ def _spin_until(executor: Any, done: Callable[[], bool], seconds: float, failure
     while not done():
         if time.monotonic() > deadline:
             raise ExperimentError(failure)
-        executor.spin_once(timeout_sec=0.01)
+        _spin_once(executor, 0.01)
+
+
+def _spin_once(executor: Any, timeout: float) -> None:
+    """One turn of the driver's executor; a message rclpy took but could not
+    convert (see :class:`friction_sim.ros.intake.LostMessages`) is lost and
+    counted, not the end of the experiment."""
+    from friction_sim.ros.intake import LostMessages
+
+    try:
+        executor.spin_once(timeout_sec=timeout)
+    except RuntimeError as error:
+        if not LostMessages.lost(error):
+            raise
 
 
 def _shift(result: ExperimentResult, start: float) -> None:

@@ -106,7 +106,7 @@ from friction_sim.io.messages import (
     stamp_ns,
 )
 from friction_sim.ros.graph import NameWatch
-from friction_sim.ros.intake import PolledGroup, ThrottledWarning, take_with_info
+from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, take_with_info
 from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
 from friction_sim.ros.run import CONTROLLER_EXIT_CODES, node_help, run_node, wall_ns
 
@@ -478,7 +478,7 @@ class ControllerNode(Node):
         report = self.runtime.status(namesake=self.names.problem, ready=self.ready)
         status = DiagnosticStatus(name="controller", hardware_id=self.get_fully_qualified_name(),
                                   level=bytes([report.level]), message=report.message,
-                                  values=key_values(report.values))
+                                  values=key_values({**report.values, "messages_lost": LostMessages.count}))
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = self.get_clock().now().to_msg()
         self._diag_pub.publish(msg)

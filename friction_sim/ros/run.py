@@ -30,6 +30,7 @@ from rclpy.utilities import remove_ros_args
 from friction_sim.core.model.commands import consumed_by
 from friction_sim.core.model.spec import Setting
 from friction_sim.errors import FrictionSimError, NodeFault, one_line
+from friction_sim.ros.intake import LostMessages
 
 RCLError = _rclpy.RCLError
 #: Exit codes of the node executables (``slider``, ``controller``, ``friction-sim feeder``).
@@ -140,6 +141,30 @@ class _InterruptFlag:
             self._previous = None
 
 
+#: More lost messages than this within :data:`LOST_WINDOW` seconds are no transient: the node stops.
+MAX_LOST = 10
+LOST_WINDOW = 10.0
+
+
+def _spin(executor: SingleThreadedExecutor, interrupted: _InterruptFlag) -> None:
+    """Spin until shut down.  A message rclpy took but could not convert, while
+    no signal is on its way, is lost and counted (diagnostics ``messages_lost``,
+    :class:`~friction_sim.ros.intake.LostMessages`) and the node spins on;
+    more than :data:`MAX_LOST` of them within :data:`LOST_WINDOW` s end it as a fault."""
+    recent: list[float] = []
+    while True:
+        try:
+            executor.spin()
+            return
+        except RuntimeError as error:
+            if interrupted.is_set() or not rclpy.ok() or not LostMessages.lost(error):
+                raise
+            now = time.monotonic()
+            recent = [t for t in recent if now - t < LOST_WINDOW] + [now]
+            if len(recent) > MAX_LOST:
+                raise
+
+
 def run_node(
     factory: Callable[[], Node | Sequence[Node]], args: Sequence[str] | None = None,
     *, prog: str = "friction_sim", help_text: str = "",
@@ -170,7 +195,7 @@ def run_node(
         nodes = list(made) if isinstance(made, Sequence) else [made]
         for node in nodes:
             executor.add_node(node)
-        executor.spin()
+        _spin(executor, interrupted)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except NodeFault:

@@ -104,7 +104,7 @@ from friction_sim.io.messages import (
 )
 from friction_sim.io.sinks import Sink, deliver_tick
 from friction_sim.ros.graph import NameWatch
-from friction_sim.ros.intake import PolledGroup, ThrottledWarning, take_all
+from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, take_all
 from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
 from friction_sim.ros.run import (
     EXIT_FAULT,
@@ -488,6 +488,7 @@ class SliderNode(Node):
         with self._lock:
             report = self._rt.diagnostics(wall_ns(), prediction)
         report.update(self._recording_report())
+        report["messages_lost"] = LostMessages.count  # taken by rclpy, not convertible (see ros/intake.py)
         if self.live is not None:
             report.update(self.live.stats())
         status = DiagnosticStatus(name="slider", hardware_id=self.get_fully_qualified_name())
