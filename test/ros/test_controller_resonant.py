@@ -64,7 +64,7 @@ def test_the_inner_loop_regulates_the_speed_through_the_drive_level(ros: None) -
     probe = _probe(ns, slider, controller)
     try:
         assert probe.spin_until(lambda: controller.ready, 15.0)
-        assert controller.runtime.drive is not None and controller.runtime.plant_drive_level == 0.6
+        assert controller.runtime.drive is not None and controller.runtime.drive.start_level == 0.6
         # 80 windows: the start's transient (one time constant is 7.7 periods) is long gone
         assert probe.spin_until(lambda: len(probe.received["mean_velocity"]) >= 80, 60.0)
         assert probe.spin_until(lambda: int(_controller_values(probe).get("windows_read", "0")) >= 60, 10.0)

@@ -273,8 +273,11 @@ class RealtimeController:
             self.drive = None
             return
         inner_loop, tracking, cycles = drive_settings(values)
-        # The plant runs at the level this loop last drove, or at the one it started with.
-        level = self.drive.loop.drive_level if self.drive is not None else self.plant_drive_level
+        # The plant runs at the level it was read to run at (once, when its model is adopted), or
+        # at the one this loop last drove.
+        level = self.plant_drive_level if self.plant_drive_level is not None else (
+            self.drive.loop.drive_level if self.drive is not None else None)
+        self.plant_drive_level = None
         self.drive = DriveRuntime(model, self.control.frequency, self.wanted_amplitude(), inner_loop=inner_loop,
                                   tracking=tracking, cycles=cycles, level=level)
 

@@ -68,6 +68,8 @@ class DriveRuntime:
         self.model = model
         self.inner_loop = inner_loop
         start = self._steady_level(model, frequency, wanted_amplitude) if level is None else level
+        #: The level the loop's model started from (the plant's, when known).
+        self.start_level = start
         self.loop = DriveLoop(model, frequency, start, tracking=tracking and inner_loop, cycles=cycles)
         self.lockin = LockIn(cycles=cycles)
         #: Accelerometer samples taken and refused; windows read; the latest reading.

@@ -118,3 +118,20 @@ def test_without_the_inner_loop_each_level_is_the_steady_gain_s() -> None:
     per_level = steady_response(1.0, 20.0, 50.0, 52.0, 0.02)[0]
     assert command.level == pytest.approx(runtime.control.output.amplitude / per_level, rel=1e-12)
     assert runtime.drive.lockin.readings() == [], "no lock-in without the inner loop"
+
+
+def test_the_loop_starts_from_the_level_the_plant_was_read_to_run_at() -> None:
+    """A controller whose own parameters already name the resonant actuator adopts the
+    plant's drive level when it takes the plant's model (once); later rebuilds keep the
+    level the loop drove."""
+    runtime = RealtimeController(values())
+    assert runtime.drive is not None and runtime.drive.loop.drive_level != 0.6
+    runtime.plant_drive_level = 0.6
+    current = values()
+    change = {"natural_frequency": 51.0}
+    runtime.adopt(runtime.with_parameters(change, current), change, current)
+    assert runtime.drive.start_level == 0.6 and runtime.plant_drive_level is None
+    runtime.drive.loop.drive_level = 0.55
+    change = {"damping_ratio": 0.03}
+    runtime.adopt(runtime.with_parameters(change, {**current, "natural_frequency": 51.0}), change, current)
+    assert runtime.drive.loop.drive_level == 0.55
