@@ -152,7 +152,6 @@ class ControllerNode(Node):
         self.output_listeners: list[Callable[[ControlOutput], None]] = []
         #: Called with each drive command published (resonant actuator).
         self.drive_listeners: list[Callable[[DriveCommand], None]] = []
-        self._last_level: float | None = None
         self._warn = ThrottledWarning(self.get_logger())
         self._amplitude_pub = self.create_publisher(Float64, "excitation_amplitude", QOS_DEPTH)
         self._diag_pub = self.create_publisher(DiagnosticArray, "diagnostics", QOS_DEPTH)
@@ -450,7 +449,6 @@ class ControllerNode(Node):
             self._frequency_pub.publish(Float64(data=command.frequency))
         if drive.inner_loop and not drive.settled:
             control.clock.note_change(wall_ns(), 1.0 / control.frequency, boundary)
-        self._last_level = command.level
         self._level_pub.publish(Float64(data=command.level))
         for listener in self.drive_listeners:
             listener(command)

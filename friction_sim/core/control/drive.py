@@ -325,6 +325,11 @@ class DriveLoop:
         before = self._planned[index - 1].level
         return abs(planned.level - before) > LEARNING_STEP * max(planned.level, before)
 
+    def level_of(self, reading: Vibration) -> float | None:
+        """The drive level this loop drove ``reading``'s window at (None: not one of its last 64)."""
+        planned = self._planned_for(reading)
+        return planned.level if planned is not None else None
+
     def _planned_for(self, reading: Vibration) -> _Planned | None:
         """The period this loop drove that ``reading`` is of (None: not one of the last 64)."""
         return next((p for p in self._planned if _close(p.t_start, reading.t_start)), None)

@@ -72,7 +72,7 @@ def config_of(values: Mapping[str, Any]) -> ControllerConfig:
         model=outer_model(model_of(values)),
         integral_gain=values["integral_gain"], max_amplitude_ratio=values["max_amplitude_ratio"],
         mean_window_periods=values["mean_window_periods"], settle_margin=values["settle_margin"],
-        secant=not (values["actuator"] == "resonant" and values.get("inner_loop", True)),
+        secant=not (values["actuator"] == "resonant" and drive_settings(values)[0]),
     )
 
 
@@ -266,7 +266,8 @@ class RealtimeController:
 
     def _rebuild_drive(self, values: Mapping[str, Any]) -> None:
         """The inner loop for the model in ``values`` (None for the force actuator),
-        starting from the level the model's steady gain gives for the Pa asked for."""
+        its model starting from the level the plant runs at (see below; unknown:
+        the model's steady gain's level for the Pa asked for)."""
         self._drive_values = {name: values[name] for name in (*MODEL, *DRIVE) if name in values}
         model = model_of(values) if all(name in values for name in MODEL) else None
         if model is None or not model.resonant:
@@ -308,11 +309,7 @@ class RealtimeController:
     def steady_drive(self) -> DriveCommand | None:
         """The drive level the model's steady gain gives for the Pa asked for now
         (each new Pa without the inner loop); None for the force actuator."""
-        if self.drive is None:
-            return None
-        level = self.drive.steady_level(self.wanted_amplitude())
-        self.drive.loop.drive_level = level
-        return DriveCommand(level, self.drive.frequency, False, self.drive.per_drive)
+        return self.drive.steady(self.wanted_amplitude()) if self.drive is not None else None
 
     def internal_error(self, reason: str) -> None:
         """Count an unexpected error (reported as ERROR from now on)."""

@@ -78,7 +78,6 @@ class DriveRuntime:
         self.windows_read = 0
         self.last_reading: Vibration | None = None
         self.per_drive = math.nan
-        self._levels: deque[tuple[float, float]] = deque(maxlen=64)  # (window start, level driving it)
         self._published: deque[float] = deque(maxlen=ECHOES)
         self._last_boundary: float | None = None
 
@@ -100,9 +99,11 @@ class DriveRuntime:
         :attr:`DriveLoop.steady`); always, without the inner loop (nothing to wait for)."""
         return self.loop.steady or not self.inner_loop
 
-    def steady_level(self, wanted_amplitude: float) -> float:
-        """The level the model's steady gain gives for ``wanted_amplitude`` [m/s^2] at the frequency in force."""
-        return min(max(self.loop.level_for(wanted_amplitude), 0.0), 1.0)
+    def steady(self, wanted_amplitude: float) -> DriveCommand:
+        """The level the model's steady gain gives for ``wanted_amplitude`` [m/s^2]
+        at the frequency in force, in [0, 1] (the drive without the inner loop)."""
+        self.loop.drive_level = min(max(self.loop.level_for(wanted_amplitude), 0.0), 1.0)
+        return DriveCommand(self.loop.drive_level, self.loop.frequency, False, self.per_drive)
 
     def take_acceleration(self, t: float, normal: float) -> str:
         """An accelerometer sample (simulation time, normal specific force
@@ -123,16 +124,13 @@ class DriveRuntime:
             self._restart()
         self._last_boundary = t
         if not self.inner_loop:
-            level = self.steady_level(wanted_amplitude)
-            self.loop.drive_level = level
-            return DriveCommand(level, self.loop.frequency, False, math.nan)
+            return self.steady(wanted_amplitude)
         self.lockin.add_boundary(t)
         readings = self.lockin.readings()
         for reading in readings:
             self._note(reading)
         before = self.loop.frequency
         level, frequency = self.loop.boundary(t, wanted_amplitude, readings)
-        self._levels.append((t, level))
         changed = frequency != before
         if changed:
             self._published.append(frequency)
@@ -142,7 +140,7 @@ class DriveRuntime:
         """Count a window read and keep its amplitude per unit of the level that drove it."""
         self.windows_read += 1
         self.last_reading = reading
-        level = next((lv for start, lv in self._levels if start == reading.t_start), None)
+        level = self.loop.level_of(reading)
         if level is not None and level > 0.0:
             self.per_drive = reading.amplitude / level
 
@@ -151,7 +149,6 @@ class DriveRuntime:
         loop = self.loop
         self.loop = DriveLoop(self.model, loop.frequency, loop.drive_level, tracking=loop.tracking,
                               cycles=loop.cycles)
-        self._levels.clear()
 
     def follow_frequency(self, frequency: float) -> None:
         """The drive frequency was set from outside (a command, the plant's
