@@ -20,6 +20,7 @@ not have one value of it to find.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable
@@ -119,9 +120,8 @@ def calibrate_run(run: RecordedRun, options: FitOptions) -> RunCalibration:
     inflation = math.sqrt((run.x.size + run.v.size) / dof)  # the residuals' scatter, for the parameters fitted
     noise_x = max(_scatter(sim_x - run.x) * inflation, 1e-15 * scale_x)  # (a noise-free run: rounding)
     noise_v = max(_scatter(sim_v - run.v) * inflation, 1e-15 * scale_v)
-    second = fit_least_squares(residuals_in(noise_x, noise_v), FitOptions(
-        fit=options.fit, loss=options.loss, f_scale=options.f_scale, starts=1, seed=options.seed,
-        settle_periods=options.settle_periods, periods=options.periods), given, first.x)
+    second = fit_least_squares(residuals_in(noise_x, noise_v), dataclasses.replace(options, starts=1), given,
+                               first.x)
     if not np.all(np.any(np.asarray(second.jac) != 0.0, axis=0)):
         dead = [n for n, column in zip(options.fit, np.asarray(second.jac).T) if not np.any(column != 0.0)]
         raise CalibrationError(f"{run.path}: {', '.join(dead)} changes nothing of the recorded trajectory: "

@@ -33,8 +33,8 @@ import numpy as np
 import yaml
 
 from friction_sim.errors import FrictionSimError, ParameterError
-from friction_sim.experiment.sweep import DERIVED, FIELDS, KEYS
-from friction_sim.io.paramfile import read_params_file
+from friction_sim.experiment.sweep import DERIVED, FIELDS, KEYS, setting_of
+from friction_sim.io.paramfile import is_parameters_file, node_parameters, read_yaml_mapping
 
 #: The measured quantity and its optional standard deviation.
 SPEED, STD = "mean_speed", "std"
@@ -108,7 +108,7 @@ def _check_header(where: str, line: int, names: list[str]) -> None:
 
 def _value(where: str, line: int, name: str, cell: str) -> Any:
     """One cell, checked: a finite number in its setting's range (a text setting: one of its choices)."""
-    setting = FIELDS.get(name) or (DERIVED[name][1] if name in DERIVED else None)
+    setting = setting_of(name) if name in KEYS else None
     if setting is not None and setting.kind is str:
         try:
             return setting.check(cell)
@@ -141,28 +141,16 @@ def read_fixed(path: Path | None, flags: list[str]) -> dict[str, Any]:
         if not sep:
             raise MeasurementsError(f"--set {flag!r}: expected name=value")
         values[name.strip()] = yaml.safe_load(text)
-    for name, value in values.items():
-        setting = FIELDS.get(name) or (DERIVED[name][1] if name in DERIVED else None)
-        if setting is None:
-            continue  # a node's other parameters (a parameters file holds them too): not the model's
-        try:
-            values[name] = setting.check(value)
-        except ParameterError as error:
-            raise MeasurementsError(f"fixed settings: {error}") from None
-    return {name: value for name, value in values.items() if name in KEYS}
+    try:  # a node's other parameters (a parameters file holds them too) are not the model's: left out
+        return {name: setting_of(name).check(value) for name, value in values.items() if name in KEYS}
+    except ParameterError as error:
+        raise MeasurementsError(f"fixed settings: {error}") from None
 
 
 def _fixed_file(path: Path) -> dict[str, Any]:
-    """A plain mapping of settings, or a ROS 2 parameters file (through the one reader of those)."""
-    try:
-        document = yaml.safe_load(Path(path).read_text()) or {}
-    except (OSError, yaml.YAMLError) as error:
-        raise MeasurementsError(f"cannot read fixed settings {path}: {error}") from None
-    if not isinstance(document, dict):
-        raise MeasurementsError(f"{path}: expected a mapping of settings (or a ROS 2 parameters file)")
-    if any(key in document for key in ("/**", "slider", "/slider")):
-        return read_params_file(Path(path), "slider")
-    return dict(document)
+    """A plain mapping of settings, or a ROS 2 parameters file (read once, by the one reader of those)."""
+    document = read_yaml_mapping(path, "a mapping of settings (or a ROS 2 parameters file)")
+    return node_parameters(document, "slider") if is_parameters_file(document, "slider") else document
 
 
 __all__ = ["SPEED", "STD", "Measurements", "MeasurementsError", "read_fixed", "read_measurements"]

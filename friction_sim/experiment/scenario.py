@@ -249,8 +249,9 @@ class YamlParser:
         params, inputs = self.plant(top, rate)
         controller = self.controller(top.get("controller"), params, inputs)
         schedule = _Schedule(self, params, inputs, rate, controller).read(top.get("schedule"), duration)
-        if "expect" in top and not (controller is not None and params.resonant) and any(
-                e.quantity == "amplitude_per_drive" for e in self.expectations(top["expect"], schedule)):
+        expect = self.expectations(top.get("expect"), schedule)
+        if not (controller is not None and params.resonant) and any(e.quantity == "amplitude_per_drive"
+                                                                     for e in expect):
             raise self.fail(top["expect"][0], "quantity amplitude_per_drive needs a controller and a plant with "
                                               "actuator resonant (its lock-in reads the amplitude)")
         operator = _Operator(self, params, inputs, schedule).read(top.get("operator"), duration)
@@ -259,7 +260,7 @@ class YamlParser:
             controller=controller, real_time_factor=rate, output=_text(top, "output", Path("out") / name, Path),
             log_rate=log_rate, accelerometer_rate=accelerometer_rate, accelerometer_noise=accelerometer_noise,
             namespace=_text(top, "namespace", None, str),
-            description=_text(top, "description", "", str), expect=self.expectations(top.get("expect"), schedule),
+            description=_text(top, "description", "", str), expect=expect,
             operator=operator, source=text,
         )
 

@@ -290,7 +290,7 @@ class _SweepParser(ScenarioParser):
 
     def setting(self, key: str) -> Setting:
         """The setting that checks ``key``'s values."""
-        return DERIVED[key][1] if key in DERIVED else FIELDS[key]
+        return setting_of(key)
 
     def value(self, entry: Entry, key: str) -> Any:
         """One value of ``key``, checked by its setting."""
@@ -496,6 +496,12 @@ def _degrees_cos(angles: np.ndarray) -> np.ndarray:
     return out
 
 
+def setting_of(key: str) -> Setting:
+    """The setting that checks the values of ``key`` (a model field or a derived key;
+    KeyError for another name)."""
+    return DERIVED[key][1] if key in DERIVED else FIELDS[key]
+
+
 def derive_fields(columns: dict[str, np.ndarray], given: dict[str, np.ndarray]) -> None:
     """Fields set by derived keys: excitation_amplitude and drive_force (from the
     mass, g, mu and slope in ``columns``; sweeps and calibration share it)."""
@@ -537,6 +543,6 @@ def check_points(sweep: Sweep, columns: dict[str, np.ndarray]) -> None:
 
 __all__ = [
     "BLOCK", "DERIVED", "FIELDS", "KEYS", "Distribution", "Sweep", "SweepError", "check_points", "derive_fields",
-    "load_sweep",
+    "load_sweep", "setting_of",
     "materialize", "parse_sweep",
 ]
