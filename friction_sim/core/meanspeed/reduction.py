@@ -33,7 +33,7 @@ from friction_sim.core.engine.population import run_batch
 from friction_sim.core.meanspeed.general import DEFAULT_PERIODS, DEFAULT_SETTLE_PERIODS
 from friction_sim.core.meanspeed.urelation import drive_ratio_for, nondimensional_speed
 from friction_sim.core.model import spec
-from friction_sim.core.model.params import SliderParams, cos_degrees, sin_degrees
+from friction_sim.core.model.params import Inputs, SliderParams, field_values
 from friction_sim.core.physics.plant import kostek_applies
 from friction_sim.errors import ParameterError
 
@@ -91,9 +91,10 @@ def _closed_form(params: SliderParams, a: Floats) -> bool:
 
 
 def runaway_ratio(params: SliderParams) -> float:
-    """The drive ratio beyond which the slider slides away whatever the vibration:
-    Fd - m g sin(alpha) = mu m g cos(alpha), so phi = cos(alpha) + sin(alpha)/mu."""
-    return cos_degrees(params.track_inclination) + sin_degrees(params.track_inclination) / params.mu
+    """The drive ratio beyond which the slider slides away uphill whatever the
+    vibration: Fd - m g sin(alpha) = mu m g cos(alpha) (the controller's
+    :func:`~friction_sim.core.control.law.runs_away` rule), over mu m g."""
+    return (params.downhill_weight + params.mu * params.normal_weight) / (params.mu * params.weight)
 
 
 def _bisected(v: Floats, a: Floats, params: SliderParams, frequency: float) -> Floats:
@@ -114,10 +115,9 @@ def _bisected(v: Floats, a: Floats, params: SliderParams, frequency: float) -> F
 
 def _speed(phi: Floats, a: Floats, params: SliderParams, frequency: float) -> Floats:
     """The exact mean speed [m/s] of ``params`` at each (phi, a), on the population engine."""
-    values: dict[str, object] = {name: getattr(params, name) for name in spec.PLANT}
-    values.update(actuator="force", excitation_frequency=frequency,
-                  drive_force=(phi * params.mu * params.weight).ravel(),
-                  excitation_amplitude=(a * params.weight).ravel())
+    values = {**field_values(params, Inputs()), "actuator": "force", "excitation_frequency": frequency,
+              "drive_force": (phi * params.mu * params.weight).ravel(),
+              "excitation_amplitude": (a * params.weight).ravel()}
     batch = run_batch(values, settle_periods=DEFAULT_SETTLE_PERIODS, periods=DEFAULT_PERIODS)
     return np.asarray(batch.mean_velocity, dtype=float).reshape(phi.shape)
 

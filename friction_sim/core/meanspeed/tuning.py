@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from friction_sim.core.engine.population import run_batch
 from friction_sim.core.meanspeed.general import DEFAULT_PERIODS, DEFAULT_SETTLE_PERIODS
 from friction_sim.core.model import spec
-from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.model.params import Inputs, SliderParams, field_values
 from friction_sim.core.physics.exciter import response
 
 Floats = NDArray[np.float64]
@@ -61,9 +61,7 @@ def tuning_curve(params: SliderParams, inputs: Inputs, frequencies: Floats, *,
     frequencies = np.asarray([spec.EXCITATION_FREQUENCY.check(float(f)) for f in frequencies], dtype=float)
     gains, lags = np.array([response(float(f), params.natural_frequency, params.damping_ratio)
                             for f in frequencies]).T.reshape(2, -1)
-    values = {name: getattr(params, name) for name in spec.PLANT}
-    values.update({name: getattr(inputs, name) for name in spec.INPUTS})
-    values["excitation_frequency"] = frequencies
+    values = {**field_values(params, inputs), "excitation_frequency": frequencies}
     batch = run_batch(values, settle_periods=settle_periods, periods=periods, threads=threads)
     return TuningCurve(params, inputs, frequencies, inputs.drive_level * params.full_drive_acceleration * gains,
                        np.degrees(lags), batch.mean_velocity, batch.flight_fraction)

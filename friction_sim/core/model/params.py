@@ -235,12 +235,20 @@ def plant_from(values: Mapping[str, Any], params: SliderParams | None = None,
             base_inputs.replace(**{name: value for name, value in values.items() if name in spec.INPUTS}))
 
 
+def field_values(params: SliderParams, inputs: Inputs) -> dict[str, Any]:
+    """Every field of the plant and the inputs by name: the inverse of :func:`plant_from`
+    (what the population engine takes, with any field turned into a column)."""
+    return {**{name: getattr(params, name) for name in spec.PLANT},
+            **{name: getattr(inputs, name) for name in spec.INPUTS}}
+
+
 #: The settings behind each validated type, by type.
 _SETTINGS: dict[type, dict[str, spec.Setting]] = {SliderParams: spec.PLANT, Inputs: spec.INPUTS}
 
 
 __all__ = [
-    "Inputs", "SliderParams", "amplitude_ratio", "check_load", "cos_degrees", "drive_ratio", "plant_from",
+    "Inputs", "SliderParams", "amplitude_ratio", "check_load", "cos_degrees", "drive_ratio", "field_values",
+    "plant_from",
     "require_finite",
     "require_positive", "sin_degrees", "throw_number",
 ]

@@ -23,10 +23,9 @@ import numpy as np
 
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.meanspeed.urelation import kostek_prediction, nondimensional_speed
-from friction_sim.core.model import spec
 from friction_sim.core.model.commands import Command, apply_all
 from friction_sim.core.model.events import Event, EventKind, Trajectory
-from friction_sim.core.model.params import Inputs, SliderParams, require_finite
+from friction_sim.core.model.params import Inputs, SliderParams, field_values, require_finite
 from friction_sim.core.model.records import share
 from friction_sim.core.physics.plant import steady_throw_number
 from friction_sim.errors import ParameterError
@@ -137,10 +136,8 @@ class SimulationResult:
 
     def as_dict(self) -> dict[str, Any]:
         """The JSON view: full-precision numbers, no arrays."""
-        plant = {name: getattr(self.params, name) for name in spec.PLANT}
-        inputs = {name: getattr(self.inputs, name) for name in spec.INPUTS}
         return {
-            **plant, **inputs,
+            **field_values(self.params, self.inputs),
             "duration": self.duration, "settle": self.settle,
             "phi": self.phi, "amplitude_ratio": self.amplitude_ratio, "throw_number": self.throw_number,
             "periods": self.periods, "mean_velocity": self.mean_velocity,
