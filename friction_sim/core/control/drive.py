@@ -190,6 +190,12 @@ class DriveLoop:
         """The steady normal acceleration amplitude [m/s^2] the model gives at drive ``level``."""
         return level * self.model.full_drive_acceleration * self._response()[0] * self.gain_ratio
 
+    @property
+    def full_drive_amplitude(self) -> float:
+        """The steady amplitude [m/s^2] at full drive (level 1) by the model in force,
+        its gain and f_n as the accelerometer taught them: the most the actuator gives."""
+        return self._amplitude(1.0)
+
     def level_for(self, amplitude: float) -> float:
         """The drive level whose steady amplitude is ``amplitude`` [m/s^2] (unclamped)."""
         return amplitude / self._amplitude(1.0)
@@ -209,7 +215,7 @@ class DriveLoop:
         self._last_boundary = t
         if self.tracking:
             self._track()
-        reachable = min(max(wanted_amplitude, 0.0), self._amplitude(1.0))
+        reachable = min(max(wanted_amplitude, 0.0), self.full_drive_amplitude)
         self._reference += self.smoothing * (reachable - self._reference)
         near = abs(reachable - self._reference) <= 1e-2 * max(reachable, 1e-12)
         asked_before, self._asked = self._asked, wanted_amplitude

@@ -20,7 +20,13 @@ excitation amplitude Pa.  Its model is the exact relation U(phi, a):
   term reported is U_cmd - U*;
 * anti-windup: the state only moves on *clean* samples and never in the
   direction of a saturated output; an unreachable target (U* above
-  U(phi, max_amplitude_ratio)) saturates, is flagged, and freezes it.
+  U(phi, max_amplitude_ratio)) saturates, is flagged, and freezes it;
+* the actuator's reach: an actuator that gives less than max_amplitude_ratio
+  (the resonant exciter at full drive) tells the law its largest Pa
+  (:meth:`MeanSpeedController.limit_actuator`); the ceiling of a is then the
+  lower of the two, and saturation, anti-windup and the unreachable flag act
+  there.  Every output names the fastest mean speed within the ceiling
+  (``reachable_speed``), the number to quote with an unreachable target.
 
 Beyond Kostek's model (an inclined vibration, a slope, mu_s > mu) or with
 ``max_amplitude_ratio`` >= 1 (a hopping slider) there is no closed form: the
@@ -208,6 +214,8 @@ class ControlOutput:
     saturated: bool  # a clamped at max_amplitude_ratio (general model: at the rising branch's end)
     unreachable: bool  # U* > U(phi, max_amplitude_ratio) (beyond the branch's end), or no drive that way
     runaway: bool  # |phi| >= 1 (|Fd - m g sin(alpha)| >= mu m g cos(alpha)): it slides on whatever Pa is
+    #: The fastest mean speed [m/s] toward the target within the ceiling of a (NaN: no target, or no branch).
+    reachable_speed: float = math.nan
 
 
 JITTER_SAMPLES = 16  # the samples whose lateness is the current jitter (about 0.3 s at 50 Hz)
@@ -305,6 +313,7 @@ class MeanSpeedController:
         self._last_clean: tuple[float, float] | None = None  # (U_cmd, shortfall) for the secant
         self.clock = SampleClock()
         self.measured_speed = math.nan
+        self._actuator_limit: float | None = None  # the largest Pa [N] the actuator gives (None: no limit)
         self._limit = speed_limit(self._drive_force, config.model, self._frequency, config.max_amplitude_ratio)
         self._envelope = self._limit  # the largest limit of the plants whose windows may still come
         self._settling = 0  # samples to come before the envelope may shrink to the limit
@@ -461,6 +470,35 @@ class MeanSpeedController:
             self._last_clean = (command, error)
             self._ratio = ratio
 
+    def limit_actuator(self, amplitude: float | None) -> ControlOutput:
+        """The largest Pa [N] the actuator can give now (the resonant exciter at
+        full drive, as its lock-in reads it), or None: no limit but
+        max_amplitude_ratio.  The law saturates there (see the module doc); a
+        value that is not a finite number >= 0 is no limit either."""
+        if amplitude is not None and not (isinstance(amplitude, float) and math.isfinite(amplitude)
+                                          and amplitude >= 0.0):
+            amplitude = None
+        if amplitude != self._actuator_limit:
+            self._actuator_limit = amplitude
+            self._update()
+        return self.output
+
+    @property
+    def actuator_limit(self) -> float | None:
+        """The largest Pa [N] the actuator gives, as last told (None: no limit)."""
+        return self._actuator_limit
+
+    def _ceiling(self) -> float:
+        """The largest amplitude ratio a the law applies: max_amplitude_ratio, or
+        less where the actuator gives less."""
+        top, limit = self.config.max_amplitude_ratio, self._actuator_limit
+        return top if limit is None else min(top, limit / self.config.model.weight)
+
+    def _speed(self, u: float) -> float:
+        """The mean speed [m/s] of ``u`` in the model's units (U = V f/(g mu))."""
+        model = self.config.model
+        return u * model.gravity * model.mu / self._frequency
+
     # -- the law ----------------------------------------------------------------
 
     @property
@@ -497,20 +535,22 @@ class MeanSpeedController:
         if u_target == 0.0:
             # So slow that U* is zero in floating point (1e-321 m/s at 1 mHz): standing still is closest.
             return self._output(0.0, u_target, phi, 0.0, False, False, False)
-        u_top = _u_top(phi, top)
+        ceiling = self._ceiling()  # (top itself, unless the actuator gives less: then the same calls as ever)
+        u_top = _u_top(phi, ceiling)
+        reach = self._speed(u_top)
         if abs(u_target) > abs(u_top):
-            return self._output(top, u_target, phi, math.nan, True, True, False)
+            return self._output(ceiling, u_target, phi, math.nan, True, True, False, reach)
         feedforward = _inverse(u_target, phi, top)
         u_command = u_target * self._ratio
         if abs(u_command) >= abs(u_top):
-            # Anti-windup: no ratio beyond the top (u_top / u_target <= r here, so no overflow).
+            # Anti-windup: no ratio beyond the ceiling (u_top / u_target <= r here, so no overflow).
             self._ratio = _clamp(abs(u_top) / abs(u_target), *RATIO_LIMITS)
-            return self._output(top, u_target, phi, feedforward, True, False, False)
+            return self._output(ceiling, u_target, phi, feedforward, True, False, False, reach)
         ratio = _inverse(u_command, phi, top)
-        if not 0.0 <= ratio <= top:  # not expected: the relation is exact and u_command <= u_top
+        if not 0.0 <= ratio <= ceiling:  # not expected: the relation is exact and u_command < u_top
             raise ArithmeticError(f"the inverse U relation gave a = {ratio!r} for U = {u_command!r}, "
-                                  f"phi = {phi!r} (expected 0 <= a <= {top!r})")
-        return self._output(ratio, u_target, phi, feedforward, False, False, False)
+                                  f"phi = {phi!r} (expected 0 <= a <= {ceiling!r})")
+        return self._output(ratio, u_target, phi, feedforward, False, False, False, reach)
 
     def _decide_general(self, phi: float, u_target: float) -> ControlOutput:
         """The law on the general mean speed's rising branch toward U*'s sign:
@@ -524,32 +564,38 @@ class MeanSpeedController:
             return self._output(0.0, u_target, phi, 0.0, False, False, False)
         direction = 1 if u_target > 0.0 else -1
         branch = _branch(model, self._drive_force, top, direction)
-        if not branch.reachable(u_target):
-            beyond = not branch.empty and direction * u_target > direction * branch.u_end
-            ratio = branch.a_end if beyond else branch.a_start
-            return self._output(ratio, u_target, phi, math.nan, beyond, True, False)
+        a_end, u_end = _branch_end(model, self._drive_force, top, direction, self._ceiling())
+        reach = self._speed(u_end) if not branch.empty else math.nan
+
+        def on_branch(u: float) -> bool:
+            return branch.reachable(u) and direction * u <= direction * u_end
+
+        if not on_branch(u_target):
+            beyond = not branch.empty and direction * u_target > direction * u_end
+            ratio = a_end if beyond else branch.a_start
+            return self._output(ratio, u_target, phi, math.nan, beyond, True, False, reach)
         feedforward = _general_inverse(model, self._drive_force, top, direction, u_target)
         u_command = u_target * self._ratio
-        if direction * u_command >= direction * branch.u_end:
-            self._ratio = _clamp(branch.u_end / u_target, *RATIO_LIMITS)
-            return self._output(branch.a_end, u_target, phi, feedforward, True, False, False)
+        if direction * u_command >= direction * u_end:
+            self._ratio = _clamp(u_end / u_target, *RATIO_LIMITS)
+            return self._output(a_end, u_target, phi, feedforward, True, False, False, reach)
         if not branch.reachable(u_command):  # below the start: the plant already moves that fast at a_start
             if direction * branch.u_start > 0.0:
                 self._ratio = _clamp(branch.u_start / u_target, *RATIO_LIMITS)
-            return self._output(branch.a_start, u_target, phi, feedforward, False, False, False)
+            return self._output(branch.a_start, u_target, phi, feedforward, False, False, False, reach)
         ratio = _general_inverse(model, self._drive_force, top, direction, u_command)
-        if not 0.0 <= ratio <= top:  # not expected: u_command is on the branch
+        if not 0.0 <= ratio <= a_end:  # not expected: u_command is on the branch, below its end
             raise ArithmeticError(f"the general inverse gave a = {ratio!r} for U = {u_command!r} "
-                                  f"(expected 0 <= a <= {top!r})")
-        return self._output(ratio, u_target, phi, feedforward, False, False, False)
+                                  f"(expected 0 <= a <= {a_end!r})")
+        return self._output(ratio, u_target, phi, feedforward, False, False, False, reach)
 
     def _output(self, ratio: float, u_target: float, phi: float, feedforward: float,
-                saturated: bool, unreachable: bool, runaway: bool) -> ControlOutput:
+                saturated: bool, unreachable: bool, runaway: bool, reachable_speed: float = math.nan) -> ControlOutput:
         return ControlOutput(
             amplitude=ratio * self.config.model.weight, target_speed=self._target, u_target=u_target,
             phi=phi, feedforward_ratio=feedforward, applied_ratio=ratio,
             integral=u_target * (self._ratio - 1.0),
-            saturated=saturated, unreachable=unreachable, runaway=runaway,
+            saturated=saturated, unreachable=unreachable, runaway=runaway, reachable_speed=reachable_speed,
         )
 
     def beyond_limit(self, speed: float) -> bool:
@@ -593,6 +639,24 @@ def _inverse(u: float, phi: float, top: float) -> float:
 @lru_cache(maxsize=16)
 def _branch(model: SliderParams, drive_force: float, top: float, direction: int) -> Branch:
     return rising_branch(model, Inputs(drive_force=drive_force), top, direction)
+
+
+def _branch_end(model: SliderParams, drive_force: float, top: float, direction: int,
+                ceiling: float) -> tuple[float, float]:
+    """(a, U) where the rising branch ends under a ceiling of a: its own end, or
+    the ceiling (U there exactly) where the actuator gives less; the branch's
+    start where the ceiling lies below it (nothing on the branch is reachable)."""
+    branch = _branch(model, drive_force, top, direction)
+    if branch.empty or ceiling >= branch.a_end:
+        return branch.a_end, branch.u_end
+    if ceiling <= branch.a_start:
+        return branch.a_start, branch.u_start
+    return ceiling, _u_on_branch(model, drive_force, top, direction, ceiling)
+
+
+@lru_cache(maxsize=64)
+def _u_on_branch(model: SliderParams, drive_force: float, top: float, direction: int, ratio: float) -> float:
+    return _branch(model, drive_force, top, direction).u_at(ratio)
 
 
 @lru_cache(maxsize=64)

@@ -62,6 +62,15 @@ def response(frequency: float, natural_frequency: float, damping_ratio: float) -
     return Response(quadrature * r / hypot(detune, quadrature), math.atan2(quadrature, detune))
 
 
+def peak_gain(damping_ratio: float) -> float:
+    """The largest gain G over all drive frequencies: the acceleration's resonance
+    curve, normalized to 1 at r = 1, peaks at 1/sqrt(1 - zeta^2) for zeta < 1/sqrt(2)
+    (at r = 1/sqrt(1 - 2 zeta^2)) and tends to 2 zeta for r -> inf (above 1/sqrt(2))."""
+    if damping_ratio < math.sqrt(0.5):
+        return 1.0 / math.sqrt(1.0 - damping_ratio * damping_ratio)
+    return 2.0 * damping_ratio
+
+
 def steady_acceleration(drive_level: float, full_drive_acceleration: float, gain: float) -> float:
     """The steady normal acceleration amplitude of the slideway [m/s^2], u*A*G."""
     return drive_level * full_drive_acceleration * gain

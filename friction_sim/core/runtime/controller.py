@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -92,6 +93,20 @@ def plant_words(control: MeanSpeedController) -> str:
             f"f = {control.frequency:g} Hz ({form})")
 
 
+def taken_words(values: Mapping[str, Any], drive_level: Any = None) -> str:
+    """The plant's parameter ``values`` a controller took (and the ``drive_level`` it
+    runs at, if known), in one line with their units, in the vocabulary's order."""
+    settings = {**spec.PLANT, **spec.CONTROLLER_NODE, "drive_level": spec.DRIVE_LEVEL}
+    taken = {**values, **({} if drive_level is None else {"drive_level": drive_level})}
+    words = []
+    for name, setting in settings.items():
+        if name in taken:
+            unit = f" {setting.unit}" if setting.unit and setting.unit != "-" else ""
+            value = taken[name]
+            words.append(f"{name} {value:g}{unit}" if isinstance(value, float) else f"{name} {value}{unit}")
+    return ", ".join(words)
+
+
 @dataclass(frozen=True)
 class Status:
     """What the node publishes on ``diagnostics``: a level, a message and the values."""
@@ -141,6 +156,8 @@ class RealtimeController:
         self.internal_errors = 0
         self.last_internal_error = ""
         self.model_source = "own parameters"
+        #: Every value taken from the plant node at start-up, in words ('' before, or without one).
+        self.taken_from_plant = ""
         #: The plant node's fully qualified name ('' without one), and the changes of it followed.
         self.plant_node = ""
         self.plant_changes = 0
@@ -177,6 +194,7 @@ class RealtimeController:
                 self._rebuild_drive(self._drive_values)  # the plant was steered by others meanwhile
             if field == "excitation_frequency" and self.drive is not None:
                 self.drive.follow_frequency(self.control.frequency)
+        self._limit_actuator()
         return refusals
 
     def take_sample(self, speed: float, t: float, now_ns: int, regulating: bool) -> ControlOutput | None:
@@ -186,6 +204,7 @@ class RealtimeController:
         if not regulating:
             self.control.clock.observe(t, now_ns)
             return None
+        self._limit_actuator()
         if self.beyond_model:
             if self._beyond_limit(speed):
                 return self._beyond(speed)
@@ -261,6 +280,7 @@ class RealtimeController:
             self._rebuild_drive({**current, **values})
         elif "excitation_frequency" in values and self.drive is not None:
             self.drive.follow_frequency(control.frequency)
+        self._limit_actuator()
 
     # -- the inner loop (resonant actuator) ---------------------------------------------
 
@@ -272,6 +292,7 @@ class RealtimeController:
         model = model_of(values) if all(name in values for name in MODEL) else None
         if model is None or not model.resonant:
             self.drive = None
+            self._limit_actuator()
             return
         inner_loop, tracking, cycles = drive_settings(values)
         # The plant runs at the level it was read to run at (once, when its model is adopted), or
@@ -281,20 +302,32 @@ class RealtimeController:
         self.plant_drive_level = None
         self.drive = DriveRuntime(model, self.control.frequency, self.wanted_amplitude(), inner_loop=inner_loop,
                                   tracking=tracking, cycles=cycles, level=level)
+        self._limit_actuator()
+
+    def _limit_actuator(self) -> None:
+        """Tell the law the largest Pa the actuator gives now: the exciter at full
+        drive as the inner loop's model reads it (the data sheet corrected by the
+        accelerometer; the data sheet alone without the inner loop), or no limit
+        for the force actuator.  The law saturates there, with anti-windup."""
+        drive = self.drive
+        self.control.limit_actuator(
+            None if drive is None else self.control.config.model.mass * drive.full_drive_amplitude)
 
     def wanted_amplitude(self) -> float:
         """The slideway's normal acceleration amplitude the law asks for [m/s^2]: Pa/m."""
         return self.control.output.amplitude / self.control.config.model.mass
 
     def take_acceleration(self, t: float, normal: float) -> None:
-        """An accelerometer sample; one that is not finite is refused (counted,
-        ParameterError).  Without the inner loop it is only counted."""
+        """An accelerometer sample; one from no plant in force (not finite, stamped
+        ahead of the plant, or beyond any slideway of the model: see
+        :meth:`DriveRuntime.take_acceleration`) is refused (counted,
+        ParameterError with the reason).  Without the inner loop it is only counted."""
         if self.drive is None:
             return
         reason = self.drive.take_acceleration(t, normal)
         if reason:
             self.refuse(reason)
-            raise ParameterError("accelerometer", normal, "must be finite [m/s^2]")
+            raise ParameterError("accelerometer", (t, normal), reason.partition("refused: ")[2])
 
     def drive_boundary(self, t: float) -> DriveCommand | None:
         """A window of the plant ended at ``t``: the drive for the next (None:
@@ -325,13 +358,17 @@ class RealtimeController:
         publish = False
         if output.unreachable and not self._warned_unreachable:
             config = self.control.config
+            limit = self.control.actuator_limit
+            ceiling = (f"Pa <= {config.max_amplitude_ratio:g} m g" if limit is None or
+                       limit >= config.max_amplitude_ratio * config.model.weight else
+                       f"Pa <= {limit:.4g} N, the actuator at full drive")
             if uses_closed_form(config.model, config.max_amplitude_ratio):
-                where = f"with Pa <= {config.max_amplitude_ratio:g} m g"
+                where = f"with {ceiling}"
             else:
-                where = (f"on the rising branch of the mean speed for Pa <= {config.max_amplitude_ratio:g} m g "
+                where = (f"on the rising branch of the mean speed for {ceiling} "
                          "(it ends where U stops rising with Pa)")
-            warnings.append(f"target {output.target_speed!r} m/s is unreachable {where}: Pa set to "
-                            f"{output.amplitude:g} N")
+            warnings.append(f"target {output.target_speed!r} m/s is unreachable {where}: the most it can give is "
+                            f"{output.reachable_speed:.6g} m/s; Pa set to {output.amplitude:g} N")
             publish = True
         if output.runaway and not self._warned_runaway:
             warnings.append(f"phi = {output.phi:.3f}: the drive force (with the slope's pull) exceeds friction, the "
@@ -358,7 +395,7 @@ class RealtimeController:
         refused_now, self._refused_before_interval = self.rejected - self._refused_before_interval, self.rejected
         problems = [text for flag, text in (
             (bool(namesake), namesake),
-            (out.unreachable, "target unreachable"),
+            (out.unreachable, f"target unreachable: the most it can give is {out.reachable_speed:.6g} m/s"),
             (out.saturated and not out.unreachable, "saturated"),
             (out.runaway, "the drive beats friction (phi >= 1): no control over the speed"),
             (bool(self.beyond_model), "the plant runs beyond its model: Pa 0"),
@@ -380,9 +417,12 @@ class RealtimeController:
             "u_target": out.u_target, "phi": out.phi, "feedforward_ratio": out.feedforward_ratio,
             "applied_ratio": out.applied_ratio, "excitation_amplitude": out.amplitude,
             "integral": out.integral, "saturated": out.saturated, "unreachable": out.unreachable,
+            "reachable_speed": out.reachable_speed,
+            "actuator_limit": math.nan if self.control.actuator_limit is None else self.control.actuator_limit,
             "runaway": out.runaway, "drive_force": self.control.drive_force,
             "excitation_frequency": self.control.frequency, "model_source": self.model_source,
-            "plant_node": self.plant_node, "plant": plant_words(self.control), "plant_actuator": self.plant_actuator,
+            "plant_node": self.plant_node, "taken_from_plant": self.taken_from_plant,
+            "plant": plant_words(self.control), "plant_actuator": self.plant_actuator,
             "plant_changes_followed": self.plant_changes, "plant_beyond_model": bool(self.beyond_model),
             "samples_beyond_model": self.samples_beyond_model, "beyond_model_reason": self.beyond_model,
             "commands_accepted": self.accepted, "commands_rejected": self.rejected,
@@ -397,4 +437,4 @@ class RealtimeController:
 
 
 __all__ = ["CONFIG", "ERROR", "MODEL", "OK", "WARN", "RealtimeController", "Status", "beyond_model_after", "config_of",
-           "plant_words"]
+           "plant_words", "taken_words"]

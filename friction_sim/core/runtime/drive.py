@@ -32,10 +32,18 @@ from friction_sim.core.control.drive import DriveLoop
 from friction_sim.core.control.lockin import LockIn, Vibration
 from friction_sim.core.model import spec
 from friction_sim.core.model.params import SliderParams
-from friction_sim.core.physics.exciter import steady_response
+from friction_sim.core.physics.exciter import peak_gain, steady_response
 
 #: The frequencies recently published that an echo may still bring back.
 ECHOES = 16
+#: How many windows past the latest window end taken an accelerometer sample may lie: the
+#: windows whose mean_velocity samples may still be queued on their way (the controller's queue
+#: keeps 10) and the one under way.  A sample stamped later is from no plant in force.
+MAX_LEAD_WINDOWS = 11
+#: An accelerometer reading beyond this many times (g + 2 A G_peak) is from no slideway of the
+#: model: the steady amplitude is at most A G_peak at resonance, a transient adds as much again,
+#: and the factor leaves room for a model that is off (a load), a sensor's bias and its noise.
+PLAUSIBLE_FACTOR = 100.0
 
 
 @dataclass(frozen=True)
@@ -80,6 +88,9 @@ class DriveRuntime:
         self.per_drive = math.nan
         self._published: deque[float] = deque(maxlen=ECHOES)
         self._last_boundary: float | None = None
+        #: The largest |normal reading| [m/s^2] a slideway of the model can give (see PLAUSIBLE_FACTOR).
+        self.plausible_reading = PLAUSIBLE_FACTOR * (model.gravity + 2.0 * model.full_drive_acceleration
+                                                     * peak_gain(model.damping_ratio))
 
     @staticmethod
     def _steady_level(model: SliderParams, frequency: float, wanted_amplitude: float) -> float:
@@ -105,15 +116,38 @@ class DriveRuntime:
         self.loop.drive_level = min(max(self.loop.level_for(wanted_amplitude), 0.0), 1.0)
         return DriveCommand(self.loop.drive_level, self.loop.frequency, False, self.per_drive)
 
+    @property
+    def full_drive_amplitude(self) -> float:
+        """The slideway's steady amplitude [m/s^2] at full drive, as the loop's model
+        reads it now (the data sheet's, corrected by what the accelerometer taught)."""
+        return self.loop.full_drive_amplitude
+
     def take_acceleration(self, t: float, normal: float) -> str:
         """An accelerometer sample (simulation time, normal specific force
-        [m/s^2]); '' or why it was refused (not finite)."""
-        if not (math.isfinite(t) and math.isfinite(normal)):
+        [m/s^2]); '' or why it was refused: not finite, stamped ahead of the
+        plant (more than :data:`MAX_LEAD_WINDOWS` windows past the latest window
+        end taken), or a reading no slideway of the model gives (:data:`PLAUSIBLE_FACTOR`)."""
+        reason = self._implausible(t, normal)
+        if reason:
             self.samples_refused += 1
-            return f"accelerometer sample ({t!r} s, {normal!r} m/s^2) refused: must be finite"
+            return f"accelerometer sample ({t!r} s, {normal!r} m/s^2) refused: {reason}"
         self.samples += 1
         if self.inner_loop:
             self.lockin.add_sample(t, normal)
+        return ""
+
+    def _implausible(self, t: float, normal: float) -> str:
+        """Why a sample (t, normal) is from no plant in force, or ''."""
+        if not (math.isfinite(t) and math.isfinite(normal)):
+            return "must be finite"
+        if abs(normal) > self.plausible_reading:
+            return (f"|linear_acceleration.z| must be <= {self.plausible_reading:.6g} m/s^2, {PLAUSIBLE_FACTOR:g} x "
+                    "(g + 2 A G_peak) of the model: no slideway of it vibrates harder")
+        if self._last_boundary is not None:
+            latest = self._last_boundary + MAX_LEAD_WINDOWS * self.loop.cycles / self.loop.frequency
+            if t > latest:
+                return (f"stamped ahead of the plant: must be <= {latest!r} s, the latest window end taken "
+                        f"({self._last_boundary!r} s) plus {MAX_LEAD_WINDOWS} windows")
         return ""
 
     def boundary(self, t: float, wanted_amplitude: float) -> DriveCommand:

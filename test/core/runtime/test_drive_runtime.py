@@ -135,3 +135,59 @@ def test_the_loop_starts_from_the_level_the_plant_was_read_to_run_at() -> None:
     change = {"damping_ratio": 0.03}
     runtime.adopt(runtime.with_parameters(change, {**current, "natural_frequency": 51.0}), change, current)
     assert runtime.drive.loop.drive_level == 0.55
+
+
+def _garbage(runtime: RealtimeController, t: float, z: float, count: int) -> list[str]:
+    """``count`` samples of ``z`` stamped from ``t`` on at 1 kHz; the reasons of those refused."""
+    reasons = []
+    for k in range(count):
+        try:
+            runtime.take_acceleration(t + k / 1000.0, z)
+        except ParameterError as error:
+            reasons.append(str(error))
+    return reasons
+
+
+@pytest.mark.parametrize("z", [1e300, 10.0])
+def test_samples_stamped_ahead_of_the_plant_are_refused_not_held_for_later(z: float) -> None:
+    """Issue 28, finding 5: 200 samples stamped 1 s ahead of the plant (absurd,
+    1e300, or plausible, 10 m/s^2) are refused at once and counted; when the
+    plant's time reaches their stamps the lock-in reads the plant alone."""
+    runtime = RealtimeController(values())
+    drive_runtime = runtime.drive
+    assert drive_runtime is not None
+    slider = Slider(PLANT, Inputs(drive_level=drive_runtime.loop.drive_level))
+    sensor = Accelerometer(1000.0)
+    per_level = steady_response(1.0, 20.0, 50.0, 52.0, 0.02)[0]
+    t = 0.0
+    for period in range(100):
+        if period == 20:
+            reasons = _garbage(runtime, t + 1.0, z, 200)
+            assert len(reasons) == 200 and drive_runtime.samples_refused == 200
+            why = "linear_acceleration.z" if z > 1e6 else "stamped ahead of the plant"
+            assert runtime.rejected == 200 and all(why in reason for reason in reasons), reasons[0]
+        command = runtime.drive_boundary(t)
+        assert command is not None
+        slider.set_inputs(drive_level=command.level)
+        end = t + 1.0 / 50.0
+        for k in sensor.due(t, end):
+            slider.advance_to(max(k / 1000.0, slider.t))
+            sample = sensor.read(slider, k)
+            runtime.take_acceleration(sample.t, sample.z)
+        slider.advance_to(end)
+        t = end
+    # the windows at 1.0-1.2 s, where the garbage was stamped, were read from the plant's samples alone
+    assert drive_runtime.per_drive == pytest.approx(per_level, rel=1e-6)
+    assert drive_runtime.loop.gain_ratio == pytest.approx(1.0, rel=1e-6)
+
+
+def test_a_reading_no_slideway_of_the_model_gives_is_refused_even_before_the_first_window() -> None:
+    runtime = RealtimeController(values())
+    assert runtime.drive is not None
+    limit = runtime.drive.plausible_reading
+    # g + 2 A G_peak, G_peak = 1/sqrt(1 - zeta^2) (the acceleration's resonance curve normalized at f_n)
+    assert limit == pytest.approx(100.0 * (10.0 + 2.0 * 20.0 / math.sqrt(1.0 - 0.02**2)), rel=1e-15)
+    with pytest.raises(ParameterError, match=r"linear_acceleration\.z"):
+        runtime.take_acceleration(0.0, 1.0001 * limit)
+    runtime.take_acceleration(0.0, -0.999 * limit)
+    assert runtime.drive.samples == 1 and runtime.drive.samples_refused == 1 and runtime.rejected == 1
