@@ -33,13 +33,17 @@ others cost a clock read).  An unexpected error in a callback is logged
 once, reported as ERROR on diagnostics, and the input that caused it is
 refused (the law's state is left as it was); the node goes on.
 
-With ``plant_node`` set (default ``slider``) the controller reads its whole
-model (mass, mu, gravity and the general model's static_ratio,
+With ``plant_node`` set (default ``slider``) the controller takes its whole
+plant from that node's parameters at start-up through the parameter services:
+the model (mass, mu, gravity and the general model's static_ratio,
 excitation_angle, excitation_phase, track_inclination, restitution and
-landing_friction) and mean_window_periods from that node's parameters at
-start-up through the parameter services; a model parameter the plant node
-does not have keeps this node's value, and if the node does not answer
-within 5 s it says so and keeps its own.  Afterwards it follows the plant
+landing_friction), the actuator and the exciter's data, mean_window_periods,
+drive_force and excitation_frequency, and the drive level the plant runs at
+(where the inner loop starts): a controller started on a feeder that has run
+for hours with other settings regulates from the first window.  Its
+diagnostics name every value it took (``taken_from_plant``).  A parameter the
+plant node does not have keeps this node's value, and if the node does not
+answer within 5 s it says so and keeps its own.  Afterwards it follows the plant
 node's changes of those parameters, of ``drive_force`` and of
 ``excitation_frequency`` on ``/parameter_events`` (validated like any
 parameter set; what it cannot take is warned about and counted), and its
@@ -93,7 +97,7 @@ from std_msgs.msg import Float64
 from friction_sim.core.control.law import ControlOutput, MeanSpeedController
 from friction_sim.core.model import spec
 from friction_sim.core.model.commands import CONTROLLER, consumed_by
-from friction_sim.core.runtime.controller import MODEL, RealtimeController, plant_words
+from friction_sim.core.runtime.controller import MODEL, RealtimeController, plant_words, taken_words
 from friction_sim.core.runtime.drive import DriveCommand
 from friction_sim.errors import ParameterError, one_line
 from friction_sim.io.messages import (
@@ -117,9 +121,13 @@ QOS_DEPTH = 10
 COMMAND_HOLD_OFF = 0.02
 
 PLANT_TIMEOUT = 5.0
-#: The plant node's parameters the controller reads at start-up and follows as they change.
+#: The plant node's parameters the controller follows as they change (its exciter's data are
+#: read once: the inner loop learns how a load moves them).
 FOLLOWED = (*(name for name in MODEL if name not in spec.EXCITER), "mean_window_periods", "drive_force",
             "excitation_frequency")
+#: The plant node's parameters the controller takes at start-up: its whole plant (model, exciter,
+#: window, Fd, f) and the drive level it runs at (where the inner loop starts).
+ADOPTED = (*MODEL, "mean_window_periods", "drive_force", "excitation_frequency", "drive_level")
 #: The accelerometer's queue: a millisecond's samples arrive between two executor turns at most ...
 ACCELEROMETER_DEPTH = 100
 DISCOVERY_SETTLE = 0.5
@@ -228,7 +236,7 @@ class ControllerNode(Node):
 
     def _poll_plant(self) -> None:
         if self._plant_future is None and self._plant.services_are_ready():
-            self._plant_future = self._plant.get_parameters([*MODEL, "mean_window_periods", "drive_level"])
+            self._plant_future = self._plant.get_parameters(list(ADOPTED))
         if self._plant_future is not None and self._plant_future.done():
             self._adopt_plant(self._plant_future.result())
         elif time.monotonic() > self._deadline:
@@ -236,13 +244,13 @@ class ControllerNode(Node):
                          f"{PLANT_TIMEOUT:g} s: using this node's own mass, mu and gravity", warn=True)
 
     def _adopt_plant(self, response: Any) -> None:
-        """Take the plant's model and window as this node's own parameters
-        (validated and applied like any parameter change).  A model parameter
-        the plant node does not declare (an older slider) keeps this node's value."""
-        names = [*MODEL, "mean_window_periods", "drive_level"]
+        """Take the plant's whole model, window, drive force and frequency as this
+        node's own parameters (validated and applied like any parameter change),
+        and its drive level as where the inner loop starts.  A parameter the
+        plant node does not declare (an older slider) keeps this node's value."""
         try:
-            values = dict(zip(names, [Parameter.from_parameter_msg(_named(name, value)).value
-                                      for name, value in zip(names, response.values, strict=True)]))
+            values = dict(zip(ADOPTED, [Parameter.from_parameter_msg(_named(name, value)).value
+                                        for name, value in zip(ADOPTED, response.values, strict=True)]))
             level = values.pop("drive_level")  # the resonant plant's level in force: the inner loop starts there
             self.runtime.plant_drive_level = None if level is None else float(level)
             update = _own_parameters(values)
@@ -253,19 +261,10 @@ class ControllerNode(Node):
         if not result.successful:
             self._settle(f"plant parameters unusable ({result.reason}): using this node's own", warn=True)
             return
-        model = self.runtime.control.config.model
         self.runtime.model_source = f"plant node {self.runtime.plant_node}"
-        model = self.runtime.drive.model if self.runtime.drive is not None else model
-        shape = "" if model.is_kostek else (
-            f", static_ratio {model.static_ratio:g}, excitation_angle {model.excitation_angle:g} deg, "
-            f"excitation_phase {model.excitation_phase:g} deg, track_inclination {model.track_inclination:g} deg")
-        flight = "" if model == model.replace(restitution=0.0, landing_friction="impulsive") else (
-            f", restitution {model.restitution:g}, landing_friction {model.landing_friction}")
-        exciter = "" if not model.resonant else (
-            f", resonant actuator f_n {model.natural_frequency:g} Hz, zeta {model.damping_ratio:g}, "
-            f"A {model.full_drive_acceleration:g} m/s^2 (this node sets drive_level)")
-        self._settle(f"model from {self.runtime.model_source}: mass {model.mass:g} kg, mu {model.mu:g}, "
-                     f"gravity {model.gravity:g} m/s^2{shape}{flight}{exciter}")
+        self.runtime.taken_from_plant = taken_words(
+            {parameter.name: parameter.value for parameter in update}, level)
+        self._settle(f"took from {self.runtime.model_source}: {self.runtime.taken_from_plant}")
 
     def _on_plant_event(self, msg: ParameterEvent) -> None:
         """The plant node's parameters changed (``ros2 param set /slider

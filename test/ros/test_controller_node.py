@@ -212,12 +212,75 @@ def test_a_plant_without_the_general_parameters_leaves_them_as_they_are(ros: Non
         def double(value: float) -> ParameterValue:
             return ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
 
-        # (and no actuator, exciter or drive level: the force actuator, the only one it had)
+        # (and no actuator, exciter or drive level: the force actuator, the only one it had; Fd and f
+        # as they are)
         answer = [double(2.0), double(0.2), double(9.81), *[ParameterValue() for _ in range(10)],
-                  ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=2), ParameterValue()]
+                  ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=2), double(0.75), double(60.0),
+                  ParameterValue()]
         controller._adopt_plant(SimpleNamespace(values=answer))  # noqa: SLF001 - the reply of an older plant
         assert controller.control.config.model == SliderParams(mass=2.0, mu=0.2, gravity=9.81, excitation_angle=45.0)
         assert controller.control.config.mean_window_periods == 2
+        assert controller.control.drive_force == 0.75 and controller.control.frequency == 60.0
         assert controller.runtime.plant_actuator == "force" and controller.runtime.drive is None
     finally:
         controller.destroy_node()
+
+
+#: Plants whose every setting the controller takes differs from the controller's defaults (issue 28,
+#: item 1); the resonant actuator's slideway moves along one line, so its excitation_phase is 0 and the
+#: force actuator's plant differs there.
+RUNNING_FEEDERS = {
+    "resonant": {
+        "mass": 1.3, "mu": 0.12, "gravity": 9.81, "static_ratio": 1.2, "excitation_angle": 80.0,
+        "track_inclination": 2.0, "restitution": 0.1, "landing_friction": "none",
+        "actuator": "resonant", "natural_frequency": 51.0, "damping_ratio": 0.05, "full_drive_acceleration": 12.0,
+        "mean_window_periods": 2, "drive_force": 0.8, "excitation_frequency": 49.4, "drive_level": 0.6,
+    },
+    "force": {
+        "mass": 1.3, "mu": 0.12, "gravity": 9.81, "static_ratio": 1.2, "excitation_angle": 80.0,
+        "excitation_phase": 10.0, "track_inclination": 2.0, "restitution": 0.1, "landing_friction": "none",
+        "mean_window_periods": 2, "drive_force": 0.8, "excitation_frequency": 100.0,
+    },
+}
+
+
+@pytest.mark.parametrize("actuator", list(RUNNING_FEEDERS))
+def test_the_controller_takes_its_whole_plant_at_start_up(ros: None, actuator: str) -> None:
+    """Issue 28, item 1: a controller started with its defaults on a feeder that
+    runs with other settings takes every one of them, the drive force, the
+    frequency and the drive level among them, before it publishes anything, and
+    its diagnostics name each value it took."""
+    from friction_sim.core.model.spec import CONTROLLER_NODE
+
+    feeder = RUNNING_FEEDERS[actuator]
+    plant = {name: value for name, value in feeder.items() if name != "drive_level"}
+    assert all(CONTROLLER_NODE[name].default != value for name, value in plant.items())
+    ns = f"/c{uuid.uuid4().hex[:8]}"
+    slider = SliderNode(namespace=ns, parameter_overrides=[Parameter(name, value=value)
+                                                           for name, value in feeder.items()])
+    controller = ControllerNode(namespace=ns, parameter_overrides=[Parameter("diagnostics_period", value=0.1)])
+    probe = Probe(ns, slider, controller, outputs={"diagnostics": DiagnosticArray})
+    try:
+        assert probe.spin_until(lambda: controller.ready, 15.0)
+        assert probe.spin_until(lambda: controller_status(probe).get("taken_from_plant", "") != "", 10.0)
+        values = controller_status(probe)
+    finally:
+        probe.close()
+        controller.destroy_node()
+        slider.destroy_node()
+    for name, value in plant.items():
+        assert controller.get_parameter(name).value == value, name
+    frequency = plant["excitation_frequency"]
+    assert controller.control.drive_force == 0.8 and controller.control.frequency == frequency
+    assert controller.control.config.model.mass == 1.3 and controller.control.config.mean_window_periods == 2
+    drive = controller.runtime.drive
+    if actuator == "resonant":
+        assert drive is not None and drive.start_level == 0.6 and drive.loop.cycles == 2
+        assert drive.model.natural_frequency == 51.0 and drive.model.full_drive_acceleration == 12.0
+    else:
+        assert drive is None
+    taken = values["taken_from_plant"]
+    for name, value in feeder.items():
+        assert f"{name} {value:g}" in taken if isinstance(value, float) else f"{name} {value}" in taken, (name, taken)
+    assert "Fd = 0.8 N" in values["plant"] and f"f = {frequency:g} Hz" in values["plant"], values["plant"]
+    assert values["model_source"] == f"plant node {ns}/slider"
