@@ -158,3 +158,40 @@ def test_an_accelerometer_sample_that_is_not_finite_is_refused(ros: None) -> Non
         controller.destroy_node()
         slider.destroy_node()
     assert controller.runtime.internal_errors == 0
+
+
+@pytest.mark.parametrize("inner_loop", [True, False])
+def test_a_target_beyond_full_drive_is_flagged_with_the_speed_it_can_give(ros: None, inner_loop: bool) -> None:
+    """Issue 28, item 2, over ROS on the issue's plant (A = 10 m/s^2: full drive
+    gives 4.37 m/s^2, 0.1045 mm/s): a target of 0.2 mm/s is flagged unreachable
+    with that speed, the Pa request never exceeds what full drive gives (as the
+    loop reads it), and a target back within reach clears the flag.  (The
+    settling on return is measured against the exact slider in
+    test/core/runtime/test_actuator_reach.py.)"""
+    ns = namespace()
+    slider, controller = _nodes(ns, {"full_drive_acceleration": 10.0, "accelerometer_rate": 1000.0},
+                                {"inner_loop": inner_loop, "target_speed": 2e-4})
+    probe = _probe(ns, slider, controller)
+    full_pa = steady_response(1.0, 10.0, 50.0, 52.0, 0.02)[0]  # m = 1 kg
+    requests: list[float] = []
+    controller.output_listeners.append(lambda output: requests.append(output.amplitude))
+    try:
+        assert probe.spin_until(lambda: controller.ready, 15.0)
+        assert probe.spin_until(lambda: _controller_values(probe).get("unreachable") == "True", 15.0)
+        values = _controller_values(probe)
+        assert float(values["reachable_speed"]) == pytest.approx(0.1045e-3, rel=2e-3)
+        message = next(m.status[0].message for m in reversed(probe.received["diagnostics"])
+                       if m.status and m.status[0].name == "controller")
+        assert "target unreachable: the most it can give is 0.0001045" in message, message
+        # the limit is what the loop's model reads: the model is the plant, the samples exact, and what a
+        # level taking effect a message late teaches it is a fraction of a percent (as amplitude_per_drive above)
+        assert float(values["actuator_limit"]) == pytest.approx(full_pa, rel=5e-3)
+        assert probe.set_parameter(f"{ns}/controller", "target_speed", 0.8e-4)[0]
+        assert probe.spin_until(lambda: _controller_values(probe).get("unreachable") == "False"
+                                and float(_controller_values(probe)["target_speed"]) == 0.8e-4, 15.0)
+    finally:
+        probe.close()
+        controller.destroy_node()
+        slider.destroy_node()
+    assert requests and max(requests) <= full_pa * (1.0 + 5e-3), (max(requests), full_pa)
+    assert controller.runtime.internal_errors == 0 and slider.realtime.rejected == 0
