@@ -6,7 +6,8 @@ import math
 
 import pytest
 
-from friction_sim.core.control.law import ControllerConfig, MeanSpeedController, SampleClock
+from friction_sim.core.control.law import ControllerConfig, MeanSpeedController
+from friction_sim.core.control.sampleclock import SampleClock
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.meanspeed.urelation import amplitude_ratio_for, u_map
 from friction_sim.core.model.params import Inputs, SliderParams
