@@ -32,6 +32,7 @@ from friction_sim.core.model.commands import (
     Outcome,
     apply,
     consumed_by,
+    unused_input,
 )
 from friction_sim.core.model.params import Inputs
 from friction_sim.errors import ExperimentError, ParameterError
@@ -252,8 +253,10 @@ class _Attached:
         # (an open-loop start), it publishes nothing.
         if spec.controller:
             _set_parameters(driver, executor, "controller", _controller_values(spec))
+        # (not the input the scenario's actuator does not use: the slider refuses a value of it it does not hold)
+        unused = unused_input(spec.plant.actuator)
         _set_parameters(driver, executor, "slider", {name: value for name, value in _plant_values(spec).items()
-                                                     if not settings.SLIDER_NODE[name].start_only})
+                                                     if not settings.SLIDER_NODE[name].start_only and name != unused})
         self.recorder = _attached_recorder(spec, driver.get_namespace())
         for topic in self.RECORDED:
             driver.create_subscription(message_class(TOPIC_TYPES[topic]), topic, self._keeper(topic), 100)

@@ -5,6 +5,13 @@ with a counter instead of a wall clock and hands what it produces to a
 :class:`~friction_sim.io.recorder.Recorder` through the same sink calls as
 the node (:func:`~friction_sim.io.sinks.deliver_tick`, ``on_command``,
 ``on_parameters``), so an offline recording and a live one are the same file.
+Commands reach it as they reach the node: topic commands through
+:meth:`~friction_sim.core.runtime.realtime.RealtimeSlider.commands` (a tick's
+take), a ``parameters`` command through
+:meth:`~friction_sim.core.runtime.realtime.RealtimeSlider.configure` (one
+``ros2 param set``, atomic), a ``reset`` through
+:meth:`~friction_sim.core.runtime.realtime.RealtimeSlider.reset` (the
+``~/reset`` service).
 """
 
 from __future__ import annotations
@@ -15,7 +22,7 @@ from collections.abc import Mapping, Sequence
 from itertools import groupby
 from typing import Any
 
-from friction_sim.core.model.commands import Command
+from friction_sim.core.model.commands import CONTROLS, PARAMETERS, RESET, Command, Outcome
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import ParameterError
@@ -34,12 +41,15 @@ def record_offline(
     clock and record what the slider node records.
 
     Each :class:`~friction_sim.core.model.commands.Command` of ``schedule`` reaches
-    the slider at its time (in whole nanoseconds, as the node stamps it);
-    commands at the same time arrive together, as one batch, in schedule
-    order; each is recorded accepted or refused.  States are logged on the
-    grid ``k / log_rate``; the mean velocity comes from the core's period
-    marks through :class:`RealtimeSlider`, ticked at ``tick_rate`` (default
-    ``log_rate``), exactly as in the node.  ``recorder_options`` go to the
+    the slider at its time (in whole nanoseconds, as the node stamps it), as
+    it reaches the node (see the module); commands at the same time arrive at
+    one instant, in schedule order, each a change of its own (as in the node:
+    a paused instant's burst); each is recorded accepted or refused.  A reset
+    is the ``~/reset`` service's; pause, resume and step are refused (no clock
+    here to stop: commands at one time already arrive at one instant).
+    States are logged on the grid ``k / log_rate``; the mean velocity comes
+    from the core's period marks through :class:`RealtimeSlider`, ticked at
+    ``tick_rate`` (default ``log_rate``), exactly as in the node.  ``recorder_options`` go to the
     :class:`~friction_sim.io.recorder.Recorder` (e.g. ``chunk_size``); it
     waits for the writer, so nothing is dropped.
     """
@@ -72,12 +82,30 @@ def _run(rt: RealtimeSlider, recorder: Recorder, batches: list[tuple[int, list[C
         tick_ns = min(round(k * 1e9 / rate), end_ns)
         while pending and pending[-1][0] <= tick_ns:
             t_ns, batch = pending.pop()
-            for outcome in rt.commands(batch, t_ns):
+            for outcome in _handle(rt, batch, t_ns):
                 recorder.on_command(outcome, frame_id)
         deliver_tick([recorder], rt.tick(tick_ns), frame_id)
         if tick_ns >= end_ns:
             return
         k += 1
+
+
+def _handle(rt: RealtimeSlider, batch: list[Command], t_ns: int) -> list[Outcome]:
+    """The commands of one instant handled as the node handles them, in order:
+    topic commands in a row as one tick's take, each ``parameters`` command as
+    one parameter set, each reset as a call of ``~/reset``."""
+    outcomes: list[Outcome] = []
+    topics: list[Command] = []
+    for command in [*batch, None]:
+        if command is not None and command.name not in (PARAMETERS, RESET):
+            topics.append(command)
+            continue
+        if topics:
+            outcomes += rt.commands(topics, t_ns)
+            topics = []
+        if command is not None:
+            outcomes.append(rt.reset(t_ns) if command.name == RESET else rt.configure(command.values, t_ns))
+    return outcomes
 
 
 def _batches(schedule: Sequence[Command]) -> list[tuple[int, list[Command]]]:
@@ -88,6 +116,9 @@ def _batches(schedule: Sequence[Command]) -> list[tuple[int, list[Command]]]:
         _time("t", command.t)
         if not command.for_slider:
             raise ParameterError("topic", command.name, "is not a slider input (record_offline runs no controller)")
+        if command.name in CONTROLS and command.name != RESET:
+            raise ParameterError("command", command.name, "is not offline: record_offline has no clock to pause "
+                                                          "(commands at one time already arrive at one instant)")
     ordered = sorted(schedule, key=lambda command: seconds_to_ns(command.t))
     return [(t_ns, list(batch)) for t_ns, batch in groupby(ordered, key=lambda command: seconds_to_ns(command.t))]
 

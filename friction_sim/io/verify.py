@@ -2,8 +2,11 @@
 
 :func:`verify` rebuilds the simulation from the recorded parameters
 (:func:`initial_parameters`) and the accepted commands
-(:func:`recorded_commands`, applied at their recorded simulation times
-through :func:`friction_sim.core.model.commands.apply`, the one gate) and compares
+(:func:`recorded_commands`, applied at their recorded simulation times, one
+by one in recorded order, through
+:func:`friction_sim.core.model.commands.take`, the function the slider node
+takes each of them with: commands recorded at one instant were as many
+changes in the node, never one merged change) and compares
 it with every recorded pose and velocity sample: position x, velocity v, and
 in flight the height z and its rate vz.  It passes when each differs by at
 most 1e-9 relative to the largest recorded magnitude of its quantity (a run
@@ -36,7 +39,7 @@ import numpy as np
 
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.model import spec
-from friction_sim.core.model.commands import PARAMETERS, RESET, Command, apply
+from friction_sim.core.model.commands import PARAMETERS, RESET, Command, take
 from friction_sim.core.model.params import Inputs, SliderParams, plant_from
 from friction_sim.errors import ParameterError, RecordingError
 from friction_sim.io.messages import (
@@ -286,9 +289,9 @@ def initial_plant(recording: Recording, values: dict[str, Any] | None = None) ->
 class _Replay:
     """The exact re-simulation, fed the recorded sample times in ascending
     blocks.  A sample at a command's time is taken before it, as the node
-    logs it, so a batch of commands is applied once a later sample comes
-    (or at the end); commands recorded at one instant were one batch in the
-    node: they take effect together."""
+    logs it, so the commands recorded at one instant are applied once a later
+    sample comes (or at the end), each as a change of its own, in recorded
+    order, as the node took them (:func:`_apply_batch`)."""
 
     def __init__(self, slider: Slider, commands: list[Command], log_rate: float | None) -> None:
         self.slider = slider
@@ -364,25 +367,17 @@ class _Largest:
 
 
 def _apply_batch(slider: Slider, batch: list[Command], problems: list[str]) -> None:
-    """Advance to the batch's time and apply its commands as one change
-    (each through the core's gate; one that cannot be applied is reported)."""
+    """Advance to the time of ``batch`` (the commands recorded at one instant)
+    and apply its commands one by one in recorded order, each as a change of
+    its own, through :func:`~friction_sim.core.model.commands.take`, as the
+    node took them (with the resonant exciter, two changes at one instant are
+    not their merged change); one that cannot be applied is reported."""
     slider.advance_to(max(batch[0].t, slider.t))
-    params, inputs = slider.params, slider.inputs
-    took_any = False
     for command in batch:
-        if command.name == RESET:  # the commands before it in the batch took effect before it, as in the node
-            if took_any:
-                slider.set_plant(params, inputs)
-                took_any = False
-            slider.restart()
-            continue
         try:
-            params, inputs = apply(command, params, inputs)
-            took_any = True
+            take(slider, command)
         except ParameterError as error:
             problems.append(f"the command recorded at t = {command.t:.9f} s cannot be applied: {error}")
-    if took_any:
-        slider.set_plant(params, inputs)
 
 
 def _log_rate(recording: Recording, initial: dict[str, Any]) -> float | None:

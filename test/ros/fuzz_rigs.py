@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 import time
 import uuid
 from collections.abc import Iterable
@@ -33,7 +34,7 @@ from std_msgs.msg import Float64
 from friction_sim.core.meanspeed.predict import predict
 from friction_sim.core.meanspeed.urelation import u_map
 from friction_sim.core.model import spec
-from friction_sim.core.model.commands import COMMANDS, CONTROLLER, SLIDER, consumed_by
+from friction_sim.core.model.commands import COMMANDS, CONTROLLER, SLIDER, consumed_by, unused_input
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.errors import ParameterError
 from friction_sim.io.messages import message_class
@@ -54,8 +55,13 @@ def _fields(topic: str, values: dict[str, Any]) -> dict[str, float]:
     return {field: values[path] for field, path in zip(entry.fields, entry.message_fields)}
 
 
+#: How the slider's diagnostics mark the input the actuator in force does not use (issue 28).
+_UNUSED = re.compile(r" \(unused: actuator [a-z]+\)$")
+
+
 def _number(text: str) -> float:
-    return float(text)
+    """A diagnostics value as a number (an input marked unused: its value)."""
+    return float(_UNUSED.sub("", text))
 
 
 def check_prediction(values: dict[str, str], params: SliderParams | None = None, inputs: Inputs | None = None) -> None:
@@ -409,6 +415,10 @@ class SliderRig(Rig):
             got = values[key] if isinstance(answered[key], str) else _number(values[key])
             assert got == answered[key], \
                 f"get_parameters {key} = {answered[key]!r}, but the simulation has {values[key]} in force"
+        actuator = model.params.actuator
+        for field in ("excitation_amplitude", "drive_level"):  # only the input the actuator uses is shown as acting
+            marked = values[field].endswith(f" (unused: actuator {actuator})")
+            assert marked == (field == unused_input(actuator)), f"diagnostics {field} = {values[field]} ({actuator})"
         for key in ("sim_time", "real_time_factor", "tick_rate", "drive_force", "excitation_amplitude",
                     "excitation_frequency", "phi", "amplitude_ratio"):
             if key in values:
@@ -452,14 +462,18 @@ class SliderRig(Rig):
 
     def reset(self, full: bool) -> None:
         """Back to the defaults: unload the contact, zero the external force,
-        then every parameter at once."""
+        then every parameter, in two sets: an actuator refuses a set of the input
+        it does not use (issue 28), so drive_level is set under the resonant one
+        and excitation_amplitude with the switch back to the force one."""
         model = self.model
         if full or model.inputs.external_force_x != 0.0 or model.inputs.external_force_z != 0.0:
             self.reset_parameters([("actuator", "force"), ("excitation_amplitude", 0.0)])
             self.client.publish("external_wrench", self.client.message("external_wrench", {}))
             self.ticked()
-        defaults = [(name, s.default) for name, s in spec.SLIDER_NODE.items() if not s.start_only]
-        self.reset_parameters([*defaults, (USE_SIM_TIME, False)])
+        defaults = {name: s.default for name, s in spec.SLIDER_NODE.items() if not s.start_only}
+        amplitude = defaults.pop("excitation_amplitude")
+        self.reset_parameters([*{**defaults, "actuator": "resonant"}.items(), (USE_SIM_TIME, False)])
+        self.reset_parameters([("actuator", defaults["actuator"]), ("excitation_amplitude", amplitude)])
         self.ticked()
         rejected = model.rejected
         self.model = self.new_model()

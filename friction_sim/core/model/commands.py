@@ -7,7 +7,8 @@ consumes it.  :class:`Command` is the one record of "this command at
 simulation time t", used by the simulation, the scenario parser, the
 experiment runner, the recorder, the reader, verify, the report and the
 nodes.  :func:`apply` is the one way a command changes the plant: it goes
-through the validated types of :mod:`friction_sim.core.model.params`.
+through the validated types of :mod:`friction_sim.core.model.params`;
+:func:`take` the one way it changes a running core (the node's and verify's).
 
 Adding an input is one entry here (plus its field in ``spec.INPUTS`` and its
 physics in the core).
@@ -15,9 +16,9 @@ physics in the core).
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 from friction_sim.core.model import spec
 from friction_sim.core.model.params import Inputs, SliderParams
@@ -166,16 +167,17 @@ def apply(command: Command, params: SliderParams, inputs: Inputs) -> tuple[Slide
     """The plant and inputs after ``command``, validated as one new state.
 
     Raises :class:`ParameterError` (and nothing changes) if a value is out of
-    its range, or if a command topic sets the input the actuator in force does
-    not use (``excitation_amplitude`` for the resonant one, ``drive_level`` for
-    the force one); the error names the field the command changed.  Fields the
-    plant does not have (a target speed) leave it as it is.
+    its range, or if the command sets the input the actuator in force after it
+    does not use (``excitation_amplitude`` for the resonant one, ``drive_level``
+    for the force one): on its topic whatever the value, as a parameter to any
+    value but the one held (a parameter dump loads back); the error names the
+    field the command set.  Fields the plant does not have (a target speed)
+    leave it as it is.
     """
     plant, changes = command.plant, command.inputs
     new_params = params.replace(**plant) if plant else params
     new_inputs = inputs.replace(**changes) if changes else inputs
-    if command.name != PARAMETERS:  # (a parameter is configuration: it may hold the other actuator's value)
-        _check_actuator(new_params, inputs, new_inputs)
+    _check_actuator(new_params, changes, inputs if command.name == PARAMETERS else None)
     return new_params, new_inputs
 
 
@@ -184,23 +186,65 @@ _ACTUATOR_INPUT = {"force": ("excitation_amplitude", "drive_level"),
                    "resonant": ("drive_level", "excitation_amplitude")}
 
 
-def _check_actuator(params: SliderParams, before: Inputs, after: Inputs) -> None:
-    """Refuse a command that changes the input the actuator in force does not use
-    (it would change nothing: a user who sends it means the other one), naming
-    the one it does."""
+def unused_input(actuator: str) -> str:
+    """The input ``actuator`` (force or resonant) does not use: a command or a
+    parameter set of it is refused (:func:`apply`); diagnostics mark it unused."""
+    return _ACTUATOR_INPUT[actuator][1]
+
+
+def _check_actuator(params: SliderParams, changes: Mapping[str, Value], held: Inputs | None) -> None:
+    """Refuse a command that sets the input the actuator of ``params`` does not
+    use, naming the one it does use: a command on its topic whatever the value
+    (even the one held: it acts on nothing, and a user who sends it means the
+    other input); a parameter set (``held``: the inputs before it) unless it
+    keeps the value held, which is configuration, not a command (``ros2 param
+    load`` of a dump sets every parameter)."""
     used, unused = _ACTUATOR_INPUT[params.actuator]
-    if getattr(after, unused) != getattr(before, unused):
+    if unused in changes and (held is None or changes[unused] != getattr(held, unused)):
         setting = spec.INPUTS[used]
-        raise ParameterError(unused, getattr(after, unused),
-                             f"is not used by actuator {params.actuator}: set {used} ({setting.range_text()} "
-                             f"{setting.unit}) instead")
+        unit = f" {setting.unit}" if setting.unit not in ("", "-") else ""
+        raise ParameterError(unused, changes[unused], f"is not used by actuator {params.actuator}: set {used} "
+                                                      f"({setting.range_text()}{unit}) instead")
 
 
-def apply_all(commands: Iterable[Command], params: SliderParams, inputs: Inputs) -> tuple[SliderParams, Inputs]:
-    """:func:`apply` of several commands in order (raises on the first refusal)."""
-    for command in commands:
-        params, inputs = apply(command, params, inputs)
-    return params, inputs
+class Core(Protocol):
+    """What :func:`take` changes: the exact core (:class:`friction_sim.core.engine.single.Slider`)."""
+
+    @property
+    def params(self) -> SliderParams: ...
+    @property
+    def inputs(self) -> Inputs: ...
+    def set_plant(self, params: SliderParams, inputs: Inputs) -> None: ...
+    def restart(self) -> None: ...
+
+
+def take(core: Core, command: Command, check: Callable[[SliderParams, Inputs], object] | None = None) -> bool:
+    """Make ``command`` one change of ``core``, at the core's time: a reset
+    starts it again from rest; any other command gives the plant and inputs
+    :func:`apply` makes of those in force, which ``check`` (if given) may
+    refuse, and the core takes them if they differ from those in force.
+    Returns whether the core changed; a ParameterError of the gate or of
+    ``check`` is raised before anything changes.
+
+    The one way a handled command reaches the core: the slider node takes each
+    command it accepts with it (a parameter set as one command), and verify
+    replays a recording's accepted commands with it, one by one in recorded
+    order.  Each command is a change of its own, even at one instant (several
+    in one tick, or sent while paused): with the resonant exciter, a change
+    followed by another at the same instant (the actuator switched, then the
+    frequency set) leaves a transient that the two merged into one change do
+    not, so the node and a replay must both take them one at a time.
+    """
+    if command.name == RESET:
+        core.restart()
+        return True
+    params, inputs = apply(command, core.params, core.inputs)
+    if check is not None:
+        check(params, inputs)
+    if params == core.params and inputs == core.inputs:
+        return False
+    core.set_plant(params, inputs)
+    return True
 
 
 def reason(command: Command, error: ParameterError) -> str:
@@ -231,7 +275,7 @@ def float_values(values: Mapping[str, Any]) -> dict[str, Value]:
 
 
 __all__ = [
-    "COMMANDS", "CONTROLLER", "CONTROLS", "PARAMETERS", "PAUSE", "PHYSICS_FIELDS", "RESET", "RESUME", "SLIDER",
-    "STEP", "Command", "CommandSpec", "Outcome", "Value", "apply", "apply_all", "consumed_by", "float_values",
-    "in_force", "reason",
+    "COMMANDS", "CONTROLLER", "CONTROLS", "Core", "PARAMETERS", "PAUSE", "PHYSICS_FIELDS", "RESET", "RESUME", "SLIDER",
+    "STEP", "Command", "CommandSpec", "Outcome", "Value", "apply", "consumed_by", "float_values",
+    "in_force", "reason", "take", "unused_input",
 ]

@@ -10,6 +10,7 @@ holds everything that is not message conversion:
   controllers too; simulating it at once would run the plant on ahead of their
   answers, which no real plant does: the rest is not simulated (time slips).
 * Commands take effect at the simulation time at which they are handled,
+  each as a change of its own (:func:`~friction_sim.core.model.commands.take`, as verify replays them),
   are validated once (:mod:`friction_sim.core.model.params`), and are counted; a
   rejected command leaves the last valid inputs in force.
 * Once per completed excitation period it reports the mean velocity over
@@ -32,7 +33,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -40,12 +41,24 @@ from friction_sim.core.engine.single import Slider
 from friction_sim.core.meanspeed.predict import predict
 from friction_sim.core.meanspeed.urelation import Prediction
 from friction_sim.core.model import spec
-from friction_sim.core.model.commands import PARAMETERS, PAUSE, RESET, RESUME, STEP, Command, Outcome, apply, reason
+from friction_sim.core.model.commands import (
+    PARAMETERS,
+    PAUSE,
+    RESET,
+    RESUME,
+    STEP,
+    Command,
+    Outcome,
+    apply,
+    reason,
+    take,
+    unused_input,
+)
 from friction_sim.core.model.events import CycleMark, Event, EventKind, SliderState
 from friction_sim.core.model.params import Inputs, SliderParams, check_load
 from friction_sim.core.model.records import Acceleration, PeriodSummary, Tick, share
 from friction_sim.core.model.spec import NS_PER_S
-from friction_sim.core.physics.plant import steady_throw_number
+from friction_sim.core.physics.plant import steady_excitation, steady_throw_number
 from friction_sim.core.runtime.accelerometer import Accelerometer, grid
 from friction_sim.core.runtime.simclock import SimClock
 from friction_sim.errors import ParameterError, SimulationFault, one_line
@@ -148,38 +161,34 @@ class RealtimeSlider:
         return self.commands([command], wall_ns)[0]
 
     def commands(self, batch: Sequence[Command], wall_ns: int) -> list[Outcome]:
-        """Handle several commands at the same instant (now), in order.
+        """Handle several commands at the same instant (now), in order, each on its own.
 
-        Each is validated against the state the ones before it left, through
-        the core's one gate (:func:`friction_sim.core.model.commands.apply` and the
-        real-time load rule), and accepted or refused on its own; the core
-        then takes the result once (applying them one by one at the same
-        instant would give the same motion, at the cost of a new segment each).
-        If the core cannot take the result (see :meth:`_take`), the accepted
-        commands are taken one by one and each one it cannot take is refused.
-        The outcomes carry the commands stamped with the time they took effect.
+        Each is validated against the state the ones before it left (the core's
+        one gate, :func:`~friction_sim.core.model.commands.apply`, and the
+        real-time load rule) and, if valid, taken at once as a change of its own
+        (:func:`~friction_sim.core.model.commands.take`, guarded: one the core
+        cannot take is refused), never merged: as a recording holds them and
+        verify replays them.  The outcomes carry the commands stamped with the
+        time they took effect.
         """
         t = self._advance(wall_ns)
-        start = self.slider.params, self.slider.inputs
-        params, inputs = start
         outcomes: list[Outcome] = []
-        taken: list[int] = []  # indices of the accepted outcomes
         for command in batch:
             stamped = command if command.t == t else command.at(t)  # the node stamps them already
             try:
-                params, inputs = self._check(stamped, params, inputs)
+                problem = self._take_checked(stamped)
             except ParameterError as error:
                 outcomes.append(self._refuse(stamped, reason(stamped, error)))
                 continue
-            taken.append(len(outcomes))
+            if problem:
+                outcomes.append(self._refuse(stamped, f"{stamped.name}: {problem}"))
+                continue
+            self.accepted += 1
             outcomes.append(Outcome(stamped))
-        if taken and self._take(params, inputs):
-            self._take_one_by_one(outcomes, taken, *start)
-        self.accepted += sum(outcomes[i].accepted for i in taken)
         return outcomes
 
-    def _check(self, command: Command, params: SliderParams, inputs: Inputs) -> tuple[SliderParams, Inputs]:
-        """Plant and inputs after ``command`` (the one gate plus the real-time load rule).
+    def _take_checked(self, command: Command) -> str:
+        """Take ``command`` through the one gate plus the real-time load rule (:meth:`_take`).
 
         Each value is first checked against its own range alone: a NaN, inf or
         out-of-range value (what a flood of bad commands is made of) is refused
@@ -187,30 +196,11 @@ class RealtimeSlider:
         """
         for field, value in command.values.items():
             _PHYSICS[field].check(value)
-        params, inputs = apply(command, params, inputs)
-        check_load(inputs.excitation_frequency, self.clock.rate)
-        return params, inputs
-
-    def _take_one_by_one(self, outcomes: list[Outcome], taken: list[int], params: SliderParams,
-                         inputs: Inputs) -> None:
-        """The core could not take a batch as a whole: take its accepted commands
-        one at a time, refusing each it cannot take (or that the refusal of an
-        earlier one made invalid)."""
-        for index in taken:
-            command = outcomes[index].command
-            try:
-                new_params, new_inputs = self._check(command, params, inputs)
-            except ParameterError as error:
-                outcomes[index] = self._refuse(command, reason(command, error))
-                continue
-            problem = self._take(new_params, new_inputs)
-            if problem:
-                outcomes[index] = self._refuse(command, f"{command.name}: {problem}")
-                continue
-            params, inputs = new_params, new_inputs
+        return self._take(command, lambda params, inputs: check_load(inputs.excitation_frequency, self.clock.rate))
 
     def configure(self, values: Mapping[str, Any], wall_ns: int) -> Outcome:
-        """A set of node parameters, checked and applied as one new state, now.
+        """A set of node parameters, checked and applied as one new state, now: one
+        change of the core (:func:`~friction_sim.core.model.commands.take`); two sets are two changes.
 
         ``values`` may hold plant and input fields (the physics, applied as one ``parameters``
         command), ``real_time_factor``, ``publish_rate``, ``max_catch_up`` and ``mean_window_periods``.
@@ -222,7 +212,7 @@ class RealtimeSlider:
                    if k in spec.PLANT or k in spec.INPUTS}
         command = Command(t, PARAMETERS, physics)
         try:
-            params, inputs = apply(command, self.slider.params, self.slider.inputs)
+            inputs = apply(command, self.slider.params, self.slider.inputs)[1]
             rate = float(spec.REAL_TIME_FACTOR.check(values.get("real_time_factor", self.clock.rate)))
             check_load(inputs.excitation_frequency, rate,
                        "real_time_factor" if "real_time_factor" in values else "excitation_frequency")
@@ -233,7 +223,7 @@ class RealtimeSlider:
                                                                    self.mean_window_periods)))
         except ParameterError as error:
             return self._refuse(command, str(error))
-        problem = self._take(params, inputs)
+        problem = self._take(command)  # (the gate again: the plant and inputs checked above)
         if problem:
             return self._refuse(command, f"{', '.join(values)}: {problem}")
         self.clock.set_rate(rate, wall_ns)
@@ -254,26 +244,31 @@ class RealtimeSlider:
         self.last_rejection = why
         return Outcome(command, why)
 
-    def _take(self, params: SliderParams, inputs: Inputs) -> str:
-        """Hand new (validated) parameters and inputs to the core, if they changed.
+    def _take(self, command: Command, check: Callable[[SliderParams, Inputs], object] | None = None) -> str:
+        """Make ``command`` one change of the core (:func:`~friction_sim.core.model.commands.take`), guarded.
 
-        Returns '' when the core took them, else why not: the core raised, or
-        the state it leaves is not finite; then the core is put back exactly
-        as it was (a checkpoint taken first).
+        Returns '' when the core took it (or it changed nothing), else why
+        not: the core raised, or the state it leaves is not finite; then the
+        core is put back exactly as it was (a checkpoint taken first).  A
+        ParameterError of the gate or of ``check`` is raised, nothing changed.
         """
         slider = self.slider
-        if params == slider.params and inputs == slider.inputs:
-            return ""
         checkpoint = slider.checkpoint()
         try:
-            slider.set_plant(params, inputs)
+            if not take(slider, command, check):
+                return ""
             problem = _non_finite(slider.state())
             if math.isnan(slider.next_event_time):
                 problem = problem or "the next event time is nan"
+        except ParameterError:
+            slider.restore(checkpoint)
+            raise
         except Exception as error:  # noqa: BLE001 - any failure of the core refuses the change
             problem = one_line(error, with_type=True)
         if problem:
             slider.restore(checkpoint)
+            if command.name == RESET:
+                return f"the simulation cannot restart ({problem})"
             return f"the simulation cannot take this state ({problem}); last valid state kept"
         return ""
 
@@ -342,15 +337,9 @@ class RealtimeSlider:
         mean-velocity window starts afresh: no mean spans the reset."""
         t = self._advance(wall_ns)
         self._periods.extend(self._new_periods())
-        checkpoint = self.slider.checkpoint()
-        try:
-            self.slider.restart()
-            problem = _non_finite(self.slider.state())
-        except Exception as error:  # noqa: BLE001 - any failure of the core refuses the reset
-            problem = one_line(error, with_type=True)
+        problem = self._take(Command(t, RESET))  # the one way a command reaches the core (see take)
         if problem:
-            self.slider.restore(checkpoint)
-            return self._refuse(Command(t, RESET), f"reset: the simulation cannot restart ({problem})")
+            return self._refuse(Command(t, RESET), f"reset: {problem}")
         self._window.clear()
         return Outcome(Command(t, RESET))
 
@@ -548,11 +537,11 @@ class RealtimeSlider:
             "max_catch_up": self.max_catch_up, "stalls": self.stalls, "time_slipped": self.time_slipped,
             "last_rejection": self.last_rejection,
             "drive_force": inputs.drive_force,
-            "excitation_amplitude": inputs.excitation_amplitude,
+            "excitation_amplitude": self._input_shown("excitation_amplitude"),
             "excitation_frequency": inputs.excitation_frequency,
             "external_force_x": inputs.external_force_x,
             "external_force_z": inputs.external_force_z,
-            "drive_level": inputs.drive_level,
+            "drive_level": self._input_shown("drive_level"),
             **self._exciter_report(),
             "throw_number": steady_throw_number(self.slider.params, inputs),
             # the groups the prediction is made of: with an external force, the effective ones
@@ -581,17 +570,27 @@ class RealtimeSlider:
             flight_time, lift_offs, landings)
         return report
 
+    def _input_shown(self, field: str) -> float | str:
+        """The input ``field`` in force as diagnostics show it: its value, or, for
+        the input the actuator in force does not use (and refuses), the value
+        marked so (``5.0 (unused: actuator resonant)``), never as if it acted."""
+        value: float = getattr(self.slider.inputs, field)
+        actuator = self.slider.params.actuator
+        return f"{value!r} (unused: actuator {actuator})" if field == unused_input(actuator) else value
+
     def _exciter_report(self) -> dict[str, Any]:
-        """The actuator and, for the resonant one, the exciter's state now: the
-        amplitude of the part's normal excitation (steady plus the transient's
-        envelope) and its lag behind the drive (NaN for the force actuator,
-        whose excitation is Pa as set), with the slideway's f_n and zeta in force."""
+        """The actuator and the excitation it makes now: the steady Pa of the inputs
+        in force (the resonant actuator's m*u*A*G(f/f_n), the force actuator's Pa as
+        set), the present amplitude of the part's normal excitation (the resonant
+        exciter's state now: steady plus the transient's envelope) and its lag
+        behind the drive (NaN for the force actuator), with the slideway's f_n and
+        zeta in force."""
         state, params = self.slider.exciter, self.slider.params
+        steady = steady_excitation(params, self.slider.inputs)[0]
         report = {"actuator": params.actuator, "natural_frequency": params.natural_frequency,
-                  "damping_ratio": params.damping_ratio}
+                  "damping_ratio": params.damping_ratio, "steady_excitation_amplitude": steady}
         if state is None:
-            return {**report, "excitation_envelope": self.slider.inputs.excitation_amplitude,
-                    "exciter_lag_deg": math.nan}
+            return {**report, "excitation_envelope": steady, "exciter_lag_deg": math.nan}
         return {**report, "excitation_envelope": state.amplitude, "exciter_lag_deg": math.degrees(state.lag)}
 
     def _flight_record(self) -> tuple[float, int, int]:

@@ -23,7 +23,7 @@ import numpy as np
 
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.meanspeed.urelation import kostek_prediction, nondimensional_speed
-from friction_sim.core.model.commands import Command, apply_all
+from friction_sim.core.model.commands import Command, take
 from friction_sim.core.model.events import Event, EventKind, Trajectory
 from friction_sim.core.model.params import Inputs, SliderParams, field_values, require_finite
 from friction_sim.core.model.records import share
@@ -62,8 +62,9 @@ def random_schedule(
 def run_schedule(slider: Slider, schedule: Schedule, sample_times: np.ndarray) -> Trajectory:
     """Apply ``schedule`` to ``slider`` at its command times and return the
     exact state at ``sample_times`` (ascending).  A command at the same time as
-    a sample is applied first; commands at the same time take effect together
-    (validated in order, one new segment), as the slider node takes a batch.
+    a sample is applied first; commands at the same time are taken one by one,
+    each a change of its own (:func:`~friction_sim.core.model.commands.take`),
+    as the slider node takes them and verify replays them.
     The trajectory's events are every event the slider went through, in time
     order: those between samples, and those between the last sample before a
     command and the command (or after the last sample, up to the last command)."""
@@ -78,9 +79,8 @@ def run_schedule(slider: Slider, schedule: Schedule, sample_times: np.ndarray) -
             events.extend(pieces[-1].events)
             first = last
         events.extend(slider.advance_to(t))
-        commands = list(group)
-        params, inputs = apply_all(commands, slider.params, slider.inputs)
-        slider.set_plant(params, inputs)
+        for command in group:
+            take(slider, command)
     if first < sample_times.size:
         pieces.append(slider.sample(sample_times[first:]))
         events.extend(pieces[-1].events)
