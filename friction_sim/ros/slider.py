@@ -12,9 +12,12 @@ from it.  Above the throw number 1 (Pa > m g cos(alpha) - Fz) the slider
 hops, and the height z and its rate vz are published with x and v.
 
 Subscriptions: ``drive_force``, ``excitation_amplitude``,
-``excitation_frequency`` (std_msgs/Float64) and ``external_wrench``
+``excitation_frequency``, ``drive_level`` (std_msgs/Float64) and ``external_wrench``
 (geometry_msgs/WrenchStamped: force.x tangential, force.z normal, > 0 lifts,
-away from the track; held until the next message).
+away from the track; held until the next message).  Of ``excitation_amplitude``
+and ``drive_level`` the actuator in force takes one; the other is refused on its
+topic whatever its value, and as a parameter set to any value but the one held
+(a dump loads back), and diagnostics mark it unused.
 Publications: ``pose``, ``velocity``, ``friction_force`` at ``publish_rate``;
 ``mean_velocity`` once per completed excitation period; ``diagnostics`` every
 ``diagnostics_period`` (1 s); ``/clock`` while ``publish_clock`` is true (the publisher exists only
@@ -134,7 +137,8 @@ PUBLICATIONS = (
     ("mean_velocity", "geometry_msgs/msg/TwistStamped",
      "linear.x = mean speed [m/s] over the last mean_window_periods whole periods, once per period"),
     ("diagnostics", "diagnostic_msgs/msg/DiagnosticArray",
-     "status 'slider', every diagnostics_period (1 s): with the throw number, flight fraction, lift-offs and landings"),
+     "status 'slider', every diagnostics_period (1 s): with the actuator's steady Pa and present envelope (the input "
+     "it does not use marked unused), the throw number, flight fraction, lift-offs and landings"),
     ("/clock", "rosgraph_msgs/msg/Clock", "simulation time, while publish_clock is true"),
 )
 
@@ -277,12 +281,13 @@ class SliderNode(Node):
         ]
 
     def _watch_namespace(self) -> None:
-        """With a recording or a live view: keep what other nodes put on this
-        namespace's ``diagnostics`` (the controller's, and this node's own)
-        and ``target_speed``, so the file and the view show the whole feeder
-        (the shipped layout plots the target against the mean speed)."""
-        if self.recorder is None and self.live is None:
-            return
+        """Keep what other nodes put on this namespace's ``diagnostics`` (the
+        controller's, and this node's own) and ``target_speed`` for a recording
+        or a live view, so the file and the view show the whole feeder (the
+        shipped layout plots the target against the mean speed).  The
+        subscriptions exist whether or not anything records, so the number of
+        subscribers of ``target_speed`` (what ``ros2 topic pub -w`` waits for)
+        is the same in every setup: the controller's and this one."""
         for topic, kind in (("diagnostics", DiagnosticArray), ("target_speed", message_class("std_msgs/msg/Float64"))):
             self.create_subscription(kind, topic, functools.partial(self._forward, topic), QOS_DEPTH,
                                      event_callbacks=_QUIET_SUBSCRIPTION)
@@ -290,6 +295,8 @@ class SliderNode(Node):
     def _forward(self, topic: str, msg: Any) -> None:
         """Hand a message seen on ``topic`` to the recording and the live view,
         at the simulation time now."""
+        if self.recorder is None and self.live is None:
+            return
         log_time_ns = seconds_to_ns(self._rt.now(wall_ns()))
         for sink in (self.recorder, self.live):
             if sink is not None:
@@ -305,8 +312,9 @@ class SliderNode(Node):
             now = wall_ns()
             t = self._rt.now(now)
             outcomes = self._rt.commands([command_from_message(name, msg, t) for name, msg in waiting], now)
+            self._record(outcomes)
         for outcome in outcomes:
-            self._report(outcome)
+            self._warn_refused(outcome)
 
     def _live_services(self) -> list[Any]:
         """The control services again, for Foxglove clients of the live view
@@ -337,11 +345,12 @@ class SliderNode(Node):
             with self._lock:
                 outcome = self._control(name, wall_ns())
                 state, published = self._rt.slider.state(), self._ticks_computed + 1
+                self._record([outcome])
         except SimulationFault as fault:  # the run cannot go on: say so, answer, stop
             self._fail(fault)
             response.success, response.message = False, str(fault)
             return response
-        self._report(outcome, self.get_logger().warning)  # each refused call is warned
+        self._warn_refused(outcome, self.get_logger().warning)  # each refused call is warned
         if outcome.accepted and name in (STEP, RESET):
             self._wait_published(published)
         response.success = outcome.accepted
@@ -366,14 +375,21 @@ class SliderNode(Node):
 
     # -- commands ---------------------------------------------------------------
 
-    def _report(self, outcome: Outcome, warn: Callable[[str], Any] | None = None) -> None:
-        """Hand a handled command to the sinks; warn about a refusal (by default
-        on the node's throttle: a flood of bad commands costs a clock read each)."""
+    def _record(self, outcomes: Sequence[Outcome]) -> None:
+        """Hand handled commands to the sinks, with the lock held: the tick thread
+        and the executor's (parameters, control calls) take commands in turn, and
+        a recording must hold them in the order the core took them (verify
+        replays them in that order, each a change of its own)."""
+        for outcome in outcomes:
+            for sink in self.sinks:
+                sink.on_command(outcome, self._frame_id)
+
+    def _warn_refused(self, outcome: Outcome, warn: Callable[[str], Any] | None = None) -> None:
+        """Warn about a refusal (by default on the node's throttle: a flood of bad
+        commands costs a clock read each)."""
         if not outcome.accepted:
             kept = "nothing changed" if outcome.command.is_control else "last valid value kept"
             (warn or self._warn)(f"{outcome.reason}; {kept}")
-        for sink in self.sinks:
-            sink.on_command(outcome, self._frame_id)
 
     def _parameter_refused(self, name: str, value: Any, why: str) -> None:
         """rclpy refused a parameter value before our callbacks (range, type,
@@ -383,8 +399,7 @@ class SliderNode(Node):
         values = {name: value} if name in PHYSICS_FIELDS else {}
         with self._lock:
             outcome = self._rt.refuse(Command(0.0, PARAMETER_COMMAND, values), why, wall_ns())
-        for sink in self.sinks:
-            sink.on_command(outcome, self._frame_id)
+            self._record([outcome])
 
     # -- publishing -------------------------------------------------------------
 
@@ -523,11 +538,12 @@ class SliderNode(Node):
         try:
             with self._lock:
                 outcome = self._rt.configure(values, wall_ns())
+                if outcome.values or not outcome.accepted:
+                    self._record([outcome])
         except SimulationFault as fault:  # the run cannot go on: say so, answer, stop
             self._fail(fault)
             return SetParametersResult(successful=False, reason=str(fault))
-        if outcome.values or not outcome.accepted:
-            self._report(outcome, self.get_logger().warning)  # each refused set is warned
+        self._warn_refused(outcome, self.get_logger().warning)  # each refused set is warned
         if not outcome.accepted:
             return SetParametersResult(successful=False, reason=outcome.reason)
         return SetParametersResult(successful=True)
