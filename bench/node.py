@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import os
 import random
+import re
 import subprocess
 import sys
 import tempfile
@@ -226,12 +227,13 @@ def run_node_pass(listener: Listener, duration: float, log: Path | None, client:
     ``client``: None no live view; False a live view nobody watches; True
     watched by a client process subscribed to every channel."""
     extra = ["-p", f"log_path:={log}"] if log else []
-    port = _free_port()
     if client is not None:
-        extra += ["-p", f"foxglove_port:={port}"]
-    node = subprocess.Popen(
-        [str(BIN / "slider"), "--ros-args", "-r", f"__ns:={NAMESPACE}", "-p", "publish_rate:=1000.0", *extra],
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        extra += ["-p", "foxglove_port:=-1"]  # the system chooses the port; the node logs its URL
+    node_log = Path(tempfile.mkdtemp(prefix="bench_node_")) / "slider.log"
+    with node_log.open("w") as err:  # a file, not a pipe nobody reads: the node's log never blocks it
+        node = subprocess.Popen(
+            [str(BIN / "slider"), "--ros-args", "-r", f"__ns:={NAMESPACE}", "-p", "publish_rate:=1000.0", *extra],
+            stdout=subprocess.DEVNULL, stderr=err, text=True)
     watcher = None
     started = time.monotonic()
     try:
@@ -239,7 +241,7 @@ def run_node_pass(listener: Listener, duration: float, log: Path | None, client:
         if not _wait_for_node(listener):
             raise RuntimeError("the slider node never published")
         if client:
-            watcher = subprocess.Popen([sys.executable, "-c", WATCHER, str(CLIENT.parent), f"ws://127.0.0.1:{port}"],
+            watcher = subprocess.Popen([sys.executable, "-c", WATCHER, str(CLIENT.parent), _served_url(node_log)],
                                        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         listener.spin_for(2.0)  # let discovery and the first periods settle
         figures = steady_window(listener, node.pid, duration)
@@ -295,12 +297,14 @@ print(f"{len(subscribed)} channels, " + ", ".join(f"{t} {n / elapsed:.1f}/s" for
 """
 
 
-def _free_port() -> int:
-    import socket
-
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
+def _served_url(log: Path) -> str:
+    """The live view's URL, from the line the slider logs once its server listens."""
+    deadline = time.monotonic() + 20.0
+    while not (found := re.search(r"live view: open (ws://\S+) in Foxglove", log.read_text())):
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"the slider never said where its live view serves: {log.read_text()[-500:]}")
+        time.sleep(0.05)
+    return found[1]
 
 
 def _wait_for_node(listener: Listener) -> bool:

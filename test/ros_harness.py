@@ -91,6 +91,7 @@ class Probe:
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(self.node)
         self._clients: dict[str, AsyncParameterClient] = {}
+        self._nodes = nodes
         for node in nodes:
             self.executor.add_node(node)
 
@@ -125,9 +126,25 @@ class Probe:
                        for topic, pub in self.publishers.items() if topic != "target_speed")
             return subs and len(self.received[topic]) > 0
         assert self.spin_until(matched, timeout), "the node under test never connected"
-        # Our publishers know the node's readers; give the readers a moment to know our writers too,
-        # or a command sent at once can be dropped by a reader that has not matched us yet.
-        self.spin_for(0.3)
+        # Our publishers know the node's readers; the readers must know our writers too, or a command
+        # sent at once can be dropped by a reader that has not matched us yet.  A node in this process
+        # says so itself; of a node in another process nothing tells, and a moment is all we can give.
+        if self._nodes:
+            assert self.spin_until(self._readers_know_our_writers, timeout), "the node never matched our writers"
+        else:
+            self.spin_for(0.3)
+
+    def _readers_know_our_writers(self) -> bool:
+        """Every reader of the in-process nodes on a topic we publish has matched every writer
+        on that topic in this process (ours among them)."""
+        writers: dict[str, int] = defaultdict(int)
+        for node in (self.node, *self._nodes):
+            for publisher in node.publishers:
+                writers[publisher.topic_name] += 1
+        ours = {publisher.topic_name for publisher in self.publishers.values()}
+        return all(subscription.get_publisher_count() >= writers[subscription.topic_name]
+                   for node in self._nodes for subscription in node.subscriptions
+                   if subscription.topic_name in ours)
 
     def set_parameter(self, node: str, name: str, value: object) -> tuple[bool, str]:
         """``ros2 param set`` through ``node``'s parameter services: (successful, reason)."""

@@ -39,10 +39,11 @@ def open_recorder(values: dict[str, Any], namespace: str, node: str) -> Any:
 
 
 def open_live_view(values: dict[str, Any], namespace: str, node: str, services: list[Any]) -> Any:
-    """A LiveView on ``foxglove_port`` (None when it is 0): the Foxglove SDK's
-    server on ``foxglove_address``, topics qualified in the node's namespace,
-    with ``services``.  A port that is taken raises LiveViewError naming it
-    (the node does not start)."""
+    """A LiveView on ``foxglove_port`` (None when it is 0; -1: a port the
+    system chooses when the server binds, which the view's ``port`` and ``url``
+    then give): the Foxglove SDK's server on ``foxglove_address``, topics
+    qualified in the node's namespace, with ``services``.  A port that is
+    taken raises LiveViewError naming it (the node does not start)."""
     if not values["foxglove_port"]:
         return None
     from friction_sim.io.live import ADVERTISED, LiveView
@@ -53,7 +54,7 @@ def open_live_view(values: dict[str, Any], namespace: str, node: str, services: 
         topics.append(("/clock", "rosgraph_msgs/msg/Clock"))
     if values["accelerometer_rate"]:
         topics.append((ACCELEROMETER, "sensor_msgs/msg/Imu"))
-    return LiveView(values["foxglove_port"], values["foxglove_address"], namespace=namespace, node=node,
+    return LiveView(max(values["foxglove_port"], 0), values["foxglove_address"], namespace=namespace, node=node,
                     advertise=topics, services=services)
 
 

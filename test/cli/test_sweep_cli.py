@@ -101,13 +101,14 @@ def test_bad_input_is_one_line_and_exit_code_2(tmp_path: Path, args: list[str], 
     results = tmp_path / "results.parquet"
     if "{results}" in args:
         assert main(["sweep", str(good), "--workers", "0", "--output", str(results), "--quiet"]) == 0
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
-    filled = [a.format(bad=tmp_path / "bad.yaml", good=good, tmp=tmp_path, port=port,
-                       foreign=tmp_path / "foreign.parquet", results=results) for a in args]
-    done = subprocess.run([sys.executable, "-m", "friction_sim", *filled], capture_output=True, text=True,
-                          timeout=60, check=False)
+    # A port where no scheduler is: bound here for the whole test and never listening, so a
+    # connection to it is refused, and no other process can start listening there meanwhile.
+    with socket.socket() as unheard:
+        unheard.bind(("127.0.0.1", 0))
+        filled = [a.format(bad=tmp_path / "bad.yaml", good=good, tmp=tmp_path, port=unheard.getsockname()[1],
+                           foreign=tmp_path / "foreign.parquet", results=results) for a in args]
+        done = subprocess.run([sys.executable, "-m", "friction_sim", *filled], capture_output=True, text=True,
+                              timeout=60, check=False)
     lines = done.stderr.strip().splitlines()
     assert done.returncode == 2, done.stderr
     assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr

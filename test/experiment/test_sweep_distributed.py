@@ -1,15 +1,16 @@
 """A sweep on a real Dask cluster of separate processes: ``dask scheduler`` and
-two ``dask worker`` processes started here on 127.0.0.1 (free ports), as a
-user starts them on other machines.  One worker is killed (SIGKILL) while it
-holds a chunk: the sweep still completes, every chunk written exactly once,
-every number equal to the in-process run."""
+two ``dask worker`` processes started here on 127.0.0.1 (on ports the system
+chooses; the scheduler's is read from its scheduler file), as a user starts
+them on other machines.  One worker is killed (SIGKILL) while it holds a
+chunk: the sweep still completes, every chunk written exactly once, every
+number equal to the in-process run."""
 
 from __future__ import annotations
 
+import json
 import os
 import random
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -38,12 +39,6 @@ random:
 """
 
 
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
-
-
 def environment() -> dict[str, str]:
     """The workers need no ROS; discovery stays local and on a domain of its own all the same."""
     env = dict(os.environ)
@@ -59,23 +54,43 @@ def dask(*args: str, log: Path) -> subprocess.Popen[bytes]:
                                 stdin=subprocess.DEVNULL, env=environment())
 
 
+def scheduler_address(scheduler_file: Path, scheduler: subprocess.Popen[bytes], log: Path,
+                      timeout: float = 30.0) -> str:
+    """The address the scheduler listens on, once it has written its file: it chose the port itself
+    (``--port 0``), so no other process can take it between a choice and a bind.  The file is written
+    in one ``json.dump``, not atomically: a file that does not parse yet is read again."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if scheduler.poll() is not None:
+            raise AssertionError(f"dask scheduler exited with {scheduler.returncode}:\n{log.read_text()}")
+        try:
+            return str(json.loads(scheduler_file.read_text())["address"])
+        except (FileNotFoundError, json.JSONDecodeError, KeyError):
+            time.sleep(0.05)
+    raise AssertionError(f"dask scheduler wrote no {scheduler_file.name} in {timeout} s:\n{log.read_text()}")
+
+
 @pytest.fixture
 def cluster(tmp_path: Path) -> Iterator[tuple[str, dict[str, subprocess.Popen[bytes]]]]:
-    """A scheduler and two single-threaded workers without nannies (a killed worker stays dead)."""
-    port = free_port()
-    address = f"tcp://127.0.0.1:{port}"
-    processes = {"scheduler": dask("scheduler", "--host", "127.0.0.1", "--port", str(port),
+    """A scheduler and two single-threaded workers without nannies (a killed worker stays dead).
+    Every process binds port 0: the scheduler reports its address in the scheduler file, the
+    workers find it there and report theirs to it."""
+    scheduler_file = tmp_path / "scheduler.json"
+    processes = {"scheduler": dask("scheduler", "--host", "127.0.0.1", "--port", "0",
+                                   "--scheduler-file", str(scheduler_file),
                                    "--dashboard-address", "127.0.0.1:0", log=tmp_path / "scheduler.log")}
-    for name in ("w1", "w2"):
-        worker_port = free_port()
-        processes[name] = dask("worker", address, "--name", name, "--nthreads", "1", "--no-nanny",
-                               "--host", "127.0.0.1", "--worker-port", str(worker_port),
-                               "--dashboard-address", "127.0.0.1:0", log=tmp_path / f"{name}.log")
     try:
+        address = scheduler_address(scheduler_file, processes["scheduler"], tmp_path / "scheduler.log")
+        for name in ("w1", "w2"):
+            processes[name] = dask("worker", "--scheduler-file", str(scheduler_file), "--name", name,
+                                   "--nthreads", "1", "--no-nanny", "--host", "127.0.0.1",
+                                   "--dashboard-address", "127.0.0.1:0", log=tmp_path / f"{name}.log")
         yield address, processes
     finally:
         for name in ("w1", "w2", "scheduler"):  # workers first: they would wait for a scheduler gone
-            process = processes[name]
+            process = processes.get(name)
+            if process is None:
+                continue
             if process.poll() is None:
                 process.send_signal(signal.SIGINT)
                 try:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -28,12 +29,12 @@ from friction_sim.ros.slider import SliderNode
 from foxglove_client import FoxgloveClient, Received
 from ros_harness import Probe, kill_if_running, namespace, stamp_ns
 
-
-def free_port() -> int:
-    """A TCP port nothing listens on now (the OS's choice)."""
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
+#: ``foxglove_port`` -1: the system chooses a free port as the server binds it, and the node
+#: reports it (``live.port``; in a process's log, the line that names the URL).  A port picked
+#: here and released before the node binds it could be taken by anyone in between.
+ANY_PORT = -1
+#: The slider's start-up line naming where its live view serves.
+SERVING = re.compile(r"live view: open (ws://127\.0\.0\.1:(\d+)) in Foxglove")
 
 
 class LiveRig:
@@ -41,10 +42,11 @@ class LiveRig:
 
     def __init__(self, tmp_path: Path) -> None:
         self.ns = namespace()
-        self.port = free_port()
         self.node = SliderNode(namespace=self.ns, parameter_overrides=[
-            Parameter("foxglove_port", value=self.port), Parameter("log_path", value=str(tmp_path / "run.mcap"))])
-        assert self.node.live is not None and self.node.live.url == f"ws://127.0.0.1:{self.port}"
+            Parameter("foxglove_port", value=ANY_PORT), Parameter("log_path", value=str(tmp_path / "run.mcap"))])
+        assert self.node.live is not None
+        self.port = self.node.live.port
+        assert self.port > 0 and self.node.live.url == f"ws://127.0.0.1:{self.port}"
         self.probe = Probe(self.ns, self.node)
         self.probe.wait_for_connection()
         self.client = FoxgloveClient(self.node.live.url).__enter__()
@@ -140,17 +142,35 @@ def test_a_taken_port_stops_the_node_at_start_naming_it(ros: None) -> None:
             SliderNode(namespace=namespace(), parameter_overrides=[Parameter("foxglove_port", value=port)])
 
 
-def _feeder(port: int, ns: str) -> subprocess.Popen[str]:
-    return subprocess.Popen(
-        [sys.executable, "-m", "friction_sim", "feeder", "--foxglove", str(port), "--ros-args", "-r", f"__ns:={ns}"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy())
+def _started(command: list[str], log: Path) -> subprocess.Popen[str]:
+    """``command`` running, its log (stderr, where the nodes log) in ``log``: a file, read while it runs."""
+    with log.open("w") as err:
+        return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=err, text=True, env=os.environ.copy())
 
 
-def test_friction_sim_feeder_foxglove_serves_both_nodes_and_a_taken_port_is_one_line(ros: None) -> None:
-    port, ns = free_port(), namespace()
-    feeder = _feeder(port, ns)
+def _feeder(port: int, ns: str, log: Path) -> subprocess.Popen[str]:
+    return _started([sys.executable, "-m", "friction_sim", "feeder", "--foxglove", str(port), "--ros-args", "-r",
+                     f"__ns:={ns}"], log)
+
+
+def _serving(process: subprocess.Popen[str], log: Path, timeout: float = 60.0) -> tuple[str, int]:
+    """The URL and port the live view of a starting ``process`` serves on, once its log names them
+    (the slider logs the line after its server is listening); the timeout only guards a hang."""
+    deadline = time.monotonic() + timeout
+    while not (found := SERVING.search(log.read_text())):
+        if process.poll() is not None or time.monotonic() > deadline:
+            raise AssertionError(f"the server never opened (exit {process.poll()}): {log.read_text()[-2000:]}")
+        time.sleep(0.05)
+    return found[1], int(found[2])
+
+
+def test_friction_sim_feeder_foxglove_serves_both_nodes_and_a_taken_port_is_one_line(
+        ros: None, tmp_path: Path) -> None:
+    ns = namespace()
+    feeder = _feeder(ANY_PORT, ns, tmp_path / "feeder.log")
     try:
-        client = _connect(f"ws://127.0.0.1:{port}", feeder)
+        url, port = _serving(feeder, tmp_path / "feeder.log")
+        client = FoxgloveClient(url).__enter__()
         try:
             client.wait_for_channels(f"{ns}/pose", timeout=10.0)
             client.subscribe(f"{ns}/pose")
@@ -167,8 +187,9 @@ def test_friction_sim_feeder_foxglove_serves_both_nodes_and_a_taken_port_is_one_
         statuses = {s.name for r in got if r.topic == f"{ns}/diagnostics" for s in r.message.status}
         assert sum(r.topic == f"{ns}/pose" for r in got) >= 500
         assert {"slider", "controller"} <= statuses, statuses
-        second = _feeder(port, namespace())
-        _, err = second.communicate(timeout=60)
+        second = _feeder(port, namespace(), tmp_path / "second.log")  # the port the first one holds
+        second.communicate(timeout=60)
+        err = (tmp_path / "second.log").read_text()
         assert second.returncode == 2, err
         assert f"foxglove_port = {port} rejected" in err and "Traceback" not in err
     finally:
@@ -181,32 +202,17 @@ def test_friction_sim_feeder_foxglove_serves_both_nodes_and_a_taken_port_is_one_
     assert feeder.returncode == 0
 
 
-def _connect(url: str, process: subprocess.Popen[str]) -> FoxgloveClient:
-    """A client connected to a server that a starting process will open."""
-    import time
-
-    deadline = time.monotonic() + 30.0
-    while True:
-        try:
-            return FoxgloveClient(url).__enter__()
-        except OSError:
-            if process.poll() is not None or time.monotonic() > deadline:
-                raise AssertionError(f"the server never opened: {process.communicate()[1][-2000:]}") from None
-            time.sleep(0.2)
-
-
 def test_friction_sim_experiment_foxglove_serves_the_in_process_run(tmp_path: Path) -> None:
     """The in-process experiment (slider and controller in the job's process)
     serves its run; with --attach the slider is elsewhere and the flag is refused."""
     scenario = tmp_path / "short.yaml"
     scenario.write_text("name: short\nduration: 4.0\noutput: out\nplant: {excitation_amplitude: 5.0}\ncontroller: {}\n"
                         "schedule:\n  - {t: 1.0, excitation_amplitude: 6.0}\n  - {t: 2.0, target_speed: 0.0002}\n")
-    port = free_port()
-    job = subprocess.Popen([sys.executable, "-m", "friction_sim", "experiment", str(scenario), "--output",
-                            str(tmp_path / "out"), "--foxglove", str(port)],
-                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy())
+    log = tmp_path / "job.log"
+    job = _started([sys.executable, "-m", "friction_sim", "experiment", str(scenario), "--output",
+                    str(tmp_path / "out"), "--foxglove", str(ANY_PORT)], log)
     try:
-        client = _connect(f"ws://127.0.0.1:{port}", job)
+        client = FoxgloveClient(_serving(job, log)[0]).__enter__()
         try:
             client.collect(until=lambda _: any(t.endswith("/pose") for t in client.channels), timeout=10.0)
             poses = [t for t in client.channels if t.endswith("/pose")]  # in the experiment's own namespace
@@ -214,10 +220,10 @@ def test_friction_sim_experiment_foxglove_serves_the_in_process_run(tmp_path: Pa
             got = client.collect(until=lambda r: sum(x.topic in poses for x in r) >= 300, timeout=60.0)
         finally:
             client.close()
-        _, err = job.communicate(timeout=120)
+        job.communicate(timeout=120)
     finally:
         kill_if_running(job)
-    assert job.returncode == 0, err[-2000:]
+    assert job.returncode == 0, log.read_text()[-2000:]
     assert len(poses) == 1 and sum(r.topic in poses for r in got) >= 300
     assert (tmp_path / "out" / "short.mcap").is_file()
     attached = subprocess.run([sys.executable, "-m", "friction_sim", "experiment", str(scenario), "--attach", "/x",

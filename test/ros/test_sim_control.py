@@ -73,7 +73,12 @@ def test_pause_stops_time_exactly_and_resume_goes_on_without_a_jump(ros: None) -
         answer = rig.call("pause")
         assert answer.success and answer.message.startswith("paused at t = ")
         t_pause = _t(rig)
-        rig.probe.spin_for(0.1)  # what was on its way arrives
+        # What was on its way arrives: the last state and /clock published are those of the pause's
+        # instant (the first tick after it publishes the state the pause advanced to); wait for them.
+        pause_ns = round(t_pause * 1e9)
+        assert rig.probe.spin_until(lambda: any(stamp_ns(m) == pause_ns for m in rig.probe.received["pose"][-5:])
+                                    and any(m.clock.sec * 1_000_000_000 + m.clock.nanosec == pause_ns
+                                            for m in rig.probe.received["/clock"][-5:]), 10.0)
         poses, clocks = len(rig.probe.received["pose"]), len(rig.probe.received["/clock"])
         rig.probe.spin_for(0.5)
         assert rig.node.realtime.now(0) == t_pause == _t(rig), "simulation time moved while paused"

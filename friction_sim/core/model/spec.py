@@ -176,7 +176,7 @@ DRIVE_FORCE = Setting("drive_force", 0.7, "N", "drive force Fd along +x (negativ
                       -MAX_FORCE, MAX_FORCE)
 EXCITATION_AMPLITUDE = Setting(
     "excitation_amplitude", 5.0, "N", "excitation amplitude Pa of the normal force (above m g cos(alpha) the "
-    "slider hops)", 0.0, MAX_FORCE, flag="--amplitude")
+    "slider hops; the resonant actuator refuses a command of it: set drive_level)", 0.0, MAX_FORCE, flag="--amplitude")
 #: The real-time loop simulates at most this many excitation periods per wall
 #: second (f times the real-time factor): each costs the core ~10 us, and a
 #: tick must stay well inside its millisecond.
@@ -189,7 +189,7 @@ EXTERNAL_FORCE_X = Setting("external_force_x", 0.0, "N", "extra tangential force
 EXTERNAL_FORCE_Z = Setting("external_force_z", 0.0, "N", "extra force Fz along +z, away from the track; > 0 lifts",
                            -MAX_FORCE, MAX_FORCE)
 DRIVE_LEVEL = Setting("drive_level", 0.5, "-", "resonant actuator: drive level u of the exciter (1: full drive; "
-                      "the force actuator ignores it)", 0.0, 1.0)
+                      "the force actuator refuses a command of it)", 0.0, 1.0)
 INPUTS = table(DRIVE_FORCE, EXCITATION_AMPLITUDE, EXCITATION_FREQUENCY, EXTERNAL_FORCE_X, EXTERNAL_FORCE_Z,
                DRIVE_LEVEL)
 
@@ -209,7 +209,8 @@ LOG_PATH = Setting("log_path", "", "-", "record the run to this MCAP file ('' = 
 LOG_RATE = Setting("log_rate", 1000.0, "Hz", "recorded state samples per simulated second", 1.0, 100_000.0,
                    start_only=True)
 FOXGLOVE_PORT = Setting("foxglove_port", 0, "-", "serve a Foxglove live view (WebSocket) on this TCP port "
-                        "(0 = off; Foxglove's usual port is 8765)", 0, 65535, start_only=True)
+                        "(0 = off; -1 = a free port the system chooses, the URL is logged; Foxglove's usual "
+                        "port is 8765)", -1, 65535, start_only=True)
 FOXGLOVE_ADDRESS = Setting("foxglove_address", "127.0.0.1", "-", "address the live view listens on "
                            "(0.0.0.0: every interface)", start_only=True)
 DIAGNOSTICS_PERIOD = Setting("diagnostics_period", 1.0, "s", "wall-clock seconds between diagnostics messages "
