@@ -53,6 +53,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from friction_sim.core.engine.actuator import Exciter, ExciterState
+from friction_sim.core.engine.checkpoint import Checkpoint
 from friction_sim.core.engine.sampling import evaluate_many
 from friction_sim.core.model.events import MODES as _MODES
 from friction_sim.core.model.events import CycleMark, Event, EventKind, Mode, SliderState, Trajectory
@@ -116,36 +117,6 @@ class Segment(NamedTuple):
     cycles: int
     closing: int = 0
     grounded: bool = False
-
-
-class _Checkpoint:
-    """A slider as it was (:meth:`Slider.checkpoint`), to put back if taking a change fails.
-
-    The core's attributes are saved by reference (its records are immutable);
-    its dicts are copied (a few entries); of its deques (the event and period
-    logs, thousands of entries) only the last entry is remembered, and on
-    restore whatever was appended after it is popped.  That costs about a
-    microsecond, where copying the logs would cost twenty at every command.
-    """
-
-    __slots__ = ("attributes", "tails")
-
-    def __init__(self, slider: Slider) -> None:
-        self.attributes = dict(vars(slider))
-        self.tails: dict[str, Any] = {}
-        for name, value in self.attributes.items():
-            if isinstance(value, (dict, list, set)):
-                self.attributes[name] = value.copy()
-            elif isinstance(value, deque):
-                self.tails[name] = value[-1] if value else None
-
-    def restore(self, slider: Slider) -> None:
-        for name, tail in self.tails.items():
-            log: deque[Any] = self.attributes[name]
-            while log and log[-1] is not tail:
-                log.pop()
-        vars(slider).clear()
-        vars(slider).update(self.attributes)
 
 
 # --------------------------------------------------------------------------
@@ -322,7 +293,11 @@ class Slider:
 
     def sample(self, times: np.ndarray) -> Trajectory:
         """Advance through ascending ``times`` (>= :attr:`t`) and return the exact
-        state at each, evaluated segment by segment with numpy."""
+        state at each, evaluated segment by segment with numpy: the state
+        :meth:`advance_to` and :meth:`state` give at each time, because both cut
+        the time axis where :meth:`_segment_end` says (under the exciter's
+        transient the very same scalar evaluation; on the steady forms numpy's,
+        which may differ in the last bits)."""
         times = np.asarray(times, dtype=float)
         if times.ndim != 1 or times.size == 0:
             raise ParameterError("times", times.shape, "must be a non-empty 1-d array")
@@ -332,7 +307,8 @@ class Slider:
         happened: list[Event] = []
         first = 0
         while first < times.size:
-            last = int(np.searchsorted(times, self._next_t, side="left"))
+            end = self._segment_end()[0]
+            last = int(np.searchsorted(times, end, side="left"))
             if last > first:
                 seg = self._seg
                 values = self._evaluate_many(seg, times[first:last] - seg.t0)
@@ -342,7 +318,7 @@ class Slider:
                 columns[8][first:last] = seg.mode
                 first = last
             if first < times.size:
-                happened.extend(self.advance_to(self._next_t))
+                happened.extend(self.advance_to(end))
         happened.extend(self.advance_to(float(times[-1])))
         x, v, acc, friction, normal, phase, z, vz, mode = columns
         return Trajectory(times, x, v, acc, friction, normal, phase, mode.astype(np.int8), tuple(happened), z, vz)
@@ -392,11 +368,11 @@ class Slider:
         self._set_anchor(self._t, cycles, 0.0)
         self._start(Segment(STUCK, 0.0, self._t, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, cycles))
 
-    def checkpoint(self) -> _Checkpoint:
+    def checkpoint(self) -> Checkpoint:
         """The state as it is now, for :meth:`restore` (about a microsecond)."""
-        return _Checkpoint(self)
+        return Checkpoint(self)
 
-    def restore(self, checkpoint: _Checkpoint) -> None:
+    def restore(self, checkpoint: Checkpoint) -> None:
         """Put back the state of ``checkpoint`` exactly (a change that failed
         half-way leaves no trace)."""
         checkpoint.restore(self)
@@ -541,12 +517,30 @@ class Slider:
         return evaluate_many(self._plant, seg.mode, seg.x0, seg.xl, seg.v0, seg.vz0, seg.z0, seg.phase0, tau, self._c,
                              lam)
 
+    def _segment_end(self) -> tuple[float, bool]:
+        """(time, cut): where the present segment's closed form stops holding, and
+        whether it is cut there rather than ended by its next event.
+
+        Under the exciter's transient a segment holds only up to its boundary,
+        the end of its look-ahead or the time the transient settles (never
+        before its start): its next event is sought no further (none found:
+        :attr:`_next_t` is inf), and there :meth:`advance_to` starts a new
+        segment from the same motion, whose next event is sought on.  The
+        boundary cuts the segment unless its next event comes before it.
+        :meth:`advance_to` and :meth:`sample` both end the segment here, so they
+        evaluate every time in the same segment."""
+        if self._c:
+            boundary = max(self._look_until, self._seg.t0)
+            if boundary <= self._next_t:
+                return boundary, True
+        return self._next_t, False
+
     def _transient_boundary(self, t: float) -> bool:
-        """If the segment's look-ahead under the transient ends (or the transient
-        settles) before its next event, the next period start and ``t``, start a
-        new segment there: the same motion, its next event sought on."""
-        boundary = max(self._look_until, self._seg.t0)
-        if boundary > t or boundary > self._next_t or (self._marks is not None and boundary > self._next_mark_t):
+        """If the segment is cut (:meth:`_segment_end`) before the next period start
+        and by ``t``, start a new segment there: the same motion, its next event
+        sought on."""
+        boundary, cut = self._segment_end()
+        if not cut or boundary > t or (self._marks is not None and boundary > self._next_mark_t):
             return False
         assert self._exciter is not None
         self._t = boundary
