@@ -14,6 +14,23 @@ interval is ruled out only where the value at its middle is farther from
 zero than the largest slope times half its width (plus the rounding of the
 evaluation), so no root can be missed; an interval on which the slope keeps
 one sign holds at most one crossing, which is bisected to the last bit.
+Near grazing (a slip speed, an onset form or a height that stays within
+rounding of zero for a while) those two tests alone split ever finer, so an
+interval they leave undecided is also bounded by its second-order Taylor
+expansion at the middle (the remainder bounded by the largest third
+derivative): ruled out where that keeps it clear of zero by more than
+rounding; and where it shows the signal varies by at most :data:`FLAT`
+rounding allowances over the whole interval (within rounding of zero
+throughout), decided by the signs at its middle and end and bisected, not
+split.  Exactness: such an interval's exact values are all within a few
+rounding allowances of zero, where the sign of any evaluation is rounding's
+call (the same call every event's bisection makes at its last bits); an
+event reported there holds where it is reported, and one not reported is a
+dip of the exact signal by less than those allowances, a graze that changes
+the state by no more than that (a speed of that size, over that interval).
+The two new tests come only after the old ones, and the first rules out
+only intervals where no computed value can meet the condition, so away
+from grazing the search returns what it returned before, bit for bit.
 
 Segments work as in :mod:`friction_sim.core.physics.segment` (the same modes,
 event kinds, guards and impact law, and the same :class:`Step`), only the
@@ -52,6 +69,12 @@ LOOK_AHEAD_PERIODS = 64
 #: Relative rounding allowance of one evaluation of a closed form (a few dozen
 #: operations on terms up to the sum of their magnitudes).
 ROUNDING = 1e-14
+#: An interval on which the exact signal provably varies by at most this many
+#: rounding allowances is not split further (see :func:`_search`).
+FLAT = 4.0
+#: Intervals and bisection steps the root search has examined, for tests: a
+#: bound on the work of a search whatever the values.
+_STEPS = [0]
 
 
 class Signal(NamedTuple):
@@ -143,6 +166,7 @@ def _bisect(s: Signal, a: float, b: float, positive: bool) -> float:
     """The first time on (a, b] where the condition holds, the condition failing at
     a and holding at b, to the last bit."""
     while True:
+        _STEPS[0] += 1
         m = a + 0.5 * (b - a)
         if m <= a or m >= b:
             return b
@@ -175,6 +199,7 @@ def _search(s: Signal, lo: float, hi: float, positive: bool) -> float:
     """:func:`first_time` on [lo, hi], the condition failing at lo."""
     stack = [(lo, hi)]
     while stack:
+        _STEPS[0] += 1
         a, b = stack.pop()
         half = 0.5 * (b - a)
         m = a + half
@@ -193,9 +218,72 @@ def _search(s: Signal, lo: float, hi: float, positive: bool) -> float:
             if fb_holds:
                 return b
             continue
+        low, high = _enclosure(s, a, b, f, reach)
+        rounding = slack(s, b)
+        if (low > rounding) if not positive else (high + rounding <= 0.0):
+            continue  # no value on [a, b], exact or computed, meets the condition
+        if high - low <= FLAT * slack(s, m):  # within rounding of zero throughout: decided by signs
+            if _holds(f, positive):
+                return _bisect(s, a, m, positive)
+            if fb_holds:
+                return _bisect(s, m, b, positive)
+            continue
         stack.append((m, b))
         stack.append((a, m))
     return NEVER
+
+
+def _enclosure(s: Signal, a: float, b: float, f: float, reach: float) -> tuple[float, float]:
+    """(low, high): bounds of the exact signal on [a, b], f its value at the middle
+    m: the tighter of f +- ``reach`` (the largest slope times half the width, plus
+    rounding) and the second-order Taylor expansion at m with the remainder
+    bounded by the largest third derivative (plus the roundings of the value
+    and the two derivatives at m)."""
+    h = 0.5 * (b - a)
+    m = a + h
+    f1, f2, e1, e2 = _derivatives(s, m)
+    k = 3 - s.level  # the signal's third derivative is the acceleration's k-th
+    third = s.b1 * s.omega ** k + envelope(s, a) * abs(s.lam) ** k
+    error = (slack(s, m) + e1 * h + 0.5 * e2 * h * h + third * h * h * h / 6.0
+             + ROUNDING * (abs(f) + abs(f1) * h + abs(f2) * h * h))
+    left, right = f - f1 * h + 0.5 * f2 * h * h, f + f1 * h + 0.5 * f2 * h * h
+    q_low, q_high = min(left, right), max(left, right)
+    if f2 != 0.0 and abs(f1) < abs(f2) * h:  # the parabola's vertex lies within
+        vertex = f - 0.5 * f1 * f1 / f2
+        q_low, q_high = min(q_low, vertex), max(q_high, vertex)
+    return max(f - reach, q_low - error), min(f + reach, q_high + error)
+
+
+def _derivatives(s: Signal, tau: float) -> tuple[float, float, float, float]:
+    """(first, second derivative of the signal at ``tau``, and their rounding allowances)."""
+    acc = Signal(0, 0.0, 0.0, s.b0, s.b1, s.phase, s.omega, s.kc, s.lam)
+    if s.level == 0:
+        return (slope(s, tau), _acceleration_derivative(s, 2, tau), _derivative_slack(s, 1),
+                _derivative_slack(s, 2))
+    if s.level == 1:
+        return value(acc, tau), slope(acc, tau), slack(acc, tau), _derivative_slack(s, 1)
+    speed = Signal(1, 0.0, s.w0, s.b0, s.b1, s.phase, s.omega, s.kc, s.lam)
+    return value(speed, tau), value(acc, tau), slack(speed, tau), slack(acc, tau)
+
+
+def _acceleration_derivative(s: Signal, k: int, tau: float) -> float:
+    """The k-th derivative (k >= 1) of the acceleration b0 + b1*sin(phase + omega*tau)
+    + Re(kc*exp(lam*tau)) at ``tau``."""
+    theta = s.phase + s.omega * tau
+    quarter = k % 4
+    turned = (math.sin(theta), math.cos(theta), -math.sin(theta), -math.cos(theta))[quarter]
+    return s.b1 * s.omega ** k * turned + (s.kc * s.lam ** k * exp_terms(s.lam, tau)[0]).real
+
+
+def _derivative_slack(s: Signal, k: int) -> float:
+    """The rounding allowance of :func:`_acceleration_derivative` of order k."""
+    return ROUNDING * (s.b1 * s.omega ** k + abs(s.kc) * abs(s.lam) ** k)
+
+
+def search_steps() -> int:
+    """How many intervals and bisection steps the root search has examined so far
+    in this process (for tests: the work of a search is bounded)."""
+    return _STEPS[0]
 
 
 # -- the gains of the transient force on each form ---------------------------------------------
