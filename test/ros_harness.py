@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import statistics
 import subprocess
+import sys
 import time
 import uuid
 from collections import defaultdict
@@ -17,6 +18,7 @@ import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -130,11 +132,11 @@ class Probe:
         # sent at once can be dropped by a reader that has not matched us yet.  A node in this process
         # says so itself; of a node in another process nothing tells, and a moment is all we can give.
         if self._nodes:
-            assert self.spin_until(self._readers_know_our_writers, timeout), "the node never matched our writers"
+            assert self.spin_until(self.readers_know_our_writers, timeout), "the node never matched our writers"
         else:
             self.spin_for(0.3)
 
-    def _readers_know_our_writers(self) -> bool:
+    def readers_know_our_writers(self) -> bool:
         """Every reader of the in-process nodes on a topic we publish has matched every writer
         on that topic in this process (ours among them)."""
         writers: dict[str, int] = defaultdict(int)
@@ -198,6 +200,8 @@ HARNESS = Path(__file__).resolve()
 INVALID = (math.nan, math.inf, 1e308, -5e6, math.nan, -math.inf, 2e6, -1e300)
 #: The value of the last message of a flood with a final valid command.
 LAST = 0.75
+#: The value of the one valid command a confirming flooder sends before its flood (see :func:`flood`).
+MARK = 0.65
 
 
 def flood_value(kind: str, n: int) -> float:
@@ -216,18 +220,30 @@ def flood_value(kind: str, n: int) -> float:
     return valid
 
 
-def flood(namespace: str, rate: int, seconds: float, kind: str = "valid", last: bool = False) -> int:
+def flood(namespace: str, rate: int, seconds: float, kind: str = "valid", last: bool = False,
+          confirm: bool = False) -> int:
     """Publish ``rate`` x ``seconds`` drive_force commands of ``kind``
     (:func:`flood_value`), at most ``rate`` per second, once a reader has matched (run in its own process); print
     "flooding" when the flood begins.  With ``last``, end with one valid
-    command, :data:`LAST`.  Returns how many were sent."""
+    command, :data:`LAST`.  Returns how many were sent (the mark not counted).
+
+    Our writer matching the node's reader does not tell that the reader has matched our writer, and
+    until it has, what we publish is not taken at once.  With ``confirm`` the flooder publishes one
+    valid command, :data:`MARK`, prints "matched", and floods only after a line on its stdin: the test
+    sends it once the node has taken the mark (a message from this writer got through).  Without it
+    (the benches) it gives the reader a moment."""
     rclpy.init()
     node = rclpy.create_node("flooder", namespace=namespace)
     publisher = node.create_publisher(Float64, "drive_force", 10)
     deadline = time.monotonic() + 15.0
     while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
         time.sleep(0.01)
-    time.sleep(0.3)  # the reader matches our writer a moment after we match it
+    if confirm:
+        publisher.publish(Float64(data=MARK))  # reliable, and alone in the history: it arrives once matched
+        print("matched", flush=True)
+        sys.stdin.readline()
+    else:
+        time.sleep(0.3)  # the reader matches our writer a moment after we match it
     print("flooding", flush=True)
     # A fixed count, paced at ``rate`` at most: a slow machine floods for longer,
     # never with fewer commands.
@@ -243,14 +259,14 @@ def flood(namespace: str, rate: int, seconds: float, kind: str = "valid", last: 
         msg.data = LAST
         publisher.publish(msg)
         sent += 1
-        time.sleep(0.2)
+    # A writer destroyed with samples not yet acknowledged drops them: the last must reach the node.
+    publisher.wait_for_all_acked(Duration(seconds=15.0))
     node.destroy_node()
     rclpy.shutdown()
     return sent
 
 
 if __name__ == "__main__":
-    import sys
-
-    # python test/ros_harness.py NAMESPACE RATE SECONDS [KIND [last]]
-    print(flood(sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), *sys.argv[4:5], last=sys.argv[5:6] == ["last"]))
+    # python test/ros_harness.py NAMESPACE RATE SECONDS [KIND [last] [confirm]]
+    print(flood(sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), *sys.argv[4:5], last="last" in sys.argv[5:],
+                confirm="confirm" in sys.argv[5:]))

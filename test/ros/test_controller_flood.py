@@ -20,7 +20,7 @@ from std_msgs.msg import Float64
 
 from friction_sim.ros.controller import COMMAND_HOLD_OFF, ControllerNode
 
-from ros_harness import HARNESS, LAST, Probe, kill_if_running
+from ros_harness import HARNESS, LAST, MARK, Probe, kill_if_running
 
 # -- the tests ------------------------------------------------------------------------
 
@@ -29,12 +29,17 @@ FLOOD_SECONDS = 3.0
 TEST_DIR = Path(__file__).resolve().parents[1]
 
 
-def start_flood(namespace: str, rate: int, seconds: float) -> subprocess.Popen[str]:
-    """This module as the flooder, in its own process; returns once the flood has begun."""
+def start_flood(probe: Probe, controller: ControllerNode, rate: int, seconds: float) -> subprocess.Popen[str]:
+    """This module as the flooder, in its own process; returns once the flood has begun.  It floods
+    once the controller has taken its mark: then the controller's reader knows the flooder's writer."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(TEST_DIR), os.environ.get("PYTHONPATH")]))}
-    flooder = subprocess.Popen([sys.executable, str(HARNESS), namespace, str(rate), str(seconds), "mixed", "last"],
-                               stdout=subprocess.PIPE, text=True, env=env)
-    assert flooder.stdout is not None
+    flooder = subprocess.Popen([sys.executable, str(HARNESS), probe.namespace, str(rate), str(seconds), "mixed",
+                                "last", "confirm"], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env)
+    assert flooder.stdin is not None and flooder.stdout is not None
+    assert flooder.stdout.readline().strip() == "matched"
+    assert probe.spin_until(lambda: controller.control.drive_force == MARK, 30.0), "the flooder's mark never came"
+    flooder.stdin.write("go\n")
+    flooder.stdin.flush()
     assert flooder.stdout.readline().strip() == "flooding"
     return flooder
 
@@ -53,24 +58,28 @@ def test_a_flood_of_half_invalid_commands_is_taken_in_batches(ros: None) -> None
     flooder = None
     try:
         assert probe.spin_until(lambda: controller.ready and bool(probe.received["excitation_amplitude"]), 20.0)
-        flooder = start_flood(ns, FLOOD_RATE, FLOOD_SECONDS)
-        answers, started = len(probe.received["excitation_amplitude"]), time.monotonic()
+        published: list[float] = []  # the controller's answers from now on, as it publishes them
+        controller.output_listeners.append(lambda output: published.append(output.amplitude))
+        before = len(probe.received["excitation_amplitude"])
+        flooder = start_flood(probe, controller, FLOOD_RATE, FLOOD_SECONDS)
+        answers, batches, started = len(published), controller.runtime.command_batches, time.monotonic()
         assert probe.spin_until(lambda: flooder is not None and flooder.poll() is not None, FLOOD_SECONDS + 30.0)
         elapsed = time.monotonic() - started
         sent = int(flooder.communicate(timeout=10)[0].split()[-1])
         assert probe.spin_until(lambda: controller.control.drive_force == LAST, 30.0), "the last valid value holds"
-        probe.spin_for(0.2)
+        # Quiet again: no batch, and so no answer, is still to come; then every answer has arrived.
+        assert probe.spin_until(lambda: not controller.polling, 30.0), "quiet again: commands wake the node at once"
+        assert probe.spin_until(lambda: len(probe.received["excitation_amplitude"]) - before >= len(published), 10.0)
         assert sent == int(FLOOD_RATE * FLOOD_SECONDS) + 1  # the flood and the last valid command
         most = elapsed / COMMAND_HOLD_OFF + 10  # one batch per hold-off at most, plus the quiet-time wake-ups
-        assert len(probe.received["excitation_amplitude"]) - answers <= most, "one answer per batch"
-        assert controller.runtime.command_batches <= most  # (none before the flood: the target came as a parameter)
+        assert len(published) - answers <= most, "one answer per batch"
+        assert controller.runtime.command_batches - batches <= most  # (before: the mark's; the target was a parameter)
         assert controller.runtime.rejected > 100 and controller.runtime.accepted > 100, "both kinds, all through"
         assert "drive_force" in controller.runtime.last_rejection
         assert any(word in controller.runtime.last_rejection for word in ("nan", "inf"))
         runtime = controller.runtime
         assert runtime.accepted + runtime.rejected >= runtime.command_batches, "every message was judged"
         assert all(math.isfinite(m.data) for m in probe.received["excitation_amplitude"])
-        assert probe.spin_until(lambda: not controller.polling, 30.0), "quiet again: commands wake the node at once"
     finally:
         if flooder is not None:
             kill_if_running(flooder)
@@ -86,7 +95,8 @@ def test_a_lone_command_is_taken_at_once_and_the_polling_stops(ros: None) -> Non
         assert probe.spin_until(lambda: controller.ready and bool(probe.received["excitation_amplitude"]), 20.0)
         assert probe.spin_until(lambda: all(probe.publishers[t].get_subscription_count() for t in
                                             ("drive_force", "target_speed")), 10.0)
-        probe.spin_for(0.3)  # the controller's readers match our writers a moment later
+        # The controller's readers match our writers a moment later: it says so itself (in this process).
+        assert probe.spin_until(probe.readers_know_our_writers, 10.0)
         for value, batches in ((0.8, 1), (0.9, 2)):
             probe.send("drive_force", value)
             assert probe.spin_until(lambda v=value: controller.control.drive_force == v, 5.0)  # type: ignore[misc]

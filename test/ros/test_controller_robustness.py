@@ -48,7 +48,7 @@ def running(ros: None) -> Any:
     probe = Probe(ns, controller, outputs=OUTPUTS)
     assert probe.spin_until(lambda: controller.ready and bool(probe.received["excitation_amplitude"]), 20.0)
     assert probe.spin_until(lambda: probe.publishers["target_speed"].get_subscription_count() > 0, 10.0)
-    probe.spin_for(0.3)
+    assert probe.spin_until(probe.readers_know_our_writers, 10.0)  # the controller's readers know ours too
     yield ns, controller, probe
     probe.close()
     controller.destroy_node()
@@ -59,7 +59,9 @@ def test_impossible_samples_are_refused_counted_and_reported(running: Any) -> No
     _, controller, probe = running
     publisher = probe.node.create_publisher(TwistStamped, "mean_velocity", 10)
     assert probe.spin_until(lambda: publisher.get_subscription_count() > 0, 10.0)
-    probe.spin_for(0.3)
+    # and the controller's reader knows our writer (it says so itself: it is in this process)
+    (reader,) = [sub for sub in controller.subscriptions if sub.topic_name == publisher.topic_name]
+    assert probe.spin_until(lambda: reader.get_publisher_count() > 0, 10.0)
     amplitude = controller.control.output.amplitude
     for n, value in enumerate((-1e300, 1e308, math.nan, 2e-4)):
         msg = TwistStamped()

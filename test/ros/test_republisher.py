@@ -239,13 +239,14 @@ def test_prefetched_reads_ahead_passes_errors_on_and_stops_with_its_consumer() -
             produced.append(k)
             yield k
 
+    running = set(threading.enumerate())
     ahead = prefetched(endless(), size=5)
     assert next(ahead) == 0
+    (reader,) = [t for t in threading.enumerate() if t not in running and t.name == "replay_reader"]
     ahead.close()  # the consumer is done (a stop, Ctrl-C): the reader thread stops too
-    time.sleep(0.5)
-    count = len(produced)
-    time.sleep(0.5)
-    assert len(produced) == count < 20, "bounded read-ahead, and no reading after the end"
+    reader.join(timeout=10.0)  # (the timeout only guards a hang)
+    assert not reader.is_alive(), "the reader thread ended with its consumer: no reading after the end"
+    assert len(produced) < 20, "bounded read-ahead"
 
 
 def _pressing_run(tmp_path: Path) -> tuple[Path, Path]:

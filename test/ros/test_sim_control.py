@@ -69,7 +69,7 @@ def _t(rig: Rig) -> float:
 def test_pause_stops_time_exactly_and_resume_goes_on_without_a_jump(ros: None) -> None:
     rig = Rig(publish_clock=True)
     try:
-        rig.probe.spin_for(0.2)
+        assert rig.probe.spin_until(lambda: _t(rig) >= 0.2, 10.0)  # it has run a while (its own time)
         answer = rig.call("pause")
         assert answer.success and answer.message.startswith("paused at t = ")
         t_pause = _t(rig)
@@ -80,18 +80,25 @@ def test_pause_stops_time_exactly_and_resume_goes_on_without_a_jump(ros: None) -
                                     and any(m.clock.sec * 1_000_000_000 + m.clock.nanosec == pause_ns
                                             for m in rig.probe.received["/clock"][-5:]), 10.0)
         poses, clocks = len(rig.probe.received["pose"]), len(rig.probe.received["/clock"])
-        rig.probe.spin_for(0.5)
+        # Paused for 500 of the node's own ticks (about 0.5 s at 1 kHz; counted, not timed): each of
+        # them would have published a state and /clock had it not been paused.
+        ticks = rig.node._ticks_published  # noqa: SLF001 - the node's tick count
+        assert rig.probe.spin_until(lambda: rig.node._ticks_published >= ticks + 500, 30.0)  # noqa: SLF001
         assert rig.node.realtime.now(0) == t_pause == _t(rig), "simulation time moved while paused"
-        assert len(rig.probe.received["pose"]) == poses, "states were published while paused"
-        assert len(rig.probe.received["/clock"]) == clocks, "/clock went on while paused"
-        assert all(stamp_ns(m) <= round(t_pause * 1e9) for m in rig.probe.received["pose"])
         assert rig.probe.spin_until(lambda: any(
             diagnostics_values(m).get("paused") == "True" for m in rig.probe.received["diagnostics"]), 3.0)
         assert rig.call("pause").success is False, "a second pause is refused (nothing to do)"
         assert rig.call("resume").success
-        rig.probe.spin_for(0.2)
+        # The first state and /clock after resuming arrive; the topics are reliable and in order, so
+        # whatever a paused tick had published would have come before them.
+        assert rig.probe.spin_until(lambda: any(stamp_ns(m) > pause_ns for m in rig.probe.received["pose"][poses:])
+                                    and any(m.clock.sec * 1_000_000_000 + m.clock.nanosec > pause_ns
+                                            for m in rig.probe.received["/clock"][clocks:]), 10.0)
         after = [stamp_ns(m) for m in rig.probe.received["pose"][poses:]]
-        assert after and min(after) > round(t_pause * 1e9)
+        assert min(after) > pause_ns, "states were published while paused"
+        assert all(m.clock.sec * 1_000_000_000 + m.clock.nanosec > pause_ns
+                   for m in rig.probe.received["/clock"][clocks:]), "/clock went on while paused"
+        assert all(stamp_ns(m) <= pause_ns for m in rig.probe.received["pose"][:poses])
         # No jump: the first state after resuming is a tick or so past the pause, not the 0.5 s waited.
         assert (min(after) - t_pause * 1e9) / 1e9 < 0.05
         assert rig.call("resume").success is False
@@ -177,7 +184,7 @@ def test_reset_starts_again_from_rest_and_replay_verify_reproduces_it(ros: None,
     path = tmp_path / "reset.mcap"
     rig = Rig(path)
     try:
-        rig.probe.spin_for(0.3)
+        assert rig.probe.spin_until(lambda: _t(rig) >= 0.3, 10.0)  # it has run a while (its own time)
         assert rig.call("pause").success
         assert rig.call("step").success
         rig.probe.send("excitation_amplitude", 4.0)
@@ -189,7 +196,7 @@ def test_reset_starts_again_from_rest_and_replay_verify_reproduces_it(ros: None,
         state = rig.node.realtime.slider.state()
         assert (state.x, state.v) == (0.0, 0.0)
         assert rig.call("resume").success
-        rig.probe.spin_for(0.4)
+        assert rig.probe.spin_until(lambda: _t(rig) >= t_reset + 0.4, 10.0)  # a motion after the reset to compare
     finally:
         rig.close()
     recording = read_recording(path)
@@ -211,14 +218,14 @@ def test_reset_starts_again_from_rest_and_replay_verify_reproduces_it(ros: None,
 
 def test_reset_while_running_keeps_the_parameters_in_force(rig: Rig) -> None:
     assert rig.probe.set_parameter("slider", "excitation_amplitude", 6.0) == (True, "")
-    rig.probe.spin_for(0.3)
-    assert rig.node.realtime.slider.state().x > 0.0
+    assert rig.probe.spin_until(lambda: rig.node.realtime.slider.state().x > 0.0, 10.0)
     assert rig.call("reset").success
     slider = rig.node.realtime.slider
     assert slider.inputs.excitation_amplitude == 6.0
     assert slider.state().x < 1e-4
-    rig.probe.spin_for(0.1)
-    assert rig.node.realtime.paused is False and slider.t > 0.0
+    t_reset = slider.t
+    assert rig.probe.spin_until(lambda: slider.t > t_reset, 10.0), "it runs on after the reset"
+    assert rig.node.realtime.paused is False
 
 
 CALLS = st.one_of(st.sampled_from(["pause", "resume", "step", "reset", "wait"]),
@@ -246,8 +253,9 @@ def test_any_sequence_of_calls_keeps_time_exact_and_the_recording_verifies(
                 assert rig.probe.set_parameter("slider", name, value) == (True, "")
                 periods, step_time = (value, step_time) if name == "step_periods" else (periods, value)
                 continue
-            if call == "wait":
-                rig.probe.spin_for(0.05)
+            if call == "wait":  # 50 of the node's ticks (counted, not timed): paused, none moves time
+                ticks = rig.node._ticks_published  # noqa: SLF001 - the node's tick count
+                assert rig.probe.spin_until(lambda n=ticks: rig.node._ticks_published >= n + 50, 10.0)  # noqa: SLF001
                 assert (_t(rig) == before) if paused else True
                 continue
             was_paused = paused

@@ -51,8 +51,12 @@ def test_the_simulation_waits_for_a_slow_recorder_without_a_jump_in_time(ros: No
     try:
         probe.wait_for_connection(topic="pose")
         start, waited = len(probe.received["pose"]), recorder.wait_seconds
+        reported = len(probe.received["diagnostics"])
         began = time.monotonic()
-        probe.spin_for(5.0)
+        # Until the node's own counts say it: the tick has waited more than 2 s for the writer, and
+        # three reports have come since (the last two of them over windows held back).
+        assert probe.spin_until(lambda: recorder.wait_seconds - waited > 2.0
+                                and len(probe.received["diagnostics"]) >= reported + 3, 60.0)
         wall = time.monotonic() - began
         waited = recorder.wait_seconds - waited
         assert recorder.waits > 0 and waited > 2.0, "the tick waited for the writer"
@@ -143,13 +147,13 @@ def test_recording_faster_than_the_machine_computes_keeps_the_node_answering(ros
     try:
         probe.wait_for_connection(timeout=20.0, topic="diagnostics")
         assert probe.set_parameter(f"{ns}/slider", "real_time_factor", 999.0)[0]
-        probe.spin_for(2.0)
+        # The node says it has fallen behind: the parameter sets below are asked of a node that cannot keep up.
+        assert probe.spin_until(lambda: any("cannot keep up" in m.status[0].message
+                                            for m in probe.received["diagnostics"]), 30.0)
         for value in (0.71, 0.72, 0.73):
             started = time.monotonic()
             assert probe.set_parameter(f"{ns}/slider", "drive_force", value) == (True, "")
             assert time.monotonic() - started < 2.0, "a parameter set is answered at once"
-        assert probe.spin_until(lambda: any("cannot keep up" in m.status[0].message
-                                            for m in probe.received["diagnostics"]), 5.0)
     finally:
         probe.close()
         node.send_signal(signal.SIGINT)
@@ -226,7 +230,8 @@ def test_the_recording_names_its_node_keeps_what_was_sent_and_the_feeder_s_targe
         assert probe.set_parameter("slider", "mu", 0.12)[0]  # physics: recorded as a parameters command
         assert probe.set_parameter("slider", "frame_id", "rail")[0]  # not physics: recorded as it is set
         assert probe.spin_until(lambda: probe.publishers["target_speed"].get_subscription_count() >= 1)
-        probe.spin_for(0.3)  # the slider's reader matches our writer too (as wait_for_connection does)
+        # the slider's reader matches our writer too (as wait_for_connection waits for)
+        assert probe.spin_until(probe.readers_know_our_writers, 10.0)
         probe.send("target_speed", 2.5e-4)
         seen = len(probe.received["diagnostics"])
         assert probe.spin_until(lambda: len(probe.received["diagnostics"]) >= seen + 2, 15.0)
