@@ -4,7 +4,6 @@ sends it commands, all spun in the test's own thread (no launch_testing)."""
 from __future__ import annotations
 
 import math
-import statistics
 import subprocess
 import sys
 import time
@@ -14,7 +13,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
@@ -71,11 +69,6 @@ def diagnostics_values(msg: Any) -> dict[str, str]:
 
 def stamp_ns(msg: Any) -> int:
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-
-
-def median_interval_ns(messages: list[Any]) -> float:
-    """The typical spacing of the messages' stamps: the publish rate, whatever the arrival times."""
-    return statistics.median(np.diff([stamp_ns(m) for m in messages]))
 
 
 class Probe:
