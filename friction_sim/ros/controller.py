@@ -73,7 +73,13 @@ whole turn) it publishes the drive level for the next window, with
 are read from plant_node at start-up and not followed afterwards: a load on
 the slideway moves them without telling anyone, and the inner loop learns that
 from the accelerometer.  With ``inner_loop`` false the level is the model's
-steady gain's answer to each new Pa (no accelerometer needed).
+steady gain's answer to each new Pa (no accelerometer needed).  The law's Pa
+never asks for more than full drive gives (the inner loop's model of it, or
+the data sheet's without the inner loop): a target beyond it is flagged
+unreachable with ``reachable_speed`` (:mod:`friction_sim.core.runtime.controller`).
+An accelerometer sample that is not finite, is stamped ahead of any plant in
+force, or reads more than any slideway of the model gives is refused and
+counted (:mod:`friction_sim.core.runtime.drive`), never held for later.
 """
 
 from __future__ import annotations
