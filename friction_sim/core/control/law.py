@@ -463,10 +463,11 @@ class MeanSpeedController:
             self._ratio = _clamp(abs(u_top) / abs(u_target), *RATIO_LIMITS)
             return self._output(ceiling, u_target, phi, feedforward, True, False, False, reach)
         ratio = _inverse(u_command, phi, top)
-        if not 0.0 <= ratio <= ceiling:  # not expected: the relation is exact and u_command < u_top
+        if not 0.0 <= ratio <= top:  # not expected: the relation is exact and u_command < u_top
             raise ArithmeticError(f"the inverse U relation gave a = {ratio!r} for U = {u_command!r}, "
-                                  f"phi = {phi!r} (expected 0 <= a <= {ceiling!r})")
-        return self._output(ratio, u_target, phi, feedforward, False, False, False, reach)
+                                  f"phi = {phi!r} (expected 0 <= a <= {top!r})")
+        # (u_command < U(ceiling): a is below the ceiling but for the inverse's rounding, which may not pass it)
+        return self._output(min(ratio, ceiling), u_target, phi, feedforward, False, False, False, reach)
 
     def _decide_general(self, phi: float, u_target: float) -> ControlOutput:
         """The law on the general mean speed's rising branch toward U*'s sign:
@@ -488,7 +489,7 @@ class MeanSpeedController:
 
         if not on_branch(u_target):
             beyond = not branch.empty and direction * u_target > direction * u_end
-            ratio = a_end if beyond else branch.a_start
+            ratio = min(a_end if beyond else branch.a_start, self._ceiling())
             return self._output(ratio, u_target, phi, math.nan, beyond, True, False, reach)
         feedforward = _general_inverse(model, self._drive_force, top, direction, u_target)
         u_command = u_target * self._ratio
@@ -500,15 +501,19 @@ class MeanSpeedController:
                 self._ratio = _clamp(branch.u_start / u_target, *RATIO_LIMITS)
             return self._output(branch.a_start, u_target, phi, feedforward, False, False, False, reach)
         ratio = _general_inverse(model, self._drive_force, top, direction, u_command)
-        if not 0.0 <= ratio <= a_end:  # not expected: u_command is on the branch, below its end
+        if not 0.0 <= ratio <= top:  # not expected: u_command is on the branch
             raise ArithmeticError(f"the general inverse gave a = {ratio!r} for U = {u_command!r} "
-                                  f"(expected 0 <= a <= {a_end!r})")
-        return self._output(ratio, u_target, phi, feedforward, False, False, False, reach)
+                                  f"(expected 0 <= a <= {top!r})")
+        # (u_command < U(a_end): a is below a_end but for the inverse's rounding, which may not pass it)
+        return self._output(min(ratio, a_end), u_target, phi, feedforward, False, False, False, reach)
 
     def _output(self, ratio: float, u_target: float, phi: float, feedforward: float,
                 saturated: bool, unreachable: bool, runaway: bool, reachable_speed: float = math.nan) -> ControlOutput:
+        amplitude = ratio * self.config.model.weight
+        if self._actuator_limit is not None:  # (ratio <= limit/weight may round to a Pa an ulp above the limit)
+            amplitude = min(amplitude, self._actuator_limit)
         return ControlOutput(
-            amplitude=ratio * self.config.model.weight, target_speed=self._target, u_target=u_target,
+            amplitude=amplitude, target_speed=self._target, u_target=u_target,
             phi=phi, feedforward_ratio=feedforward, applied_ratio=ratio,
             integral=u_target * (self._ratio - 1.0),
             saturated=saturated, unreachable=unreachable, runaway=runaway, reachable_speed=reachable_speed,
@@ -560,13 +565,14 @@ def _branch(model: SliderParams, drive_force: float, top: float, direction: int)
 def _branch_end(model: SliderParams, drive_force: float, top: float, direction: int,
                 ceiling: float) -> tuple[float, float]:
     """(a, U) where the rising branch ends under a ceiling of a: its own end, or
-    the ceiling (U there exactly) where the actuator gives less; the branch's
-    start where the ceiling lies below it (nothing on the branch is reachable)."""
+    the ceiling (U there exactly) where the actuator gives less; the ceiling
+    with the branch's start U where it lies below the start (nothing on the
+    branch is reachable: the most the actuator gives is applied)."""
     branch = _branch(model, drive_force, top, direction)
     if branch.empty or ceiling >= branch.a_end:
         return branch.a_end, branch.u_end
     if ceiling <= branch.a_start:
-        return branch.a_start, branch.u_start
+        return ceiling, branch.u_start
     return ceiling, _u_on_branch(model, drive_force, top, direction, ceiling)
 
 

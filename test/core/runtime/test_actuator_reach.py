@@ -15,8 +15,10 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from friction_sim.core.control.law import ControlOutput
+from friction_sim.core.control.law import ControllerConfig, ControlOutput, MeanSpeedController
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.meanspeed.urelation import u_map
 from friction_sim.core.model.params import Inputs, SliderParams
@@ -153,3 +155,20 @@ def test_the_force_actuator_has_no_limit_but_max_amplitude_ratio() -> None:
     out = runtime.control.output
     assert out.unreachable and out.saturated and out.applied_ratio == 0.95 and out.amplitude == 0.95 * 10.0
     assert out.reachable_speed == float(u_map(0.7, 0.95)) * 10.0 * 0.1 / 50.0 < 2e-3
+
+
+@settings(max_examples=200, deadline=None)
+@given(limit=st.floats(0.0, 12.0), target=st.floats(1e-7, 2e-3), general=st.booleans())
+def test_the_pa_request_never_exceeds_the_actuator_s_limit(limit: float, target: float, general: bool) -> None:
+    """Whatever the limit and the target, on Kostek's closed form and on the
+    general branch (a tilted vibration): Pa never exceeds the limit (the
+    inverse's rounding near it included), a target is unreachable exactly when
+    it lies beyond the speed within reach, and nothing raises."""
+    model = SliderParams(excitation_angle=80.0) if general else SliderParams()
+    law = MeanSpeedController(ControllerConfig(model=model), drive_force=0.7, frequency=50.0, target_speed=target)
+    out = law.limit_actuator(limit)
+    assert out.amplitude <= limit
+    assert out.unreachable == (target > out.reachable_speed), out
+    # the limit lifted: the law is the force actuator's again
+    assert law.limit_actuator(None).amplitude == MeanSpeedController(
+        ControllerConfig(model=model), drive_force=0.7, frequency=50.0, target_speed=target).output.amplitude
