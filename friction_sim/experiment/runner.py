@@ -252,7 +252,10 @@ class _Attached:
         # each with a Pa that would overwrite the scenario's amplitude on the slider; stood by
         # (an open-loop start), it publishes nothing.
         if spec.controller:
-            _set_parameters(driver, executor, "controller", _controller_values(spec))
+            # (with the plant's actuator and exciter data: a running controller follows its plant's model
+            # on /parameter_events, but not the exciter's data sheet, which it reads only at start-up)
+            exciter = {name: getattr(spec.plant, name) for name in ("actuator", *settings.EXCITER)}
+            _set_parameters(driver, executor, "controller", {**exciter, **_controller_values(spec)})
         # (not the input the scenario's actuator does not use: the slider refuses a value of it it does not hold)
         unused = unused_input(spec.plant.actuator)
         _set_parameters(driver, executor, "slider", {name: value for name, value in _plant_values(spec).items()

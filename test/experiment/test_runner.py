@@ -136,6 +136,30 @@ def test_attach_drives_nodes_running_in_another_process(tmp_path: Path) -> None:
     assert f"{namespace}/pose" in recording.topics  # fully qualified, as rosbag2 names them
 
 
+def test_attach_to_a_running_feeder_with_a_resonant_scenario(tmp_path: Path) -> None:
+    """Attached to a feeder started with its defaults (the force actuator), a
+    resonant scenario (acceptance case 7) switches the slider to its exciter
+    without setting the input that actuator refuses, and gives the running
+    controller the exciter's data it reads only at start-up: it regulates
+    (each segment ends near its target, 10 %: the steps settle within 30
+    periods of the segment's 50) and the slider refused nothing."""
+    namespace = "/attached_" + tmp_path.name[-8:].replace("-", "_")
+    root = Path(__file__).resolve().parents[2]
+    feeder = subprocess.Popen([str(Path(sys.executable).parent / "friction-sim"), "feeder", "--ros-args",
+                               "-r", f"__ns:={namespace}", "-p", "slider:accelerometer_rate:=1000.0"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        job = run_scenario(root / "config" / "acceptance_7_resonant_steps.yaml", output=tmp_path / "out",
+                           attach=namespace, stream=io.StringIO(), status=TerminalProgress(io.StringIO()))
+    finally:
+        feeder.send_signal(2)
+        _, err = feeder.communicate(timeout=20)
+    assert feeder.returncode == 0, err
+    assert "refused" not in err, err
+    for row in job.rows:
+        assert row.achieved == pytest.approx(row.target, rel=0.1), (row.target, row.achieved)
+
+
 def test_the_stick_fraction_of_a_hopping_run_counts_flights_as_moving(tmp_path: Path) -> None:
     """A recording of a slider thrown off the track: each row's stick fraction
     (its last whole period) equals the core's own stuck time over that window,
