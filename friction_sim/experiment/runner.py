@@ -35,6 +35,7 @@ from friction_sim.core.model.commands import (
     unused_input,
 )
 from friction_sim.core.model.params import Inputs
+from friction_sim.core.runtime.controller import WAITING_FOR_PLANT
 from friction_sim.errors import ExperimentError, ParameterError
 from friction_sim.experiment.job import (
     SCENARIO_METADATA,
@@ -253,7 +254,9 @@ class _Attached:
         # (an open-loop start), it publishes nothing.
         if spec.controller:
             # (with the plant's actuator and exciter data: a running controller follows its plant's model
-            # on /parameter_events, but not the exciter's data sheet, which it reads only at start-up)
+            # on /parameter_events, but not the exciter's data sheet, which it reads only at start-up; so
+            # first its start-up read must be over, or what it reads would overwrite what is set here)
+            _wait_for_controller_model(driver, executor)
             exciter = {name: getattr(spec.plant, name) for name in ("actuator", *settings.EXCITER)}
             _set_parameters(driver, executor, "controller", {**exciter, **_controller_values(spec)})
         # (not the input the scenario's actuator does not use: the slider refuses a value of it it does not hold)
@@ -316,6 +319,28 @@ def _attached_recorder(spec: ExperimentSpec, namespace: str) -> Any:
 
     return Recorder(spec.log_path, metadata={**_plant_values(spec), "recorded_by": "experiment --attach"},
                     namespace=namespace)
+
+
+def _wait_for_controller_model(driver: Any, executor: Any) -> None:
+    """Wait until the namespace's controller has taken its plant's model at
+    start-up (its diagnostics no longer say it waits for it: it reads the
+    plant within 5 s or gives up and says so), so parameters set on it now are
+    not overwritten by that read."""
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    settled: list[bool] = []
+
+    def on_diagnostics(msg: Any) -> None:
+        if any(status.name == "controller" and WAITING_FOR_PLANT not in status.message for status in msg.status):
+            settled.append(True)
+
+    subscription = driver.create_subscription(DiagnosticArray, "diagnostics", on_diagnostics, 10)
+    try:
+        _spin_until(executor, lambda: bool(settled), 30.0,
+                    f"the controller in {driver.get_namespace()} reports no settled model on diagnostics "
+                    "within 30 s (is it running, with its diagnostics_period under 25 s?)")
+    finally:
+        driver.destroy_subscription(subscription)
 
 
 def _set_parameters(driver: Any, executor: Any, node: str, values: dict[str, Any]) -> None:

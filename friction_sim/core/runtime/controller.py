@@ -58,6 +58,9 @@ MODEL = tuple(name for name in spec.PLANT if name in spec.CONTROLLER_NODE)
 CONFIG = {*MODEL, "integral_gain", "max_amplitude_ratio", "settle_margin", "mean_window_periods", "inner_loop"}
 #: Parameters the inner loop is built from (a change of one starts it afresh).
 DRIVE = {*spec.EXCITER, "actuator", "inner_loop", "track_resonance", "mean_window_periods"}
+#: The status's words while the controller has not yet taken its plant's model (an experiment
+#: attached to running nodes waits for them to go before it sets the controller's parameters).
+WAITING_FOR_PLANT = "waiting for the plant's parameters"
 #: Diagnostic levels (diagnostic_msgs/DiagnosticStatus: OK, WARN, ERROR).
 OK, WARN, ERROR = 0, 1, 2
 
@@ -399,7 +402,7 @@ class RealtimeController:
             (out.saturated and not out.unreachable, "saturated"),
             (out.runaway, "the drive beats friction (phi >= 1): no control over the speed"),
             (bool(self.beyond_model), "the plant runs beyond its model: Pa 0"),
-            (not ready, "waiting for the plant's parameters"),
+            (not ready, WAITING_FOR_PLANT),
             (ready and not self.active, "standing by for a target"),
             (self.drive is not None and self.drive.inner_loop and self.active and self.drive.samples == 0,
              "no accelerometer samples: the inner loop drives by the model alone (set the slider's "
@@ -436,5 +439,7 @@ class RealtimeController:
         return Status(level, message, values)
 
 
-__all__ = ["CONFIG", "ERROR", "MODEL", "OK", "WARN", "RealtimeController", "Status", "beyond_model_after", "config_of",
-           "plant_words", "taken_words"]
+__all__ = [
+    "CONFIG", "ERROR", "MODEL", "OK", "WAITING_FOR_PLANT", "WARN", "RealtimeController", "Status",
+    "beyond_model_after", "config_of", "plant_words", "taken_words",
+]
