@@ -74,7 +74,7 @@ def flag_type(setting: spec.Setting) -> Callable[[str], Any]:
 def add_flag(parser: Any, setting: spec.Setting, default: Any = None) -> None:
     """Add ``setting`` as the option ``setting.option`` (dest: its name), parsed
     by :func:`flag_type`; the help gives its meaning, unit, range and default."""
-    unit = f" [{setting.unit}]" if setting.unit and setting.unit != "-" else ""
+    unit = f" [{setting.unit}]" if setting.dimensioned else ""
     limits = "; ".join(part for part in (setting.range_text(), setting.rule) if part)
     shown = "" if default is None else f"; default {default}" if isinstance(default, str) else f"; default {default:g}"
     metavar = ("{" + ",".join(setting.choices) + "}" if setting.choices

@@ -25,7 +25,7 @@ def descriptor(setting: Setting) -> ParameterDescriptor:
     (:mod:`friction_sim.core.model.spec`): its description with the unit, its range
     (rclpy refuses a value outside it before any callback runs), and read-only
     for a setting that takes effect at start-up only."""
-    unit = f" [{setting.unit}]" if setting.unit not in ("", "-") else ""
+    unit = f" [{setting.unit}]" if setting.dimensioned else ""
     text = f"{setting.description}{unit}" + (f"; {setting.rule}" if setting.rule else "")
     result = ParameterDescriptor(description=text, read_only=setting.start_only)
     if setting.kind is float and setting.low is not None and setting.high is not None:

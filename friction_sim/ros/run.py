@@ -96,7 +96,7 @@ def node_help(description: str, settings: Mapping[str, Setting], consumer: str,
     lines = [*wrapped(description.strip()), "",
              "parameters (--ros-args -p NAME:=VALUE or --params-file FILE; ros2 param set at run time):"]
     for setting in settings.values():
-        unit = f" {setting.unit}" if setting.unit not in ("", "-") else ""
+        unit = setting.unit_suffix
         default = str(setting.default).lower() if isinstance(setting.default, bool) else repr(setting.default)
         limits = "; ".join(part for part in (setting.range_text(), setting.rule) if part)
         meaning = setting.description + ("; start-up only" if setting.start_only else "")

@@ -202,9 +202,8 @@ def _check_actuator(params: SliderParams, changes: Mapping[str, Value], held: In
     used, unused = _ACTUATOR_INPUT[params.actuator]
     if unused in changes and (held is None or changes[unused] != getattr(held, unused)):
         setting = spec.INPUTS[used]
-        unit = f" {setting.unit}" if setting.unit not in ("", "-") else ""
         raise ParameterError(unused, changes[unused], f"is not used by actuator {params.actuator}: set {used} "
-                                                      f"({setting.range_text()}{unit}) instead")
+                                                      f"({setting.range_text()}{setting.unit_suffix}) instead")
 
 
 class Core(Protocol):

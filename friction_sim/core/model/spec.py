@@ -99,8 +99,18 @@ class Setting:
             raise ParameterError(self.name, number, f"must be{self._range_words()}")
         return number
 
+    @property
+    def dimensioned(self) -> bool:
+        """Whether the setting has a unit to print ('' and '-' are none)."""
+        return self.unit not in ("", "-")
+
+    @property
+    def unit_suffix(self) -> str:
+        """`` N`` after a value, or '' for a setting without a unit."""
+        return f" {self.unit}" if self.dimensioned else ""
+
     def _range_words(self) -> str:
-        low, high, unit = self.low, self.high, f" {self.unit}" if self.unit and self.unit != "-" else ""
+        low, high, unit = self.low, self.high, self.unit_suffix
         if low is not None and high is not None:
             return f" in [{low:g}, {high:g}]{unit}"
         if low is not None:
@@ -294,7 +304,7 @@ def markdown_table(settings: dict[str, Setting]) -> str:
     for setting in settings.values():
         limits = "; ".join(part for part in (setting.range_text(), setting.rule) if part).replace("|", "\\|") or "–"
         meaning = (setting.description + ("; start-up only" if setting.start_only else "")).replace("|", "\\|")
-        unit = setting.unit if setting.unit not in ("", "-") else "–"
+        unit = setting.unit if setting.dimensioned else "–"
         rows.append(f"| `{setting.name}` | {_default_text(setting.default)} | {unit} | {limits} "
                     f"| {meaning} |")
     return "\n".join(rows) + "\n"

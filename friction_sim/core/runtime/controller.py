@@ -101,13 +101,9 @@ def taken_words(values: Mapping[str, Any], drive_level: Any = None) -> str:
     runs at, if known), in one line with their units, in the vocabulary's order."""
     settings = {**spec.PLANT, **spec.CONTROLLER_NODE, "drive_level": spec.DRIVE_LEVEL}
     taken = {**values, **({} if drive_level is None else {"drive_level": drive_level})}
-    words = []
-    for name, setting in settings.items():
-        if name in taken:
-            unit = f" {setting.unit}" if setting.unit and setting.unit != "-" else ""
-            value = taken[name]
-            words.append(f"{name} {value:g}{unit}" if isinstance(value, float) else f"{name} {value}{unit}")
-    return ", ".join(words)
+    return ", ".join(f"{name} {taken[name]:g}{setting.unit_suffix}" if isinstance(taken[name], float)
+                     else f"{name} {taken[name]}{setting.unit_suffix}"
+                     for name, setting in settings.items() if name in taken)
 
 
 @dataclass(frozen=True)
