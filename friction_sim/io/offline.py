@@ -91,21 +91,12 @@ def _run(rt: RealtimeSlider, recorder: Recorder, batches: list[tuple[int, list[C
 
 
 def _handle(rt: RealtimeSlider, batch: list[Command], t_ns: int) -> list[Outcome]:
-    """The commands of one instant handled as the node handles them, in order:
-    topic commands in a row as one tick's take, each ``parameters`` command as
-    one parameter set, each reset as a call of ``~/reset``."""
-    outcomes: list[Outcome] = []
-    topics: list[Command] = []
-    for command in [*batch, None]:
-        if command is not None and command.name not in (PARAMETERS, RESET):
-            topics.append(command)
-            continue
-        if topics:
-            outcomes += rt.commands(topics, t_ns)
-            topics = []
-        if command is not None:
-            outcomes.append(rt.reset(t_ns) if command.name == RESET else rt.configure(command.values, t_ns))
-    return outcomes
+    """The commands of one instant handled as the node handles them, in order,
+    each a change of its own: a topic command as a tick takes it, a
+    ``parameters`` command as one parameter set, a reset as a call of ``~/reset``."""
+    return [rt.reset(t_ns) if command.name == RESET else
+            rt.configure(command.values, t_ns) if command.name == PARAMETERS else
+            rt.command(command, t_ns) for command in batch]
 
 
 def _batches(schedule: Sequence[Command]) -> list[tuple[int, list[Command]]]:

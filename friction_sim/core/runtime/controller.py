@@ -142,6 +142,7 @@ class RealtimeController:
         self.plant_drive_level: float | None = None
         self._drive_values: dict[str, Any] = {}
         self._rebuild_drive(values)
+        self._limit_actuator()
         #: Commands taken; inputs refused (commands, parameter values, samples), with the latest reason.
         self.accepted = 0
         self.rejected = 0
@@ -291,7 +292,6 @@ class RealtimeController:
         model = model_of(values) if all(name in values for name in MODEL) else None
         if model is None or not model.resonant:
             self.drive = None
-            self._limit_actuator()
             return
         inner_loop, tracking, cycles = drive_settings(values)
         # The plant runs at the level it was read to run at (once, when its model is adopted), or
@@ -301,7 +301,6 @@ class RealtimeController:
         self.plant_drive_level = None
         self.drive = DriveRuntime(model, self.control.frequency, self.wanted_amplitude(), inner_loop=inner_loop,
                                   tracking=tracking, cycles=cycles, level=level)
-        self._limit_actuator()
 
     def _limit_actuator(self) -> None:
         """Tell the law the largest Pa the actuator gives now: the exciter at full
