@@ -45,12 +45,13 @@ class JobOutput:
 
 def run_scenario(path: Path, *, output: Path | None = None, attach: str | None = None,
                  foxglove_port: int | None = None, stream: TextIO = sys.stdout,
-                 status: Progress | None = None) -> JobOutput:
+                 status: Progress | None = None, lockstep: bool | None = None) -> JobOutput:
     """Run a scenario file end to end (see the module docstring); with
     ``attach``, drive nodes already running in that namespace; with
     ``foxglove_port``, the slider serves a Foxglove live view there.  The live
     status goes to ``status`` (default: the terminal's progress line), a line
-    per simulated second where it is not redrawn."""
+    per simulated second where it is not redrawn.  ``lockstep`` overrides the
+    scenario's key of that name (True: in lockstep; False: in real time)."""
     from friction_sim.experiment.runner import run_standalone
 
     scenario = load_scenario(path)
@@ -58,11 +59,13 @@ def run_scenario(path: Path, *, output: Path | None = None, attach: str | None =
     folder.mkdir(parents=True, exist_ok=True)
     recording = folder / f"{scenario.name}.mcap"
     spec = dataclasses.replace(scenario.spec(), log_path=recording)
+    if lockstep is not None:
+        spec = dataclasses.replace(spec, lockstep=lockstep)
     if foxglove_port is not None:
         spec = dataclasses.replace(spec, slider_parameters={**spec.slider_parameters, "foxglove_port": foxglove_port})
     live = status if status is not None else TerminalProgress()
-    print(f"running {path} ({scenario.duration:g} s simulated at {scenario.real_time_factor:g}x real time)",
-          file=stream)
+    pace = "in lockstep, as fast as it computes" if spec.lockstep else f"at {scenario.real_time_factor:g}x real time"
+    print(f"running {path} ({scenario.duration:g} s simulated {pace})", file=stream)
     try:
         run_standalone(spec, namespace=attach or scenario.namespace, attach=attach is not None,
                        progress=lambda now: live.show(now.line(), step=int(now.t)))
@@ -99,6 +102,12 @@ def add_experiment_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--output", type=Path, help="output folder (default: the scenario's output)")
     parser.add_argument("--attach", metavar="NAMESPACE",
                         help="drive a slider (and controller) already running in NAMESPACE")
+    pace = parser.add_mutually_exclusive_group()
+    pace.add_argument("--lockstep", action="store_true", default=None,
+                      help="run in lockstep: the slider advances when this driver and the controller have answered "
+                           "(the same numbers every run, as fast as the CPU allows; overrides the scenario)")
+    pace.add_argument("--real-time", dest="lockstep", action="store_false",
+                      help="run against the wall clock at the scenario's real_time_factor (overrides the scenario)")
     add_foxglove(parser)
 
 
@@ -113,7 +122,8 @@ def experiment(args: argparse.Namespace) -> int:
     if args.foxglove is not None and args.attach is not None:
         raise FrictionSimError("--foxglove with --attach: the slider runs elsewhere; start it with "
                                "--foxglove (or foxglove_port) instead")
-    run_scenario(args.scenario, output=args.output, attach=args.attach, foxglove_port=args.foxglove)
+    run_scenario(args.scenario, output=args.output, attach=args.attach, foxglove_port=args.foxglove,
+                 lockstep=args.lockstep)
     return 0
 
 

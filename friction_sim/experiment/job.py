@@ -68,6 +68,8 @@ class ExperimentSpec:
     name: str = "experiment"
     notes: dict[str, str] = field(default_factory=dict)
     operator: Sequence[OperatorAction] = ()
+    #: Lockstep: the slider advances only when this driver and the controller have answered.
+    lockstep: bool = False
 
     @property
     def initial_target(self) -> float | None:

@@ -16,6 +16,7 @@ overshoot and steady error.  This is the one module of the package outside
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import time
 import uuid
@@ -36,6 +37,7 @@ from friction_sim.core.model.commands import (
 )
 from friction_sim.core.model.params import Inputs
 from friction_sim.core.runtime.controller import WAITING_FOR_PLANT
+from friction_sim.core.runtime.lockstep import to_ns
 from friction_sim.errors import ExperimentError, ParameterError
 from friction_sim.experiment.job import (
     SCENARIO_METADATA,
@@ -44,6 +46,13 @@ from friction_sim.experiment.job import (
     OperatorAction,
     Status,
     scenario_metadata,
+)
+from friction_sim.experiment.lockstep_run import (
+    ScheduleParticipant,
+    for_controller,
+    for_slider,
+    plant_sets,
+    timeline,
 )
 from friction_sim.io.messages import (
     STATE_TOPICS,
@@ -56,6 +65,9 @@ from friction_sim.io.messages import (
 )
 
 Progress = Callable[[Status], None]
+#: Wall time [s] a lockstep run waits for the slider to reach a point of the schedule (its own
+#: lockstep_timeout names a participant that does not answer well before this).
+LOCKSTEP_WAIT = 120.0
 
 
 def run_experiment(spec: ExperimentSpec, *, namespace: str | None = None, attach: bool = False,
@@ -83,9 +95,14 @@ def run_experiment(spec: ExperimentSpec, *, namespace: str | None = None, attach
         publishers = _command_publishers(driver)
         _collect_mean_velocity(driver, result)
         plant = _Attached(spec, driver, executor) if attach else _InProcess(spec, ns, executor, result)
-        _wait_until_connected(executor, publishers, spec.controller, plant)
+        scheduler = ScheduleParticipant(spec, driver, functools.partial(_spin_until, executor), LOCKSTEP_WAIT) \
+            if spec.lockstep else None
+        _wait_until_connected(executor, publishers, spec.controller, plant, scheduler)
         operator = _OperatorHands(driver, executor, publishers, spec.operator)
-        _play(spec, plant, executor, publishers, result, progress, operator)
+        if scheduler is not None:
+            _play_lockstep(spec, plant, executor, scheduler, result, progress, operator)
+        else:
+            _play(spec, plant, executor, publishers, result, progress, operator)
     finally:
         if plant is not None:
             plant.close()
@@ -135,6 +152,45 @@ def _play(spec: ExperimentSpec, plant: _InProcess | _Attached, executor: Any, pu
     _shift(result, start)
 
 
+def _play_lockstep(spec: ExperimentSpec, plant: _InProcess | _Attached, executor: Any,
+                   scheduler: ScheduleParticipant, result: ExperimentResult, progress: Progress | None,
+                   operator: _OperatorHands) -> None:
+    """Send the schedule stamped, as the slider's scheduler participant (see
+    :mod:`friction_sim.experiment.lockstep_run`): each time's commands at once,
+    and at a time with a parameter set, a controller input or an operator's
+    calls, wait until the slider stands there to do them."""
+    start_ns = plant.now_ns()
+    start = start_ns / 1e9
+    _start_recording(spec, plant.recorder, start)
+    target = spec.initial_target
+    points = timeline(spec)
+    for index, (t_ns, commands, actions) in enumerate(points):
+        sent = [command for command in commands if for_slider(command)] + \
+            [action.send for action in actions if action.send is not None]
+        scheduler.promise(start_ns + t_ns, [command.at(start + t_ns / 1e9) for command in sent])
+        for command in commands:
+            result.commands.append(command.at(t_ns / 1e9))
+            target = command.values.get("target_speed", target)
+        controller = for_controller(commands) if spec.controller else {}
+        calls = [name for action in actions for name in action.calls]
+        if not (controller or plant_sets(commands) or calls) and index < len(points) - 1:
+            continue
+        scheduler.reach(plant, start_ns + t_ns)
+        for command in plant_sets(commands):
+            plant.set_parameters(dict(command.values))
+        if controller:
+            _set_parameters(scheduler.driver, executor, "controller", controller)
+            for command in commands:
+                if not command.for_slider:
+                    _record_unseen(plant.recorder, command.at(start + t_ns / 1e9))
+        if calls:
+            following = start_ns + (points[index + 1][0] if index + 1 < len(points) else t_ns)
+            operator.call_in_lockstep(calls, plant, functools.partial(scheduler.promise, following))
+        if progress is not None:
+            progress(_status(spec, t_ns / 1e9, target, plant.inputs(), result))
+    _shift(result, start)
+
+
 def _start_recording(spec: ExperimentSpec, recorder: Any, start: float) -> None:
     """Write the scenario metadata record and the initial target into the recording."""
     if recorder is None:
@@ -164,7 +220,9 @@ def _plant_values(spec: ExperimentSpec) -> dict[str, Any]:
     """The slider's parameters for the experiment: plant, initial inputs, real-time factor."""
     plant = {name: getattr(spec.plant, name) for name in settings.PLANT}
     inputs = {name: getattr(spec.inputs, name) for name in settings.INPUTS if name in settings.SLIDER_NODE}
-    return {**plant, **inputs, "real_time_factor": spec.real_time_factor, **spec.slider_parameters}
+    lockstep = {"lockstep": True, "lockstep_participants": "scheduler,controller" if spec.controller
+                else "scheduler"} if spec.lockstep else {}
+    return {**plant, **inputs, "real_time_factor": spec.real_time_factor, **lockstep, **spec.slider_parameters}
 
 
 def _controller_values(spec: ExperimentSpec) -> dict[str, Any]:
@@ -207,6 +265,19 @@ class _InProcess:
     def now(self) -> float:
         """The slider's simulation time [s]."""
         return float(self.slider.realtime.now(self._wall_ns()))
+
+    def now_ns(self) -> int:
+        return to_ns(self.now())
+
+    def answered(self) -> bool:
+        """In lockstep: whether every sample the slider published has its answer."""
+        gate = getattr(self.slider.realtime, "gate", None)
+        return gate is None or not gate.awaited
+
+    def standing(self) -> bool:
+        """Whether no ~/step is under way (lockstep: the loop advances a step after the call)."""
+        gate = getattr(self.slider.realtime, "gate", None)
+        return gate is None or not gate.stepping
 
     def inputs(self) -> Inputs:
         """The slider's inputs in force."""
@@ -290,6 +361,13 @@ class _Attached:
     def now(self) -> float:
         """Simulation time [s]: the newest pose stamp seen."""
         return self._stamp_ns / 1e9
+
+    def now_ns(self) -> int:
+        return self._stamp_ns
+
+    def standing(self) -> bool:
+        """(a step in another process: its end is not known here; the stamps show it)"""
+        return True
 
     def inputs(self) -> Inputs:
         """The inputs in force, as followed on the command topics."""
@@ -375,6 +453,18 @@ class _OperatorHands:
         self._clients = {name: driver.create_client(Trigger, f"slider/{name}") for name in sorted(names)}
         self._request = Trigger.Request
 
+    def call_in_lockstep(self, calls: Sequence[str], plant: Any, release: Callable[[], None]) -> None:
+        """The calls of one time in order, the slider standing there (lockstep): once a
+        pause holds it, ``release`` lets the scheduler's promise move on, so the steps
+        that follow can move it (each waited for)."""
+        for name in calls:
+            self._call(name)
+            if name == "pause":
+                release()
+            if name == "step":
+                _spin_until(self._executor, plant.standing, self.CALL_TIMEOUT,
+                            f"the slider's ~/step did not end within {self.CALL_TIMEOUT:g} s")
+
     def act(self, now: float, start: float) -> None:
         while self._pending and self._pending[0].t <= now:
             action = self._pending.pop(0)
@@ -401,20 +491,24 @@ def _collect_mean_velocity(driver: Any, result: ExperimentResult) -> None:
     """Append every mean-velocity sample (stamp [s], speed) to ``result``."""
 
     def collect(msg: Any) -> None:
-        result.mean_velocity.append((ns_to_seconds(stamp_ns(msg.header.stamp)), msg.twist.linear.x))
+        t = ns_to_seconds(stamp_ns(msg.header.stamp))
+        if not result.mean_velocity or t > result.mean_velocity[-1][0]:  # (lockstep: a sample sent again)
+            result.mean_velocity.append((t, msg.twist.linear.x))
 
     driver.create_subscription(message_class(TOPIC_TYPES["mean_velocity"]), "mean_velocity", collect, 100)
 
 
 def _wait_until_connected(executor: Any, publishers: dict[str, Any], controller: bool,
-                          plant: _InProcess | _Attached, timeout: float = 10.0) -> None:
+                          plant: _InProcess | _Attached, scheduler: ScheduleParticipant | None,
+                          timeout: float = 10.0) -> None:
     """Spin until discovery has matched the driver's publishers and the nodes
     are ready (a controller has its plant's parameters; an attached slider
     has published its time)."""
     nodes = (SLIDER, CONTROLLER) if controller else (SLIDER,)
     needed = {entry.name for node in nodes for entry in consumed_by(node)}
     _spin_until(executor, lambda: all(publishers[name].get_subscription_count() >= 1 for name in needed)
-                and plant.ready(), timeout, f"the experiment's nodes did not connect within {timeout:g} s")
+                and plant.ready() and (scheduler is None or scheduler.connected()), timeout,
+                f"the experiment's nodes did not connect within {timeout:g} s")
 
 
 def _spin_until(executor: Any, done: Callable[[], bool], seconds: float, failure: str) -> None:
@@ -432,9 +526,12 @@ def _spin_once(executor: Any, timeout: float) -> None:
     convert (see :class:`friction_sim.ros.intake.LostMessages`) is lost and
     counted, not the end of the experiment."""
     from friction_sim.ros.intake import LostMessages
+    from friction_sim.ros.run import NodeFault
 
     try:
         executor.spin_once(timeout_sec=timeout)
+    except NodeFault as fault:  # a node of this process stopped (it logged why): so does the experiment
+        raise ExperimentError(str(fault)) from None
     except RuntimeError as error:
         if not LostMessages.lost(error):
             raise

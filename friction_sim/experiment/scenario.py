@@ -5,6 +5,9 @@ A scenario is a YAML file::
     name: demo                      # optional; names the output files
     duration: 15.0                  # simulated seconds
     real_time_factor: 1.0           # optional (default 1)
+    lockstep: true                  # optional: the slider advances when this driver and the controller
+                                    #   have answered: the same numbers every run, as fast as the CPU allows
+    actuation_delay: 0.0            # optional, lockstep: simulated seconds from a sample to its answer acting
     output: out/demo                # optional folder (default out/<name>)
     log_rate: 1000.0                # optional state samples per simulated second
     accelerometer_rate: 1000.0      # optional: the slider publishes (and records) its accelerometer
@@ -85,8 +88,8 @@ PLANT_KEYS = tuple(name for name in (*settings.PLANT, *settings.INPUTS) if name 
 _DERIVED_CONTROLLER_KEYS = ("excitation_frequency", "drive_force", "mean_window_periods", "active")
 #: Keys of ``controller:``: the controller node's other parameters.
 CONTROLLER_KEYS = tuple(name for name in settings.CONTROLLER_NODE if name not in _DERIVED_CONTROLLER_KEYS)
-TOP_KEYS = ("name", "description", "duration", "real_time_factor", "output", "log_rate", "accelerometer_rate",
-            "accelerometer_noise", "plant",
+TOP_KEYS = ("name", "description", "duration", "real_time_factor", "lockstep", "actuation_delay", "output",
+            "log_rate", "accelerometer_rate", "accelerometer_noise", "plant",
             "plant_params", "controller", "schedule", "namespace", "expect", "operator")
 EXPECT_KEYS = ("t", "within", "periods", "overshoot", "quantity")
 #: What an expect entry may judge.
@@ -123,6 +126,9 @@ class Scenario:
     log_rate: float = float(settings.LOG_RATE.default)
     accelerometer_rate: float = float(settings.ACCELEROMETER_RATE.default)
     accelerometer_noise: float = float(settings.ACCELEROMETER_NOISE.default)
+    #: Run in lockstep (the slider advances when the driver and the controller have answered).
+    lockstep: bool = False
+    actuation_delay: float = float(settings.ACTUATION_DELAY.default)
     namespace: str | None = None
     description: str = ""
     expect: tuple[Expectation, ...] = ()
@@ -150,9 +156,10 @@ class Scenario:
             duration=self.duration, schedule=self.schedule, plant=self.params, inputs=self.inputs,
             controller=self.controller is not None, controller_parameters=controller,
             real_time_factor=self.real_time_factor, log_rate=self.log_rate, name=self.name,
-            notes={"scenario": self.source}, operator=self.operator,
+            notes={"scenario": self.source}, operator=self.operator, lockstep=self.lockstep,
             slider_parameters={name: value for name, value in (("accelerometer_rate", self.accelerometer_rate),
-                                                               ("accelerometer_noise", self.accelerometer_noise))
+                                                               ("accelerometer_noise", self.accelerometer_noise),
+                                                               ("actuation_delay", self.actuation_delay))
                                if value},
         )
 
@@ -245,6 +252,8 @@ class YamlParser:
             if "accelerometer_rate" in top else float(settings.ACCELEROMETER_RATE.default)
         accelerometer_noise = self.checked(top["accelerometer_noise"], settings.ACCELEROMETER_NOISE) \
             if "accelerometer_noise" in top else float(settings.ACCELEROMETER_NOISE.default)
+        lockstep = bool(self.checked(top["lockstep"], settings.LOCKSTEP)) if "lockstep" in top else False
+        delay = self.checked(top["actuation_delay"], settings.ACTUATION_DELAY) if "actuation_delay" in top else 0.0
         name = str(top["name"][1]) if "name" in top else "experiment"
         params, inputs = self.plant(top, rate)
         controller = self.controller(top.get("controller"), params, inputs)
@@ -259,7 +268,7 @@ class YamlParser:
             name=name, duration=duration, params=params, inputs=inputs, schedule=schedule,
             controller=controller, real_time_factor=rate, output=_text(top, "output", Path("out") / name, Path),
             log_rate=log_rate, accelerometer_rate=accelerometer_rate, accelerometer_noise=accelerometer_noise,
-            namespace=_text(top, "namespace", None, str),
+            lockstep=lockstep, actuation_delay=delay, namespace=_text(top, "namespace", None, str),
             description=_text(top, "description", "", str), expect=expect,
             operator=operator, source=text,
         )

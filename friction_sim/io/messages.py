@@ -173,6 +173,19 @@ def mean_velocity_message(period: PeriodSummary, frame_id: str = "slideway") -> 
 
 #: The accelerometer's topic (sensor_msgs/Imu).
 ACCELEROMETER = "accelerometer"
+#: The accelerometer topic's queue depth, both ends: in lockstep a period's readings go out at once
+#: before the controller answers (at most rate/f of them), and none may be lost.
+ACCELEROMETER_DEPTH = 10_000
+
+
+def accelerometer_qos() -> Any:
+    """The accelerometer topic's QoS, both ends: reliable, :data:`ACCELEROMETER_DEPTH` deep, and
+    transient local, so a controller that joins a slider in lockstep late still gets the readings
+    of the windows it has to answer (a volatile subscriber, ``ros2 topic echo``, matches too)."""
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    return QoSProfile(depth=ACCELEROMETER_DEPTH, reliability=ReliabilityPolicy.RELIABLE,  # type: ignore[no-untyped-call]
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def imu_message(sample: Acceleration, frame_id: str = "slideway", noise: float = 0.0) -> Any:

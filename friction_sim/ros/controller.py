@@ -103,20 +103,24 @@ from std_msgs.msg import Float64
 from friction_sim.core.control.law import ControlOutput, MeanSpeedController
 from friction_sim.core.model import spec
 from friction_sim.core.model.commands import CONTROLLER, consumed_by
-from friction_sim.core.runtime.controller import MODEL, RealtimeController, plant_words, taken_words
+from friction_sim.core.runtime.controller import RealtimeController, plant_words, taken_words
 from friction_sim.core.runtime.drive import DriveCommand
 from friction_sim.errors import ParameterError, one_line
 from friction_sim.io.messages import (
+    ACCELEROMETER_DEPTH,
+    accelerometer_qos,
     command_from_message,
     key_values,
     message_class,
-    node_name,
     ns_to_seconds,
     parameter_event_values,
     stamp_ns,
+    time_msg,
 )
+from friction_sim.ros.controller_lockstep import LOCKSTEP_READ, LockstepAnswers
+from friction_sim.ros.controller_plant import ADOPTED, FOLLOWED, named, own_parameters, qualified
 from friction_sim.ros.graph import NameWatch
-from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, take_with_info
+from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, take_all, take_with_info
 from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
 from friction_sim.ros.run import CONTROLLER_EXIT_CODES, node_help, run_node, wall_ns
 
@@ -127,15 +131,6 @@ QOS_DEPTH = 10
 COMMAND_HOLD_OFF = 0.02
 
 PLANT_TIMEOUT = 5.0
-#: The plant node's parameters the controller follows as they change (its exciter's data are
-#: read once: the inner loop learns how a load moves them).
-FOLLOWED = (*(name for name in MODEL if name not in spec.EXCITER), "mean_window_periods", "drive_force",
-            "excitation_frequency")
-#: The plant node's parameters the controller takes at start-up: its whole plant (model, exciter,
-#: window, Fd, f) and the drive level it runs at (where the inner loop starts).
-ADOPTED = (*MODEL, "mean_window_periods", "drive_force", "excitation_frequency", "drive_level")
-#: The accelerometer's queue: a millisecond's samples arrive between two executor turns at most ...
-ACCELEROMETER_DEPTH = 100
 DISCOVERY_SETTLE = 0.5
 #: The node's parameters: declared once in the one vocabulary.
 PARAMETERS = spec.CONTROLLER_NODE
@@ -171,6 +166,10 @@ class ControllerNode(Node):
         self._diag_pub = self.create_publisher(DiagnosticArray, "diagnostics", QOS_DEPTH)
         self._level_pub = self.create_publisher(Float64, "drive_level", QOS_DEPTH)
         self._frequency_pub = self.create_publisher(Float64, "excitation_frequency", QOS_DEPTH)
+        self._outputs = {"excitation_amplitude": self._amplitude_pub, "drive_level": self._level_pub,
+                         "excitation_frequency": self._frequency_pub}
+        #: The answers to the slider's samples while it runs in lockstep (None in real time).
+        self.lockstep: LockstepAnswers | None = None
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._gate = PolledGroup(open=True)
         self._commands = [  # target_speed, drive_force, excitation_frequency
@@ -187,10 +186,15 @@ class ControllerNode(Node):
         self._hold_off.cancel()
         self.create_subscription(TwistStamped, "mean_velocity",
                                  self._guarded("mean_velocity callback", self._on_mean_velocity), QOS_DEPTH)
-        self.create_subscription(message_class("sensor_msgs/msg/Imu"), "accelerometer",
-                                 self._guarded("accelerometer callback", self._on_acceleration), ACCELEROMETER_DEPTH)
+        #: Open: each reading wakes the node.  Shut until the model is settled (the inner loop is built
+        #: then); in lockstep shut while no answer waits for a reading (they are drained with each sample).
+        self.accelerometer_group = PolledGroup()
+        self.accelerometer = self.create_subscription(
+            message_class("sensor_msgs/msg/Imu"), "accelerometer",
+            self._guarded("accelerometer callback", self._on_acceleration), accelerometer_qos(),
+            callback_group=self.accelerometer_group)
         self.names = NameWatch(self)
-        self.create_timer(values["diagnostics_period"], self._guarded("diagnostics", self._publish_diagnostics),
+        self.create_timer(values["diagnostics_period"], self._guarded("diagnostics", self._publish_diagnostics_timed),
                           clock=steady)
         watch_parameter_refusals(self, PARAMETERS, self._parameter_refused)
         self.add_on_set_parameters_callback(self._set_parameters_guarded)
@@ -201,7 +205,7 @@ class ControllerNode(Node):
         if not self._plant_settled:
             self._plant = AsyncParameterClient(self, values["plant_node"])
             self._plant_future: Any = None
-            self.runtime.plant_node = _qualified(values["plant_node"], self.get_namespace())
+            self.runtime.plant_node = qualified(values["plant_node"], self.get_namespace())
             self.create_subscription(ParameterEvent, "/parameter_events",
                                      self._guarded("plant parameter event", self._on_plant_event),
                                      qos_profile_parameter_events)
@@ -227,6 +231,11 @@ class ControllerNode(Node):
             self._poll_plant()
             return
         now = time.monotonic()
+        if self.lockstep is not None:  # answers are stamped: no discovery to wait for
+            self.destroy_timer(self._startup_timer)
+            self.ready = True
+            self.lockstep.answer_waiting()
+            return
         output_pub = self._amplitude_pub if self.runtime.drive is None else self._level_pub
         if output_pub.get_subscription_count() == 0:
             self._matched_at = None
@@ -242,7 +251,7 @@ class ControllerNode(Node):
 
     def _poll_plant(self) -> None:
         if self._plant_future is None and self._plant.services_are_ready():
-            self._plant_future = self._plant.get_parameters(list(ADOPTED))
+            self._plant_future = self._plant.get_parameters([*ADOPTED, *LOCKSTEP_READ])
         if self._plant_future is not None and self._plant_future.done():
             self._adopt_plant(self._plant_future.result())
         elif time.monotonic() > self._deadline:
@@ -255,11 +264,13 @@ class ControllerNode(Node):
         and its drive level as where the inner loop starts.  A parameter the
         plant node does not declare (an older slider) keeps this node's value."""
         try:
-            values = dict(zip(ADOPTED, [Parameter.from_parameter_msg(_named(name, value)).value
-                                        for name, value in zip(ADOPTED, response.values, strict=True)]))
+            read = [*ADOPTED, *LOCKSTEP_READ]
+            values = dict(zip(read, [Parameter.from_parameter_msg(named(name, value)).value
+                                     for name, value in zip(read, response.values, strict=True)]))
+            lockstep = {name: values.pop(name) for name in LOCKSTEP_READ}
             level = values.pop("drive_level")  # the resonant plant's level in force: the inner loop starts there
             self.runtime.plant_drive_level = None if level is None else float(level)
-            update = _own_parameters(values)
+            update = own_parameters(values)
         except (TypeError, ValueError) as error:
             self._settle(f"plant parameters unusable ({error}): using this node's own", warn=True)
             return
@@ -267,6 +278,8 @@ class ControllerNode(Node):
         if not result.successful:
             self._settle(f"plant parameters unusable ({result.reason}): using this node's own", warn=True)
             return
+        if lockstep["lockstep"]:
+            self.lockstep = LockstepAnswers(self, lockstep["actuation_delay"], lockstep["accelerometer_rate"] or 0.0)
         self.runtime.model_source = f"plant node {self.runtime.plant_node}"
         self.runtime.taken_from_plant = taken_words(
             {parameter.name: parameter.value for parameter in update}, level)
@@ -278,8 +291,8 @@ class ControllerNode(Node):
         own parameters (validated like any set), so the law inverts the plant
         in force; what this node cannot take is warned about, and it keeps the
         model it has."""
-        if msg.node != self.runtime.plant_node or not self._plant_settled:
-            return
+        if msg.node != self.runtime.plant_node or not self._plant_settled or self.lockstep is not None:
+            return  # (in lockstep an event is not ordered with the samples: who changes the plant sets this node)
         new, changed = parameter_event_values(msg)
         event = {**new, **changed}
         values = {name: value for name, value in event.items() if name in FOLLOWED}
@@ -287,7 +300,7 @@ class ControllerNode(Node):
             return
         words = ", ".join(f"{name} = {value!r}" for name, value in values.items())
         try:
-            result = self.set_parameters_atomically(_own_parameters(values))
+            result = self.set_parameters_atomically(own_parameters(values))
             reason = "" if result.successful else result.reason
         except (TypeError, ValueError) as error:
             reason = str(error)
@@ -305,6 +318,9 @@ class ControllerNode(Node):
         (self.get_logger().warning if warn else self.get_logger().info)(message)
         self._plant_settled = True
         self._deadline = time.monotonic() + PLANT_TIMEOUT
+        if self.lockstep is None:  # readings of before: of a loop that adopting the plant replaced
+            take_all(self.accelerometer, ACCELEROMETER_DEPTH)
+            self.accelerometer_group.open = True
         refusal = self.runtime.settle()
         if refusal:
             self._warn(f"{refusal}; target 0 kept")
@@ -368,6 +384,9 @@ class ControllerNode(Node):
         self.runtime.refuse(f"parameter {why}")
 
     def _on_mean_velocity(self, msg: TwistStamped) -> None:
+        if self.lockstep is not None:
+            self.lockstep.sample(stamp_ns(msg.header.stamp), msg.twist.linear.x)
+            return
         t, now = ns_to_seconds(stamp_ns(msg.header.stamp)), wall_ns()
         try:
             output = self.runtime.take_sample(msg.twist.linear.x, t, now, self.ready and self.runtime.active)
@@ -379,6 +398,9 @@ class ControllerNode(Node):
 
     def _on_acceleration(self, msg: Any) -> None:
         """An accelerometer sample for the inner loop (its normal specific force)."""
+        if self.lockstep is not None:
+            self.lockstep.acceleration(stamp_ns(msg.header.stamp), msg.linear_acceleration.z)
+            return
         try:
             self.runtime.take_acceleration(ns_to_seconds(stamp_ns(msg.header.stamp)), msg.linear_acceleration.z)
         except ParameterError as error:
@@ -417,26 +439,45 @@ class ControllerNode(Node):
 
     # -- publishing ---------------------------------------------------------------
 
-    def _publish(self, output: ControlOutput, boundary: float | None = None) -> None:
-        """Publish the law's decision: Pa (force actuator), or the drive level
-        (resonant: the inner loop's at a window's end ``boundary``, the steady
-        gain's otherwise)."""
-        if not (self.ready and self.runtime.active):
-            return
+    def _publish(self, output: ControlOutput, boundary: float | None = None) -> dict[str, float]:
+        """Carry out the law's decision and return it as the values it sets: Pa
+        (force actuator), or the drive level (resonant: the inner loop's at a
+        window's end ``boundary``, the steady gain's otherwise) and a frequency
+        tracking moved.  In real time they are published on their topics; in
+        lockstep only a sample's answer carries them (the caller sends it), so
+        a decision between samples waits for the next one."""
+        lockstep = self.lockstep is not None
+        if not (self.ready and self.runtime.active) or (lockstep and boundary is None):
+            return {}
         control = self.runtime.control
+        acts_at = self.lockstep.acts_at(boundary) if self.lockstep is not None and boundary is not None \
+            else self._sim_time()
         if output.amplitude != self._last_published:  # the plant's answer to the old Pa is no sample of the new
-            control.clock.note_change(wall_ns(), 1.0 / control.frequency, self._sim_time())
+            control.clock.note_change(wall_ns(), 1.0 / control.frequency, acts_at)
             self._last_published = output.amplitude
-        if self.runtime.drive is not None:
-            self._publish_drive(boundary)
-        else:
-            self._amplitude_pub.publish(Float64(data=output.amplitude))
+        values = self._drive_values(boundary, acts_at) if self.runtime.drive is not None \
+            else {"excitation_amplitude": output.amplitude}
+        if not lockstep:
+            for name, value in values.items():
+                self._outputs[name].publish(Float64(data=value))
         self._warn_on_conditions(output)
         for listener in self.output_listeners:
             listener(output)
+        return values
 
-    def _publish_drive(self, boundary: float | None) -> None:
-        """The drive level (and a frequency tracking moved).  The inner loop
+    def decide(self, output: ControlOutput, boundary: float) -> dict[str, float]:
+        """The law's decision at the window's end ``boundary`` (lockstep: the answer's values)."""
+        return self._publish(output, boundary)
+
+    def warn(self, text: str) -> None:
+        """Warn about refused input (at most once a second)."""
+        self._warn(text)
+
+    def publish_diagnostics(self) -> None:
+        self._publish_diagnostics()
+
+    def _drive_values(self, boundary: float | None, acts_at: float | None) -> dict[str, float]:
+        """The drive level (after a frequency tracking moved).  The inner loop
         decides at boundaries only (its model starts from the plant's level in
         force, and plans from there); without it each new Pa is answered at once.
         A window judged by the law must lie after the slideway settled: the
@@ -448,15 +489,16 @@ class ControllerNode(Node):
         elif not drive.inner_loop:
             command = self.runtime.steady_drive()
         else:
-            return
+            return {}
         assert command is not None
-        if command.frequency_changed:
-            self._frequency_pub.publish(Float64(data=command.frequency))
         if drive.inner_loop and not drive.settled:
-            control.clock.note_change(wall_ns(), 1.0 / control.frequency, boundary)
-        self._level_pub.publish(Float64(data=command.level))
+            control.clock.note_change(wall_ns(), 1.0 / control.frequency,
+                                      boundary if self.lockstep is None else acts_at)
         for listener in self.drive_listeners:
             listener(command)
+        if command.frequency_changed:
+            return {"excitation_frequency": command.frequency, "drive_level": command.level}
+        return {"drive_level": command.level}
 
     def _sim_time(self) -> float | None:
         """The simulation time [s] of the node's clock under ``use_sim_time``
@@ -475,15 +517,25 @@ class ControllerNode(Node):
         if publish:
             self._publish_diagnostics()
 
+    def _publish_diagnostics_timed(self) -> None:
+        """Every diagnostics_period of wall time (in lockstep: of simulation time, with the answers)."""
+        if self.lockstep is None:
+            self._publish_diagnostics()
+
     def _publish_diagnostics(self) -> None:
         """The controller's status on ``diagnostics``, stamped by the node's
-        clock (wall time, or /clock under use_sim_time) as the slider's is."""
+        clock (wall time, or /clock under use_sim_time) as the slider's is; in
+        lockstep with the simulation time of the sample last answered."""
         report = self.runtime.status(namesake=self.names.problem, ready=self.ready)
+        lockstep = self.lockstep.values() if self.lockstep is not None else {}
         status = DiagnosticStatus(name="controller", hardware_id=self.get_fully_qualified_name(),
                                   level=bytes([report.level]), message=report.message,
-                                  values=key_values({**report.values, "messages_lost": LostMessages.count}))
+                                  values=key_values({**report.values, **lockstep, "messages_lost": LostMessages.count}))
         msg = DiagnosticArray(status=[status])
-        msg.header.stamp = self.get_clock().now().to_msg()
+        if self.lockstep is None:
+            msg.header.stamp = self.get_clock().now().to_msg()
+        else:
+            time_msg(self.lockstep.stamp_ns, msg.header.stamp)
         self._diag_pub.publish(msg)
 
     # -- parameters ---------------------------------------------------------------
@@ -515,41 +567,9 @@ class ControllerNode(Node):
         self._publish(self.runtime.control.output)
 
 
-def _own_parameters(values: dict[str, Any]) -> list[Parameter]:
-    """The plant's parameter values as this node's parameters of the same
-    names (a value the plant does not have, None, is left out)."""
-    return [Parameter(name, value=_typed(PARAMETERS[name], value)) for name, value in values.items()
-            if value is not None]
-
-
-def _qualified(node: str, namespace: str) -> str:
-    """The fully qualified name of ``node`` as seen from ``namespace`` (an
-    absolute name stays; a relative one is resolved in the namespace)."""
-    return node if node.startswith("/") else node_name(namespace, node)
-
-
 def _arrival(info: Any) -> int:
     """When a message arrived (ns), from rclpy's message info."""
     return int(info.get("received_timestamp") or 0) if isinstance(info, dict) else 0
-
-
-def _typed(setting: spec.Setting, value: Any) -> Any:
-    """A plant parameter's value as this node's parameter of the same name
-    takes it (an integer answer for a float parameter is taken as a float)."""
-    if setting.kind is str:
-        if not isinstance(value, str):
-            raise TypeError(f"{setting.name} = {value!r} is not a string")
-        return value
-    if setting.kind is int:
-        return int(value)
-    return float(value)
-
-
-def _named(name: str, value: Any) -> Any:
-    """A rcl_interfaces/Parameter message from a ParameterValue (for Parameter.from_parameter_msg)."""
-    from rcl_interfaces.msg import Parameter as ParameterMsg
-
-    return ParameterMsg(name=name, value=value)
 
 
 def help_text() -> str:

@@ -90,12 +90,13 @@ from friction_sim.core.model.commands import (
 from friction_sim.core.model.commands import PARAMETERS as PARAMETER_COMMAND
 from friction_sim.core.model.events import SliderState
 from friction_sim.core.model.params import plant_from
-from friction_sim.core.model.records import Acceleration
-from friction_sim.core.runtime.accelerometer import Accelerometer
+from friction_sim.core.model.records import Acceleration, Tick
+from friction_sim.core.runtime.lockstep import LockstepSlider
 from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import SimulationFault, one_line
 from friction_sim.io.messages import (
     ACCELEROMETER,
+    accelerometer_qos,
     command_from_message,
     fill_state_messages,
     imu_message,
@@ -118,7 +119,15 @@ from friction_sim.ros.run import (
     run_node,
     wall_ns,
 )
-from friction_sim.ros.slider_outputs import control_text, health, open_live_view, open_recorder, recorded
+from friction_sim.ros.slider_lockstep import LockstepLoop, runtime_for
+from friction_sim.ros.slider_outputs import (
+    control_text,
+    health,
+    open_live_view,
+    open_recorder,
+    recorded,
+    watch_namespace,
+)
 
 QOS_DEPTH = 10
 COMMANDS_PER_TICK = QOS_DEPTH
@@ -150,14 +159,7 @@ class SliderNode(Node):
         super().__init__(node_name, **kwargs)
         values = declare_settings(self, PARAMETERS)
         params, inputs = plant_from(values)
-        self._rt = RealtimeSlider(
-            params, inputs, wall_ns=wall_ns(), real_time_factor=values["real_time_factor"],
-            publish_rate=values["publish_rate"], mean_window_periods=values["mean_window_periods"],
-            max_catch_up=values["max_catch_up"], load_blame=_load_blame(values),
-            log_rate=values["log_rate"] if values["log_path"] else None,
-            accelerometer=Accelerometer(values["accelerometer_rate"], values["accelerometer_noise"],
-                                        values["accelerometer_bias"], values["accelerometer_seed"]),
-        )
+        self._rt = runtime_for(values, params, inputs)
         #: The exit code run_node ends with (0, or EXIT_RECORDING_FAILED after a failed recording).
         self.exit_code = 0
         self._serving = threading.Event()  # set once the node is whole: the live view may call in before
@@ -187,14 +189,15 @@ class SliderNode(Node):
         self._fault = FaultSignal(self)
         self._make_publishers(values["publish_clock"])
         self._make_subscriptions()
-        self._watch_namespace()
+        watch_namespace(self, lambda: self._rt.now(wall_ns()), lockstep=bool(values["lockstep"]))
         self._published = threading.Condition()  # the tick thread's count of ticks published, for ~/step
         self._ticks_computed = self._ticks_published = 0
         self._last_published: SliderState | None = None
         self._make_services()
         self.names = NameWatch(self)
-        self.create_timer(values["diagnostics_period"], self._on_diagnostics,
-                          clock=Clock(clock_type=ClockType.STEADY_TIME))
+        if not values["lockstep"]:  # in lockstep: every diagnostics_period of simulation time (the loop)
+            self.create_timer(values["diagnostics_period"], self._on_diagnostics,
+                              clock=Clock(clock_type=ClockType.STEADY_TIME))
         watch_parameter_refusals(self, PARAMETERS, self._parameter_refused)
         self.add_on_set_parameters_callback(self._set_parameters)
         self.add_post_set_parameters_callback(self._parameters_set)
@@ -202,6 +205,8 @@ class SliderNode(Node):
         # Let the tick thread take the GIL within 0.5 ms even while the
         # executor thread is busy with a flood of commands (default: 5 ms).
         sys.setswitchinterval(min(sys.getswitchinterval(), TICK_SWITCH_INTERVAL))
+        #: The lockstep loop (None in real time): it replaces the clock's ticks.
+        self.lockstep = LockstepLoop(self) if isinstance(self._rt, LockstepSlider) else None
         self._ticker = threading.Thread(target=self._tick_loop, name="slider_tick", daemon=True)
         self._ticker.start()
         self._serving.set()
@@ -236,6 +241,27 @@ class SliderNode(Node):
         return self._rt
 
     @property
+    def lock(self) -> threading.Lock:
+        """Held while the runtime changes (the tick thread's and the executor's turns)."""
+        return self._lock
+
+    @property
+    def stopping(self) -> bool:
+        """Whether the node is being destroyed or its context shut down."""
+        return self._stop.is_set() or not self.context.ok()
+
+    @property
+    def frame_id(self) -> str:
+        return self._frame_id
+
+    def publish_mean_velocity(self, msg: Any) -> None:
+        self._mean_pub.publish(msg)
+
+    def refusal(self, topic: str, why: str) -> Outcome:
+        """Count input refused before it became a command (a malformed stamped message), lock held."""
+        return self._rt.refuse(Command(0.0, PARAMETER_COMMAND, {}), why, wall_ns())
+
+    @property
     def fault(self) -> str:
         """Why the node stopped ('' while it runs): see :class:`SimulationFault`."""
         return self._fault.reason
@@ -249,15 +275,16 @@ class SliderNode(Node):
         self._mean_pub = self._publisher(TwistStamped, "mean_velocity")
         self._diag_pub = self._publisher(DiagnosticArray, "diagnostics")
         accelerometer = self._rt.accelerometer
-        self._imu_pub = self._publisher(message_class("sensor_msgs/msg/Imu"), ACCELEROMETER) if accelerometer else None
+        self._imu_pub = self._publisher(message_class("sensor_msgs/msg/Imu"), ACCELEROMETER,
+                                        accelerometer_qos()) if accelerometer else None
         self._imu_noise = accelerometer.noise if accelerometer else 0.0
         self._pose, self._velocity, self._friction = PoseStamped(), TwistStamped(), WrenchStamped()
         self._clock_msg = ClockMsg()
         self._clock_pub: Any = None
         self._set_publish_clock(publish_clock)
 
-    def _publisher(self, kind: type, topic: str) -> Any:
-        return self.create_publisher(kind, topic, QOS_DEPTH, event_callbacks=_QUIET_PUBLISHER)
+    def _publisher(self, kind: type, topic: str, depth: Any = QOS_DEPTH) -> Any:
+        return self.create_publisher(kind, topic, depth, event_callbacks=_QUIET_PUBLISHER)
 
     def _set_publish_clock(self, on: bool) -> None:
         """Advertise /clock only while it is published (the tick thread publishes
@@ -280,29 +307,7 @@ class SliderNode(Node):
             for entry in consumed_by(SLIDER)
         ]
 
-    def _watch_namespace(self) -> None:
-        """Keep what other nodes put on this namespace's ``diagnostics`` (the
-        controller's, and this node's own) and ``target_speed`` for a recording
-        or a live view, so the file and the view show the whole feeder (the
-        shipped layout plots the target against the mean speed).  The
-        subscriptions exist whether or not anything records, so the number of
-        subscribers of ``target_speed`` (what ``ros2 topic pub -w`` waits for)
-        is the same in every setup: the controller's and this one."""
-        for topic, kind in (("diagnostics", DiagnosticArray), ("target_speed", message_class("std_msgs/msg/Float64"))):
-            self.create_subscription(kind, topic, functools.partial(self._forward, topic), QOS_DEPTH,
-                                     event_callbacks=_QUIET_SUBSCRIPTION)
-
-    def _forward(self, topic: str, msg: Any) -> None:
-        """Hand a message seen on ``topic`` to the recording and the live view,
-        at the simulation time now."""
-        if self.recorder is None and self.live is None:
-            return
-        log_time_ns = seconds_to_ns(self._rt.now(wall_ns()))
-        for sink in (self.recorder, self.live):
-            if sink is not None:
-                sink.write(topic, msg, log_time_ns)
-
-    def _take_commands(self) -> None:
+    def take_commands(self) -> None:
         """Apply every command waiting on the command topics (tick thread)."""
         waiting = [(name, msg) for name, subscription in self._commands
                    for msg in take_all(subscription, COMMANDS_PER_TICK)]
@@ -312,9 +317,9 @@ class SliderNode(Node):
             now = wall_ns()
             t = self._rt.now(now)
             outcomes = self._rt.commands([command_from_message(name, msg, t) for name, msg in waiting], now)
-            self._record(outcomes)
+            self.record(outcomes)
         for outcome in outcomes:
-            self._warn_refused(outcome)
+            self.warn_refused(outcome)
 
     def _live_services(self) -> list[Any]:
         """The control services again, for Foxglove clients of the live view
@@ -345,12 +350,12 @@ class SliderNode(Node):
             with self._lock:
                 outcome = self._control(name, wall_ns())
                 state, published = self._rt.slider.state(), self._ticks_computed + 1
-                self._record([outcome])
+                self.record([outcome])
         except SimulationFault as fault:  # the run cannot go on: say so, answer, stop
-            self._fail(fault)
+            self.fail(fault)
             response.success, response.message = False, str(fault)
             return response
-        self._warn_refused(outcome, self.get_logger().warning)  # each refused call is warned
+        self.warn_refused(outcome, self.get_logger().warning)  # each refused call is warned
         if outcome.accepted and name in (STEP, RESET):
             self._wait_published(published)
         response.success = outcome.accepted
@@ -375,7 +380,7 @@ class SliderNode(Node):
 
     # -- commands ---------------------------------------------------------------
 
-    def _record(self, outcomes: Sequence[Outcome]) -> None:
+    def record(self, outcomes: Sequence[Outcome]) -> None:
         """Hand handled commands to the sinks, with the lock held: the tick thread
         and the executor's (parameters, control calls) take commands in turn, and
         a recording must hold them in the order the core took them (verify
@@ -384,7 +389,7 @@ class SliderNode(Node):
             for sink in self.sinks:
                 sink.on_command(outcome, self._frame_id)
 
-    def _warn_refused(self, outcome: Outcome, warn: Callable[[str], Any] | None = None) -> None:
+    def warn_refused(self, outcome: Outcome, warn: Callable[[str], Any] | None = None) -> None:
         """Warn about a refusal (by default on the node's throttle: a flood of bad
         commands costs a clock read each)."""
         if not outcome.accepted:
@@ -399,7 +404,7 @@ class SliderNode(Node):
         values = {name: value} if name in PHYSICS_FIELDS else {}
         with self._lock:
             outcome = self._rt.refuse(Command(0.0, PARAMETER_COMMAND, values), why, wall_ns())
-            self._record([outcome])
+            self.record([outcome])
 
     # -- publishing -------------------------------------------------------------
 
@@ -407,10 +412,10 @@ class SliderNode(Node):
         """Tick until stopped; any failure is reported once and ends the node
         (:meth:`_fail`), never a thread that dies in silence."""
         try:
-            self._ticks()
+            self.lockstep.run() if self.lockstep is not None else self._ticks()
         except Exception as error:  # noqa: BLE001 - reported, and the node stops
             if not self._stop.is_set() and self.context.ok():
-                self._fail(error)
+                self.fail(error)
 
     def _ticks(self) -> None:
         """Tick at publish_rate on absolute deadlines; after a stall, go on from
@@ -426,11 +431,11 @@ class SliderNode(Node):
                 deadline = time.monotonic()
             if self._stop.is_set() or not self.context.ok():
                 return
-            self._take_commands()
+            self.take_commands()
             self._on_tick()
             self._hold_for_recorder()
 
-    def _fail(self, error: BaseException) -> None:
+    def fail(self, error: BaseException) -> None:
         """The run cannot go on: log why and report ERROR on diagnostics (once),
         then end the executor (run_node exits with EXIT_FAULT)."""
         reason = str(error) if isinstance(error, SimulationFault) else \
@@ -448,15 +453,19 @@ class SliderNode(Node):
         simulation time, and /clock with it, stands still."""
         with self._lock:
             tick = self._rt.tick(wall_ns())
-            self._ticks_computed += 1
-            number = self._ticks_computed
-            state = tick.state
-            fresh = not tick.paused or state != self._last_published or tick.events or tick.periods
-            if fresh and self._clock_pub is not None:
-                time_msg(seconds_to_ns(state.t), self._clock_msg.clock)
-                self._clock_pub.publish(self._clock_msg)
-                if self.live is not None and self.live.wants("/clock"):  # a message of its own: encoded later
-                    self.live.write("/clock", ClockMsg(clock=self._clock_msg.clock), seconds_to_ns(state.t))
+            fresh = not tick.paused or tick.state != self._last_published or bool(tick.events or tick.periods)
+            self.publish_tick(tick, fresh)
+
+    def publish_tick(self, tick: Tick, fresh: bool = True) -> None:
+        """Publish what a tick made (lock held: /clock first, then the states, the
+        period means and the accelerometer's samples) and hand it to the sinks."""
+        self._ticks_computed += 1
+        state = tick.state
+        if fresh and self._clock_pub is not None:
+            time_msg(seconds_to_ns(state.t), self._clock_msg.clock)
+            self._clock_pub.publish(self._clock_msg)
+            if self.live is not None and self.live.wants("/clock"):  # a message of its own: encoded later
+                self.live.write("/clock", ClockMsg(clock=self._clock_msg.clock), seconds_to_ns(state.t))
         if fresh:
             fill_state_messages(state, self._frame_id, self._pose, self._velocity, self._friction)
             self._pose_pub.publish(self._pose)
@@ -468,7 +477,7 @@ class SliderNode(Node):
             self._last_published = state
             deliver_tick(self.sinks, tick, self._frame_id)
         with self._published:
-            self._ticks_published = number
+            self._ticks_published = self._ticks_computed
             self._published.notify_all()
 
     def _publish_accelerations(self, samples: Sequence[Acceleration]) -> None:
@@ -497,6 +506,11 @@ class SliderNode(Node):
             self._recorder_waited_ns = waited
 
     def _on_diagnostics(self) -> None:
+        self.publish_diagnostics()
+
+    def publish_diagnostics(self, stamp_ns: int | None = None) -> None:
+        """The status 'slider' on diagnostics, stamped ``stamp_ns`` (lockstep: the
+        simulation time), else by the node's clock."""
         with self._lock:
             params, inputs = self._rt.slider.params, self._rt.slider.inputs
         prediction = self._rt.prediction(params, inputs)  # outside the lock: it may simulate
@@ -510,7 +524,10 @@ class SliderNode(Node):
         status.level, status.message = health(report, self.fault, self.names.problem)
         status.values = key_values(report)
         msg = DiagnosticArray(status=[status])
-        msg.header.stamp = self.get_clock().now().to_msg()
+        if stamp_ns is None:
+            msg.header.stamp = self.get_clock().now().to_msg()
+        else:
+            time_msg(stamp_ns, msg.header.stamp)
         self._diag_pub.publish(msg)
 
     def _recording_report(self) -> dict[str, Any]:
@@ -539,11 +556,11 @@ class SliderNode(Node):
             with self._lock:
                 outcome = self._rt.configure(values, wall_ns())
                 if outcome.values or not outcome.accepted:
-                    self._record([outcome])
+                    self.record([outcome])
         except SimulationFault as fault:  # the run cannot go on: say so, answer, stop
-            self._fail(fault)
+            self.fail(fault)
             return SetParametersResult(successful=False, reason=str(fault))
-        self._warn_refused(outcome, self.get_logger().warning)  # each refused set is warned
+        self.warn_refused(outcome, self.get_logger().warning)  # each refused set is warned
         if not outcome.accepted:
             return SetParametersResult(successful=False, reason=outcome.reason)
         return SetParametersResult(successful=True)
@@ -563,13 +580,6 @@ class SliderNode(Node):
 
 def _unused(msg: Any) -> None:
     """The callback of a polled subscription: never called (the tick thread takes its messages)."""
-
-
-def _load_blame(values: dict[str, Any]) -> str:
-    """The parameter a start-up refusal of f x real_time_factor blames: the
-    real-time factor if it was set (differs from its default), else the frequency."""
-    return "real_time_factor" if values["real_time_factor"] != spec.REAL_TIME_FACTOR.default \
-        else "excitation_frequency"
 
 
 def help_text() -> str:

@@ -8,13 +8,19 @@ so each stays short; nothing here holds state.
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from typing import Any
 
-from diagnostic_msgs.msg import DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rclpy.event_handler import SubscriptionEventCallbacks
 
 from friction_sim.core.model.commands import COMMANDS, PAUSE, RESET, RESUME, STEP, Outcome
 from friction_sim.core.model.events import SliderState
-from friction_sim.io.messages import ACCELEROMETER, SIM_CONTROL
+from friction_sim.io.messages import ACCELEROMETER, SIM_CONTROL, message_class, seconds_to_ns, stamp_ns
+
+#: What the slider keeps of the namespace's other topics, with the depth of its queues.
+WATCHED_DEPTH = 10
 
 
 def control_text(outcome: Outcome, state: SliderState) -> str:
@@ -58,6 +64,54 @@ def open_live_view(values: dict[str, Any], namespace: str, node: str, services: 
                     advertise=topics, services=services)
 
 
+def watch_namespace(node: Any, now: Callable[[], float], *, lockstep: bool) -> None:
+    """Keep what other nodes put on ``node``'s namespace's ``diagnostics`` (the
+    controller's, and the slider's own) and ``target_speed`` for a recording or a
+    live view (``node.recorder``, ``node.live``), logged at the simulation time
+    ``now()``, so the file and the view show the whole feeder (the shipped layout
+    plots the target against the mean speed).  The subscriptions exist whether
+    or not anything records, so the number of subscribers of ``target_speed``
+    (what ``ros2 topic pub -w`` waits for) is the same in every setup: the
+    controller's and this one.  In ``lockstep`` a recording keeps the
+    diagnostics stamped in simulation time (every node's once it runs in
+    lockstep), not one stamped by a wall clock ahead of it (a controller's
+    before it learnt at start-up that its plant is in lockstep): those would
+    differ from run to run."""
+
+    def forward(topic: str, msg: Any) -> None:
+        if node.recorder is None and node.live is None:
+            return
+        log_time_ns = seconds_to_ns(now())
+        if lockstep and topic == "diagnostics" and stamp_ns(msg.header.stamp) > log_time_ns:
+            return
+        for sink in (node.recorder, node.live):
+            if sink is not None:
+                sink.write(topic, msg, log_time_ns)
+
+    quiet = SubscriptionEventCallbacks(use_default_callbacks=False)
+    for topic, kind in (("diagnostics", DiagnosticArray), ("target_speed", message_class("std_msgs/msg/Float64"))):
+        node.create_subscription(kind, topic, functools.partial(forward, topic), WATCHED_DEPTH, event_callbacks=quiet)
+
+
+def pace_problems(report: dict[str, Any]) -> list[str]:
+    """What the wall clock says is wrong with a real-time run: the recorder or the
+    computer cannot keep up, the timer ticks late."""
+    problems: list[str] = []
+    if report.get("recording_waited_in_interval_s", 0.0) > 0.0:
+        problems.append(f"the recorder held the simulation back {report['recording_waited_in_interval_s']:.3f} s "
+                        f"(achieved real-time factor {report['achieved_real_time_factor']:.3g})")
+    if report.get("ticks_behind_in_interval", 0):
+        problems.append(f"the simulation cannot keep up with real_time_factor {report['real_time_factor']:g} "
+                        f"while recording (achieved {report['achieved_real_time_factor']:.3g})")
+    if report["tick_rate"] < 0.8 * report["publish_rate"]:
+        problems.append(f"tick rate {report['tick_rate']:.0f} Hz < 80% of {report['publish_rate']:g} Hz")
+    if report["late_ticks"]:
+        slipped = (f" ({report['stalls']} stalls in all: {report['time_slipped']:.3f} s not simulated, beyond "
+                   f"max_catch_up {report['max_catch_up']:g} s)") if report.get("stalls") else ""
+        problems.append(f"{report['late_ticks']} late ticks{slipped}")
+    return problems
+
+
 def recorded(values: dict[str, Any]) -> dict[str, Any]:
     """The parameter values a recording keeps: all but log_path (a file name, not a setting of the run)."""
     return {k: v for k, v in values.items() if k not in ("log_path",)}
@@ -74,18 +128,8 @@ def health(report: dict[str, Any], fault: str = "", name_problem: str = "") -> t
     problems = [name_problem] if name_problem else []
     if report.get("live_view_error"):
         problems.append(f"live view: {report['live_view_error']}")
-    if report.get("recording_waited_in_interval_s", 0.0) > 0.0:
-        problems.append(f"the recorder held the simulation back {report['recording_waited_in_interval_s']:.3f} s "
-                        f"(achieved real-time factor {report['achieved_real_time_factor']:.3g})")
-    if report.get("ticks_behind_in_interval", 0):
-        problems.append(f"the simulation cannot keep up with real_time_factor {report['real_time_factor']:g} "
-                        f"while recording (achieved {report['achieved_real_time_factor']:.3g})")
-    if report["tick_rate"] < 0.8 * report["publish_rate"]:
-        problems.append(f"tick rate {report['tick_rate']:.0f} Hz < 80% of {report['publish_rate']:g} Hz")
-    if report["late_ticks"]:
-        slipped = (f" ({report['stalls']} stalls in all: {report['time_slipped']:.3f} s not simulated, beyond "
-                   f"max_catch_up {report['max_catch_up']:g} s)") if report.get("stalls") else ""
-        problems.append(f"{report['late_ticks']} late ticks{slipped}")
+    if not report.get("lockstep"):  # in lockstep the pace is the participants': no wall-clock health
+        problems += pace_problems(report)
     if report["commands_rejected_in_interval"]:
         problems.append(f"{report['commands_rejected_in_interval']} commands rejected ({report['last_rejection']})")
     if not problems:
@@ -93,4 +137,4 @@ def health(report: dict[str, Any], fault: str = "", name_problem: str = "") -> t
     return DiagnosticStatus.WARN, "; ".join(problems)
 
 
-__all__ = ["control_text", "health", "open_live_view", "open_recorder", "recorded"]
+__all__ = ["control_text", "health", "open_live_view", "open_recorder", "recorded", "watch_namespace"]

@@ -37,6 +37,9 @@ class SampleClock:
         self._samples: deque[tuple[float, int]] = deque(maxlen=64)  # ~1 s at 50 Hz: a steady rate
         self._change: float | None = None  # simulation time [s] the last change took effect
         self._change_pending = False  # a change before any sample: timed by the first one
+        #: Lockstep: every change is noted with the simulation time it acts at, exactly, and
+        #: samples come in simulation time only: no delivery jitter, no pace to learn.
+        self.exact = False
 
     def note_change(self, wall_ns: int, period: float = 0.0, sim_time: float | None = None) -> None:
         """Pa was changed (published) at ``wall_ns``; ``sim_time`` is the node's
@@ -89,6 +92,8 @@ class SampleClock:
             return False
         if self._change is None:  # nothing of ours applied yet: not our plant's answer
             return False
+        if self.exact:
+            return stamp - window_periods * period >= self._change + margin * period
         if len(self._samples) < 3:
             # The real-time factor is not known yet (it needs two intervals): a
             # plant at half speed would have its mixed windows judged clean.

@@ -223,8 +223,24 @@ FOXGLOVE_PORT = Setting("foxglove_port", 0, "-", "serve a Foxglove live view (We
                         "port is 8765)", -1, 65535, start_only=True)
 FOXGLOVE_ADDRESS = Setting("foxglove_address", "127.0.0.1", "-", "address the live view listens on "
                            "(0.0.0.0: every interface)", start_only=True)
-DIAGNOSTICS_PERIOD = Setting("diagnostics_period", 1.0, "s", "wall-clock seconds between diagnostics messages "
-                             "(the interval their rates and counts cover)", 0.05, 3600.0, start_only=True)
+DIAGNOSTICS_PERIOD = Setting("diagnostics_period", 1.0, "s", "seconds between diagnostics messages (the "
+                             "interval their rates and counts cover): wall-clock seconds, simulated ones in lockstep",
+                             0.05, 3600.0, start_only=True)
+
+# -- lockstep (the slider advances when its participants have answered) ---------------------
+
+LOCKSTEP = Setting("lockstep", False, "-", "lockstep: simulation time advances only when every participant "
+                   "has answered (as fast as the CPU allows), not with the wall clock", start_only=True)
+#: The participants a slider in lockstep may wait for (lockstep_participants).
+LOCKSTEP_ROLES = ("controller", "scheduler")
+LOCKSTEP_PARTICIPANTS = Setting(
+    "lockstep_participants", "controller", "-", "lockstep: who the slider waits for, comma-separated: controller "
+    "(an answer on control_answer to each mean_velocity sample), scheduler (a promise on stamped_command of what "
+    "comes next); '' = nobody", start_only=True, rule="each of controller, scheduler")
+ACTUATION_DELAY = Setting("actuation_delay", 0.0, "s", "lockstep: simulation time from a mean_velocity sample to "
+                          "the moment the controller's answer to it acts on the plant", 0.0, 10.0, start_only=True)
+LOCKSTEP_TIMEOUT = Setting("lockstep_timeout", 10.0, "s", "lockstep: wall time the slider waits for a participant "
+                           "before it names it and the run stops", 0.1, 3600.0, start_only=True)
 
 # -- the accelerometer ------------------------------------------------------------------
 
@@ -274,6 +290,7 @@ SLIDER_NODE = table(
     PUBLISH_RATE, REAL_TIME_FACTOR, MAX_CATCH_UP, PUBLISH_CLOCK, MEAN_WINDOW_PERIODS, FRAME_ID, LOG_PATH,
     LOG_RATE, FOXGLOVE_PORT, FOXGLOVE_ADDRESS, STEP_PERIODS, STEP_TIME, DIAGNOSTICS_PERIOD,
     ACCELEROMETER_RATE, ACCELEROMETER_NOISE, ACCELEROMETER_BIAS, ACCELEROMETER_SEED,
+    LOCKSTEP, LOCKSTEP_PARTICIPANTS, ACTUATION_DELAY, LOCKSTEP_TIMEOUT,
 )
 CONTROLLER_NODE = table(
     MASS.described("model: slider mass m (the plant's parameters are replaced at start-up by plant_node's, if it "

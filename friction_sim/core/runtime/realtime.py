@@ -34,7 +34,6 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 from friction_sim.core.engine.single import Slider
@@ -60,7 +59,7 @@ from friction_sim.core.model.records import Acceleration, PeriodSummary, Tick, s
 from friction_sim.core.model.spec import NS_PER_S
 from friction_sim.core.physics.plant import steady_excitation, steady_throw_number
 from friction_sim.core.runtime.accelerometer import Accelerometer, grid
-from friction_sim.core.runtime.simclock import SimClock
+from friction_sim.core.runtime.simclock import SimClock, TickStats
 from friction_sim.errors import ParameterError, SimulationFault, one_line
 
 _PHYSICS = {**spec.PLANT, **spec.INPUTS}
@@ -88,23 +87,6 @@ def _non_finite(state: SliderState) -> str:
         if not math.isfinite(value):
             return f"{name} = {value!r}"
     return ""
-
-
-@dataclass
-class TickStats:
-    """Timer health over the current diagnostics interval."""
-
-    ticks: int = 0
-    late_ticks: int = 0
-    total_late_ticks: int = 0
-    last_wall_ns: int | None = None
-    interval_start_ns: int | None = None
-    interval_sim_start: float = 0.0
-    #: The slider's time [s], its time in flight [s] and lift-off and landing counts at the interval's start.
-    interval_slider_start: float = 0.0
-    interval_flight_start: float = 0.0
-    interval_lift_offs_start: int = 0
-    interval_landings_start: int = 0
 
 
 class RealtimeSlider:
@@ -149,6 +131,8 @@ class RealtimeSlider:
         self._periods: list[PeriodSummary] = []  # summaries made before a reset, for the next tick
         #: Why the run cannot go on ('' while it can): see :class:`SimulationFault`.
         self.fault = ""
+        #: Period ends at or after this time [s] are reported later (lockstep: a hold stands there).
+        self.marks_before = math.inf
 
     # -- commands -----------------------------------------------------------
 
@@ -459,6 +443,8 @@ class RealtimeSlider:
     def _new_periods(self) -> list[PeriodSummary]:
         summaries = []
         for mark in self.slider.cycle_marks_after(self._last_mark_n):
+            if mark.t >= self.marks_before:
+                break
             self._last_mark_n = mark.n
             previous = self._window[-1] if self._window else None
             self._window.append(mark)

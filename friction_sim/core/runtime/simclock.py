@@ -9,6 +9,8 @@ services of the slider node.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from friction_sim.core.model.params import require_positive
 from friction_sim.core.model.spec import NS_PER_S
 from friction_sim.errors import ParameterError
@@ -113,4 +115,21 @@ class SimClock:
         self._sim0, self._wall0, self._rate = self.now_ns(wall_ns), wall_ns, rate
 
 
-__all__ = ["SimClock"]
+@dataclass
+class TickStats:
+    """Timer health over the current diagnostics interval."""
+
+    ticks: int = 0
+    late_ticks: int = 0
+    total_late_ticks: int = 0
+    last_wall_ns: int | None = None
+    interval_start_ns: int | None = None
+    interval_sim_start: float = 0.0
+    #: The slider's time [s], its time in flight [s] and lift-off and landing counts at the interval's start.
+    interval_slider_start: float = 0.0
+    interval_flight_start: float = 0.0
+    interval_lift_offs_start: int = 0
+    interval_landings_start: int = 0
+
+
+__all__ = ["SimClock", "TickStats"]

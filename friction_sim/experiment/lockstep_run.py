@@ -1,0 +1,103 @@
+"""Playing a schedule into a slider in lockstep: the scheduler participant.
+
+In lockstep (:mod:`friction_sim.core.runtime.lockstep`) the experiment's driver
+is a participant of the slider: every command the slider takes goes out on
+``stamped_command`` stamped with the time it applies, and each such message
+promises that nothing earlier follows, so the slider never runs past what the
+driver has said.  What cannot travel stamped (a parameter set on the slider, a
+target or drive force for the controller, an operator's service calls) is done
+while a promise holds the slider exactly at its time, once every sample up to
+it has been answered; then the next promise lets it go on.  So each entry of
+the schedule acts at exactly its ``t``, and the run gives the same numbers
+every time, as fast as the nodes compute.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from friction_sim.core.model.commands import COMMANDS, CONTROLLER, PARAMETERS, SLIDER, Command
+from friction_sim.core.runtime.lockstep import to_ns
+from friction_sim.experiment.job import ExperimentSpec, OperatorAction
+from friction_sim.io.messages import message_class, stamp_ns
+from friction_sim.io.stamped import CONTROL_ANSWER, STAMPED_COMMAND, STAMPED_TYPE, stamped_message
+
+#: Stamped messages on their way at once (a whole schedule between two points the driver waits at).
+DEPTH = 1000
+
+
+class ScheduleParticipant:
+    """The driver's side of lockstep (see the module)."""
+
+    def __init__(self, spec: ExperimentSpec, driver: Any, spin_until: Callable[[Callable[[], bool], float, str], None],
+                 timeout: float) -> None:
+        self.spec, self.driver, self.spin_until, self.timeout = spec, driver, spin_until, timeout
+        kind = message_class(STAMPED_TYPE)
+        self.publisher = driver.create_publisher(kind, STAMPED_COMMAND, DEPTH)
+        self.answered_ns = self.sampled_ns = -1
+        driver.create_subscription(kind, CONTROL_ANSWER, self._answer, DEPTH)
+        driver.create_subscription(message_class("geometry_msgs/msg/TwistStamped"), "mean_velocity",
+                                   self._sample, DEPTH)
+
+    def _answer(self, msg: Any) -> None:
+        self.answered_ns = max(self.answered_ns, stamp_ns(msg.header.stamp))
+
+    def _sample(self, msg: Any) -> None:
+        self.sampled_ns = max(self.sampled_ns, stamp_ns(msg.header.stamp))
+
+    def connected(self) -> bool:
+        """Whether the slider listens to the driver's stamped commands."""
+        return bool(self.publisher.get_subscription_count() >= 1)
+
+    def promise(self, t_ns: int, commands: Sequence[Command] = ()) -> None:
+        """Commands that apply at ``t_ns``; nothing earlier follows."""
+        self.publisher.publish(stamped_message(t_ns, commands))
+
+    def reach(self, plant: Any, t_ns: int) -> None:
+        """Wait until the slider stands at ``t_ns`` with every sample up to it answered."""
+        controller = self.spec.controller
+
+        def there() -> bool:
+            if plant.now_ns() < t_ns:
+                return False
+            return plant.answered() if hasattr(plant, "answered") else (
+                not controller or self.answered_ns >= self.sampled_ns)
+
+        self.spin_until(there, self.timeout,
+                        f"lockstep: the slider did not reach t = {t_ns / 1e9:.9f} s within {self.timeout:g} s of "
+                        "wall time (see its log: a participant did not answer)")
+
+
+def timeline(spec: ExperimentSpec) -> list[tuple[int, list[Command], list[OperatorAction]]]:
+    """The schedule's and the operator's times [ns, from the start], each with what happens then, and the end."""
+    commands: dict[int, list[Command]] = defaultdict(list)
+    actions: dict[int, list[OperatorAction]] = defaultdict(list)
+    for command in sorted(spec.schedule, key=lambda c: c.t):
+        commands[to_ns(command.t)].append(command)
+    for action in sorted(spec.operator, key=lambda a: a.t):
+        actions[to_ns(action.t)].append(action)
+    end = to_ns(spec.duration)
+    times = sorted({*commands, *actions, end})
+    return [(t, commands.get(t, []), actions.get(t, [])) for t in times if t <= end]
+
+
+def for_slider(command: Command) -> bool:
+    """A topic command the slider takes (sent stamped)."""
+    return command.name in COMMANDS and SLIDER in COMMANDS[command.name].consumers
+
+
+def for_controller(commands: Sequence[Command]) -> dict[str, float]:
+    """What the controller takes of ``commands`` (set as its parameters while the slider stands)."""
+    return {field: float(value) for command in commands if command.name in COMMANDS
+            and CONTROLLER in COMMANDS[command.name].consumers for field, value in command.values.items()}
+
+
+def plant_sets(commands: Sequence[Command]) -> list[Command]:
+    """The slider parameter sets among ``commands``."""
+    return [command for command in commands if command.name == PARAMETERS]
+
+
+__all__ = ["ScheduleParticipant", "for_controller", "for_slider", "plant_sets", "timeline"]
+

@@ -1,0 +1,120 @@
+"""The controller node's answers while its plant runs in lockstep.
+
+A slider in lockstep (:mod:`friction_sim.core.runtime.lockstep`) waits for an
+answer to each ``mean_velocity`` sample on ``control_answer``
+(:mod:`friction_sim.io.stamped`): a JointState stamped with the sample it
+answers, carrying what the controller sets (Pa, or the drive level and a
+frequency tracking moved; nothing while it stands by or refuses the sample).
+:class:`LockstepAnswers` holds the node's side: the samples and accelerometer
+readings in the order the answers need them
+(:class:`~friction_sim.core.runtime.answers.AnswerQueue`), the answer itself,
+and the diagnostics, which come every ``diagnostics_period`` of simulation
+time, stamped with the sample answered.  The controller learns that its plant
+runs in lockstep, and the actuation delay, from the plant node at start-up.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from friction_sim.core.model.spec import NS_PER_S
+from friction_sim.core.runtime.answers import AnswerQueue
+from friction_sim.errors import ParameterError
+from friction_sim.io.messages import message_class, stamp_ns
+from friction_sim.io.stamped import CONTROL_ANSWER, STAMPED_TYPE, stamped_message
+from friction_sim.ros.intake import take_all
+
+if TYPE_CHECKING:
+    from friction_sim.ros.controller import ControllerNode
+
+#: The plant node's parameters read at start-up besides its model: whether it runs in
+#: lockstep, with what actuation delay, and its accelerometer's rate (the answers wait for it).
+LOCKSTEP_READ = ("lockstep", "actuation_delay", "accelerometer_rate")
+#: Accelerometer readings taken from the topic at once (its queue's depth).
+ACCELEROMETER_BATCH = 10_000
+#: Answers on their way at once (one per sample: the slider waits for each).
+ANSWER_DEPTH = 1000
+
+
+class LockstepAnswers:
+    """Answer each sample once, in order, when what it needs has come (see the module)."""
+
+    def __init__(self, node: ControllerNode, delay: float, accelerometer_rate: float) -> None:
+        self.node = node
+        self.queue = AnswerQueue(round(float(delay) * NS_PER_S), float(accelerometer_rate),
+                                 round(node.get_parameter("diagnostics_period").value * NS_PER_S))
+        self._publisher = node.create_publisher(message_class(STAMPED_TYPE), CONTROL_ANSWER, ANSWER_DEPTH)
+        self.runtime = node.runtime
+        self.runtime.control.clock.exact = True
+        node.accelerometer_group.open = False  # drained with each sample: a wake-up per reading costs too much
+        #: The simulation time [ns] of the sample being (or last) answered: the diagnostics' stamp.
+        self.stamp_ns = 0
+
+    def acts_at(self, boundary: float) -> float:
+        """When the answer to the sample stamped ``boundary`` [s] acts on the plant [s]."""
+        return boundary + self.queue.delay_ns / NS_PER_S
+
+    def sample(self, stamp_ns: int, speed: float) -> None:
+        """A mean_velocity sample: queue it (or send a repeated one its answer again), answer what can be."""
+        seen = self.queue.sample(stamp_ns, speed)
+        if seen == "repeat":
+            self._send(stamp_ns, self.queue.last_answer)
+        self._drain()
+        self.answer_waiting()
+
+    def acceleration(self, stamp_ns: int, normal: float) -> None:
+        """A reading taken by the executor (while an answer waits for readings): queue it and the rest."""
+        self.queue.acceleration(stamp_ns, normal)
+        self._drain()
+        self.answer_waiting()
+
+    def _drain(self) -> None:
+        """Queue every accelerometer reading waiting on the topic."""
+        msg: Any
+        for msg in take_all(self.node.accelerometer, ACCELEROMETER_BATCH):
+            self.queue.acceleration(stamp_ns(msg.header.stamp), msg.linear_acceleration.z)
+
+    def answer_waiting(self) -> None:
+        """Answer every queued sample whose turn has come (none before the model is settled)."""
+        if not self.node.ready:
+            return
+        while True:
+            drive = self.runtime.drive
+            ready = self.queue.next_ready(drive is not None and drive.inner_loop)
+            # (a sample that waits for readings lets the next reading wake the node)
+            self.node.accelerometer_group.open = ready is None and self.queue.waiting
+            if ready is None:
+                return
+            stamp_ns, speed, readings = ready
+            for t_ns, normal in readings:
+                try:
+                    self.runtime.take_acceleration(t_ns / NS_PER_S, normal)
+                except ParameterError as error:
+                    self.node.warn(f"{error}; sample ignored")
+            self._answer(stamp_ns, speed)
+
+    def _answer(self, stamp_ns: int, speed: float) -> None:
+        self.stamp_ns = stamp_ns
+        t = stamp_ns / NS_PER_S
+        values: dict[str, float] = {}
+        try:
+            output = self.runtime.take_sample(speed, t, 0, self.runtime.active)
+        except ParameterError as error:
+            self.node.warn(f"{error}; sample ignored")
+            output = None
+        if output is not None:
+            values = self.node.decide(output, t)
+        self.queue.answered(stamp_ns, values)
+        self._send(stamp_ns, values)
+        if self.queue.diagnostics_due(stamp_ns):
+            self.node.publish_diagnostics()
+
+    def _send(self, stamp_ns: int, values: dict[str, float]) -> None:
+        self._publisher.publish(stamped_message(stamp_ns, values))
+
+    def values(self) -> dict[str, Any]:
+        """The answers' figures for diagnostics."""
+        return self.queue.values()
+
+
+__all__ = ["ANSWER_DEPTH", "LOCKSTEP_READ", "LockstepAnswers"]

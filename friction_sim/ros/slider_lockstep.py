@@ -1,0 +1,177 @@
+"""The slider node's runtime, and its loop in lockstep.
+
+:func:`runtime_for` builds the node's runtime from its parameters: the
+real-time slider, or with ``lockstep`` the lockstep slider
+(:mod:`friction_sim.core.runtime.lockstep`).  :class:`LockstepLoop` replaces the
+real-time tick thread in lockstep: it takes the stamped messages of the
+participants (``control_answer``, ``stamped_command``: :mod:`friction_sim.io.stamped`),
+applies what is due, advances as far as the gate allows and publishes what
+that made, with no sleep while it can move.  While it waits it publishes the
+awaited sample again every :data:`REPEAT` s (a controller that joined late
+missed it), and after ``lockstep_timeout`` of wall time it names the
+participant it waited for and stops the run (a fault: the node exits with
+code 3) rather than hang.  Diagnostics come every ``diagnostics_period`` of
+simulation time, stamped with it, so a recording of a lockstep run holds the
+same messages every time.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING, Any
+
+from friction_sim.core.model import spec
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.model.records import PeriodSummary
+from friction_sim.core.runtime.accelerometer import Accelerometer
+from friction_sim.core.runtime.lockstep import LockstepGate, LockstepSlider, participants, to_ns
+from friction_sim.core.runtime.realtime import RealtimeSlider
+from friction_sim.errors import ParameterError, SimulationFault
+from friction_sim.io.messages import mean_velocity_message, message_class
+from friction_sim.io.stamped import CONTROL_ANSWER, STAMPED_COMMAND, STAMPED_TYPE, stamped_commands
+from friction_sim.ros.intake import PolledGroup, take_all
+from friction_sim.ros.run import wall_ns
+
+if TYPE_CHECKING:
+    from friction_sim.ros.slider import SliderNode
+
+#: Wall time [s] after which an awaited sample is published again while the slider waits.
+REPEAT = 0.25
+#: Stamped messages a participant may have on their way at once (the slider waits for each answer).
+STAMPED_DEPTH = 1000
+#: Wall time [s] the loop sleeps between looks for an answer; after _BUSY s of waiting, _QUIET.
+_IDLE, _BUSY, _QUIET = 0.00005, 0.1, 0.002
+
+
+def runtime_for(values: dict[str, Any], params: SliderParams, inputs: Inputs) -> RealtimeSlider:
+    """The slider's runtime for the node's parameter ``values``: in real time, or in lockstep."""
+    options: dict[str, Any] = dict(
+        real_time_factor=values["real_time_factor"], publish_rate=values["publish_rate"],
+        mean_window_periods=values["mean_window_periods"], max_catch_up=values["max_catch_up"],
+        load_blame=_load_blame(values), log_rate=values["log_rate"] if values["log_path"] else None,
+        accelerometer=Accelerometer(values["accelerometer_rate"], values["accelerometer_noise"],
+                                    values["accelerometer_bias"], values["accelerometer_seed"]))
+    if not values["lockstep"]:
+        return RealtimeSlider(params, inputs, wall_ns=wall_ns(), **options)
+    gate = LockstepGate(participants(values["lockstep_participants"]), values["actuation_delay"],
+                        values["lockstep_timeout"])
+    return LockstepSlider(params, inputs, wall_ns=wall_ns(), gate=gate, **options)
+
+
+def _load_blame(values: dict[str, Any]) -> str:
+    """The parameter a start-up refusal of f x real_time_factor blames: the
+    real-time factor if it was set (differs from its default), else the frequency."""
+    return "real_time_factor" if values["real_time_factor"] != spec.REAL_TIME_FACTOR.default \
+        else "excitation_frequency"
+
+
+class LockstepLoop:
+    """The slider node's loop in lockstep (see the module)."""
+
+    def __init__(self, node: SliderNode) -> None:
+        self.node = node
+        rt = node.realtime
+        assert isinstance(rt, LockstepSlider)
+        self.rt = rt
+        kind, polled = message_class(STAMPED_TYPE), PolledGroup()
+        #: The participants' topics, drained by the loop itself: an executor's wake-up per answer
+        #: would cost more than the period it lets the slider simulate.
+        self._stamped = [(topic, node.create_subscription(kind, topic, _unused, STAMPED_DEPTH, callback_group=polled))
+                         for topic in (CONTROL_ANSWER, STAMPED_COMMAND)]
+        self._period_ns = to_ns(node.get_parameter("diagnostics_period").value)
+        self._next_diagnostics_ns = self._period_ns
+        #: The recent samples published, by stamp [ns], to publish again while awaited.
+        self._recent: dict[int, PeriodSummary] = {}
+
+    def run(self) -> None:
+        """Apply, advance and publish until stopped; wait (at most ``lockstep_timeout``
+        for a participant) only when the gate allows no step."""
+        node, rt = self.node, self.rt
+        blocked_since: float | None = None
+        repeated = last = 0.0
+        while not node.stopping:
+            node.take_commands()
+            with node.lock:
+                outcomes = self._take_inbox() + rt.due_commands(wall_ns())
+                node.record(outcomes)
+                tick = rt.advance(wall_ns())
+                if tick is not None:
+                    node.publish_tick(tick)
+                    self._recent = {to_ns(p.t): p for p in (*self._recent.values(), *tick.periods)
+                                    if to_ns(p.t) in rt.gate.awaited}
+            for outcome in outcomes:
+                node.warn_refused(outcome)
+            if tick is not None:
+                blocked_since = None
+                self._diagnostics_due()
+                continue
+            if outcomes:
+                continue
+            blocker = rt.gate.blocker(rt.t_ns)
+            now = time.monotonic()
+            if not blocker:
+                blocked_since = None
+            else:
+                if blocked_since is None:
+                    blocked_since = last = now
+                rt.gate.waited += now - last
+                last = now
+                if now - blocked_since > rt.gate.timeout:
+                    self._time_out(blocker)
+                    return
+                if now - repeated > REPEAT:
+                    self._repeat_awaited()
+                    repeated = now
+            time.sleep(_IDLE if blocked_since is not None and now - blocked_since < _BUSY else _QUIET)
+
+    def _take_inbox(self) -> list[Any]:
+        """Hand the queued stamped messages to the gate (lock held); the outcomes of
+        the refused ones (a malformed message, a stamp in the past)."""
+        node, rt, refused = self.node, self.rt, []
+        waiting = [(topic, msg) for topic, subscription in self._stamped
+                   for msg in take_all(subscription, STAMPED_DEPTH)]
+        for topic, msg in waiting:
+            t = rt.slider.t
+            try:
+                stamp, commands = stamped_commands(topic, msg, t)
+            except ParameterError as error:
+                refused.append(node.refusal(topic, str(error)))
+                continue
+            if topic == CONTROL_ANSWER:
+                rt.gate.answer(stamp, commands)
+                continue
+            why = rt.gate.promise(stamp, commands, rt.t_ns)
+            if why:
+                refused.append(node.refusal(topic, why))
+        return refused
+
+    def _repeat_awaited(self) -> None:
+        """Publish the oldest awaited sample again (for a controller that joined after it went out)."""
+        awaited = self.rt.gate.awaited
+        period = self._recent.get(awaited[0]) if awaited else None
+        if period is not None:
+            self.node.publish_mean_velocity(mean_velocity_message(period, self.node.frame_id))
+
+    def _diagnostics_due(self) -> None:
+        """Diagnostics once per diagnostics_period of simulation time, stamped with the time reached."""
+        t_ns = self.rt.t_ns
+        if t_ns < self._next_diagnostics_ns:
+            return
+        while self._next_diagnostics_ns <= t_ns:
+            self._next_diagnostics_ns += self._period_ns
+        self.node.publish_diagnostics(stamp_ns=t_ns)
+
+    def _time_out(self, blocker: str) -> None:
+        """No participant answered in time: name it, and stop the run (a fault)."""
+        gate = self.rt.gate
+        self.node.fail(SimulationFault(
+            f"lockstep: waited {gate.timeout:g} s (lockstep_timeout) for {blocker}, at t = "
+            f"{self.rt.slider.t:.9f} s; the run stops (is the participant running, in this namespace, "
+            "with lockstep?)"))
+
+
+def _unused(msg: Any) -> None:
+    """The callback of a polled subscription: never called (the loop takes its messages)."""
+
+
+__all__ = ["REPEAT", "LockstepLoop", "runtime_for"]
