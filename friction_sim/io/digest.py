@@ -81,9 +81,22 @@ def _metadata(path: str | os.PathLike[str]) -> list[tuple[str, list[tuple[str, s
     with open(path, "rb") as stream:
         records = make_reader(stream).iter_metadata()
         name = os.path.basename(path)  # (the file's own name, in rosbag2's metadata)
-        return sorted((record.name, sorted((k, v.replace(name, "<file>")) for k, v in record.metadata.items()
+        return sorted((record.name, sorted((k, _in_order(v.replace(name, "<file>"))) for k, v in record.metadata.items()
                                            if k not in _WALL_METADATA))
                       for record in records)
+
+
+def _in_order(text: str) -> str:
+    """rosbag2's metadata with its topics in name order (their order is that of the first message of
+    each, which threads of the nodes write in either order); any other text as it is."""
+    import yaml
+
+    if "topics_with_message_count" not in text:
+        return text
+    info = yaml.safe_load(text)
+    info = info.get("rosbag2_bagfile_information", info)
+    info["topics_with_message_count"].sort(key=lambda entry: entry["topic_metadata"]["name"])
+    return str(yaml.safe_dump(info, sort_keys=True))
 
 
 def differences(first: dict[str, str], second: dict[str, str]) -> list[str]:

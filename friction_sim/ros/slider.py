@@ -257,10 +257,6 @@ class SliderNode(Node):
     def publish_mean_velocity(self, msg: Any) -> None:
         self._mean_pub.publish(msg)
 
-    def refusal(self, topic: str, why: str) -> Outcome:
-        """Count input refused before it became a command (a malformed stamped message), lock held."""
-        return self._rt.refuse(Command(0.0, PARAMETER_COMMAND, {}), why, wall_ns())
-
     @property
     def fault(self) -> str:
         """Why the node stopped ('' while it runs): see :class:`SimulationFault`."""
@@ -526,8 +522,11 @@ class SliderNode(Node):
         msg = DiagnosticArray(status=[status])
         if stamp_ns is None:
             msg.header.stamp = self.get_clock().now().to_msg()
-        else:
+        else:  # lockstep: recorded here, not when it comes back (the run may end before it does)
             time_msg(stamp_ns, msg.header.stamp)
+            for sink in (self.recorder, self.live):
+                if sink is not None:
+                    sink.write("diagnostics", msg, stamp_ns)
         self._diag_pub.publish(msg)
 
     def _recording_report(self) -> dict[str, Any]:

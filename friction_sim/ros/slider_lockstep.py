@@ -21,6 +21,7 @@ import time
 from typing import TYPE_CHECKING, Any
 
 from friction_sim.core.model import spec
+from friction_sim.core.model.commands import PARAMETERS, Command, Outcome
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.model.records import PeriodSummary
 from friction_sim.core.runtime.accelerometer import Accelerometer
@@ -127,7 +128,7 @@ class LockstepLoop:
     def _take_inbox(self) -> list[Any]:
         """Hand the queued stamped messages to the gate (lock held); the outcomes of
         the refused ones (a malformed message, a stamp in the past)."""
-        node, rt, refused = self.node, self.rt, []
+        rt, refused = self.rt, []
         waiting = [(topic, msg) for topic, subscription in self._stamped
                    for msg in take_all(subscription, STAMPED_DEPTH)]
         for topic, msg in waiting:
@@ -135,15 +136,19 @@ class LockstepLoop:
             try:
                 stamp, commands = stamped_commands(topic, msg, t)
             except ParameterError as error:
-                refused.append(node.refusal(topic, str(error)))
+                refused.append(self._refused(str(error)))
                 continue
             if topic == CONTROL_ANSWER:
                 rt.gate.answer(stamp, commands)
                 continue
             why = rt.gate.promise(stamp, commands, rt.t_ns)
             if why:
-                refused.append(node.refusal(topic, why))
+                refused.append(self._refused(why))
         return refused
+
+    def _refused(self, why: str) -> Outcome:
+        """Count input refused before it became a command (a malformed stamped message; lock held)."""
+        return self.rt.refuse(Command(self.rt.slider.t, PARAMETERS, {}), why, wall_ns())
 
     def _repeat_awaited(self) -> None:
         """Publish the oldest awaited sample again (for a controller that joined after it went out)."""

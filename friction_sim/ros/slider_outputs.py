@@ -78,12 +78,15 @@ def watch_namespace(node: Any, now: Callable[[], float], *, lockstep: bool) -> N
     before it learnt at start-up that its plant is in lockstep): those would
     differ from run to run."""
 
+    own = node.get_fully_qualified_name()
+
     def forward(topic: str, msg: Any) -> None:
         if node.recorder is None and node.live is None:
             return
         log_time_ns = seconds_to_ns(now())
-        if lockstep and topic == "diagnostics" and stamp_ns(msg.header.stamp) > log_time_ns:
-            return
+        if lockstep and topic == "diagnostics" and (stamp_ns(msg.header.stamp) > log_time_ns or any(
+                status.hardware_id == own for status in msg.status)):
+            return  # (its own: recorded as it publishes them)
         for sink in (node.recorder, node.live):
             if sink is not None:
                 sink.write(topic, msg, log_time_ns)

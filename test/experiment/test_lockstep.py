@@ -1,0 +1,143 @@
+"""Lockstep over real topics: the same scenario gives the same recording, message by message.
+
+Two recordings of a lockstep run may differ only in what the wall clock says
+(:func:`friction_sim.io.digest.recording_digest` leaves exactly that out), so
+each test compares whole digests: every state sample, event, period mean,
+command, accelerometer reading and diagnostics message, with their stamps.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+import time
+import uuid
+from pathlib import Path
+
+import pytest
+
+from friction_sim.core.runtime.lockstep import CONTROLLER
+from friction_sim.experiment import runner
+from friction_sim.experiment.scenario import load_scenario
+from friction_sim.io.digest import differences, recording_digest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _run(path: str, out: Path, namespace: str, **changes: object) -> dict[str, str]:
+    scenario = load_scenario(ROOT / path)
+    spec = dataclasses.replace(scenario.spec(), log_path=out, lockstep=True)
+    if changes:
+        spec = dataclasses.replace(spec, slider_parameters={**spec.slider_parameters, **changes})
+    runner.run_experiment(spec, namespace=namespace)
+    return recording_digest(out)
+
+
+def _hold_the_interpreter(seconds: float) -> None:
+    """Hold the GIL for about ``seconds`` (``sum`` over a range runs in C), as a garbage collection does."""
+    start = time.perf_counter()
+    n = 100_000
+    while time.perf_counter() - start < seconds:
+        sum(range(n))
+
+
+def test_acceptance_7_with_noise_gives_the_same_recording_with_and_without_a_stall(
+        ros: None, tmp_path: Path) -> None:
+    """Resonant plant, inner loop on the accelerometer with seeded noise: two runs, the
+    second with the whole process stalled for 0.4 s of wall time in the middle of the
+    first target step, give recordings identical in every message and stamp."""
+    namespace = f"/lockstep_{uuid.uuid4().hex[:8]}"
+    first = _run("config/acceptance_7_resonant_steps.yaml", tmp_path / "a.mcap", namespace,
+                 accelerometer_noise=0.05, accelerometer_seed=7)
+    stalled: list[bool] = []
+    publish = runner.ScheduleParticipant.promise
+
+    def promise(self, t_ns, commands=()):  # type: ignore[no-untyped-def]
+        if commands == [] and t_ns >= 1_000_000_000 and not stalled:  # the first target step's point
+            threading.Timer(0.01, lambda: (_hold_the_interpreter(0.4), stalled.append(True))).start()
+        publish(self, t_ns, commands)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(runner.ScheduleParticipant, "promise", promise)
+        second = _run("config/acceptance_7_resonant_steps.yaml", tmp_path / "b.mcap", namespace,
+                      accelerometer_noise=0.05, accelerometer_seed=7)
+    assert stalled, "the stall was injected"
+    assert differences(first, second) == []
+    assert int(first[f"{namespace}/mean_velocity"].split(":")[0]) == 149  # every period's mean but the first
+    assert int(first[f"{namespace}/accelerometer"].split(":")[0]) == 3001
+
+
+def test_the_demo_gives_the_same_recording_twice(ros: None, tmp_path: Path) -> None:
+    """The demo: open-loop steps, a lift, closed loop with target, drive-force and
+    frequency steps, a refused command, pause, two steps and a resume."""
+    namespace = f"/lockstep_{uuid.uuid4().hex[:8]}"
+    first = _run("config/demo.yaml", tmp_path / "a.mcap", namespace)
+    second = _run("config/demo.yaml", tmp_path / "b.mcap", namespace)
+    assert differences(first, second) == []
+    assert f"{namespace}/sim_control" in first and f"{namespace}/rejected_commands" in first
+
+
+def test_a_participant_that_never_answers_is_named_and_the_run_stops(ros: None) -> None:
+    """A slider in lockstep waiting for a controller that is not there: after
+    lockstep_timeout it says whom it waited for, and the node stops (a fault)."""
+    from rclpy.parameter import Parameter
+
+    from friction_sim.ros.slider import SliderNode
+
+    slider = SliderNode(namespace=f"/lockstep_{uuid.uuid4().hex[:8]}", parameter_overrides=[
+        Parameter("lockstep", value=True), Parameter("lockstep_participants", value=CONTROLLER),
+        Parameter("lockstep_timeout", value=0.5)])
+    try:
+        deadline = time.monotonic() + 20.0  # (the node's own timeout ends the wait long before)
+        while not slider.fault and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert "the controller: no answer on control_answer to the mean_velocity sample of t = 0.020000000 s" \
+            in slider.fault
+        assert "lockstep_timeout" in slider.fault
+        assert slider.realtime.slider.t == pytest.approx(0.02)  # it never ran past the unanswered sample
+    finally:
+        slider.destroy_node()
+
+
+def test_step_moves_a_paused_lockstep_slider_by_exactly_its_length(ros: None) -> None:
+    """``~/step`` keeps working in lockstep: paused, each call lets the slider go on by step_periods periods."""
+    from rclpy.parameter import Parameter
+    from std_srvs.srv import Trigger
+
+    from friction_sim.ros.slider import SliderNode
+
+    slider = SliderNode(namespace=f"/lockstep_{uuid.uuid4().hex[:8]}", parameter_overrides=[
+        Parameter("lockstep", value=True), Parameter("lockstep_participants", value="")])
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    caller = rclpy.create_node("caller", namespace=slider.get_namespace())
+    executor = SingleThreadedExecutor()
+    executor.add_node(slider)
+    executor.add_node(caller)
+    clients = {name: caller.create_client(Trigger, f"slider/{name}") for name in ("pause", "step")}
+
+    def call(name: str) -> Trigger.Response:  # as ros2 service call does
+        assert clients[name].wait_for_service(timeout_sec=10.0)
+        future = clients[name].call_async(Trigger.Request())
+        executor.spin_until_future_complete(future, timeout_sec=10.0)
+        response: Trigger.Response = future.result()
+        return response
+
+    try:
+        wall = time.monotonic()
+        while slider.realtime.slider.t < 0.1 and time.monotonic() - wall < 10.0:  # nobody to wait for: it runs
+            time.sleep(0.001)
+        assert call("pause").success
+        t0 = slider.realtime.slider.t
+        assert call("step").success
+        assert call("step").success  # a second call extends the first
+        deadline = time.monotonic() + 10.0
+        while slider.realtime.gate.stepping and time.monotonic() < deadline:
+            time.sleep(0.001)
+        assert slider.realtime.t_ns == round(t0 * 1e9) + 40_000_000
+        assert slider.realtime.paused
+    finally:
+        caller.destroy_node()
+        slider.destroy_node()
