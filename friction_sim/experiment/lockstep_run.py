@@ -32,14 +32,15 @@ class ScheduleParticipant:
     """The driver's side of lockstep (see the module)."""
 
     def __init__(self, spec: ExperimentSpec, driver: Any, spin_until: Callable[[Callable[[], bool], float, str], None],
-                 timeout: float) -> None:
+                 timeout: float, *, attached: bool) -> None:
         self.spec, self.driver, self.spin_until, self.timeout = spec, driver, spin_until, timeout
         kind = message_class(STAMPED_TYPE)
         self.publisher = driver.create_publisher(kind, STAMPED_COMMAND, DEPTH)
         self.answered_ns = self.sampled_ns = -1
-        driver.create_subscription(kind, CONTROL_ANSWER, self._answer, DEPTH)
-        driver.create_subscription(message_class("geometry_msgs/msg/TwistStamped"), "mean_velocity",
-                                   self._sample, DEPTH)
+        if attached and spec.controller:  # (in this process the slider's gate says it; a subscription costs a wake-up)
+            driver.create_subscription(kind, CONTROL_ANSWER, self._answer, DEPTH)
+            driver.create_subscription(message_class("geometry_msgs/msg/TwistStamped"), "mean_velocity",
+                                       self._sample, DEPTH)
 
     def _answer(self, msg: Any) -> None:
         self.answered_ns = max(self.answered_ns, stamp_ns(msg.header.stamp))

@@ -63,6 +63,7 @@ from friction_sim.io.messages import (
     ns_to_seconds,
     stamp_ns,
 )
+from friction_sim.io.stamped import STAMPED_COMMAND, STAMPED_TYPE
 
 Progress = Callable[[Status], None]
 #: Wall time [s] a lockstep run waits for the slider to reach a point of the schedule (its own
@@ -95,8 +96,8 @@ def run_experiment(spec: ExperimentSpec, *, namespace: str | None = None, attach
         publishers = _command_publishers(driver)
         _collect_mean_velocity(driver, result)
         plant = _Attached(spec, driver, executor) if attach else _InProcess(spec, ns, executor, result)
-        scheduler = ScheduleParticipant(spec, driver, functools.partial(_spin_until, executor), LOCKSTEP_WAIT) \
-            if spec.lockstep else None
+        scheduler = ScheduleParticipant(spec, driver, functools.partial(_spin_until, executor), LOCKSTEP_WAIT,
+                                        attached=attach) if spec.lockstep else None
         _wait_until_connected(executor, publishers, spec.controller, plant, scheduler)
         operator = _OperatorHands(driver, executor, publishers, spec.operator)
         if scheduler is not None:
@@ -313,6 +314,8 @@ class _Attached:
     and record what the topics carry."""
 
     RECORDED = (*STATE_TOPICS, "mean_velocity", *(entry.name for entry in consumed_by(SLIDER)))
+    #: Stamped topics whose messages are recorded once per stamp.
+    RESENT = (*STATE_TOPICS, "mean_velocity")
     #: The targets this process publishes are recorded as it publishes them.
     RECORDS_TARGETS = False
 
@@ -334,9 +337,15 @@ class _Attached:
         unused = unused_input(spec.plant.actuator)
         _set_parameters(driver, executor, "slider", {name: value for name, value in _plant_values(spec).items()
                                                      if not settings.SLIDER_NODE[name].start_only and name != unused})
+        if spec.lockstep:
+            _check_lockstep(driver, executor, spec)
         self.recorder = _attached_recorder(spec, driver.get_namespace())
+        self._last_ns: dict[str, int] = {}
         for topic in self.RECORDED:
             driver.create_subscription(message_class(TOPIC_TYPES[topic]), topic, self._keeper(topic), 100)
+        if spec.lockstep:  # what this driver sends the slider stamped, recorded as the slider takes it
+            driver.create_subscription(message_class(STAMPED_TYPE), STAMPED_COMMAND, self._keeper(STAMPED_COMMAND),
+                                       100)
 
     def _keeper(self, topic: str) -> Callable[[Any], None]:
         """The callback of ``topic``: follow time and inputs, and record the message."""
@@ -344,6 +353,10 @@ class _Attached:
         def keep(msg: Any) -> None:
             if topic == "pose":
                 self._stamp_ns = max(self._stamp_ns, stamp_ns(msg.header.stamp))
+            if topic in self.RESENT:  # (in lockstep a waiting slider sends its state and sample again)
+                if stamp_ns(msg.header.stamp) <= self._last_ns.get(topic, -1):
+                    return
+                self._last_ns[topic] = stamp_ns(msg.header.stamp)
             if topic in COMMANDS:
                 self._follow(command_from_message(topic, msg, self.now()))
             if self.recorder is not None and self._stamp_ns >= 0:
@@ -386,6 +399,28 @@ class _Attached:
         """Finish this process's recording."""
         if self.recorder is not None:
             self.recorder.finish()
+
+
+def _check_lockstep(driver: Any, executor: Any, spec: ExperimentSpec) -> None:
+    """A lockstep run attaches to a slider started in lockstep with this driver (and the
+    controller) among its participants: those are start-up parameters."""
+    from rclpy.parameter_client import AsyncParameterClient
+
+    client = AsyncParameterClient(driver, "slider")
+    _spin_until(executor, client.services_are_ready, 10.0,
+                f"no node 'slider' answers in {driver.get_namespace()} (start it first)")
+    future = client.get_parameters(["lockstep", "lockstep_participants"])
+    _spin_until(executor, future.done, 10.0, "the slider did not say whether it runs in lockstep")
+    values = future.result().values
+    lockstep, who = values[0].bool_value, values[1].string_value
+    wanted = "scheduler,controller" if spec.controller else "scheduler"
+    if not lockstep or set(who.replace(" ", "").split(",")) != set(wanted.split(",")):
+        pace = f"in lockstep with {who!r}" if lockstep else "in real time"
+        raise ExperimentError(
+            f"the slider in {driver.get_namespace()} runs {pace}: a lockstep run needs it started with lockstep "
+            f"true and lockstep_participants '{wanted}' "
+            f"(friction-sim feeder --ros-args -p lockstep:=true -p lockstep_participants:={wanted}), or run it "
+            "with --real-time")
 
 
 def _attached_recorder(spec: ExperimentSpec, namespace: str) -> Any:

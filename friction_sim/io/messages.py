@@ -178,14 +178,16 @@ ACCELEROMETER = "accelerometer"
 ACCELEROMETER_DEPTH = 10_000
 
 
-def accelerometer_qos() -> Any:
-    """The accelerometer topic's QoS, both ends: reliable, :data:`ACCELEROMETER_DEPTH` deep, and
-    transient local, so a controller that joins a slider in lockstep late still gets the readings
-    of the windows it has to answer (a volatile subscriber, ``ros2 topic echo``, matches too)."""
+def accelerometer_qos(*, transient_local: bool = True) -> Any:
+    """The accelerometer topic's QoS: reliable, :data:`ACCELEROMETER_DEPTH` deep; the slider's
+    publisher is transient local, so a controller in lockstep that joins late still gets the
+    readings of the windows it has to answer (a volatile subscriber matches it too: a controller
+    in real time, ``ros2 topic echo``)."""
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
+    durability = DurabilityPolicy.TRANSIENT_LOCAL if transient_local else DurabilityPolicy.VOLATILE
     return QoSProfile(depth=ACCELEROMETER_DEPTH, reliability=ReliabilityPolicy.RELIABLE,  # type: ignore[no-untyped-call]
-                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+                      durability=durability)
 
 
 def imu_message(sample: Acceleration, frame_id: str = "slideway", noise: float = 0.0) -> Any:

@@ -120,7 +120,7 @@ from friction_sim.io.messages import (
 from friction_sim.ros.controller_lockstep import LOCKSTEP_READ, LockstepAnswers
 from friction_sim.ros.controller_plant import ADOPTED, FOLLOWED, named, own_parameters, qualified
 from friction_sim.ros.graph import NameWatch
-from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, take_all, take_with_info
+from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, arrival, take_all, take_with_info
 from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
 from friction_sim.ros.run import CONTROLLER_EXIT_CODES, node_help, run_node, wall_ns
 
@@ -189,10 +189,7 @@ class ControllerNode(Node):
         #: Open: each reading wakes the node.  Shut until the model is settled (the inner loop is built
         #: then); in lockstep shut while no answer waits for a reading (they are drained with each sample).
         self.accelerometer_group = PolledGroup()
-        self.accelerometer = self.create_subscription(
-            message_class("sensor_msgs/msg/Imu"), "accelerometer",
-            self._guarded("accelerometer callback", self._on_acceleration), accelerometer_qos(),
-            callback_group=self.accelerometer_group)
+        self.accelerometer = self.subscribe_accelerometer(lockstep=False)
         self.names = NameWatch(self)
         self.create_timer(values["diagnostics_period"], self._guarded("diagnostics", self._publish_diagnostics_timed),
                           clock=steady)
@@ -211,6 +208,19 @@ class ControllerNode(Node):
                                      qos_profile_parameter_events)
         self._matched_at: float | None = None
         self._startup_timer = self.create_timer(0.05, self._guarded("start-up", self._start_up), clock=steady)
+
+    def subscribe_accelerometer(self, *, lockstep: bool) -> Any:
+        """The accelerometer subscription: volatile in real time (only readings from now on
+        are the plant's now); in lockstep transient local, so the readings of the windows
+        still to answer, sent before this node joined, come too (and replacing the volatile one)."""
+        if lockstep:
+            self.destroy_subscription(self.accelerometer)
+        qos = accelerometer_qos(transient_local=lockstep)
+        self.accelerometer = self.create_subscription(
+            message_class("sensor_msgs/msg/Imu"), "accelerometer",
+            self._guarded("accelerometer callback", self._on_acceleration), qos,
+            callback_group=self.accelerometer_group)
+        return self.accelerometer
 
     @property
     def control(self) -> MeanSpeedController:
@@ -341,7 +351,7 @@ class ControllerNode(Node):
         """The first command after a quiet spell: take it and whatever else
         waits, apply them as one batch in the order they came, and shut the
         gate for a hold-off."""
-        waiting = [(_arrival(info), name, msg), *self._take_waiting()]
+        waiting = [(arrival(info), name, msg), *self._take_waiting()]
         waiting.sort(key=lambda item: item[0])
         self._gate.open = False
         self._hold_off.reset()
@@ -361,7 +371,7 @@ class ControllerNode(Node):
         """Every command waiting on the command topics (at most the queue depth
         each: the subscriptions keep the latest QOS_DEPTH) as (arrival, topic,
         message)."""
-        return [(_arrival(info), name, message) for name, subscription in self._commands
+        return [(arrival(info), name, message) for name, subscription in self._commands
                 for message, info in take_with_info(subscription, QOS_DEPTH)]
 
     def _apply_batch(self, batch: list[tuple[str, Any]]) -> None:
@@ -519,7 +529,7 @@ class ControllerNode(Node):
 
     def _publish_diagnostics_timed(self) -> None:
         """Every diagnostics_period of wall time (in lockstep: of simulation time, with the answers)."""
-        if self.lockstep is None:
+        if self.lockstep is None or self.lockstep.stamp_ns == 0:  # (lockstep: until the first answer, stamped 0)
             self._publish_diagnostics()
 
     def _publish_diagnostics(self) -> None:
@@ -565,11 +575,6 @@ class ControllerNode(Node):
 
     def _parameters_set(self, changes: list[Parameter]) -> None:
         self._publish(self.runtime.control.output)
-
-
-def _arrival(info: Any) -> int:
-    """When a message arrived (ns), from rclpy's message info."""
-    return int(info.get("received_timestamp") or 0) if isinstance(info, dict) else 0
 
 
 def help_text() -> str:

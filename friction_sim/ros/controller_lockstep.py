@@ -47,6 +47,7 @@ class LockstepAnswers:
         self.runtime = node.runtime
         self.runtime.control.clock.exact = True
         node.accelerometer_group.open = False  # drained with each sample: a wake-up per reading costs too much
+        node.subscribe_accelerometer(lockstep=True)
         #: The simulation time [ns] of the sample being (or last) answered: the diagnostics' stamp.
         self.stamp_ns = 0
 
@@ -59,7 +60,8 @@ class LockstepAnswers:
         seen = self.queue.sample(stamp_ns, speed)
         if seen == "repeat":
             self._send(stamp_ns, self.queue.last_answer)
-        self._drain()
+        if self._reads_accelerometer():
+            self._drain()
         self.answer_waiting()
 
     def acceleration(self, stamp_ns: int, normal: float) -> None:
@@ -67,6 +69,11 @@ class LockstepAnswers:
         self.queue.acceleration(stamp_ns, normal)
         self._drain()
         self.answer_waiting()
+
+    def _reads_accelerometer(self) -> bool:
+        """Whether the answers need the accelerometer (the inner loop of a resonant plant)."""
+        drive = self.runtime.drive
+        return drive is not None and drive.inner_loop
 
     def _drain(self) -> None:
         """Queue every accelerometer reading waiting on the topic."""
@@ -79,8 +86,7 @@ class LockstepAnswers:
         if not self.node.ready:
             return
         while True:
-            drive = self.runtime.drive
-            ready = self.queue.next_ready(drive is not None and drive.inner_loop)
+            ready = self.queue.next_ready(self._reads_accelerometer())
             # (a sample that waits for readings lets the next reading wake the node)
             self.node.accelerometer_group.open = ready is None and self.queue.waiting
             if ready is None:

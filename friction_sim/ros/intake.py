@@ -119,3 +119,8 @@ def take_with_info(subscription: Subscription, limit: int) -> list[tuple[Any, di
             break
         taken_all.append((taken[0], taken[1]))
     return taken_all
+
+
+def arrival(info: Any) -> int:
+    """When a message arrived (ns), from rclpy's message info."""
+    return int(info.get("received_timestamp") or 0) if isinstance(info, dict) else 0

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 from friction_sim.core.model import spec
 from friction_sim.core.model.commands import PARAMETERS, Command, Outcome
 from friction_sim.core.model.params import Inputs, SliderParams
-from friction_sim.core.model.records import PeriodSummary
+from friction_sim.core.model.records import PeriodSummary, Tick
 from friction_sim.core.runtime.accelerometer import Accelerometer
 from friction_sim.core.runtime.lockstep import LockstepGate, LockstepSlider, participants, to_ns
 from friction_sim.core.runtime.realtime import RealtimeSlider
@@ -40,8 +40,9 @@ if TYPE_CHECKING:
 REPEAT = 0.25
 #: Stamped messages a participant may have on their way at once (the slider waits for each answer).
 STAMPED_DEPTH = 1000
-#: Wall time [s] the loop sleeps between looks for an answer; after _BUSY s of waiting, _QUIET.
-_IDLE, _BUSY, _QUIET = 0.00005, 0.1, 0.002
+#: Wall time [s] the loop sleeps between looks for an answer; after _BUSY s of waiting, _QUIET;
+#: while it waits, it takes the command topics every _COMMANDS_EVERY.
+_IDLE, _BUSY, _QUIET, _COMMANDS_EVERY = 0.0001, 0.1, 0.002, 0.002
 
 
 def runtime_for(values: dict[str, Any], params: SliderParams, inputs: Inputs) -> RealtimeSlider:
@@ -88,10 +89,15 @@ class LockstepLoop:
         """Apply, advance and publish until stopped; wait (at most ``lockstep_timeout``
         for a participant) only when the gate allows no step."""
         node, rt = self.node, self.rt
+        with node.lock:  # where it stands at start (a driver attached to it follows the stamps)
+            node.publish_tick(Tick(rt.slider.state(), [], [], paused=rt.gate.paused))
         blocked_since: float | None = None
-        repeated = last = 0.0
+        repeated = last = looked = 0.0
+        moved = True
         while not node.stopping:
-            node.take_commands()
+            if moved or time.monotonic() - looked > _COMMANDS_EVERY:  # (waiting, it looks for answers more often)
+                node.take_commands()
+                looked = time.monotonic()
             with node.lock:
                 outcomes = self._take_inbox() + rt.due_commands(wall_ns())
                 node.record(outcomes)
@@ -102,13 +108,14 @@ class LockstepLoop:
                                     if to_ns(p.t) in rt.gate.awaited}
             for outcome in outcomes:
                 node.warn_refused(outcome)
+            moved = tick is not None or bool(outcomes)
             if tick is not None:
                 blocked_since = None
                 self._diagnostics_due()
                 continue
             if outcomes:
                 continue
-            blocker = rt.gate.blocker(rt.t_ns)
+            blocker, joined = rt.gate.blocker(rt.t_ns)
             now = time.monotonic()
             if not blocker:
                 blocked_since = None
@@ -118,8 +125,11 @@ class LockstepLoop:
                 rt.gate.waited += now - last
                 last = now
                 if now - blocked_since > rt.gate.timeout:
-                    self._time_out(blocker)
-                    return
+                    if joined:
+                        self._time_out(blocker)
+                        return
+                    self._not_joined(blocker)
+                    blocked_since = now
                 if now - repeated > REPEAT:
                     self._repeat_awaited()
                     repeated = now
@@ -151,7 +161,10 @@ class LockstepLoop:
         return self.rt.refuse(Command(self.rt.slider.t, PARAMETERS, {}), why, wall_ns())
 
     def _repeat_awaited(self) -> None:
-        """Publish the oldest awaited sample again (for a controller that joined after it went out)."""
+        """Publish the state and the oldest awaited sample again (for a driver or a controller that
+        joined after they went out: it follows the stamps; they carry the same stamps again)."""
+        with self.node.lock:
+            self.node.publish_tick(Tick(self.rt.slider.state(), [], [], paused=self.rt.gate.paused))
         awaited = self.rt.gate.awaited
         period = self._recent.get(awaited[0]) if awaited else None
         if period is not None:
@@ -165,6 +178,14 @@ class LockstepLoop:
         while self._next_diagnostics_ns <= t_ns:
             self._next_diagnostics_ns += self._period_ns
         self.node.publish_diagnostics(stamp_ns=t_ns)
+
+    def _not_joined(self, blocker: str) -> None:
+        """A participant that has not joined yet: waited for, and said so once per lockstep_timeout."""
+        self.rt.gate.join_waits += 1
+        self.node.get_logger().warning(
+            f"lockstep: waiting for {blocker} at t = {self.rt.slider.t:.9f} s: it has not joined yet (start it in "
+            f"this namespace; the slider waits for it, and stops once a participant that joined is silent for "
+            f"lockstep_timeout {self.rt.gate.timeout:g} s)")
 
     def _time_out(self, blocker: str) -> None:
         """No participant answered in time: name it, and stop the run (a fault)."""

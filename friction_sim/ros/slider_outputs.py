@@ -72,11 +72,11 @@ def watch_namespace(node: Any, now: Callable[[], float], *, lockstep: bool) -> N
     plots the target against the mean speed).  The subscriptions exist whether
     or not anything records, so the number of subscribers of ``target_speed``
     (what ``ros2 topic pub -w`` waits for) is the same in every setup: the
-    controller's and this one.  In ``lockstep`` a recording keeps the
-    diagnostics stamped in simulation time (every node's once it runs in
-    lockstep), not one stamped by a wall clock ahead of it (a controller's
-    before it learnt at start-up that its plant is in lockstep): those would
-    differ from run to run."""
+    controller's and this one.  In ``lockstep`` a recording keeps the other
+    nodes' diagnostics stamped in the run's simulation time (0 < stamp <= now:
+    a controller's answers'), not those of their start-up (stamped 0 or by a
+    wall clock, as many as the start-up took): those would differ from run to
+    run; the slider records its own as it publishes them."""
 
     own = node.get_fully_qualified_name()
 
@@ -84,7 +84,7 @@ def watch_namespace(node: Any, now: Callable[[], float], *, lockstep: bool) -> N
         if node.recorder is None and node.live is None:
             return
         log_time_ns = seconds_to_ns(now())
-        if lockstep and topic == "diagnostics" and (stamp_ns(msg.header.stamp) > log_time_ns or any(
+        if lockstep and topic == "diagnostics" and (not 0 < stamp_ns(msg.header.stamp) <= log_time_ns or any(
                 status.hardware_id == own for status in msg.status)):
             return  # (its own: recorded as it publishes them)
         for sink in (node.recorder, node.live):

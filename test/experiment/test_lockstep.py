@@ -77,25 +77,54 @@ def test_the_demo_gives_the_same_recording_twice(ros: None, tmp_path: Path) -> N
     assert f"{namespace}/sim_control" in first and f"{namespace}/rejected_commands" in first
 
 
-def test_a_participant_that_never_answers_is_named_and_the_run_stops(ros: None) -> None:
-    """A slider in lockstep waiting for a controller that is not there: after
-    lockstep_timeout it says whom it waited for, and the node stops (a fault)."""
+def test_a_participant_is_waited_for_until_it_joins_and_named_when_it_goes_silent(ros: None) -> None:
+    """A slider in lockstep with a controller participant: before the controller
+    joins, the slider waits at its first sample and says so (counted) once per
+    lockstep_timeout; a controller that joins late is waited for and regulates;
+    once it has answered and goes silent, the slider names it after
+    lockstep_timeout and stops (a fault), never running past the unanswered sample."""
+    from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
 
+    from friction_sim.ros.controller import ControllerNode
+    from friction_sim.ros.run import NodeFault
     from friction_sim.ros.slider import SliderNode
 
-    slider = SliderNode(namespace=f"/lockstep_{uuid.uuid4().hex[:8]}", parameter_overrides=[
+    namespace = f"/lockstep_{uuid.uuid4().hex[:8]}"
+    slider = SliderNode(namespace=namespace, parameter_overrides=[
         Parameter("lockstep", value=True), Parameter("lockstep_participants", value=CONTROLLER),
         Parameter("lockstep_timeout", value=0.5)])
+    gate = slider.realtime.gate
+    executor = SingleThreadedExecutor()
+    executor.add_node(slider)
+    controller = None
     try:
-        deadline = time.monotonic() + 20.0  # (the node's own timeout ends the wait long before)
+        deadline = time.monotonic() + 20.0
+        while gate.join_waits < 2 and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert gate.join_waits >= 2 and not slider.fault  # waited, said so, and goes on waiting
+        assert slider.realtime.t_ns == 20_000_000  # at its first sample, not past it
+        controller = ControllerNode(namespace=namespace, parameter_overrides=[Parameter("target_speed", value=1e-4)])
+        executor.add_node(controller)
+        while gate.answers < 50 and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.01)
+        assert gate.answers >= 50 and not slider.fault
+        executor.remove_node(controller)
+        controller.destroy_node()
+        controller = None
+        stopped_at = time.monotonic()
         while not slider.fault and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert "the controller: no answer on control_answer to the mean_velocity sample of t = 0.020000000 s" \
-            in slider.fault
-        assert "lockstep_timeout" in slider.fault
-        assert slider.realtime.slider.t == pytest.approx(0.02)  # it never ran past the unanswered sample
+            try:
+                executor.spin_once(timeout_sec=0.05)
+            except NodeFault:  # the slider ends the executor that spins it (run_node exits with code 3)
+                break
+        assert time.monotonic() - stopped_at >= 0.5  # not before lockstep_timeout
+        assert "lockstep: waited 0.5 s (lockstep_timeout) for the controller: no answer on control_answer to " \
+            "the mean_velocity sample of t = " in slider.fault
+        assert slider.realtime.t_ns == gate.awaited[0]  # it never ran past the unanswered sample
     finally:
+        if controller is not None:
+            controller.destroy_node()
         slider.destroy_node()
 
 

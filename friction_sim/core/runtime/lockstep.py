@@ -96,8 +96,9 @@ class LockstepGate:
         self._seq = itertools.count()
         #: Answers taken, answers that answered no awaited sample (a repeat), stamped commands taken.
         self.answers = self.stale_answers = self.scheduled = 0
-        #: Wall time [s] spent waiting for participants, and the waits that ran out.
+        #: Wall time [s] spent waiting for participants; lockstep_timeouts spent waiting for one to join.
         self.waited = 0.0
+        self.join_waits = 0
 
     @property
     def held(self) -> bool:
@@ -183,22 +184,26 @@ class LockstepGate:
         """Where a hold or promise stops the slider: a window ending there is reported once it moves on."""
         return min(self.hold_ns, self.promise_ns)
 
-    def blocker(self, t_ns: int) -> str:
-        """The participant the slider, standing at ``t_ns``, waits for ('' for none:
-        it can go on, or a pause or step holds it)."""
+    def blocker(self, t_ns: int) -> tuple[str, bool]:
+        """(the participant the slider, standing at ``t_ns``, waits for, whether it has
+        spoken before): ('', False) when it can go on or a pause or step holds it.  One
+        that has not spoken yet has not joined: it is waited for (a controller starting
+        up, a driver attaching); one that has, and goes silent, is not."""
         if self.awaited and t_ns >= self.awaited[0] + self.delay_ns:
             return (f"the controller: no answer on control_answer to the mean_velocity sample of "
-                    f"t = {self.awaited[0] / NS_PER_S:.9f} s")
+                    f"t = {self.awaited[0] / NS_PER_S:.9f} s", self.answers > 0)
         if self.promise_ns <= t_ns < self.hold_ns:
-            return (f"the scheduler: no stamped_command past t = {self.promise_ns / NS_PER_S:.9f} s"
-                    if self.scheduled else "the scheduler: no stamped_command yet")
-        return ""
+            if self.scheduled:
+                return f"the scheduler: no stamped_command past t = {self.promise_ns / NS_PER_S:.9f} s", True
+            return "the scheduler: no stamped_command yet", False
+        return "", False
 
     def values(self) -> dict[str, Any]:
         """The gate's figures for diagnostics."""
         return {"lockstep": True, "actuation_delay": self.delay_ns / NS_PER_S,
                 "lockstep_answers": self.answers, "lockstep_stale_answers": self.stale_answers,
                 "lockstep_scheduled": self.scheduled, "lockstep_waited_s": self.waited,
+                "lockstep_join_waits": self.join_waits,
                 "lockstep_promise": math.inf if self.promise_ns == UNBOUNDED else self.promise_ns / NS_PER_S}
 
 
