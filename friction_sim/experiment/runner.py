@@ -228,8 +228,10 @@ def _plant_values(spec: ExperimentSpec) -> dict[str, Any]:
 
 def _controller_values(spec: ExperimentSpec) -> dict[str, Any]:
     """The controller's parameters: the plant's initial drive force and frequency, then the scenario's."""
+    lockstep: dict[str, Any] = {"lockstep": True, **{name: spec.slider_parameters[name] for name in (
+        "actuation_delay", "accelerometer_rate") if name in spec.slider_parameters}}
     return {"excitation_frequency": spec.inputs.excitation_frequency, "drive_force": spec.inputs.drive_force,
-            **spec.controller_parameters}
+            **(lockstep if spec.lockstep else {}), **spec.controller_parameters}
 
 
 class _InProcess:

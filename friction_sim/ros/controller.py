@@ -206,6 +206,10 @@ class ControllerNode(Node):
             self.create_subscription(ParameterEvent, "/parameter_events",
                                      self._guarded("plant parameter event", self._on_plant_event),
                                      qos_profile_parameter_events)
+        elif values["lockstep"]:  # no plant node to say so: this node's own word
+            self.lockstep = LockstepAnswers(self, values["actuation_delay"], values["accelerometer_rate"])
+        else:
+            self.accelerometer_group.open = True
         self._matched_at: float | None = None
         self._startup_timer = self.create_timer(0.05, self._guarded("start-up", self._start_up), clock=steady)
 
@@ -457,7 +461,10 @@ class ControllerNode(Node):
         lockstep only a sample's answer carries them (the caller sends it), so
         a decision between samples waits for the next one."""
         lockstep = self.lockstep is not None
-        if not (self.ready and self.runtime.active) or (lockstep and boundary is None):
+        if not (self.ready and self.runtime.active):
+            return {}
+        if self.lockstep is not None and boundary is None:  # it acts with the next answer: not clean
+            self.lockstep.changed = self.lockstep.changed or output.amplitude != self._last_published
             return {}
         control = self.runtime.control
         acts_at = self.lockstep.acts_at(boundary) if self.lockstep is not None and boundary is not None \

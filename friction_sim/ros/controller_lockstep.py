@@ -50,6 +50,9 @@ class LockstepAnswers:
         node.subscribe_accelerometer(lockstep=True)
         #: The simulation time [ns] of the sample being (or last) answered: the diagnostics' stamp.
         self.stamp_ns = 0
+        #: The law decided between samples (a target, a parameter): the change acts with the next
+        #: answer, so the sample it answers was measured before it (noted before that sample is judged).
+        self.changed = False
 
     def acts_at(self, boundary: float) -> float:
         """When the answer to the sample stamped ``boundary`` [s] acts on the plant [s]."""
@@ -103,6 +106,10 @@ class LockstepAnswers:
         self.stamp_ns = stamp_ns
         t = stamp_ns / NS_PER_S
         values: dict[str, float] = {}
+        if self.changed:
+            control = self.runtime.control
+            control.clock.note_change(0, 1.0 / control.frequency, self.acts_at(t))
+            self.changed = False
         try:
             output = self.runtime.take_sample(speed, t, 0, self.runtime.active)
         except ParameterError as error:

@@ -310,6 +310,11 @@ CONTROLLER_NODE = table(
     TARGET_SPEED, INTEGRAL_GAIN, MAX_AMPLITUDE_RATIO, SETTLE_MARGIN,
     MEAN_WINDOW_PERIODS.described("the slider's mean_velocity window (read from plant_node, and followed)"),
     PLANT_NODE, ACTIVE, INNER_LOOP, TRACK_RESONANCE, DIAGNOSTICS_PERIOD,
+    *(setting.described(setting.description + " (the plant's: read from plant_node at start-up; this value only "
+                        "with plant_node '')") for setting in (
+        LOCKSTEP.described("the plant runs in lockstep: answer each mean_velocity sample on control_answer"),
+        ACTUATION_DELAY, ACCELEROMETER_RATE.described("the plant's accelerometer rate (lockstep: an answer waits "
+                                                      "for its readings up to the sample)"))),
 )
 
 

@@ -66,10 +66,9 @@ class AnswerQueue:
         if not self._samples:
             return None
         stamp_ns, speed = self._samples[0]
-        if needs_accelerometer and self.accelerometer_rate > 0.0:
-            points = grid(self.accelerometer_rate, 0, 0.0, stamp_ns / NS_PER_S)
-            if len(points) and self._latest_acceleration_ns < round(points[-1] / self.accelerometer_rate * NS_PER_S):
-                return None
+        if needs_accelerometer and self.accelerometer_rate > 0.0 and \
+                self._latest_acceleration_ns < self._last_reading_ns(stamp_ns):
+            return None
         self._samples.popleft()
         fed = []
         while self._accelerations and self._accelerations[0][0] <= stamp_ns:
@@ -80,6 +79,16 @@ class AnswerQueue:
     def waiting(self) -> bool:
         """Whether a sample waits for its answer."""
         return bool(self._samples)
+
+    def _last_reading_ns(self, stamp_ns: int) -> int:
+        """The stamp [ns] of the last reading on the grid k/rate stamped at or before ``stamp_ns``
+        (the slider stamps a reading with its time in whole ns: one on the sample's own
+        nanosecond may lie a fraction of one past it; -1 before the first)."""
+        rate = self.accelerometer_rate
+        k = len(grid(rate, 0, 0.0, (stamp_ns + 1) / NS_PER_S))
+        while k > 0 and round((k - 1) / rate * NS_PER_S) > stamp_ns:
+            k -= 1
+        return round((k - 1) / rate * NS_PER_S) if k > 0 else -1
 
     def answered(self, stamp_ns: int, values: dict[str, float]) -> None:
         self.last_ns, self.last_answer = stamp_ns, dict(values)

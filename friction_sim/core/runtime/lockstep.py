@@ -235,7 +235,7 @@ class LockstepSlider(RealtimeSlider):
 
     def resume(self, wall_ns: int) -> Outcome:
         t = self._advance(wall_ns)
-        if not self.gate.paused:
+        if not self.gate.held:  # (a step under way ends in a pause: a resume lets it run on instead)
             return self._refuse(Command(t, RESUME), "resume: not paused")
         self.gate.resume()
         return Outcome(Command(t, RESUME))
