@@ -164,6 +164,8 @@ def _play_lockstep(spec: ExperimentSpec, plant: _InProcess | _Attached, executor
     start = start_ns / 1e9
     _start_recording(spec, plant.recorder, start)
     target = spec.initial_target
+    if progress is not None:
+        progress(_status(spec, 0.0, target, plant.inputs(), result))
     points = timeline(spec)
     for index, (t_ns, commands, actions) in enumerate(points):
         sent = [command for command in commands if for_slider(command)] + \
@@ -261,7 +263,12 @@ class _InProcess:
             controller.drive_listeners.append(lambda drive: result.drive.append(
                 (self.now(), drive.level, drive.frequency, drive.per_drive)))
             self.nodes.append(controller)
-        for node in self.nodes:
+        self._own: Any = None
+        if spec.lockstep and spec.controller:  # (its answers wait for no one else's callbacks)
+            from friction_sim.ros.run import SpinThread
+
+            self._own = SpinThread(self.nodes[-1])
+        for node in self.nodes[:1] if self._own is not None else self.nodes:
             executor.add_node(node)
         self.recorder = self.slider.recorder
 
@@ -299,6 +306,8 @@ class _InProcess:
 
     def close(self) -> None:
         """Destroy the nodes (the slider finishes its recording)."""
+        if self._own is not None:
+            self._own.stop()
         for node in self.nodes:
             node.destroy_node()
 
@@ -334,7 +343,8 @@ class _Attached:
             # first its start-up read must be over, or what it reads would overwrite what is set here)
             _wait_for_controller_model(driver, executor)
             exciter = {name: getattr(spec.plant, name) for name in ("actuator", *settings.EXCITER)}
-            _set_parameters(driver, executor, "controller", {**exciter, **_controller_values(spec)})
+            _set_parameters(driver, executor, "controller", {name: value for name, value in {
+                **exciter, **_controller_values(spec)}.items() if not settings.CONTROLLER_NODE[name].start_only})
         # (not the input the scenario's actuator does not use: the slider refuses a value of it it does not hold)
         unused = unused_input(spec.plant.actuator)
         _set_parameters(driver, executor, "slider", {name: value for name, value in _plant_values(spec).items()

@@ -40,22 +40,23 @@ def _messages(path: str | os.PathLike[str]) -> Iterator[tuple[str, str, bytes]]:
 
 def _stamp_and_payload(type_name: str, data: bytes) -> tuple[int, bytes]:
     """(header stamp [ns] or -1, the payload as compared: diagnostics, which other nodes' publishers
-    encoded, by their content, with their wall-clock figures blanked)."""
-    from rclpy.serialization import deserialize_message
+    encoded (their padding bytes are not their content), by their content, with their wall-clock
+    figures blanked)."""
+    from friction_sim.io import cdr
 
-    from friction_sim.io.messages import message_class, stamp_ns
+    if not type_name.endswith("DiagnosticArray"):
+        stamped = cdr.fields(type_name)[0][0] == "header"
+        return (int(cdr.stamps_ns([data])[0]) if stamped else -1), data
+    msg = cdr.deserialize(data, type_name)
+    content = [(status.level, status.name, status.message, status.hardware_id,
+                [(value.key, "" if value.key in WALL_CLOCK_KEYS else value.value) for value in status.values])
+               for status in msg.status]
+    return _stamp(msg), repr((msg.header.frame_id, content)).encode()
 
-    kind = message_class(type_name)
-    msg = deserialize_message(data, kind)
+
+def _stamp(msg: object) -> int:
     header = getattr(msg, "header", None)
-    stamp = stamp_ns(header.stamp) if header is not None else -1
-    if type_name.endswith("DiagnosticArray"):
-        for status in msg.status:
-            for value in status.values:
-                if value.key in WALL_CLOCK_KEYS:
-                    value.value = ""
-        return stamp, repr(msg).encode()  # (not its CDR: a publisher's padding bytes are not its content)
-    return stamp, data
+    return -1 if header is None else int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
 
 
 def recording_digest(path: str | os.PathLike[str]) -> dict[str, str]:
@@ -66,7 +67,8 @@ def recording_digest(path: str | os.PathLike[str]) -> dict[str, str]:
         per_topic[topic].append(_stamp_and_payload(type_name, data))
     digest = {}
     for topic, entries in sorted(per_topic.items()):
-        entries.sort()
+        if all(stamp >= 0 for stamp, _ in entries):  # (unstamped ones, commands, keep the order they were taken in)
+            entries.sort()
         h = hashlib.sha256()
         for stamp, payload in entries:
             h.update(stamp.to_bytes(8, "little", signed=True) + len(payload).to_bytes(8, "little") + payload)

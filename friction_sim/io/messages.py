@@ -178,18 +178,6 @@ ACCELEROMETER = "accelerometer"
 ACCELEROMETER_DEPTH = 10_000
 
 
-def accelerometer_qos(*, transient_local: bool = True) -> Any:
-    """The accelerometer topic's QoS: reliable, :data:`ACCELEROMETER_DEPTH` deep; the slider's
-    publisher is transient local, so a controller in lockstep that joins late still gets the
-    readings of the windows it has to answer (a volatile subscriber matches it too: a controller
-    in real time, ``ros2 topic echo``)."""
-    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-
-    durability = DurabilityPolicy.TRANSIENT_LOCAL if transient_local else DurabilityPolicy.VOLATILE
-    return QoSProfile(depth=ACCELEROMETER_DEPTH, reliability=ReliabilityPolicy.RELIABLE,  # type: ignore[no-untyped-call]
-                      durability=durability)
-
-
 def imu_message(sample: Acceleration, frame_id: str = "slideway", noise: float = 0.0) -> Any:
     """The accelerometer ``sample`` as sensor_msgs/Imu: linear_acceleration in
     the track frame; orientation and angular velocity not provided (element 0

@@ -80,12 +80,15 @@ unreachable with ``reachable_speed`` (:mod:`friction_sim.core.runtime.controller
 An accelerometer sample that is not finite, is stamped ahead of any plant in
 force, or reads more than any slideway of the model gives is refused and
 counted (:mod:`friction_sim.core.runtime.drive`), never held for later.
+
+When its plant runs in lockstep (read from plant_node at start-up) the node answers
+each mean_velocity sample on ``control_answer`` instead of publishing on the command
+topics (:mod:`friction_sim.ros.controller_lockstep`).
 """
 
 from __future__ import annotations
 
 import contextlib
-import functools
 import time
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
@@ -102,13 +105,12 @@ from std_msgs.msg import Float64
 
 from friction_sim.core.control.law import ControlOutput, MeanSpeedController
 from friction_sim.core.model import spec
-from friction_sim.core.model.commands import CONTROLLER, consumed_by
+from friction_sim.core.model.commands import CONTROLLER
 from friction_sim.core.runtime.controller import RealtimeController, plant_words, taken_words
 from friction_sim.core.runtime.drive import DriveCommand
 from friction_sim.errors import ParameterError, one_line
 from friction_sim.io.messages import (
     ACCELEROMETER_DEPTH,
-    accelerometer_qos,
     command_from_message,
     key_values,
     message_class,
@@ -117,18 +119,16 @@ from friction_sim.io.messages import (
     stamp_ns,
     time_msg,
 )
+from friction_sim.ros.controller_commands import CommandBatches
 from friction_sim.ros.controller_lockstep import LOCKSTEP_READ, LockstepAnswers
 from friction_sim.ros.controller_plant import ADOPTED, FOLLOWED, named, own_parameters, qualified
 from friction_sim.ros.graph import NameWatch
-from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, arrival, take_all, take_with_info
+from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, accelerometer_qos, take_all
 from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
 from friction_sim.ros.run import CONTROLLER_EXIT_CODES, node_help, run_node, wall_ns
 
 _T = TypeVar("_T")
 QOS_DEPTH = 10
-#: After a batch of commands, the command topics are polled this often [s]
-#: until they are quiet; then a command wakes the node at once again.
-COMMAND_HOLD_OFF = 0.02
 
 PLANT_TIMEOUT = 5.0
 DISCOVERY_SETTLE = 0.5
@@ -171,19 +171,7 @@ class ControllerNode(Node):
         #: The answers to the slider's samples while it runs in lockstep (None in real time).
         self.lockstep: LockstepAnswers | None = None
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self._gate = PolledGroup(open=True)
-        self._commands = [  # target_speed, drive_force, excitation_frequency
-            (entry.name, self.create_subscription(
-                message_class(entry.message_type), entry.name,
-                # rclpy passes the message info to a callback of two parameters (it inspects the
-                # signature); its annotation names only the one-parameter kind.
-                self._command_callback(entry.name),  # type: ignore[arg-type]
-                QOS_DEPTH, callback_group=self._gate))
-            for entry in consumed_by(CONTROLLER)
-        ]
-        self._hold_off = self.create_timer(COMMAND_HOLD_OFF, self._guarded("command polling", self._poll_commands),
-                                           clock=steady)
-        self._hold_off.cancel()
+        self.commands = CommandBatches(self, self._apply_batch, self._guarded)
         self.create_subscription(TwistStamped, "mean_velocity",
                                  self._guarded("mean_velocity callback", self._on_mean_velocity), QOS_DEPTH)
         #: Open: each reading wakes the node.  Shut until the model is settled (the inner loop is built
@@ -235,7 +223,7 @@ class ControllerNode(Node):
     def polling(self) -> bool:
         """True while the command topics are polled every hold-off (after a
         batch); False while the node is quiet and a command wakes it at once."""
-        return not self._gate.open or not self._hold_off.is_canceled()
+        return self.commands.polling
 
     # -- start-up: the plant's parameters ---------------------------------------
 
@@ -340,43 +328,6 @@ class ControllerNode(Node):
             self._warn(f"{refusal}; target 0 kept")
 
     # -- commands -----------------------------------------------------------------
-
-    def _command_callback(self, name: str) -> Callable[[Any, Any], None]:
-        """The executor's callback for command topic ``name`` (two parameters:
-        rclpy then passes the message info too, with the arrival time)."""
-        guarded = self._guarded(f"{name} callback", functools.partial(self._on_command, name))
-
-        def on_command(msg: Any, info: Any) -> None:
-            guarded(msg, info)
-
-        return on_command
-
-    def _on_command(self, name: str, msg: Any, info: Any) -> None:
-        """The first command after a quiet spell: take it and whatever else
-        waits, apply them as one batch in the order they came, and shut the
-        gate for a hold-off."""
-        waiting = [(arrival(info), name, msg), *self._take_waiting()]
-        waiting.sort(key=lambda item: item[0])
-        self._gate.open = False
-        self._hold_off.reset()
-        self._apply_batch([(topic, message) for _, topic, message in waiting])
-
-    def _poll_commands(self) -> None:
-        """Every hold-off while the gate is shut: apply what came meanwhile, or
-        open the gate again if nothing did."""
-        waiting = sorted(self._take_waiting(), key=lambda item: item[0])
-        if waiting:
-            self._apply_batch([(topic, message) for _, topic, message in waiting])
-        else:
-            self._hold_off.cancel()
-            self._gate.open = True  # a message arriving from now on wakes the executor
-
-    def _take_waiting(self) -> list[tuple[int, str, Any]]:
-        """Every command waiting on the command topics (at most the queue depth
-        each: the subscriptions keep the latest QOS_DEPTH) as (arrival, topic,
-        message)."""
-        return [(arrival(info), name, message) for name, subscription in self._commands
-                for message, info in take_with_info(subscription, QOS_DEPTH)]
 
     def _apply_batch(self, batch: list[tuple[str, Any]]) -> None:
         """The commands of a batch in order, each judged against the state the

@@ -15,17 +15,36 @@ runs in lockstep, and the actuation delay, from the plant node at start-up.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
+from friction_sim.core.control.law import ControlOutput
 from friction_sim.core.model.spec import NS_PER_S
 from friction_sim.core.runtime.answers import AnswerQueue
+from friction_sim.core.runtime.controller import RealtimeController
 from friction_sim.errors import ParameterError
 from friction_sim.io.messages import message_class, stamp_ns
 from friction_sim.io.stamped import CONTROL_ANSWER, STAMPED_TYPE, stamped_message
-from friction_sim.ros.intake import take_all
+from friction_sim.ros.intake import PolledGroup, take_all
 
-if TYPE_CHECKING:
-    from friction_sim.ros.controller import ControllerNode
+
+class AnsweringNode(Protocol):
+    """What the answers need of the controller node (:class:`~friction_sim.ros.controller.ControllerNode`)."""
+
+    @property
+    def runtime(self) -> RealtimeController: ...
+    @property
+    def accelerometer_group(self) -> PolledGroup: ...
+    @property
+    def accelerometer(self) -> Any: ...
+    @property
+    def ready(self) -> bool: ...
+    def get_parameter(self, name: str) -> Any: ...
+    def create_publisher(self, *args: Any, **kwargs: Any) -> Any: ...
+
+    def subscribe_accelerometer(self, *, lockstep: bool) -> Any: ...
+    def warn(self, text: str) -> None: ...
+    def decide(self, output: ControlOutput, boundary: float) -> dict[str, float]: ...
+    def publish_diagnostics(self) -> None: ...
 
 #: The plant node's parameters read at start-up besides its model: whether it runs in
 #: lockstep, with what actuation delay, and its accelerometer's rate (the answers wait for it).
@@ -39,7 +58,7 @@ ANSWER_DEPTH = 1000
 class LockstepAnswers:
     """Answer each sample once, in order, when what it needs has come (see the module)."""
 
-    def __init__(self, node: ControllerNode, delay: float, accelerometer_rate: float) -> None:
+    def __init__(self, node: AnsweringNode, delay: float, accelerometer_rate: float) -> None:
         self.node = node
         self.queue = AnswerQueue(round(float(delay) * NS_PER_S), float(accelerometer_rate),
                                  round(node.get_parameter("diagnostics_period").value * NS_PER_S))

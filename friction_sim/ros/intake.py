@@ -15,7 +15,10 @@ import time
 from typing import Any
 
 from rclpy.callback_groups import CallbackGroup
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.subscription import Subscription
+
+from friction_sim.io.messages import ACCELEROMETER_DEPTH
 
 #: At most one warning about refused input per this many seconds (and node).
 WARN_INTERVAL = 1.0
@@ -124,3 +127,13 @@ def take_with_info(subscription: Subscription, limit: int) -> list[tuple[Any, di
 def arrival(info: Any) -> int:
     """When a message arrived (ns), from rclpy's message info."""
     return int(info.get("received_timestamp") or 0) if isinstance(info, dict) else 0
+
+
+def accelerometer_qos(*, transient_local: bool = True) -> Any:
+    """The accelerometer topic's QoS: reliable, :data:`ACCELEROMETER_DEPTH` deep; the slider's
+    publisher is transient local, so a controller in lockstep that joins late still gets the
+    readings of the windows it has to answer (a volatile subscriber matches it too: a controller
+    in real time, ``ros2 topic echo``)."""
+    durability = DurabilityPolicy.TRANSIENT_LOCAL if transient_local else DurabilityPolicy.VOLATILE
+    return QoSProfile(depth=ACCELEROMETER_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=durability)

@@ -81,6 +81,43 @@ class FaultSignal:
         raise NodeFault(self.reason)
 
 
+class SpinThread:
+    """A node spun by an executor of its own, in a thread of its own, until :meth:`stop`:
+    in a lockstep experiment the controller answers every window, and in the experiment's
+    executor each answer would wait for the driver's and the slider's callbacks and the
+    rebuild of their wait set.  An error ends the spin and is said once (the slider then
+    names the silent controller after its lockstep_timeout), never a thread dying in silence."""
+
+    def __init__(self, node: Node) -> None:
+        self.node = node
+        self._executor = SingleThreadedExecutor()
+        self._executor.add_node(node)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, name=f"{node.get_name()}_spin", daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        while not self._stop.is_set():
+            try:
+                self._executor.spin_once(timeout_sec=0.05)
+            except RuntimeError as error:
+                if LostMessages.lost(error):
+                    continue
+                print(f"{self.node.get_name()}: its executor stopped: {one_line(error, with_type=True)}",
+                      file=sys.stderr)
+                return
+            except Exception as error:  # noqa: BLE001 - said, never a thread that dies in silence
+                print(f"{self.node.get_name()}: its executor stopped: {one_line(error, with_type=True)}",
+                      file=sys.stderr)
+                return
+
+    def stop(self) -> None:
+        """End the spin (the node stays: its owner destroys it)."""
+        self._stop.set()
+        self._thread.join(timeout=5.0)
+        self._executor.shutdown(timeout_sec=0.0)
+
+
 def node_help(description: str, settings: Mapping[str, Setting], consumer: str,
               publications: Sequence[tuple[str, str, str]], exit_codes: str,
               more_subscriptions: Sequence[tuple[str, str, str]] = ()) -> str:

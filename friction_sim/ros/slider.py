@@ -43,6 +43,12 @@ node logs the reason once, reports ERROR on ``diagnostics`` and exits with
 code 3 (:data:`~friction_sim.ros.run.EXIT_FAULT`): it never keeps running
 without ticking.
 
+With ``lockstep`` the thread runs :class:`~friction_sim.ros.slider_lockstep.LockstepLoop`
+instead of ticks: simulation time advances when the controller has answered each
+``mean_velocity`` sample on ``control_answer`` and a scheduler has promised what comes
+on ``stamped_command`` (sensor_msgs/JointState, :mod:`friction_sim.io.stamped`), as fast
+as they compute (:mod:`friction_sim.core.runtime.lockstep`).
+
 Ticks run in a dedicated thread rather than an executor timer: rclpy's
 executor rebuilds its wait set in Python on every wake-up (about 0.4 ms for a
 node with parameter services), which at 1 kHz would cost most of a core and
@@ -96,7 +102,6 @@ from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import SimulationFault, one_line
 from friction_sim.io.messages import (
     ACCELEROMETER,
-    accelerometer_qos,
     command_from_message,
     fill_state_messages,
     imu_message,
@@ -108,7 +113,7 @@ from friction_sim.io.messages import (
 )
 from friction_sim.io.sinks import Sink, deliver_tick
 from friction_sim.ros.graph import NameWatch
-from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, take_all
+from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, accelerometer_qos, take_all
 from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
 from friction_sim.ros.run import (
     EXIT_FAULT,
@@ -121,6 +126,7 @@ from friction_sim.ros.run import (
 )
 from friction_sim.ros.slider_lockstep import LockstepLoop, runtime_for
 from friction_sim.ros.slider_outputs import (
+    RecorderHealth,
     control_text,
     health,
     open_live_view,
@@ -166,8 +172,7 @@ class SliderNode(Node):
         #: Consumers of the run (the recorder, a live view, a test's probe).
         self.sinks: list[Sink] = []
         self.recorder = open_recorder(values, self.get_namespace(), self.get_fully_qualified_name())
-        self._recorder_waited_ns = 0
-        self._recorder_waited_reported = 0.0
+        self._recorder_health = RecorderHealth(self.recorder)
         if self.recorder is not None:
             self.sinks.append(self.recorder)
         try:
@@ -493,13 +498,10 @@ class SliderNode(Node):
         wall time the tick waited passes without simulation time (no jump;
         the achieved real-time factor in diagnostics shows it, and the next
         tick counts as late)."""
-        if self.recorder is None:
-            return
-        waited = round(self.recorder.wait_seconds * 1e9)
-        if waited > self._recorder_waited_ns:
+        waited_ns = self._recorder_health.newly_waited_ns()
+        if waited_ns:
             with self._lock:
-                self._rt.clock.hold(waited - self._recorder_waited_ns)
-            self._recorder_waited_ns = waited
+                self._rt.clock.hold(waited_ns)
 
     def _on_diagnostics(self) -> None:
         self.publish_diagnostics()
@@ -512,7 +514,7 @@ class SliderNode(Node):
         prediction = self._rt.prediction(params, inputs)  # outside the lock: it may simulate
         with self._lock:
             report = self._rt.diagnostics(wall_ns(), prediction)
-        report.update(self._recording_report())
+        report.update(self._recorder_health.report())
         report["messages_lost"] = LostMessages.count  # taken by rclpy, not convertible (see ros/intake.py)
         if self.live is not None:
             report.update(self.live.stats())
@@ -528,19 +530,6 @@ class SliderNode(Node):
                 if sink is not None:
                     sink.write("diagnostics", msg, stamp_ns)
         self._diag_pub.publish(msg)
-
-    def _recording_report(self) -> dict[str, Any]:
-        """The recorder's part of diagnostics: its error (the run goes on
-        unrecorded), messages dropped, and how long it held the simulation back."""
-        recorder = self.recorder
-        if recorder is None:
-            return {}
-        waited = recorder.wait_seconds
-        report = {"recording": str(recorder.path), "recording_error": recorder.error or "",
-                  "recording_dropped": recorder.dropped, "recording_waited_s": waited,
-                  "recording_waited_in_interval_s": waited - self._recorder_waited_reported}
-        self._recorder_waited_reported = waited
-        return report
 
     # -- parameters ---------------------------------------------------------------
 

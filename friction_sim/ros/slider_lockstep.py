@@ -18,7 +18,8 @@ same messages every time.
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Sequence
+from typing import Any, Protocol
 
 from friction_sim.core.model import spec
 from friction_sim.core.model.commands import PARAMETERS, Command, Outcome
@@ -33,8 +34,29 @@ from friction_sim.io.stamped import CONTROL_ANSWER, STAMPED_COMMAND, STAMPED_TYP
 from friction_sim.ros.intake import PolledGroup, take_all
 from friction_sim.ros.run import wall_ns
 
-if TYPE_CHECKING:
-    from friction_sim.ros.slider import SliderNode
+
+class SteppedNode(Protocol):
+    """What the lockstep loop needs of the slider node (:class:`~friction_sim.ros.slider.SliderNode`)."""
+
+    @property
+    def realtime(self) -> Any: ...
+    @property
+    def lock(self) -> Any: ...
+    @property
+    def stopping(self) -> bool: ...
+    @property
+    def frame_id(self) -> str: ...
+    def get_parameter(self, name: str) -> Any: ...
+    def get_logger(self) -> Any: ...
+    def create_subscription(self, *args: Any, **kwargs: Any) -> Any: ...
+
+    def take_commands(self) -> None: ...
+    def record(self, outcomes: Sequence[Outcome]) -> None: ...
+    def publish_tick(self, tick: Tick, fresh: bool = True) -> None: ...
+    def warn_refused(self, outcome: Outcome, warn: Callable[[str], Any] | None = None) -> None: ...
+    def fail(self, error: BaseException) -> None: ...
+    def publish_diagnostics(self, stamp_ns: int | None = None) -> None: ...
+    def publish_mean_velocity(self, msg: Any) -> None: ...
 
 #: Wall time [s] after which an awaited sample is published again while the slider waits.
 REPEAT = 0.25
@@ -70,7 +92,7 @@ def _load_blame(values: dict[str, Any]) -> str:
 class LockstepLoop:
     """The slider node's loop in lockstep (see the module)."""
 
-    def __init__(self, node: SliderNode) -> None:
+    def __init__(self, node: SteppedNode) -> None:
         self.node = node
         rt = node.realtime
         assert isinstance(rt, LockstepSlider)

@@ -115,6 +115,37 @@ def pace_problems(report: dict[str, Any]) -> list[str]:
     return problems
 
 
+class RecorderHealth:
+    """What the slider's recorder (None: not recording) says about itself on
+    diagnostics, and how long it made the tick thread wait."""
+
+    def __init__(self, recorder: Any) -> None:
+        self.recorder = recorder
+        self._waited_ns = 0
+        self._reported = 0.0
+
+    def newly_waited_ns(self) -> int:
+        """Wall time [ns] the recorder held its producers since the last call."""
+        if self.recorder is None:
+            return 0
+        waited = round(self.recorder.wait_seconds * 1e9)
+        new, self._waited_ns = max(0, waited - self._waited_ns), max(waited, self._waited_ns)
+        return new
+
+    def report(self) -> dict[str, Any]:
+        """The recorder's part of diagnostics: its error (the run goes on
+        unrecorded), messages dropped, and how long it held the simulation back."""
+        recorder = self.recorder
+        if recorder is None:
+            return {}
+        waited = recorder.wait_seconds
+        report = {"recording": str(recorder.path), "recording_error": recorder.error or "",
+                  "recording_dropped": recorder.dropped, "recording_waited_s": waited,
+                  "recording_waited_in_interval_s": waited - self._reported}
+        self._reported = waited
+        return report
+
+
 def recorded(values: dict[str, Any]) -> dict[str, Any]:
     """The parameter values a recording keeps: all but log_path (a file name, not a setting of the run)."""
     return {k: v for k, v in values.items() if k not in ("log_path",)}
@@ -140,4 +171,4 @@ def health(report: dict[str, Any], fault: str = "", name_problem: str = "") -> t
     return DiagnosticStatus.WARN, "; ".join(problems)
 
 
-__all__ = ["control_text", "health", "open_live_view", "open_recorder", "recorded", "watch_namespace"]
+__all__ = ["RecorderHealth", "control_text", "health", "open_live_view", "open_recorder", "recorded", "watch_namespace"]

@@ -1,4 +1,4 @@
-"""The controller's five acceptance cases, closed loop over real topics."""
+"""The controller's acceptance cases, closed loop over real topics: in lockstep, and a real-time smoke test."""
 
 from __future__ import annotations
 
@@ -16,13 +16,12 @@ from friction_sim.experiment.runner import run_experiment
 
 @pytest.mark.parametrize("case", acceptance_scenarios(), ids=lambda c: c.name)
 def test_acceptance_case_in_closed_loop(ros: None, case) -> None:  # type: ignore[no-untyped-def]
-    """Both nodes over real topics on the wall clock, at half speed: the limits
-    are counted in excitation periods (20 ms at 50 Hz), and on a shared CI
-    machine a scheduling delay of one period would otherwise decide the
-    verdict.  `make bench` (bench/controller.py) runs the same cases at
-    real_time_factor 1."""
+    """Both nodes over real topics in lockstep (the scenarios say so): the limits
+    are counted in excitation periods of simulation time, and the verdict is the
+    same on any machine, loaded or not (README: the acceptance table)."""
     assert case.expect, "every acceptance scenario states what it expects"
-    result = run_experiment(dataclasses.replace(case, real_time_factor=0.5).spec())
+    assert case.lockstep, "the acceptance cases run in lockstep"
+    result = run_experiment(case.spec())
     assert len(result.mean_velocity) > case.duration * 40
     for verdict in judge(case, result):
         e, m = verdict.expectation, verdict.metrics
@@ -30,6 +29,20 @@ def test_acceptance_case_in_closed_loop(ros: None, case) -> None:  # type: ignor
                              f"{m.settling_periods} periods (max {e.periods}), overshoot {m.overshoot:.3f} "
                              f"(max {e.overshoot})")
         assert m.steady_error <= e.within
+
+
+@pytest.mark.parametrize("name", ["acceptance_1_matched", "acceptance_7_resonant_steps"])
+def test_the_loop_closes_and_settles_in_real_time(ros: None, name: str) -> None:
+    """A smoke test of the real-time loop (both nodes on the wall clock, at half speed):
+    after each target step the mean speed settles to the target.  It asserts behaviour,
+    not pace: how many periods it takes depends on how the machine schedules the
+    processes (lockstep, above, is what holds the limits)."""
+    case = next(c for c in acceptance_scenarios() if c.name == name)
+    result = run_experiment(dataclasses.replace(case.spec(), lockstep=False, real_time_factor=0.5))
+    assert len(result.mean_velocity) > case.duration * 40
+    for verdict in judge(case, result):
+        assert math.isfinite(verdict.metrics.settling_periods), verdict
+        assert verdict.metrics.steady_error <= verdict.expectation.within, verdict
 
 
 def _hold_the_interpreter(seconds: float) -> float:
@@ -64,7 +77,7 @@ def test_a_stall_of_the_host_does_not_run_the_plant_ahead_of_its_controller(
         return publish(command)
 
     monkeypatch.setattr(runner, "command_message", command_message)
-    result = run_experiment(dataclasses.replace(case, real_time_factor=0.5).spec())
+    result = run_experiment(dataclasses.replace(case.spec(), lockstep=False, real_time_factor=0.5))
     assert held and held[0] > 0.2, f"the stall must outlast 10 periods at half speed (held {held} s)"
     (verdict,) = judge(case, result)
     assert verdict.met, verdict.metrics

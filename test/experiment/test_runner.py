@@ -150,7 +150,8 @@ def test_attach_to_a_running_feeder_with_a_resonant_scenario(tmp_path: Path) -> 
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
         job = run_scenario(root / "config" / "acceptance_7_resonant_steps.yaml", output=tmp_path / "out",
-                           attach=namespace, stream=io.StringIO(), status=TerminalProgress(io.StringIO()))
+                           attach=namespace, stream=io.StringIO(), status=TerminalProgress(io.StringIO()),
+                           lockstep=False)
     finally:
         feeder.send_signal(2)
         _, err = feeder.communicate(timeout=20)

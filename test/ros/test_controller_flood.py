@@ -18,7 +18,8 @@ from pathlib import Path
 from rclpy.parameter import Parameter
 from std_msgs.msg import Float64
 
-from friction_sim.ros.controller import COMMAND_HOLD_OFF, ControllerNode
+from friction_sim.ros.controller import ControllerNode
+from friction_sim.ros.controller_commands import COMMAND_HOLD_OFF
 
 from ros_harness import HARNESS, LAST, MARK, Probe, kill_if_running
 

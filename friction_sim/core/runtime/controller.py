@@ -256,6 +256,9 @@ class RealtimeController:
         if the set is refused (then nothing changes)."""
         candidate = copy.copy(self.control)
         try:
+            for name, value in values.items():  # each against its own range (rclpy's allows a tolerance)
+                if name in spec.CONTROLLER_NODE:
+                    spec.CONTROLLER_NODE[name].check(value)
             if values.keys() & CONFIG:
                 candidate.config = config_of({**current, **values})
             if "drive_force" in values:

@@ -196,6 +196,9 @@ class RealtimeSlider:
                    if k in spec.PLANT or k in spec.INPUTS}
         command = Command(t, PARAMETERS, physics)
         try:
+            for name, value in values.items():  # each against its own range (rclpy's allows a tolerance)
+                if name in spec.SLIDER_NODE:
+                    spec.SLIDER_NODE[name].check(value)
             inputs = apply(command, self.slider.params, self.slider.inputs)[1]
             rate = float(spec.REAL_TIME_FACTOR.check(values.get("real_time_factor", self.clock.rate)))
             check_load(inputs.excitation_frequency, rate,

@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import math
 
-import pytest
-
 from friction_sim.core.runtime.answers import AnswerQueue
 
 MS = 1_000_000
