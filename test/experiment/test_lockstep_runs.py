@@ -82,7 +82,8 @@ def test_a_participant_is_waited_for_until_it_joins_and_named_when_it_goes_silen
     joins, the slider waits at its first sample and says so (counted) once per
     lockstep_timeout; a controller that joins late is waited for and regulates;
     once it has answered and goes silent, the slider names it after
-    lockstep_timeout and stops (a fault), never running past the unanswered sample."""
+    lockstep_timeout (counted from when it began to wait for that answer) and
+    stops (a fault), never running past the unanswered sample."""
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
 
@@ -112,13 +113,11 @@ def test_a_participant_is_waited_for_until_it_joins_and_named_when_it_goes_silen
         executor.remove_node(controller)
         controller.destroy_node()
         controller = None
-        stopped_at = time.monotonic()
         while not slider.fault and time.monotonic() < deadline:
             try:
                 executor.spin_once(timeout_sec=0.05)
             except NodeFault:  # the slider ends the executor that spins it (run_node exits with code 3)
                 break
-        assert time.monotonic() - stopped_at >= 0.5  # not before lockstep_timeout
         assert "lockstep: waited 0.5 s (lockstep_timeout) for the controller: no answer on control_answer to " \
             "the mean_velocity sample of t = " in slider.fault
         assert slider.realtime.t_ns == gate.awaited[0]  # it never ran past the unanswered sample
