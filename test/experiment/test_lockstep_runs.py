@@ -20,6 +20,8 @@ from friction_sim.core.runtime.lockstep import CONTROLLER
 from friction_sim.experiment import runner
 from friction_sim.experiment.scenario import load_scenario
 from friction_sim.io.digest import differences, recording_digest
+from friction_sim.io.reader import read_recording
+from friction_sim.io.verify import verify
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -63,6 +65,8 @@ def test_acceptance_7_with_noise_gives_the_same_recording_with_and_without_a_sta
                       accelerometer_noise=0.05, accelerometer_seed=7)
     assert stalled, "the stall was injected"
     assert differences(first, second) == []
+    result = verify(read_recording(tmp_path / "b.mcap"))  # replay --verify, as of any recording
+    assert result.passed and result.samples == 3001, result.lines()
     assert int(first[f"{namespace}/mean_velocity"].split(":")[0]) == 149  # every period's mean but the first
     assert int(first[f"{namespace}/accelerometer"].split(":")[0]) == 3001
 
@@ -75,6 +79,34 @@ def test_the_demo_gives_the_same_recording_twice(ros: None, tmp_path: Path) -> N
     second = _run("config/demo.yaml", tmp_path / "b.mcap", namespace)
     assert differences(first, second) == []
     assert f"{namespace}/sim_control" in first and f"{namespace}/rejected_commands" in first
+
+
+def test_attached_to_a_feeder_in_lockstep_the_recording_is_the_same_twice(ros: None, tmp_path: Path) -> None:
+    """``experiment --attach`` in lockstep: two fresh feeders (another process each,
+    started in lockstep with this driver and the controller as participants), the
+    same scenario, recordings made by this process from the topics: identical."""
+    import subprocess
+    import sys
+
+    scenario = load_scenario(ROOT / "config" / "acceptance_1_matched.yaml")
+    digests = []
+    namespace = f"/lockstep_{uuid.uuid4().hex[:8]}"  # (the same both times: the file's metadata names it)
+    for run in ("a", "b"):
+        feeder = subprocess.Popen(
+            [str(Path(sys.executable).parent / "friction-sim"), "feeder", "--ros-args", "-r", f"__ns:={namespace}",
+             "-p", "lockstep:=true", "-p", "lockstep_participants:=scheduler,controller"],
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        try:
+            result = runner.run_experiment(dataclasses.replace(scenario.spec(), log_path=tmp_path / f"{run}.mcap"),
+                                           namespace=namespace, attach=True)
+        finally:
+            feeder.send_signal(2)
+            _, err = feeder.communicate(timeout=20)
+        assert feeder.returncode == 0, err
+        digests.append(recording_digest(tmp_path / f"{run}.mcap"))
+        assert result.mean_velocity[-1][1] == pytest.approx(0.00015, rel=0.01)  # the last target, reached
+    assert differences(*digests) == []
+    assert int(digests[0][f"{namespace}/mean_velocity"].split(":")[0]) == 89  # every period's mean but the first
 
 
 def test_a_participant_is_waited_for_until_it_joins_and_named_when_it_goes_silent(ros: None) -> None:
