@@ -14,6 +14,7 @@ every time, as fast as the nodes compute.
 
 from __future__ import annotations
 
+import functools
 from collections import defaultdict
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -57,19 +58,29 @@ class ScheduleParticipant:
         self.publisher.publish(stamped_message(t_ns, commands))
 
     def reach(self, plant: Any, t_ns: int) -> None:
-        """Wait until the slider stands at ``t_ns`` with every sample up to it answered."""
-        controller = self.spec.controller
+        """Wait until the slider stands at ``t_ns`` with every sample up to it answered; an
+        ExperimentError once its time has not moved for ``timeout`` s of wall time (a long
+        stretch of the schedule may take long: only a slider that stopped is a failure)."""
+        while True:
+            seen = plant.now_ns()
+            self.spin_until(functools.partial(self._moved_or_there, plant, t_ns, seen), self.timeout,
+                            f"lockstep: the slider stood at t = {seen / 1e9:.9f} s for {self.timeout:g} s of wall "
+                            f"time on its way to {t_ns / 1e9:.9f} s (see its log: a participant did not answer)")
+            if self._there(plant, t_ns):
+                return
 
-        def there() -> bool:
-            if plant.now_ns() < t_ns:
-                return False
-            return plant.answered() if hasattr(plant, "answered") else (
-                not controller or self.answered_ns >= self.sampled_ns)
+    def _moved_or_there(self, plant: Any, t_ns: int, seen: int) -> bool:
+        """Whether the slider is there, or has moved since it stood at ``seen`` (then look again)."""
+        now = plant.now_ns()
+        return now != seen if now < t_ns else self._there(plant, t_ns)
 
-        self.spin_until(there, self.timeout,
-                        f"lockstep: the slider did not reach t = {t_ns / 1e9:.9f} s within {self.timeout:g} s of "
-                        "wall time (see its log: a participant did not answer)")
-
+    def _there(self, plant: Any, t_ns: int) -> bool:
+        """Whether the slider stands at ``t_ns`` (or on) with every sample up to it answered."""
+        if plant.now_ns() < t_ns:
+            return False
+        if hasattr(plant, "answered"):  # (in this process: the slider's gate says it)
+            return bool(plant.answered())
+        return not self.spec.controller or self.answered_ns >= self.sampled_ns
 
 def timeline(spec: ExperimentSpec) -> list[tuple[int, list[Command], list[OperatorAction]]]:
     """The schedule's and the operator's times [ns, from the start], each with what happens then, and the end."""

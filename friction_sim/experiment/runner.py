@@ -66,8 +66,8 @@ from friction_sim.io.messages import (
 from friction_sim.io.stamped import STAMPED_COMMAND, STAMPED_TYPE
 
 Progress = Callable[[Status], None]
-#: Wall time [s] a lockstep run waits for the slider to reach a point of the schedule (its own
-#: lockstep_timeout names a participant that does not answer well before this).
+#: Wall time [s] a lockstep run waits for a slider whose time stands still on its way to a point
+#: of the schedule (its own lockstep_timeout names a participant that does not answer before this).
 LOCKSTEP_WAIT = 120.0
 
 
@@ -371,7 +371,7 @@ class _Attached:
                 self._last_ns[topic] = stamp_ns(msg.header.stamp)
             if topic in COMMANDS:
                 self._follow(command_from_message(topic, msg, self.now()))
-            if self.recorder is not None and self._stamp_ns >= 0:
+            if self.recorder is not None and (self._stamp_ns >= 0 or topic not in COMMANDS):
                 # commands are logged when seen (their stamps are the sender's), states at their stamps
                 log_ns = self._stamp_ns if topic in COMMANDS else stamp_ns(msg.header.stamp)
                 self.recorder.write(topic, msg, log_ns)
@@ -388,7 +388,9 @@ class _Attached:
         return self._stamp_ns / 1e9
 
     def now_ns(self) -> int:
-        return self._stamp_ns
+        """The time [ns] every state topic has reached (they travel apart: the recording of a point
+        the driver waits at holds all three)."""
+        return min((self._last_ns.get(topic, -1) for topic in STATE_TOPICS), default=-1)
 
     def standing(self) -> bool:
         """(a step in another process: its end is not known here; the stamps show it)"""
@@ -399,8 +401,9 @@ class _Attached:
         return self._inputs
 
     def ready(self) -> bool:
-        """Whether the slider has published its time yet."""
-        return self._stamp_ns >= 0
+        """Whether the slider has published its time yet (each of its state topics: in lockstep
+        the recording then holds the state it waits in, whichever topic came first)."""
+        return all(self._last_ns.get(topic, -1) >= 0 for topic in STATE_TOPICS)
 
     def set_parameters(self, values: dict[str, Any]) -> None:
         """Set the slider's parameters through its parameter service."""

@@ -207,7 +207,7 @@ class ControllerNode(Node):
         still to answer, sent before this node joined, come too (and replacing the volatile one)."""
         if lockstep:
             self.destroy_subscription(self.accelerometer)
-        qos = accelerometer_qos(transient_local=lockstep)
+        qos = accelerometer_qos(lockstep=lockstep)
         self.accelerometer = self.create_subscription(
             message_class("sensor_msgs/msg/Imu"), "accelerometer",
             self._guarded("accelerometer callback", self._on_acceleration), qos,

@@ -129,11 +129,20 @@ def arrival(info: Any) -> int:
     return int(info.get("received_timestamp") or 0) if isinstance(info, dict) else 0
 
 
-def accelerometer_qos(*, transient_local: bool = True) -> Any:
-    """The accelerometer topic's QoS: reliable, :data:`ACCELEROMETER_DEPTH` deep; the slider's
-    publisher is transient local, so a controller in lockstep that joins late still gets the
-    readings of the windows it has to answer (a volatile subscriber matches it too: a controller
-    in real time, ``ros2 topic echo``)."""
-    durability = DurabilityPolicy.TRANSIENT_LOCAL if transient_local else DurabilityPolicy.VOLATILE
+#: Readings a real-time controller keeps queued: a tenth of a second at 1 kHz.
+REAL_TIME_READINGS = 100
+
+
+def accelerometer_qos(*, lockstep: bool = True) -> Any:
+    """The accelerometer topic's QoS.  The slider's publisher, and a controller's subscription
+    in lockstep: reliable, :data:`ACCELEROMETER_DEPTH` deep and transient local, so a controller
+    that joins late still gets the readings of the windows it has to answer, and none is lost
+    while it answers.  A controller's subscription in real time: volatile and
+    :data:`REAL_TIME_READINGS` deep, so a controller that falls behind drops old readings
+    instead of working through a backlog of the past (it matches the publisher too, as
+    ``ros2 topic echo`` does)."""
+    if not lockstep:
+        return QoSProfile(depth=REAL_TIME_READINGS, reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.VOLATILE)
     return QoSProfile(depth=ACCELEROMETER_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
-                      durability=durability)
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
