@@ -455,19 +455,29 @@ class SliderNode(Node):
         with self._lock:
             tick = self._rt.tick(wall_ns())
             fresh = not tick.paused or tick.state != self._last_published or bool(tick.events or tick.periods)
-            self.publish_tick(tick, fresh)
+            number = self._clock_of(tick, fresh)
+        self._publish_states(tick, fresh, number)  # outside the lock: a set waits for the computation only
 
     def publish_tick(self, tick: Tick, fresh: bool = True) -> None:
-        """Publish what a tick made (lock held: /clock first, then the states, the
-        period means and the accelerometer's samples) and hand it to the sinks."""
+        """Publish what a tick made (lock held, as the lockstep loop holds it: /clock
+        first, then the states, the period means and the accelerometer's samples)
+        and hand it to the sinks."""
+        self._publish_states(tick, fresh, self._clock_of(tick, fresh))
+
+    def _clock_of(self, tick: Tick, fresh: bool) -> int:
+        """Count the tick and publish /clock (lock held: the publisher may go); its number."""
         self._ticks_computed += 1
-        state = tick.state
         if fresh and self._clock_pub is not None:
-            time_msg(seconds_to_ns(state.t), self._clock_msg.clock)
+            time_msg(seconds_to_ns(tick.state.t), self._clock_msg.clock)
             self._clock_pub.publish(self._clock_msg)
             if self.live is not None and self.live.wants("/clock"):  # a message of its own: encoded later
-                self.live.write("/clock", ClockMsg(clock=self._clock_msg.clock), seconds_to_ns(state.t))
+                self.live.write("/clock", ClockMsg(clock=self._clock_msg.clock), seconds_to_ns(tick.state.t))
+        return self._ticks_computed
+
+    def _publish_states(self, tick: Tick, fresh: bool, number: int) -> None:
+        """The states, period means and accelerometer samples of tick ``number``, to the topics and sinks."""
         if fresh:
+            state = tick.state
             fill_state_messages(state, self._frame_id, self._pose, self._velocity, self._friction)
             self._pose_pub.publish(self._pose)
             self._velocity_pub.publish(self._velocity)
@@ -478,7 +488,7 @@ class SliderNode(Node):
             self._last_published = state
             deliver_tick(self.sinks, tick, self._frame_id)
         with self._published:
-            self._ticks_published = self._ticks_computed
+            self._ticks_published = number
             self._published.notify_all()
 
     def _publish_accelerations(self, samples: Sequence[Acceleration]) -> None:
