@@ -23,10 +23,7 @@ from friction_sim.core.model.commands import COMMANDS, CONTROLLER, PARAMETERS, S
 from friction_sim.core.runtime.lockstep import to_ns
 from friction_sim.experiment.job import ExperimentSpec, OperatorAction
 from friction_sim.io.messages import message_class, stamp_ns
-from friction_sim.io.stamped import CONTROL_ANSWER, STAMPED_COMMAND, STAMPED_TYPE, stamped_message
-
-#: Stamped messages on their way at once (a whole schedule between two points the driver waits at).
-DEPTH = 1000
+from friction_sim.io.stamped import CONTROL_ANSWER, STAMPED_COMMAND, STAMPED_DEPTH, STAMPED_TYPE, stamped_message
 
 
 class ScheduleParticipant:
@@ -36,12 +33,12 @@ class ScheduleParticipant:
                  timeout: float, *, attached: bool) -> None:
         self.spec, self.driver, self.spin_until, self.timeout = spec, driver, spin_until, timeout
         kind = message_class(STAMPED_TYPE)
-        self.publisher = driver.create_publisher(kind, STAMPED_COMMAND, DEPTH)
+        self.publisher = driver.create_publisher(kind, STAMPED_COMMAND, STAMPED_DEPTH)
         self.answered_ns = self.sampled_ns = -1
         if attached and spec.controller:  # (in this process the slider's gate says it; a subscription costs a wake-up)
-            driver.create_subscription(kind, CONTROL_ANSWER, self._answer, DEPTH)
+            driver.create_subscription(kind, CONTROL_ANSWER, self._answer, STAMPED_DEPTH)
             driver.create_subscription(message_class("geometry_msgs/msg/TwistStamped"), "mean_velocity",
-                                       self._sample, DEPTH)
+                                       self._sample, STAMPED_DEPTH)
 
     def _answer(self, msg: Any) -> None:
         self.answered_ns = max(self.answered_ns, stamp_ns(msg.header.stamp))

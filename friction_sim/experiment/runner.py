@@ -332,7 +332,6 @@ class _Attached:
 
     def __init__(self, spec: ExperimentSpec, driver: Any, executor: Any) -> None:
         self.driver, self.executor = driver, executor
-        self._stamp_ns = -1
         self._params, self._inputs = spec.plant, spec.inputs
         # The controller first: it follows its plant's parameter changes, and an active one answers
         # each with a Pa that would overwrite the scenario's amplitude on the slider; stood by
@@ -363,17 +362,15 @@ class _Attached:
         """The callback of ``topic``: follow time and inputs, and record the message."""
 
         def keep(msg: Any) -> None:
-            if topic == "pose":
-                self._stamp_ns = max(self._stamp_ns, stamp_ns(msg.header.stamp))
             if topic in self.RESENT:  # (in lockstep a waiting slider sends its state and sample again)
                 if stamp_ns(msg.header.stamp) <= self._last_ns.get(topic, -1):
                     return
                 self._last_ns[topic] = stamp_ns(msg.header.stamp)
             if topic in COMMANDS:
                 self._follow(command_from_message(topic, msg, self.now()))
-            if self.recorder is not None and (self._stamp_ns >= 0 or topic not in COMMANDS):
+            if self.recorder is not None and (self._pose_ns >= 0 or topic not in COMMANDS):
                 # commands are logged when seen (their stamps are the sender's), states at their stamps
-                log_ns = self._stamp_ns if topic in COMMANDS else stamp_ns(msg.header.stamp)
+                log_ns = self._pose_ns if topic in COMMANDS else stamp_ns(msg.header.stamp)
                 self.recorder.write(topic, msg, log_ns)
 
         return keep
@@ -383,9 +380,14 @@ class _Attached:
         with contextlib.suppress(ParameterError):
             self._params, self._inputs = apply(command, self._params, self._inputs)
 
+    @property
+    def _pose_ns(self) -> int:
+        """The newest pose stamp seen [ns] (-1: none yet)."""
+        return self._last_ns.get("pose", -1)
+
     def now(self) -> float:
         """Simulation time [s]: the newest pose stamp seen."""
-        return self._stamp_ns / 1e9
+        return self._pose_ns / 1e9
 
     def now_ns(self) -> int:
         """The time [ns] every state topic has reached (they travel apart: the recording of a point

@@ -29,6 +29,9 @@ from friction_sim.io.messages import message_class, stamp_ns, time_msg
 CONTROL_ANSWER = "control_answer"
 STAMPED_COMMAND = "stamped_command"
 STAMPED_TYPE = "sensor_msgs/msg/JointState"
+#: Stamped messages on their way at once, both channels and both ends (the slider waits for each
+#: answer; a driver sends a stretch of its schedule at once).
+STAMPED_DEPTH = 1000
 #: A slider command field -> the command topic it belongs to.
 _TOPIC_OF = {field: entry.name for entry in COMMANDS.values() if SLIDER in entry.consumers for field in entry.fields}
 
@@ -63,4 +66,4 @@ def stamped_commands(topic: str, msg: Any, t: float) -> tuple[int, list[Command]
     return stamp_ns(msg.header.stamp), [Command(t, name, fields) for name, fields in grouped.items()]
 
 
-__all__ = ["CONTROL_ANSWER", "STAMPED_COMMAND", "STAMPED_TYPE", "stamped_commands", "stamped_message"]
+__all__ = ["CONTROL_ANSWER", "STAMPED_COMMAND", "STAMPED_DEPTH", "STAMPED_TYPE", "stamped_commands", "stamped_message"]

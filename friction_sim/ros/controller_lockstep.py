@@ -23,7 +23,7 @@ from friction_sim.core.runtime.answers import AnswerQueue
 from friction_sim.core.runtime.controller import RealtimeController
 from friction_sim.errors import ParameterError
 from friction_sim.io.messages import message_class, stamp_ns
-from friction_sim.io.stamped import CONTROL_ANSWER, STAMPED_TYPE, stamped_message
+from friction_sim.io.stamped import CONTROL_ANSWER, STAMPED_DEPTH, STAMPED_TYPE, stamped_message
 from friction_sim.ros.intake import PolledGroup, take_all
 
 
@@ -51,8 +51,6 @@ class AnsweringNode(Protocol):
 LOCKSTEP_READ = ("lockstep", "actuation_delay", "accelerometer_rate")
 #: Accelerometer readings taken from the topic at once (its queue's depth).
 ACCELEROMETER_BATCH = 10_000
-#: Answers on their way at once (one per sample: the slider waits for each).
-ANSWER_DEPTH = 1000
 
 
 class LockstepAnswers:
@@ -62,7 +60,7 @@ class LockstepAnswers:
         self.node = node
         self.queue = AnswerQueue(round(float(delay) * NS_PER_S), float(accelerometer_rate),
                                  round(node.get_parameter("diagnostics_period").value * NS_PER_S))
-        self._publisher = node.create_publisher(message_class(STAMPED_TYPE), CONTROL_ANSWER, ANSWER_DEPTH)
+        self._publisher = node.create_publisher(message_class(STAMPED_TYPE), CONTROL_ANSWER, STAMPED_DEPTH)
         self.runtime = node.runtime
         self.runtime.control.clock.exact = True
         node.accelerometer_group.open = False  # drained with each sample: a wake-up per reading costs too much
@@ -149,4 +147,4 @@ class LockstepAnswers:
         return self.queue.values()
 
 
-__all__ = ["ANSWER_DEPTH", "LOCKSTEP_READ", "LockstepAnswers"]
+__all__ = ["LOCKSTEP_READ", "LockstepAnswers"]

@@ -100,13 +100,9 @@ class SpinThread:
         while not self._stop.is_set():
             try:
                 self._executor.spin_once(timeout_sec=0.05)
-            except RuntimeError as error:
-                if LostMessages.lost(error):
-                    continue
-                print(f"{self.node.get_name()}: its executor stopped: {one_line(error, with_type=True)}",
-                      file=sys.stderr)
-                return
             except Exception as error:  # noqa: BLE001 - said, never a thread that dies in silence
+                if isinstance(error, RuntimeError) and LostMessages.lost(error):
+                    continue
                 print(f"{self.node.get_name()}: its executor stopped: {one_line(error, with_type=True)}",
                       file=sys.stderr)
                 return

@@ -30,7 +30,7 @@ from friction_sim.core.runtime.lockstep import LockstepGate, LockstepSlider, par
 from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import ParameterError, SimulationFault
 from friction_sim.io.messages import mean_velocity_message, message_class
-from friction_sim.io.stamped import CONTROL_ANSWER, STAMPED_COMMAND, STAMPED_TYPE, stamped_commands
+from friction_sim.io.stamped import CONTROL_ANSWER, STAMPED_COMMAND, STAMPED_DEPTH, STAMPED_TYPE, stamped_commands
 from friction_sim.ros.intake import PolledGroup, take_all
 from friction_sim.ros.run import wall_ns
 
@@ -60,8 +60,6 @@ class SteppedNode(Protocol):
 
 #: Wall time [s] after which an awaited sample is published again while the slider waits.
 REPEAT = 0.25
-#: Stamped messages a participant may have on their way at once (the slider waits for each answer).
-STAMPED_DEPTH = 1000
 #: Wall time [s] the loop sleeps between looks for an answer; after _BUSY s of waiting, _QUIET;
 #: while it waits, it takes the command topics every _COMMANDS_EVERY.
 _IDLE, _BUSY, _QUIET, _COMMANDS_EVERY = 0.0001, 0.1, 0.002, 0.002
