@@ -62,15 +62,14 @@ class ParameterModel:
         self.values.update(overrides or {})
         self.rejected = Count()
 
-    def declared_check(self, items: Sequence[tuple[str, Any]]) -> tuple[bool, bool, dict[str, Any]]:
-        """(declared and writable, refusal must be counted, the values converted)
-        for rclpy's checks and the spec's ranges; the third is {} when refused."""
-        countable = True
+    def declared_check(self, items: Sequence[tuple[str, Any]]) -> tuple[bool, dict[str, Any]]:
+        """(declared, writable and in range, the values converted) for rclpy's
+        checks and the spec's ranges; the second is {} when refused."""
         converted: dict[str, Any] = {}
         refused = False
         for name, value in items:
             if name not in self.values:
-                refused, countable = True, False  # not declared: rclpy refuses before the node sees it
+                refused = True  # not declared: the node's pre-set callback counts it, then rclpy refuses
                 continue
             if name == USE_SIM_TIME:
                 refused |= not isinstance(value, bool)
@@ -78,7 +77,7 @@ class ParameterModel:
                 continue
             setting = self.settings[name]
             if setting.start_only:
-                refused, countable = True, False  # read-only
+                refused = True  # read-only: counted the same way
                 continue
             if type(value) is not setting.kind:
                 refused = True  # wrong type (None: NOT_SET, would undeclare it)
@@ -87,14 +86,16 @@ class ParameterModel:
                 converted[name] = setting.check(value)
             except ParameterError:
                 refused = True
-        return not refused, countable, converted if not refused else {}
+        return not refused, converted if not refused else {}
 
     def set(self, items: Sequence[tuple[str, Any]]) -> Verdict:
         """One set, as one SetParametersAtomically request: what the node must answer."""
         raise NotImplementedError
 
-    def refuse(self, items: Sequence[tuple[str, Any]], countable: bool) -> Verdict:
-        self.rejected.add(1 if countable else 0, len(items))
+    def refuse(self) -> Verdict:
+        """A set refused by rclpy's checks: counted once, whatever is wrong in it
+        (the pre-set callback stops at its first bad value, as rclpy does)."""
+        self.rejected.add(1)
         return Verdict(False)
 
 
@@ -122,9 +123,9 @@ class SliderModel(ParameterModel):
 
     def set(self, items: Sequence[tuple[str, Any]]) -> Verdict:
         """One atomic set: checked as one new state against the state in force."""
-        ok, countable, values = self.declared_check(items)
+        ok, values = self.declared_check(items)
         if not ok:
-            return self.refuse(items, countable)
+            return self.refuse()
         physics = {k: v if isinstance(v, str) else float(v) for k, v in values.items()
                    if k in spec.PLANT or k in spec.INPUTS}
         try:
@@ -132,7 +133,7 @@ class SliderModel(ParameterModel):
             rate = float(values.get("real_time_factor", self.rate))
             check_load(inputs.excitation_frequency, rate)
         except ParameterError:
-            self.rejected.add(1, len(items))
+            self.rejected.add(1)  # one set, one refusal
             return Verdict(False, cross_field=True)
         self.params, self.inputs, self.rate = params, inputs, rate
         self.publish_rate = float(values.get("publish_rate", self.publish_rate))
@@ -236,14 +237,14 @@ class ControllerModel(ParameterModel):
         self.samples.add(0 if math.isfinite(speed) else 1, 1)
 
     def set(self, items: Sequence[tuple[str, Any]]) -> Verdict:
-        ok, countable, values = self.declared_check(items)
+        ok, values = self.declared_check(items)
         if not ok:
-            return self.refuse(items, countable)
+            return self.refuse()
         merged = {**self.values, **values}
         try:  # the model's own cross-field rules (resonant actuator: excitation_phase 0)
             plant_from({name: merged[name] for name in spec.PLANT if name in merged})
         except ParameterError:
-            self.rejected.add(1, len(items))
+            self.rejected.add(1)  # one set, one refusal
             return Verdict(False, cross_field=True)
         drive, target = self.drive_force, self.target
         kostek = self._kostek(merged)
@@ -256,7 +257,7 @@ class ControllerModel(ParameterModel):
         if "target_speed" in values:
             target = float(values["target_speed"])
             if not self._target_allowed(target, drive, kostek):
-                self.rejected.add(1, len(items))
+                self.rejected.add(1)  # one set, one refusal
                 return Verdict(False, cross_field=True)
         self.drive_force, self.target = drive, target
         self.frequency = float(values.get("excitation_frequency", self.frequency))
