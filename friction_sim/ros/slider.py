@@ -127,6 +127,7 @@ from friction_sim.ros.run import (
 from friction_sim.ros.slider_lockstep import LockstepLoop, runtime_for
 from friction_sim.ros.slider_outputs import (
     RecorderHealth,
+    consistent_report,
     control_text,
     health,
     open_live_view,
@@ -511,7 +512,7 @@ class SliderNode(Node):
         waited_ns = self._recorder_health.newly_waited_ns()
         if waited_ns:
             with self._lock:
-                self._rt.clock.hold(waited_ns)
+                self._rt.hold(waited_ns, wall_ns())
 
     def _on_diagnostics(self) -> None:
         self.publish_diagnostics()
@@ -519,11 +520,7 @@ class SliderNode(Node):
     def publish_diagnostics(self, stamp_ns: int | None = None) -> None:
         """The status 'slider' on diagnostics, stamped ``stamp_ns`` (lockstep: the
         simulation time), else by the node's clock."""
-        with self._lock:
-            params, inputs = self._rt.slider.params, self._rt.slider.inputs
-        prediction = self._rt.prediction(params, inputs)  # outside the lock: it may simulate
-        with self._lock:
-            report = self._rt.diagnostics(wall_ns(), prediction)
+        report = consistent_report(self._rt, self._lock, wall_ns)
         report.update(self._recorder_health.report())
         report["messages_lost"] = LostMessages.count  # taken by rclpy, not convertible (see ros/intake.py)
         if self.live is not None:

@@ -15,6 +15,7 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.event_handler import SubscriptionEventCallbacks
 
+from friction_sim.core.meanspeed.urelation import NO_PREDICTION
 from friction_sim.core.model.commands import COMMANDS, PAUSE, RESET, RESUME, STEP, Outcome
 from friction_sim.core.model.events import SliderState
 from friction_sim.io.messages import ACCELEROMETER, SIM_CONTROL, message_class, seconds_to_ns, stamp_ns
@@ -29,6 +30,28 @@ def control_text(outcome: Outcome, state: SliderState) -> str:
     if outcome.name == STEP:
         return f"stepped {outcome.values['duration']:.9g} s: {where}"
     return {PAUSE: "paused at ", RESUME: "resumed at ", RESET: "reset to rest at x = 0: "}[outcome.name] + where
+
+
+#: How many times a diagnostics report makes the prediction again when the plant changed meanwhile.
+PREDICTION_TRIES = 3
+
+
+def consistent_report(rt: Any, lock: Any, now_ns: Callable[[], int]) -> dict[str, Any]:
+    """The runtime's diagnostics with the prediction of the plant they report.
+    The prediction is made outside ``lock`` (it may simulate, up to ~0.4 s);
+    a command taken meanwhile changes the plant, and then it is made again, at
+    most PREDICTION_TRIES times (a flood may change it every tick): after that
+    the report says there is no prediction (NaN) rather than pair the new
+    plant with the old plant's figures."""
+    for _ in range(PREDICTION_TRIES):
+        with lock:
+            params, inputs = rt.slider.params, rt.slider.inputs
+        prediction = rt.prediction(params, inputs)
+        with lock:
+            if rt.slider.params is params and rt.slider.inputs is inputs:
+                return dict(rt.diagnostics(now_ns(), prediction))
+    with lock:
+        return dict(rt.diagnostics(now_ns(), NO_PREDICTION))
 
 
 def open_recorder(values: dict[str, Any], namespace: str, node: str) -> Any:
@@ -171,4 +194,5 @@ def health(report: dict[str, Any], fault: str = "", name_problem: str = "") -> t
     return DiagnosticStatus.WARN, "; ".join(problems)
 
 
-__all__ = ["RecorderHealth", "control_text", "health", "open_live_view", "open_recorder", "recorded", "watch_namespace"]
+__all__ = ["PREDICTION_TRIES", "RecorderHealth", "consistent_report", "control_text", "health", "open_live_view",
+           "open_recorder", "recorded", "watch_namespace"]

@@ -391,6 +391,10 @@ class Prediction:
     effective_gravity: float = math.nan
 
 
+#: No prediction (the plant has none, or it could not be made): NaN throughout.
+NO_PREDICTION = Prediction(math.nan, math.nan, math.nan, math.nan)
+
+
 def kostek_prediction(params: SliderParams, inputs: Inputs) -> Prediction | None:
     """The exact periodic mean speed of Kostek's model (normal excitation,
     level track, mu_s = mu) with Pa below the load m*g - Fz; None for any

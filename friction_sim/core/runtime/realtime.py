@@ -38,7 +38,7 @@ from typing import Any
 
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.meanspeed.predict import predict
-from friction_sim.core.meanspeed.urelation import Prediction
+from friction_sim.core.meanspeed.urelation import NO_PREDICTION, Prediction
 from friction_sim.core.model import spec
 from friction_sim.core.model.commands import (
     PARAMETERS,
@@ -139,6 +139,15 @@ class RealtimeSlider:
     def now(self, wall_ns: int) -> float:
         """Simulation time [s] at wall time ``wall_ns`` (never before the slider's own)."""
         return max(self.clock.now(wall_ns), self.slider.t)
+
+    def hold(self, waited_ns: int, wall_ns: int) -> None:
+        """Let ``waited_ns`` of wall time pass without simulation time (a producer
+        waited for the recorder), but never back past the slider's own time: a
+        wait that held another thread (a parameter set recording its outcome)
+        overlaps wall time the ticks have simulated since, and the clock must not
+        read a time before states already made (diagnostics report it)."""
+        self.clock.hold(waited_ns)
+        self.clock.not_before(round(self.slider.t * NS_PER_S), wall_ns)
 
     def command(self, command: Command, wall_ns: int) -> Outcome:
         """Apply one command now, or refuse it (see :meth:`commands`)."""
@@ -492,7 +501,7 @@ class RealtimeSlider:
             try:
                 value = predict(params, inputs)
             except Exception:  # noqa: BLE001 - diagnostics must answer whatever the inputs: nan = no prediction
-                value = Prediction(math.nan, math.nan, math.nan, math.nan)
+                value = NO_PREDICTION
             cached = self._prediction = (params, inputs, value)
         return cached[2]
 
@@ -502,7 +511,7 @@ class RealtimeSlider:
         stats = self.stats
         start = stats.interval_start_ns if stats.interval_start_ns is not None else wall_ns
         wall = (wall_ns - start) / NS_PER_S
-        sim_now = self.clock.now(wall_ns)
+        sim_now = self.now(wall_ns)  # (never before a state already made: the slider may be ahead of its clock)
         tick_rate = stats.ticks / wall if wall > 0 else 0.0
         achieved_rtf = (sim_now - stats.interval_sim_start) / wall if wall > 0 else 0.0
         inputs = self.slider.inputs

@@ -104,6 +104,11 @@ class SimClock:
         waited for something, a recorder say): simulation time does not jump."""
         self._wall0 += max(0, int(wall_ns))
 
+    def not_before(self, sim_ns: int, wall_ns: int) -> None:
+        """Make it at least ``sim_ns`` from ``wall_ns`` on (running: the rate stays)."""
+        if not self._paused and self.now_ns(wall_ns) < sim_ns:
+            self._sim0, self._wall0 = sim_ns, wall_ns
+
     def fall_behind(self, sim_ns: int, wall_ns: int) -> None:
         """Make it ``sim_ns`` at ``wall_ns`` (not later than it was): the
         simulation could not keep up and goes on from there, at the same rate."""

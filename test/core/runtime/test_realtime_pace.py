@@ -132,3 +132,23 @@ def test_a_stall_does_not_change_the_motion() -> None:
     for state in samples:
         reference.advance_to(state.t)
         assert reference.state() == state
+
+
+def test_a_hold_for_a_wait_the_ticks_simulated_since_never_puts_the_clock_behind_the_slider() -> None:
+    """A parameter set that waited 30 ms for the recorder held the tick thread, which then
+    simulated those 30 ms; holding the clock for them afterwards must not make it read a
+    time before states already made (diagnostics report it as sim_time)."""
+    rt = RealtimeSlider(SliderParams(), Inputs(), wall_ns=0, log_rate=1000.0)
+    rt.tick(100_000_000)  # 0.1 s
+    rt.tick(130_000_000)  # the 30 ms the set waited, simulated after it
+    rt.hold(30_000_000, 130_000_000)
+    assert rt.clock.now_ns(130_000_000) == round(rt.slider.t * NS_PER_S) == 130_000_000
+    assert rt.diagnostics(130_000_000)["sim_time"] >= rt.slider.t
+    assert rt.clock.now_ns(140_000_000) == 140_000_000, "and it runs on at its rate"
+
+
+def test_a_hold_for_a_wait_of_the_ticks_themselves_stops_simulation_time_for_it() -> None:
+    rt = RealtimeSlider(SliderParams(), Inputs(), wall_ns=0, log_rate=1000.0)
+    rt.tick(100_000_000)
+    rt.hold(30_000_000, 140_000_000)  # the tick thread itself waited 30 of the last 40 ms
+    assert rt.clock.now_ns(140_000_000) == 110_000_000
