@@ -31,7 +31,7 @@ from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import ParameterError, SimulationFault
 from friction_sim.io.messages import mean_velocity_message, message_class
 from friction_sim.io.stamped import CONTROL_ANSWER, STAMPED_COMMAND, STAMPED_DEPTH, STAMPED_TYPE, stamped_commands
-from friction_sim.ros.intake import PolledGroup, take_all
+from friction_sim.ros.intake import Arrivals, PolledGroup, take_all
 from friction_sim.ros.run import wall_ns
 
 
@@ -46,6 +46,8 @@ class SteppedNode(Protocol):
     def stopping(self) -> bool: ...
     @property
     def frame_id(self) -> str: ...
+    @property
+    def context(self) -> Any: ...
     def get_parameter(self, name: str) -> Any: ...
     def get_logger(self) -> Any: ...
     def create_subscription(self, *args: Any, **kwargs: Any) -> Any: ...
@@ -60,9 +62,9 @@ class SteppedNode(Protocol):
 
 #: Wall time [s] after which an awaited sample is published again while the slider waits.
 REPEAT = 0.25
-#: Wall time [s] the loop sleeps between looks for an answer; after _BUSY s of waiting, _QUIET;
-#: while it waits, it takes the command topics every _COMMANDS_EVERY.
-_IDLE, _BUSY, _QUIET, _COMMANDS_EVERY = 0.0001, 0.1, 0.002, 0.002
+#: Wall time [s] between looks at the command topics (plain topic commands have no stamp: in
+#: lockstep they apply when taken); the loop waits at most this long for a participant's message.
+_COMMANDS_EVERY = 0.002
 
 
 def runtime_for(values: dict[str, Any], params: SliderParams, inputs: Inputs) -> RealtimeSlider:
@@ -100,6 +102,8 @@ class LockstepLoop:
         #: would cost more than the period it lets the slider simulate.
         self._stamped = [(topic, node.create_subscription(kind, topic, _unused, STAMPED_DEPTH, callback_group=polled))
                          for topic in (CONTROL_ANSWER, STAMPED_COMMAND)]
+        #: Wakes the loop when a participant's message comes (it sleeps until then, rather than poll).
+        self._arrivals = Arrivals([subscription for _, subscription in self._stamped], node.context)
         self._period_ns = to_ns(node.get_parameter("diagnostics_period").value)
         self._next_diagnostics_ns = self._period_ns
         #: The recent samples published, by stamp [ns], to publish again while awaited.
@@ -108,14 +112,19 @@ class LockstepLoop:
     def run(self) -> None:
         """Apply, advance and publish until stopped; wait (at most ``lockstep_timeout``
         for a participant) only when the gate allows no step."""
+        try:
+            self._run()
+        finally:
+            self._arrivals.destroy()
+
+    def _run(self) -> None:
         node, rt = self.node, self.rt
         with node.lock:  # where it stands at start (a driver attached to it follows the stamps)
             node.publish_tick(Tick(rt.slider.state(), [], [], paused=rt.gate.paused))
         blocked_since: float | None = None
         repeated = last = looked = 0.0
-        moved = True
         while not node.stopping:
-            if moved or time.monotonic() - looked > _COMMANDS_EVERY:  # (waiting, it looks for answers more often)
+            if time.monotonic() - looked > _COMMANDS_EVERY:
                 node.take_commands()
                 looked = time.monotonic()
             with node.lock:
@@ -128,7 +137,6 @@ class LockstepLoop:
                                     if to_ns(p.t) in rt.gate.awaited}
             for outcome in outcomes:
                 node.warn_refused(outcome)
-            moved = tick is not None or bool(outcomes)
             if tick is not None:
                 blocked_since = None
                 self._diagnostics_due()
@@ -153,7 +161,7 @@ class LockstepLoop:
                 if now - repeated > REPEAT:
                     self._repeat_awaited()
                     repeated = now
-            time.sleep(_IDLE if blocked_since is not None and now - blocked_since < _BUSY else _QUIET)
+            self._arrivals.wait(_COMMANDS_EVERY)
 
     def _take_inbox(self) -> list[Any]:
         """Hand the queued stamped messages to the gate (lock held); the outcomes of
