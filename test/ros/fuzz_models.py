@@ -109,6 +109,9 @@ class SliderModel(ParameterModel):
         self.rate = float(spec.REAL_TIME_FACTOR.default)  # type: ignore[arg-type]
         self.publish_rate = float(spec.PUBLISH_RATE.default)  # type: ignore[arg-type]
         self.window = int(spec.MEAN_WINDOW_PERIODS.default)  # type: ignore[call-overload]
+        #: At least this many commands the node has taken (diagnostics ``commands_accepted``): a
+        #: diagnostics that counts fewer was computed before the last of them (then it is not fresh).
+        self.taken = 0
 
     def topic(self, name: str, values: Mapping[str, float]) -> bool:
         """A command message: taken through the core's gate, or refused and counted."""
@@ -119,6 +122,7 @@ class SliderModel(ParameterModel):
             self.rejected.add(1)
             return False
         self.params, self.inputs = params, inputs
+        self.taken += 1
         return True
 
     def set(self, items: Sequence[tuple[str, Any]]) -> Verdict:
@@ -136,6 +140,7 @@ class SliderModel(ParameterModel):
             self.rejected.add(1)  # one set, one refusal
             return Verdict(False, cross_field=True)
         self.params, self.inputs, self.rate = params, inputs, rate
+        self.taken += 1 if physics else 0  # (a set of the plant or the inputs is a command the core takes)
         self.publish_rate = float(values.get("publish_rate", self.publish_rate))
         self.window = int(values.get("mean_window_periods", self.window))
         self.values.update(values)

@@ -174,6 +174,8 @@ class Rig:
         """Take the counts of the node's diagnostics as the model's."""
         rejected = int(values["commands_rejected"])
         self.model.rejected = Count(rejected, rejected)
+        if isinstance(self.model, SliderModel):
+            self.model.taken = int(values["commands_accepted"])
 
     def check(self) -> None:
         """After every step: alive, no traceback, nothing non-finite published."""
@@ -383,8 +385,8 @@ class SliderRig(Rig):
         # the ticks waited for: wait for the node's count and inputs in force, not for a time
         # (5 s at most, then compare() says what is missing).
         deadline = time.monotonic() + 5.0
-        while (int(values["commands_rejected"]) < self.model.rejected.low or not self._in_force(values)) \
-                and time.monotonic() < deadline:
+        while (int(values["commands_rejected"]) < self.model.rejected.low or not self._in_force(values)
+               or int(values["commands_accepted"]) < self.model.taken) and time.monotonic() < deadline:
             seen = _number(values["sim_time"])
             values = diagnostics_after(
                 self.client, lambda arrival, later, msg, seen=seen: _number(later.get("sim_time", "-1")) > seen, 5.0)
@@ -470,18 +472,20 @@ class SliderRig(Rig):
         it does not use (issue 28), so drive_level is set under the resonant one
         and excitation_amplitude with the switch back to the force one."""
         model = self.model
+        sets = 2  # the commands reset takes (each set changes the plant or the inputs; the wrench is one)
         if full or model.inputs.external_force_x != 0.0 or model.inputs.external_force_z != 0.0:
             self.reset_parameters([("actuator", "force"), ("excitation_amplitude", 0.0)])
             self.client.publish("external_wrench", self.client.message("external_wrench", {}))
             self.ticked()
+            sets += 2
         defaults = {name: s.default for name, s in spec.SLIDER_NODE.items() if not s.start_only}
         amplitude = defaults.pop("excitation_amplitude")
         self.reset_parameters([*{**defaults, "actuator": "resonant"}.items(), (USE_SIM_TIME, False)])
         self.reset_parameters([("actuator", defaults["actuator"]), ("excitation_amplitude", amplitude)])
         self.ticked()
-        rejected = model.rejected
+        rejected, taken = model.rejected, model.taken
         self.model = self.new_model()
-        self.model.rejected = rejected
+        self.model.rejected, self.model.taken = rejected, taken + sets
         if self.back_on_the_track(0.5):
             return
         # Parameters change the plant, not the state: a slider that an earlier plant
