@@ -96,7 +96,7 @@ from friction_sim.core.model.commands import (
 from friction_sim.core.model.commands import PARAMETERS as PARAMETER_COMMAND
 from friction_sim.core.model.events import SliderState
 from friction_sim.core.model.params import plant_from
-from friction_sim.core.model.records import Acceleration, Tick
+from friction_sim.core.model.records import Tick
 from friction_sim.core.runtime.lockstep import LockstepSlider
 from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import SimulationFault, one_line
@@ -104,7 +104,6 @@ from friction_sim.io.messages import (
     ACCELEROMETER,
     command_from_message,
     fill_state_messages,
-    imu_message,
     key_values,
     mean_velocity_message,
     message_class,
@@ -132,6 +131,7 @@ from friction_sim.ros.slider_outputs import (
     health,
     open_live_view,
     open_recorder,
+    publish_accelerations,
     recorded,
     watch_namespace,
 )
@@ -485,24 +485,14 @@ class SliderNode(Node):
             self._friction_pub.publish(self._friction)
             for period in tick.periods:
                 self._mean_pub.publish(mean_velocity_message(period, self._frame_id))
-            self._publish_accelerations(tick.accelerations)
+            if self._imu_pub is not None:
+                publish_accelerations(self._imu_pub, (self.recorder, self.live), tick.accelerations,
+                                      self._frame_id, self._imu_noise)
             self._last_published = state
             deliver_tick(self.sinks, tick, self._frame_id)
         with self._published:
             self._ticks_published = number
             self._published.notify_all()
-
-    def _publish_accelerations(self, samples: Sequence[Acceleration]) -> None:
-        """The accelerometer's samples of the tick, each at its own simulation time,
-        on the topic and to the recording and the live view."""
-        if self._imu_pub is None:
-            return
-        for sample in samples:
-            msg = imu_message(sample, self._frame_id, self._imu_noise)
-            self._imu_pub.publish(msg)
-            for sink in (self.recorder, self.live):
-                if sink is not None:
-                    sink.write(ACCELEROMETER, msg, seconds_to_ns(sample.t))
 
     def _hold_for_recorder(self) -> None:
         """The recorder makes a producer wait rather than drop a message; the

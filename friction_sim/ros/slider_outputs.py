@@ -9,7 +9,7 @@ so each stays short; nothing here holds state.
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -18,7 +18,15 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 from friction_sim.core.meanspeed.urelation import NO_PREDICTION
 from friction_sim.core.model.commands import COMMANDS, PAUSE, RESET, RESUME, STEP, Outcome
 from friction_sim.core.model.events import SliderState
-from friction_sim.io.messages import ACCELEROMETER, SIM_CONTROL, message_class, seconds_to_ns, stamp_ns
+from friction_sim.core.model.records import Acceleration
+from friction_sim.io.messages import (
+    ACCELEROMETER,
+    SIM_CONTROL,
+    imu_message,
+    message_class,
+    seconds_to_ns,
+    stamp_ns,
+)
 
 #: What the slider keeps of the namespace's other topics, with the depth of its queues.
 WATCHED_DEPTH = 10
@@ -52,6 +60,24 @@ def consistent_report(rt: Any, lock: Any, now_ns: Callable[[], int]) -> dict[str
                 return dict(rt.diagnostics(now_ns(), prediction))
     with lock:
         return dict(rt.diagnostics(now_ns(), NO_PREDICTION))
+
+
+def publish_accelerations(publisher: Any, sinks: Sequence[Any], samples: Sequence[Acceleration], frame_id: str,
+                          noise: float) -> None:
+    """The accelerometer's samples of a tick, each at its own simulation time, on the
+    topic and to the sinks that are open (the recording, the live view; None: not open).
+    A thousand a second: with no reader on the topic, a publish is work for no one
+    (and, volatile or not, nothing a later reader could get: the sinks keep them)."""
+    open_sinks = [sink for sink in sinks if sink is not None]
+    publish = publisher.publish if samples and publisher.get_subscription_count() else None
+    if publish is None and not open_sinks:
+        return
+    for sample in samples:
+        msg = imu_message(sample, frame_id, noise)
+        if publish is not None:
+            publish(msg)
+        for sink in open_sinks:
+            sink.write(ACCELEROMETER, msg, seconds_to_ns(sample.t))
 
 
 def open_recorder(values: dict[str, Any], namespace: str, node: str) -> Any:
@@ -195,4 +221,4 @@ def health(report: dict[str, Any], fault: str = "", name_problem: str = "") -> t
 
 
 __all__ = ["PREDICTION_TRIES", "RecorderHealth", "consistent_report", "control_text", "health", "open_live_view",
-           "open_recorder", "recorded", "watch_namespace"]
+           "open_recorder", "publish_accelerations", "recorded", "watch_namespace"]
