@@ -1,4 +1,4 @@
-"""The nondimensional mean-speed relation U(phi, a) and its inverse (numpy only).
+"""The nondimensional mean-speed relation U(phi, a) and its inverses (numpy and math only).
 
 With phi = Fd/(mu*m*g) and a = Pa/(m*g), Kostek's nondimensional mean speed
 U = V*f/(g*mu) depends on (phi, a) alone.  It is exact here, not fitted:
@@ -35,13 +35,18 @@ phi - 1 + a*sin(theta_A) = 0,
     D      = a*(cos(theta_A)*(psi_C - sin psi_C) - sin(theta_A)*(psi_C^2/2 - 1 + cos psi_C)),
 
 where cos(theta_A) comes from the distance to the boundary
-phi - (1 - a), computed without rounding.  psi_C is found for whole arrays
-at once by Newton's method kept inside the bracket [pi - 2*theta_A, 2*pi],
-where w is monotone; each element stops on its own, so a value does not
-depend on the array it came in.  The inverse a(U, phi),
-which the controller uses, inverts the monotone rise of U with a by
-Newton's method with the exact slope dU/da, kept inside a shrinking
-bracket, again on whole arrays.
+phi - (1 - a), computed without rounding.  psi_C is found by Newton's method
+kept inside the bracket [pi - 2*theta_A, 2*pi], where w is monotone.  The
+inverses a(U, phi), which the controller uses once per period, and
+phi(U, a) invert the monotone rise of U by Newton's method with the exact
+slope, kept inside a shrinking bracket.
+
+These formulas are written once, for one point, in
+:mod:`friction_sim.core.meanspeed.kostek` (plain floats and ``math``, in the
+subset Numba compiles, as the slider's physics): a call with scalars
+evaluates them directly, a call with arrays applies them element by element.
+So each element's value does not depend on its neighbours, and a point gets
+the same bits alone as in any array.
 
 All of this is Kostek's model below lift-off (normal excitation, level track,
 mu_s = mu, a < 1).  The general model of issue 11 has no closed form: its
@@ -60,13 +65,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from friction_sim.core.meanspeed import kostek
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.physics.plant import closed_form_applies
-from friction_sim.core.physics.roots import remainders_many, two_sum
 from friction_sim.errors import ParameterError
-
-_TWO_PI = 2.0 * np.pi
-_FOUR_PI2 = 4.0 * np.pi**2
 
 
 def _result(values: NDArray[np.float64], *inputs: Any) -> Any:
@@ -76,48 +78,38 @@ def _result(values: NDArray[np.float64], *inputs: Any) -> Any:
     return values
 
 
+def _scalar(value: Any) -> bool:
+    """Whether ``value`` is one number (a float, an int, a numpy scalar or a 0-d
+    array): such calls evaluate :mod:`~friction_sim.core.meanspeed.kostek` directly,
+    without the microseconds each numpy operation costs."""
+    return type(value) is float or np.ndim(value) == 0
+
+
+def _elementwise(function: Callable[..., Any], dtype: Any, *arrays: ArrayLike) -> NDArray[Any]:
+    """``function`` of every element of ``arrays`` (broadcast together), each on
+    its own and as Python floats: a scalar function of
+    :mod:`~friction_sim.core.meanspeed.kostek` over arrays, giving every element the
+    bits it gets alone."""
+    broadcast = np.broadcast_arrays(*(np.asarray(array, float) for array in arrays))
+    columns = [array.ravel().tolist() for array in broadcast]
+    values = np.fromiter(map(function, *columns), dtype=dtype, count=broadcast[0].size)
+    return values.reshape(broadcast[0].shape)
+
+
 def slip_start_phase(phi: ArrayLike, a: ArrayLike) -> Any:
     """theta_A = asin((1 - |phi|)/a): where each period's slip starts (NaN where
     the slider never slips from rest)."""
-    phi_, a_ = np.broadcast_arrays(np.abs(np.asarray(phi, float)), np.asarray(a, float))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        sin_a, cos_a = _start_sin_cos(phi_, a_)
-        theta = np.where((sin_a < 1.0) & (sin_a >= -1.0) & (cos_a > 0.0), np.arctan2(sin_a, cos_a), np.nan)
-    return _result(theta, phi, a)
-
-
-def _beyond_boundary(phi: NDArray[np.float64], a: NDArray[np.float64]) -> NDArray[np.float64]:
-    """phi - (1 - a), as exactly as its sign: > 0 where the slider moves.
-
-    phi + a is split into its rounded sum and the exact rounding error
-    (TwoSum), and the sum minus 1 is exact (Sterbenz) wherever it matters, so
-    the distance keeps its full relative precision however small it is.
-    """
-    with np.errstate(invalid="ignore"):
-        total, error = two_sum(phi, a)
-        beyond: NDArray[np.float64] = (total - 1.0) + error
-    return np.where(np.isfinite(total), beyond, total - 1.0)  # inf stays inf, NaN NaN
-
-
-def _start_sin_cos(
-    phi: NDArray[np.float64], a: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(sin, cos) of theta_A for phi >= 0: sin = (1 - phi)/a, and
-    cos = sqrt(1 - sin^2) = sqrt(e*(2 - e)) with e = 1 - sin = (phi - (1 - a))/a,
-    accurate to the last bits even where theta_A is within 1e-6 of pi/2.
-    NaN where there is no slip start (e outside (0, 2])."""
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # tiny a: e overflows, no start
-        e = _beyond_boundary(phi, a) / a
-        cos_a = np.sqrt(e * (2.0 - e))
-        return (1.0 - phi) / a, np.where((e > 0.0) & (e <= 2.0), cos_a, np.nan)
+    if _scalar(phi) and _scalar(a):
+        return kostek.start_phase(float(phi), float(a))  # type: ignore[arg-type]
+    return _elementwise(kostek.start_phase, float, phi, a)
 
 
 def moves(phi: ArrayLike, a: ArrayLike) -> Any:
     """True where the slider moves at all: |phi| > 1 - a (the motion boundary),
     decided exactly on the given floats, as :func:`u_map` and the slider do."""
-    phi_, a_ = np.broadcast_arrays(np.abs(np.asarray(phi, float)), np.asarray(a, float))
-    result = _beyond_boundary(phi_, a_) > 0.0
-    return bool(result) if np.ndim(result) == 0 else result
+    if _scalar(phi) and _scalar(a):
+        return kostek.moves(float(phi), float(a))  # type: ignore[arg-type]
+    return _elementwise(kostek.moves, bool, phi, a)
 
 
 def motion_boundary(phi: ArrayLike) -> Any:
@@ -128,64 +120,11 @@ def motion_boundary(phi: ArrayLike) -> Any:
 
 
 def stop_phase_advance(phi: ArrayLike, a: ArrayLike) -> Any:
-    """psi_C: the phase the slip lasts, from slip start (A) to stick (C)."""
-    phi_, a_ = np.broadcast_arrays(np.abs(np.asarray(phi, float)), np.asarray(a, float))
-    psi = _stop_phase(phi_.astype(float), a_.astype(float))
-    return _result(psi, phi, a)
-
-
-def _periodic_slip(
-    phi: NDArray[np.float64], a: NDArray[np.float64]
-) -> tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """For phi >= 0: where there is one periodic slip per period (1 - a < phi < 1),
-    and there sin(theta_A), cos(theta_A) and psi_C."""
-    sin_all, cos_all = _start_sin_cos(phi, a)
-    slipping = (cos_all > 0.0) & (phi < 1.0) & (a > 0.0)
-    sin_a, cos_a = sin_all[slipping], cos_all[slipping]
-    # w/a = cos_a*(1 - cos x) - sin_a*(x - sin x) rises on (0, pi - 2*theta_A) and
-    # falls from there to below zero at 2*pi; near the boundary its root is
-    # close to 3*(pi/2 - theta_A) (the cubic w ~ x^2*(delta/2 - x/6)).
-    delta = np.arctan2(cos_a, sin_a)  # pi/2 - theta_A, without cancellation
-    lo = 2.0 * delta
-    hi = np.full_like(lo, _TWO_PI)
-    x = np.clip(3.0 * delta, lo, hi)
-    active = np.ones(x.shape, dtype=bool)
-    for _ in range(100):
-        c1, s2, _c2 = remainders_many(x)
-        w = cos_a * c1 - sin_a * s2
-        lo = np.where(w > 0.0, x, lo)
-        hi = np.where(w < 0.0, x, hi)
-        slope = cos_a * np.sin(x) - sin_a * c1
-        with np.errstate(divide="ignore", invalid="ignore"):
-            step = x - w / slope
-        outside = ~((step > lo) & (step < hi)) | ~np.isfinite(step)
-        step = np.where(outside, 0.5 * (lo + hi), step)
-        step = np.where(w == 0.0, x, step)
-        # Each element stops on its own: its value must not depend on its neighbours.
-        done = np.abs(step - x) <= 4.0 * np.finfo(float).eps * np.abs(x)
-        x = np.where(active, step, x)
-        active &= ~done
-        if not np.any(active):
-            break
-    return slipping, sin_a, cos_a, x
-
-
-def _stop_phase(phi: NDArray[np.float64], a: NDArray[np.float64]) -> NDArray[np.float64]:
-    """psi_C for phi >= 0 (NaN where there is no periodic slip)."""
-    psi = np.full(phi.shape, np.nan)
-    psi[(phi == 1.0) & (a > 0.0)] = _TWO_PI
-    slipping, _, _, x = _periodic_slip(phi, a)
-    psi[slipping] = x
-    return psi
-
-
-def _travel(a: NDArray[np.float64], sin_a: NDArray[np.float64], cos_a: NDArray[np.float64],
-            psi: NDArray[np.float64]) -> NDArray[np.float64]:
-    """D = a*(cos_a*(psi - sin psi) - sin_a*(psi^2/2 - 1 + cos psi)) >= 0: the
-    travel of one periodic slip in units of mu*g/omega^2."""
-    _, s2, c2 = remainders_many(psi)
-    travel: NDArray[np.float64] = np.maximum(a * (cos_a * s2 - sin_a * c2), 0.0)
-    return travel
+    """psi_C: the phase the slip lasts, from slip start (A) to stick (C): 2*pi
+    at |phi| = 1 (it never sticks), NaN where there is no periodic slip."""
+    if _scalar(phi) and _scalar(a):
+        return kostek.stop_phase(float(phi), float(a))  # type: ignore[arg-type]
+    return _elementwise(kostek.stop_phase, float, phi, a)
 
 
 def u_map(phi: ArrayLike, a: ArrayLike) -> Any:
@@ -194,20 +133,22 @@ def u_map(phi: ArrayLike, a: ArrayLike) -> Any:
     Accepts scalars or arrays (broadcast together); returns a float for
     scalars.  0 where nothing moves, inf beyond phi > 1, sign of phi.
     """
+    if _scalar(phi) and _scalar(a):
+        ratio = float(a)  # type: ignore[arg-type]
+        _check_ratio(ratio)
+        return kostek.u_of(float(phi), ratio)  # type: ignore[arg-type]
     phi_arr, a_arr = np.broadcast_arrays(np.asarray(phi, float), np.asarray(a, float))
     _check_ratio(a_arr)
-    mag = np.abs(phi_arr)
-    u = np.zeros(phi_arr.shape)
-    periodic, sin_a, cos_a, psi = _periodic_slip(mag, a_arr)
-    if np.any(periodic):
-        u[periodic] = _travel(a_arr[periodic], sin_a, cos_a, psi) / _FOUR_PI2
-    u[mag == 1.0] = a_arr[mag == 1.0] / _TWO_PI
-    u[mag > 1.0] = np.inf
-    u[np.isnan(mag)] = np.nan
-    return _result(np.sign(phi_arr) * u + 0.0, phi, a)  # + 0.0: no -0.0 where a backward drive stands still
+    return _elementwise(kostek.u_of, float, phi_arr, a_arr)
 
 
-def _check_ratio(a: NDArray[np.float64]) -> None:
+def _check_ratio(a: float | NDArray[np.float64]) -> None:
+    """Refuse an amplitude ratio outside [0, 1) (Kostek's model holds below
+    lift-off); of an array, its first such element."""
+    if isinstance(a, float):
+        if not 0.0 <= a < 1.0:
+            raise ParameterError("amplitude_ratio", a, "must be in [0, 1) (Pa < m*g)")
+        return
     bad = ~((a >= 0.0) & (a < 1.0))
     if np.any(bad):
         value = float(np.asarray(a)[bad].flat[0])
@@ -224,23 +165,10 @@ def amplitude_ratio_for(u: ArrayLike, phi: ArrayLike, max_ratio: float = 1.0) ->
     """
     if not 0.0 < max_ratio <= 1.0:
         raise ParameterError("max_ratio", max_ratio, "must be in (0, 1]")
-    u_arr, phi_arr = np.broadcast_arrays(np.asarray(u, float), np.asarray(phi, float))
-    target, mag = np.abs(u_arr), np.abs(phi_arr)
-    a = np.full(u_arr.shape, np.nan)
-    a[u_arr == 0.0] = 0.0
-    lo = np.clip(1.0 - mag, 0.0, 1.0)
-    top = np.nextafter(max_ratio, 0.0) if max_ratio >= 1.0 else max_ratio
-    hi = np.full(lo.shape, top)
-    same_sign = np.sign(u_arr) == np.sign(phi_arr)
-    candidates = (u_arr != 0.0) & same_sign & (mag > 0.0) & (mag < 1.0) & (lo < hi)
-    if np.any(candidates):
-        u_top = np.where(candidates, u_map(np.where(candidates, mag, 0.5), np.where(candidates, hi, 0.5)), 0.0)
-        reachable = candidates & (target <= u_top)
-        if np.any(reachable):
-            mag_r = mag[reachable]
-            a[reachable] = _invert(target[reachable], lo[reachable], hi[reachable], u_top[reachable],
-                                   lambda x, index: _u_and_slope(mag_r[index], x))
-    return _result(a, u, phi)
+    top = math.nextafter(max_ratio, 0.0) if max_ratio >= 1.0 else float(max_ratio)
+    if _scalar(u) and _scalar(phi):
+        return kostek.amplitude_ratio(float(u), float(phi), top)  # type: ignore[arg-type]
+    return _elementwise(lambda u_, phi_: kostek.amplitude_ratio(u_, phi_, top), float, u, phi)
 
 
 def drive_ratio_for(u: ArrayLike, a: ArrayLike) -> Any:
@@ -255,89 +183,13 @@ def drive_ratio_for(u: ArrayLike, a: ArrayLike) -> Any:
     bound).  Negative u mirrors: phi(-u, a) = -phi(u, a).  The friction that
     vibration leaves a slider moving at U is mu_app = phi*mu.
     """
+    if _scalar(u) and _scalar(a):
+        ratio = float(a)  # type: ignore[arg-type]
+        _check_ratio(ratio)
+        return kostek.drive_ratio(float(u), ratio)  # type: ignore[arg-type]
     u_arr, a_arr = np.broadcast_arrays(np.asarray(u, float), np.asarray(a, float))
     _check_ratio(a_arr)
-    target = np.abs(u_arr)
-    phi = np.full(u_arr.shape, np.nan)
-    boundary = 1.0 - a_arr
-    phi[target == 0.0] = boundary[target == 0.0]
-    u_top = a_arr / _TWO_PI
-    phi[(target == u_top) & (target > 0.0)] = 1.0
-    inside = (target > 0.0) & (target < u_top)
-    if np.any(inside):
-        a_in = a_arr[inside]
-        phi[inside] = _invert(target[inside], boundary[inside], np.ones(a_in.shape), u_top[inside],
-                              lambda x, index: _u_and_phi_slope(x, a_in[index]))
-    return _result(np.where(u_arr < 0.0, -phi, phi), u, a)
-
-
-def _invert(
-    target: NDArray[np.float64], lo: NDArray[np.float64], hi: NDArray[np.float64], f_hi: NDArray[np.float64],
-    evaluate: Callable[[NDArray[np.float64], NDArray[np.intp]], tuple[NDArray[np.float64], NDArray[np.float64]]],
-) -> NDArray[np.float64]:
-    """Solve U(x) = target for x in [lo, hi] (U(lo) = 0 < target <= U(hi), U rising):
-    ``evaluate(x, index)`` gives U and its exact slope at x for the elements
-    ``index`` (x the amplitude ratio at a given phi, or phi at a given
-    amplitude ratio).
-
-    Newton's method with the exact slope, every iterate kept inside the
-    shrinking bracket (bisection when Newton would leave it): a handful of
-    iterations, which matters to a controller that inverts once per period.
-    Each element stops on its own (its value does not depend on its
-    neighbours): when U meets the target to rounding, the step or the bracket
-    is a few ulps (near the motion boundary U's rounding noise exceeds the
-    first test; the bracket still closes).
-    """
-    eps = np.finfo(float).eps
-    lo, hi = lo.copy(), hi.copy()
-    x = lo + (hi - lo) * np.sqrt(target / f_hi)  # U grows roughly like (x - lo)^2 near the boundary
-    active = np.arange(x.size)
-    for _ in range(100):
-        xa = x[active]
-        u, slope = evaluate(xa, active)
-        f = u - target[active]
-        high, low = np.where(f > 0.0, xa, hi[active]), np.where(f > 0.0, lo[active], xa)
-        hi[active], lo[active] = high, low
-        with np.errstate(divide="ignore", invalid="ignore"):
-            step = xa - f / slope
-        step = np.where(np.isfinite(step) & (step > low) & (step < high), step, 0.5 * (low + high))
-        step = np.where(np.abs(f) <= 4.0 * eps * target[active], xa, step)
-        done = (np.abs(step - xa) <= 4.0 * eps * xa) | (high - low <= 4.0 * eps * xa)
-        x[active] = step
-        active = active[~done]
-        if active.size == 0:
-            break
-    return x
-
-
-def _u_and_slope(phi: NDArray[np.float64], a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """U and dU/da where 1 - a < phi < 1 (one periodic slip per period).
-
-    With D(psi) the travel per period, U = D(psi_C)/(4 pi^2); psi_C moves with
-    a, but dD/dpsi = w(psi_C) = 0, and so does dD/d(theta_A) (it equals
-    w(psi_C) too, since phi - 1 + a*sin(theta_A) = 0), so only the explicit
-    factor a remains: dD/da = sin_a*(1 - cos psi_C) + cos_a*(psi_C - sin psi_C).
-    """
-    travel = np.zeros(phi.shape)
-    slope = np.full(phi.shape, np.nan)
-    slipping, sin_a, cos_a, psi = _periodic_slip(phi, a)
-    c1, s2, _ = remainders_many(psi)
-    travel[slipping] = _travel(a[slipping], sin_a, cos_a, psi)
-    slope[slipping] = sin_a * c1 + cos_a * s2
-    return travel / _FOUR_PI2, slope / _FOUR_PI2
-
-
-def _u_and_phi_slope(phi: NDArray[np.float64],
-                     a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """U and dU/dphi where 1 - a < phi < 1: as for :func:`_u_and_slope`, psi_C and
-    theta_A move with phi but D is stationary in both, so only the explicit
-    term of D = (phi - 1)*psi**2/2 + ... remains: dD/dphi = psi_C**2/2."""
-    travel = np.zeros(phi.shape)
-    slope = np.full(phi.shape, np.nan)
-    slipping, sin_a, cos_a, psi = _periodic_slip(phi, a)
-    travel[slipping] = _travel(a[slipping], sin_a, cos_a, psi)
-    slope[slipping] = 0.5 * psi * psi
-    return travel / _FOUR_PI2, slope / _FOUR_PI2
+    return _elementwise(kostek.drive_ratio, float, u_arr, a_arr)
 
 
 def nondimensional_speed(v: ArrayLike, frequency: float, gravity: float, mu: float) -> Any:

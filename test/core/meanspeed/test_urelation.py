@@ -369,16 +369,16 @@ def test_the_inverse_converges_in_a_handful_of_newton_steps(u: float, phi: float
     """The controller inverts once per change of its inputs, inside the loop:
     U's rounding noise once kept Newton stepping to and fro for 35 evaluations
     (30-50 ms, a period's delay at 100 Hz in acceptance case 5)."""
-    import friction_sim.core.meanspeed.urelation as relation
+    from friction_sim.core.meanspeed import kostek
 
     calls = []
-    real = relation._u_and_slope  # noqa: SLF001 - counting the evaluations
+    real = kostek.u_and_slope
 
     def counted(phi_: Any, a_: Any) -> Any:
         calls.append(1)
         return real(phi_, a_)
 
-    monkeypatch.setattr(relation, "_u_and_slope", counted)
+    monkeypatch.setattr(kostek, "u_and_slope", counted)
     a = amplitude_ratio_for(u, phi)
     assert u_map(phi, a) == pytest.approx(u, rel=1e-13)
     assert len(calls) <= 12
