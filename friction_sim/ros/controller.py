@@ -177,6 +177,7 @@ class ControllerNode(Node):
         #: Open: each reading wakes the node.  Shut until the model is settled (the inner loop is built
         #: then); in lockstep shut while no answer waits for a reading (they are drained with each sample).
         self.accelerometer_group = PolledGroup()
+        self.accelerometer: Any = None
         self.accelerometer = self.subscribe_accelerometer(lockstep=False)
         self.names = NameWatch(self)
         self.create_timer(values["diagnostics_period"], self._guarded("diagnostics", self._publish_diagnostics_timed),
@@ -201,12 +202,17 @@ class ControllerNode(Node):
         self._matched_at: float | None = None
         self._startup_timer = self.create_timer(0.05, self._guarded("start-up", self._start_up), clock=steady)
 
-    def subscribe_accelerometer(self, *, lockstep: bool) -> Any:
+    def subscribe_accelerometer(self, *, lockstep: bool, reading: bool = True) -> Any:
         """The accelerometer subscription: volatile in real time (only readings from now on
         are the plant's now); in lockstep transient local, so the readings of the windows
-        still to answer, sent before this node joined, come too (and replacing the volatile one)."""
+        still to answer, sent before this node joined, come too (and replacing the volatile
+        one); with ``reading`` false, none (None: lockstep and no inner loop)."""
         if lockstep:
-            self.destroy_subscription(self.accelerometer)
+            if self.accelerometer is not None:
+                self.destroy_subscription(self.accelerometer)
+            self.accelerometer = None
+            if not reading:
+                return None
         qos = accelerometer_qos(lockstep=lockstep)
         self.accelerometer = self.create_subscription(
             message_class("sensor_msgs/msg/Imu"), "accelerometer",

@@ -41,7 +41,7 @@ class AnsweringNode(Protocol):
     def get_parameter(self, name: str) -> Any: ...
     def create_publisher(self, *args: Any, **kwargs: Any) -> Any: ...
 
-    def subscribe_accelerometer(self, *, lockstep: bool) -> Any: ...
+    def subscribe_accelerometer(self, *, lockstep: bool, reading: bool = True) -> Any: ...
     def warn(self, text: str) -> None: ...
     def decide(self, output: ControlOutput, boundary: float) -> dict[str, float]: ...
     def publish_diagnostics(self) -> None: ...
@@ -64,7 +64,10 @@ class LockstepAnswers:
         self.runtime = node.runtime
         self.runtime.control.clock.exact = True
         node.accelerometer_group.open = False  # drained with each sample: a wake-up per reading costs too much
-        node.subscribe_accelerometer(lockstep=True)
+        #: Whether this node reads the accelerometer topic (see :meth:`_reads_accelerometer`).
+        self._reading = False
+        node.subscribe_accelerometer(lockstep=True, reading=False)
+        self._reads_accelerometer()
         #: The simulation time [ns] of the sample being (or last) answered: the diagnostics' stamp.
         self.stamp_ns = 0
         #: The law decided between samples (a target, a parameter): the change acts with the next
@@ -91,9 +94,16 @@ class LockstepAnswers:
         self.answer_waiting()
 
     def _reads_accelerometer(self) -> bool:
-        """Whether the answers need the accelerometer (the inner loop of a resonant plant)."""
+        """Whether the answers need the accelerometer (the inner loop of a resonant plant);
+        subscribed the first time they do.  Until then the node has no reader on the topic:
+        a reader as deep as a lockstep window needs costs the slider ~0.1 ms a reading (a
+        thousand a second); joining later costs nothing, the topic is transient local."""
         drive = self.runtime.drive
-        return drive is not None and drive.inner_loop
+        reads = drive is not None and drive.inner_loop
+        if reads and not self._reading:
+            self.node.subscribe_accelerometer(lockstep=True, reading=True)
+            self._reading = True
+        return reads
 
     def _drain(self) -> None:
         """Queue every accelerometer reading waiting on the topic."""

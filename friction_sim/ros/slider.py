@@ -487,7 +487,7 @@ class SliderNode(Node):
                 self._mean_pub.publish(mean_velocity_message(period, self._frame_id))
             if self._imu_pub is not None:
                 publish_accelerations(self._imu_pub, (self.recorder, self.live), tick.accelerations,
-                                      self._frame_id, self._imu_noise)
+                                      self._frame_id, self._imu_noise, keep=self.lockstep is not None)
             self._last_published = state
             deliver_tick(self.sinks, tick, self._frame_id)
         with self._published:

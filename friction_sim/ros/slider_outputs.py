@@ -63,13 +63,14 @@ def consistent_report(rt: Any, lock: Any, now_ns: Callable[[], int]) -> dict[str
 
 
 def publish_accelerations(publisher: Any, sinks: Sequence[Any], samples: Sequence[Acceleration], frame_id: str,
-                          noise: float) -> None:
+                          noise: float, *, keep: bool) -> None:
     """The accelerometer's samples of a tick, each at its own simulation time, on the
     topic and to the sinks that are open (the recording, the live view; None: not open).
-    A thousand a second: with no reader on the topic, a publish is work for no one
-    (and, volatile or not, nothing a later reader could get: the sinks keep them)."""
+    A thousand a second: in real time, with no reader on the topic, a publish is work for
+    no one; ``keep`` (lockstep) publishes them anyway, into the topic's transient-local
+    history, for a controller that starts reading later (it answers a window with them)."""
     open_sinks = [sink for sink in sinks if sink is not None]
-    publish = publisher.publish if samples and publisher.get_subscription_count() else None
+    publish = publisher.publish if samples and (keep or publisher.get_subscription_count()) else None
     if publish is None and not open_sinks:
         return
     for sample in samples:
