@@ -66,6 +66,19 @@ class ScheduleParticipant:
             if self._there(plant, t_ns):
                 return
 
+    def finish(self, plant: Any) -> None:
+        """At the end of a run attached to a slider in another process: wait until it has sent its
+        state again (it does, every REPEAT s, while it waits for what comes after the end), so what it
+        sent with its last state, on other topics, has come too (DDS keeps no order between topics:
+        the last mean velocity could still be on its way), and until every sample recorded is answered."""
+        seen = plant.resent
+
+        def done() -> bool:
+            return bool(plant.resent > seen) and (not self.spec.controller or self.answered_ns >= plant.sample_ns())
+
+        self.spin_until(done, self.timeout, f"lockstep: the slider did not send its state again within "
+                        f"{self.timeout:g} s of wall time at the end of the run (see its log)")
+
     def _moved_or_there(self, plant: Any, t_ns: int, seen: int) -> bool:
         """Whether the slider is there, or has moved since it stood at ``seen`` (then look again)."""
         now = plant.now_ns()

@@ -10,7 +10,9 @@ result holds the time series a report or a test needs
 (:class:`~friction_sim.experiment.job.ExperimentResult`);
 :mod:`friction_sim.experiment.metrics` turns them into settling time,
 overshoot and steady error.  This is the one module of the package outside
-``friction_sim.ros`` that imports rclpy (lazily, inside the functions).
+``friction_sim.ros`` that imports rclpy (lazily, inside the functions); a
+driver's ROS primitives (turning the executor, parameter services) are
+:mod:`friction_sim.ros.driving`.
 """
 
 from __future__ import annotations
@@ -64,6 +66,7 @@ from friction_sim.io.messages import (
     stamp_ns,
 )
 from friction_sim.io.stamped import STAMPED_COMMAND, STAMPED_TYPE
+from friction_sim.ros.driving import get_parameters, overrides, set_parameters, spin_once, spin_until
 
 Progress = Callable[[Status], None]
 #: Wall time [s] a lockstep run waits for a slider whose time stands still on its way to a point
@@ -96,7 +99,7 @@ def run_experiment(spec: ExperimentSpec, *, namespace: str | None = None, attach
         publishers = _command_publishers(driver)
         _collect_mean_velocity(driver, result)
         plant = _Attached(spec, driver, executor) if attach else _InProcess(spec, ns, executor, result)
-        scheduler = ScheduleParticipant(spec, driver, functools.partial(_spin_until, executor), LOCKSTEP_WAIT,
+        scheduler = ScheduleParticipant(spec, driver, functools.partial(spin_until, executor), LOCKSTEP_WAIT,
                                         attached=attach) if spec.lockstep else None
         _wait_until_connected(executor, publishers, spec.controller, plant, scheduler)
         operator = _OperatorHands(driver, executor, publishers, spec.operator)
@@ -146,7 +149,7 @@ def _play(spec: ExperimentSpec, plant: _InProcess | _Attached, executor: Any, pu
                 _record_unseen(plant.recorder, command.at(now + start))
             target = command.values.get("target_speed", target)
         operator.act(now, start)
-        _spin_once(executor, 0.0005)
+        spin_once(executor, 0.0005)
         if progress is not None and time.monotonic() - last_progress > 0.25:
             progress(_status(spec, now, target, plant.inputs(), result))
             last_progress = time.monotonic()
@@ -182,7 +185,7 @@ def _play_lockstep(spec: ExperimentSpec, plant: _InProcess | _Attached, executor
         for command in plant_sets(commands):
             plant.set_parameters(dict(command.values))
         if controller:
-            _set_parameters(scheduler.driver, executor, "controller", controller)
+            set_parameters(scheduler.driver, executor, "controller", controller)
             for command in commands:
                 if not command.for_slider:
                     _record_unseen(plant.recorder, command.at(start + t_ns / 1e9))
@@ -191,6 +194,8 @@ def _play_lockstep(spec: ExperimentSpec, plant: _InProcess | _Attached, executor
             operator.call_in_lockstep(calls, plant, functools.partial(scheduler.promise, following))
         if progress is not None:
             progress(_status(spec, t_ns / 1e9, target, plant.inputs(), result))
+    if isinstance(plant, _Attached):
+        scheduler.finish(plant)
     _shift(result, start)
 
 
@@ -251,11 +256,11 @@ class _InProcess:
         if spec.log_path:
             values.update(log_path=str(spec.log_path), log_rate=spec.log_rate)
         self._wall_ns = wall_ns
-        self.slider = SliderNode(namespace=ns, parameter_overrides=_overrides(values))
+        self.slider = SliderNode(namespace=ns, parameter_overrides=overrides(values))
         self.nodes: list[Any] = [self.slider]
         if spec.controller:
             try:
-                controller = ControllerNode(namespace=ns, parameter_overrides=_overrides(_controller_values(spec)))
+                controller = ControllerNode(namespace=ns, parameter_overrides=overrides(_controller_values(spec)))
             except BaseException:
                 self.close()  # the slider's tick thread and recorder must not outlive the failure
                 raise
@@ -300,7 +305,7 @@ class _InProcess:
 
     def set_parameters(self, values: dict[str, Any]) -> None:
         """Set the slider's parameters (as ``ros2 param set`` would); a refusal is an ExperimentError."""
-        result = self.slider.set_parameters_atomically(_overrides(values))
+        result = self.slider.set_parameters_atomically(overrides(values))
         if not result.successful:
             raise ExperimentError(f"the slider refused {values}: {result.reason}")
 
@@ -310,13 +315,6 @@ class _InProcess:
             self._own.stop()
         for node in self.nodes:
             node.destroy_node()
-
-
-def _overrides(values: dict[str, Any]) -> list[Any]:
-    """Node parameter overrides for ``values``."""
-    from rclpy.parameter import Parameter
-
-    return [Parameter(name, value=value) for name, value in values.items()]
 
 
 class _Attached:
@@ -342,16 +340,18 @@ class _Attached:
             # first its start-up read must be over, or what it reads would overwrite what is set here)
             _wait_for_controller_model(driver, executor)
             exciter = {name: getattr(spec.plant, name) for name in ("actuator", *settings.EXCITER)}
-            _set_parameters(driver, executor, "controller", {name: value for name, value in {
+            set_parameters(driver, executor, "controller", {name: value for name, value in {
                 **exciter, **_controller_values(spec)}.items() if not settings.CONTROLLER_NODE[name].start_only})
         # (not the input the scenario's actuator does not use: the slider refuses a value of it it does not hold)
         unused = unused_input(spec.plant.actuator)
-        _set_parameters(driver, executor, "slider", {name: value for name, value in _plant_values(spec).items()
+        set_parameters(driver, executor, "slider", {name: value for name, value in _plant_values(spec).items()
                                                      if not settings.SLIDER_NODE[name].start_only and name != unused})
         if spec.lockstep:
             _check_lockstep(driver, executor, spec)
         self.recorder = _attached_recorder(spec, driver.get_namespace())
         self._last_ns: dict[str, int] = {}
+        #: Poses the slider sent again (lockstep: while it waits, every REPEAT s).
+        self.resent = 0
         for topic in self.RECORDED:
             driver.create_subscription(message_class(TOPIC_TYPES[topic]), topic, self._keeper(topic), 100)
         if spec.lockstep:  # what this driver sends the slider stamped, recorded as the slider takes it
@@ -364,6 +364,7 @@ class _Attached:
         def keep(msg: Any) -> None:
             if topic in self.RESENT:  # (in lockstep a waiting slider sends its state and sample again)
                 if stamp_ns(msg.header.stamp) <= self._last_ns.get(topic, -1):
+                    self.resent += topic == "pose"
                     return
                 self._last_ns[topic] = stamp_ns(msg.header.stamp)
             if topic in COMMANDS:
@@ -394,6 +395,10 @@ class _Attached:
         the driver waits at holds all three)."""
         return min((self._last_ns.get(topic, -1) for topic in STATE_TOPICS), default=-1)
 
+    def sample_ns(self) -> int:
+        """The newest mean_velocity stamp recorded [ns] (-1: none yet)."""
+        return self._last_ns.get("mean_velocity", -1)
+
     def standing(self) -> bool:
         """(a step in another process: its end is not known here; the stamps show it)"""
         return True
@@ -409,7 +414,7 @@ class _Attached:
 
     def set_parameters(self, values: dict[str, Any]) -> None:
         """Set the slider's parameters through its parameter service."""
-        _set_parameters(self.driver, self.executor, "slider", values)
+        set_parameters(self.driver, self.executor, "slider", values)
         self._follow(Command(self.now(), PARAMETERS, values))
 
     def close(self) -> None:
@@ -421,14 +426,7 @@ class _Attached:
 def _check_lockstep(driver: Any, executor: Any, spec: ExperimentSpec) -> None:
     """A lockstep run attaches to a slider started in lockstep with this driver (and the
     controller) among its participants: those are start-up parameters."""
-    from rclpy.parameter_client import AsyncParameterClient
-
-    client = AsyncParameterClient(driver, "slider")
-    _spin_until(executor, client.services_are_ready, 10.0,
-                f"no node 'slider' answers in {driver.get_namespace()} (start it first)")
-    future = client.get_parameters(["lockstep", "lockstep_participants"])
-    _spin_until(executor, future.done, 10.0, "the slider did not say whether it runs in lockstep")
-    values = future.result().values
+    values = get_parameters(driver, executor, "slider", ["lockstep", "lockstep_participants"])
     lockstep, who = values[0].bool_value, values[1].string_value
     wanted = "scheduler,controller" if spec.controller else "scheduler"
     if not lockstep or set(who.replace(" ", "").split(",")) != set(wanted.split(",")):
@@ -466,26 +464,11 @@ def _wait_for_controller_model(driver: Any, executor: Any) -> None:
 
     subscription = driver.create_subscription(DiagnosticArray, "diagnostics", on_diagnostics, 10)
     try:
-        _spin_until(executor, lambda: bool(settled), 30.0,
+        spin_until(executor, lambda: bool(settled), 30.0,
                     f"the controller in {driver.get_namespace()} reports no settled model on diagnostics "
                     "within 30 s (is it running, with its diagnostics_period under 25 s?)")
     finally:
         driver.destroy_subscription(subscription)
-
-
-def _set_parameters(driver: Any, executor: Any, node: str, values: dict[str, Any]) -> None:
-    """Set ``values`` on ``node`` through its parameter service; refusals are ExperimentErrors."""
-    from rclpy.parameter_client import AsyncParameterClient
-
-    client = AsyncParameterClient(driver, node)
-    _spin_until(executor, client.services_are_ready, 10.0,
-                f"no node '{node}' answers in {driver.get_namespace()} "
-                "(start it first, e.g. friction-sim feeder --ros-args -r __ns:=...)")
-    future = client.set_parameters(_overrides(values))
-    _spin_until(executor, future.done, math.inf, "")
-    for name, result in zip(values, future.result().results):
-        if not result.successful:
-            raise ExperimentError(f"{node} refused {name}: {result.reason}")
 
 
 class _OperatorHands:
@@ -514,7 +497,7 @@ class _OperatorHands:
             if name == "pause":
                 release()
             if name == "step":
-                _spin_until(self._executor, plant.standing, self.CALL_TIMEOUT,
+                spin_until(self._executor, plant.standing, self.CALL_TIMEOUT,
                             f"the slider's ~/step did not end within {self.CALL_TIMEOUT:g} s")
 
     def act(self, now: float, start: float) -> None:
@@ -527,9 +510,9 @@ class _OperatorHands:
 
     def _call(self, name: str) -> None:
         client = self._clients[name]
-        _spin_until(self._executor, client.service_is_ready, self.CALL_TIMEOUT,
+        spin_until(self._executor, client.service_is_ready, self.CALL_TIMEOUT,
                     f"the slider's ~/{name} service did not answer within {self.CALL_TIMEOUT:g} s")
-        _spin_until(self._executor, client.call_async(self._request()).done, self.CALL_TIMEOUT,
+        spin_until(self._executor, client.call_async(self._request()).done, self.CALL_TIMEOUT,
                     f"the slider's ~/{name} call got no answer within {self.CALL_TIMEOUT:g} s")
 
 
@@ -558,35 +541,9 @@ def _wait_until_connected(executor: Any, publishers: dict[str, Any], controller:
     has published its time)."""
     nodes = (SLIDER, CONTROLLER) if controller else (SLIDER,)
     needed = {entry.name for node in nodes for entry in consumed_by(node)}
-    _spin_until(executor, lambda: all(publishers[name].get_subscription_count() >= 1 for name in needed)
+    spin_until(executor, lambda: all(publishers[name].get_subscription_count() >= 1 for name in needed)
                 and plant.ready() and (scheduler is None or scheduler.connected()), timeout,
                 f"the experiment's nodes did not connect within {timeout:g} s")
-
-
-def _spin_until(executor: Any, done: Callable[[], bool], seconds: float, failure: str) -> None:
-    """Spin ``executor`` until ``done()``; an ExperimentError saying ``failure``
-    after ``seconds`` of wall time (math.inf: wait for ever)."""
-    deadline = time.monotonic() + seconds
-    while not done():
-        if time.monotonic() > deadline:
-            raise ExperimentError(failure)
-        _spin_once(executor, 0.01)
-
-
-def _spin_once(executor: Any, timeout: float) -> None:
-    """One turn of the driver's executor; a message rclpy took but could not
-    convert (see :class:`friction_sim.ros.intake.LostMessages`) is lost and
-    counted, not the end of the experiment."""
-    from friction_sim.ros.intake import LostMessages
-    from friction_sim.ros.run import NodeFault
-
-    try:
-        executor.spin_once(timeout_sec=timeout)
-    except NodeFault as fault:  # a node of this process stopped (it logged why): so does the experiment
-        raise ExperimentError(str(fault)) from None
-    except RuntimeError as error:
-        if not LostMessages.lost(error):
-            raise
 
 
 def _shift(result: ExperimentResult, start: float) -> None:

@@ -9,8 +9,7 @@ from typing import Any
 
 import pytest
 
-from friction_sim.experiment import runner
-from friction_sim.ros import run
+from friction_sim.ros import driving, run
 from friction_sim.ros.intake import LostMessages, take_with_info
 
 FAILURE = RuntimeError("Unable to convert call argument '0' to Python object (#define PYBIND11_DETAILED_ERROR_MESSAGES "
@@ -67,10 +66,10 @@ class _Executor:
 def test_the_driver_and_the_node_spin_on_past_a_lost_message(ros: None) -> None:
     before = LostMessages.count
     driver = _Executor([FAILURE])
-    runner._spin_once(driver, 0.01)  # noqa: SLF001 - the experiment driver's turn
+    driving.spin_once(driver, 0.01)  # the experiment driver's turn
     assert LostMessages.count == before + 1
     with pytest.raises(RuntimeError, match="other"):
-        runner._spin_once(_Executor([RuntimeError("other")]), 0.01)  # noqa: SLF001
+        driving.spin_once(_Executor([RuntimeError("other")]), 0.01)
     node = _Executor([FAILURE, FAILURE, None])
     flag = run._InterruptFlag()  # noqa: SLF001 - a node's spin, as run_node does it
     try:

@@ -1,0 +1,77 @@
+"""What a driver of nodes does over ROS, whoever drives: turn its executor
+until something holds, and set a node's parameters through its service.
+
+The experiment runner (:mod:`friction_sim.experiment.runner`) drives the
+feeder's nodes with these, in this process or attached to nodes in another;
+an experiment's failures are :class:`~friction_sim.errors.ExperimentError`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from typing import Any
+
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+
+from friction_sim.errors import ExperimentError
+from friction_sim.ros.intake import LostMessages
+from friction_sim.ros.run import NodeFault
+
+
+def overrides(values: dict[str, Any]) -> list[Parameter]:
+    """rclpy parameters (node overrides, or a set) for ``values``."""
+    return [Parameter(name, value=value) for name, value in values.items()]
+
+
+def spin_until(executor: Any, done: Callable[[], bool], seconds: float, failure: str) -> None:
+    """Spin ``executor`` until ``done()``; an ExperimentError saying ``failure``
+    after ``seconds`` of wall time (math.inf: wait for ever)."""
+    deadline = time.monotonic() + seconds
+    while not done():
+        if time.monotonic() > deadline:
+            raise ExperimentError(failure)
+        spin_once(executor, 0.01)
+
+
+def spin_once(executor: Any, timeout: float) -> None:
+    """One turn of the driver's executor; a message rclpy took but could not
+    convert (see :class:`friction_sim.ros.intake.LostMessages`) is lost and
+    counted, not the end of the experiment."""
+    try:
+        executor.spin_once(timeout_sec=timeout)
+    except NodeFault as fault:  # a node of this process stopped (it logged why): so does the experiment
+        raise ExperimentError(str(fault)) from None
+    except RuntimeError as error:
+        if not LostMessages.lost(error):
+            raise
+
+
+def parameter_client(driver: Any, executor: Any, node: str) -> AsyncParameterClient:
+    """A parameter client of ``node`` in the driver's namespace, once its services answer."""
+    client = AsyncParameterClient(driver, node)
+    spin_until(executor, client.services_are_ready, 10.0,
+               f"no node '{node}' answers in {driver.get_namespace()} "
+               "(start it first, e.g. friction-sim feeder --ros-args -r __ns:=...)")
+    return client
+
+
+def set_parameters(driver: Any, executor: Any, node: str, values: dict[str, Any]) -> None:
+    """Set ``values`` on ``node`` through its parameter service; refusals are ExperimentErrors."""
+    future = parameter_client(driver, executor, node).set_parameters(overrides(values))
+    spin_until(executor, future.done, math.inf, "")
+    for name, result in zip(values, future.result().results):
+        if not result.successful:
+            raise ExperimentError(f"{node} refused {name}: {result.reason}")
+
+
+def get_parameters(driver: Any, executor: Any, node: str, names: list[str]) -> list[Any]:
+    """The values (rcl_interfaces ParameterValue) of ``names`` on ``node``."""
+    future = parameter_client(driver, executor, node).get_parameters(names)
+    spin_until(executor, future.done, 10.0, f"{node} did not answer for its parameters {', '.join(names)}")
+    return list(future.result().values)
+
+
+__all__ = ["get_parameters", "overrides", "parameter_client", "set_parameters", "spin_once", "spin_until"]
