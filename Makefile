@@ -78,9 +78,12 @@ lint: $(STAMP)
 test: lint
 	$(MAKE) --no-print-directory suite
 
-# The whole suite on this platform's venv (lint runs once, on the pinned platform).
+# The whole suite on this platform's venv (lint runs once, on the pinned platform), on
+# PYTEST_WORKERS processes (pytest-xdist; a test file stays on one worker, each worker
+# has a ROS domain of its own: test/conftest.py).
+PYTEST_WORKERS ?= 2
 suite: $(STAMP)
-	$(VPY) -m pytest -q test $(PYTEST_ARGS)
+	$(VPY) -m pytest -q -n $(PYTEST_WORKERS) --dist loadfile test $(PYTEST_ARGS)
 
 # The whole suite on the Jazzy platform (.venv-jazzy; see the top of this file).
 test-jazzy:

@@ -8,7 +8,8 @@ the environment when rclpy initialises, so they must be set here:
   discovery never leaves this machine.
 * ``ROS_DOMAIN_ID``: a random domain per test session, so concurrent test runs
   (or a demo running beside them) do not see each other's nodes and topics.
-  If the Makefile (or the caller) already chose one, that value is kept.
+  If the Makefile (or the caller) already chose one, that value is kept; each
+  pytest-xdist worker moves it by half the range (two workers: two domains).
 * ``MPLBACKEND=Agg``: plotting works without a display (CI has none).
 """
 
@@ -20,6 +21,12 @@ import pytest
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.SystemRandom().randint(1, 100)))
+# Under pytest-xdist (`make test` runs two workers) each worker is a session of its own:
+# a domain of its own too (the session's, moved by half the range per worker), so two
+# tests that use the same names (the README's commands use the root namespace) never meet.
+_WORKER = os.environ.get('PYTEST_XDIST_WORKER', '')
+if _WORKER.startswith('gw') and _WORKER[2:].isdigit():
+    os.environ['ROS_DOMAIN_ID'] = str((int(os.environ['ROS_DOMAIN_ID']) - 1 + 50 * int(_WORKER[2:])) % 100 + 1)
 os.environ['MPLBACKEND'] = 'Agg'
 
 # CI runs the property tests on a fixed set of examples (reproducible runs);
