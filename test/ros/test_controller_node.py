@@ -14,8 +14,10 @@ import uuid
 from pathlib import Path
 
 import pytest
+import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy
 
 from friction_sim.core.control.law import speed_limit
 from friction_sim.core.model.params import SliderParams
@@ -286,3 +288,25 @@ def test_the_controller_takes_its_whole_plant_at_start_up(ros: None, actuator: s
         assert f"{name} {value:g}" in taken if isinstance(value, float) else f"{name} {value}" in taken, (name, taken)
     assert "Fd = 0.8 N" in values["plant"] and f"f = {frequency:g} Hz" in values["plant"], values["plant"]
     assert values["model_source"] == f"plant node {ns}/slider"
+
+
+@pytest.mark.parametrize(("actuator", "reads"), [("force", False), ("resonant", True)])
+def test_in_lockstep_the_controller_reads_the_accelerometer_only_for_its_inner_loop(
+        ros: None, actuator: str, reads: bool) -> None:
+    """A reader of the accelerometer as deep as a lockstep window makes each of the slider's
+    thousand readings a second cost it several times more: the controller of a force-actuated
+    plant has none; the resonant plant's inner loop reads them (transient local: from the start)."""
+    ns = f"/c{uuid.uuid4().hex[:8]}"
+    controller = ControllerNode(namespace=ns, parameter_overrides=[
+        Parameter("plant_node", value=""), Parameter("lockstep", value=True), Parameter("actuator", value=actuator),
+        Parameter("accelerometer_rate", value=1000.0 if reads else 0.0)])
+    try:
+        deadline = time.monotonic() + 30.0
+        while controller.lockstep is None:  # it settles its model (its own: no plant node) on its timer
+            assert time.monotonic() < deadline, "the controller never settled its model"
+            rclpy.spin_once(controller, timeout_sec=0.05)
+        assert (controller.accelerometer is not None) == reads
+        if reads:
+            assert controller.accelerometer.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
+    finally:
+        controller.destroy_node()
