@@ -18,6 +18,7 @@ import random
 from collections.abc import Iterator
 
 import pytest
+from hypothesis import settings
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.SystemRandom().randint(1, 100)))
@@ -31,8 +32,6 @@ os.environ['MPLBACKEND'] = 'Agg'
 
 # CI runs the property tests on a fixed set of examples (reproducible runs);
 # on a developer's machine hypothesis explores new ones every time.
-from hypothesis import settings
-
 settings.register_profile('ci', derandomize=True, database=None)
 if os.environ.get('CI'):
     settings.load_profile('ci')
