@@ -16,8 +16,9 @@ force-actuated plant's controller does not read it).  It prints:
     first minute (a leak grows it minute by minute);
   * at the end: the achieved factor (simulated s / wall s), the file's size,
     whether RSS stayed within +10 % of the first minute's value afterwards
-    (and its largest growth), and ``friction-sim replay FILE --verify``
-    (exit code and last line): the recording re-simulates exactly;
+    (its largest growth, and the mean growth per simulated minute), and
+    ``friction-sim replay FILE --verify`` (exit code and last line): the
+    recording re-simulates exactly;
   * then the same hour again into a second file, and whether the two
     recordings' ``recording_digest`` are identical (else the topics that
     differ): lockstep gives the same run every time (``--once`` skips it).
@@ -95,6 +96,10 @@ class Soak:
         """Largest RSS after the first minute relative to the first minute's, minus 1 (0: none)."""
         return max((value / self.rss[0] - 1.0 for value in self.rss[1:]), default=0.0)
 
+    def per_minute(self) -> float:
+        """Mean RSS growth [MB] per simulated minute after the first (what an hour multiplies)."""
+        return (self.rss[-1] - self.rss[0]) / (len(self.rss) - 1) if len(self.rss) > 1 else 0.0
+
 
 def soak(spec: ExperimentSpec, *, verbose: bool) -> Soak:
     """Run ``spec`` in lockstep; print a line per simulated minute when ``verbose``."""
@@ -149,7 +154,8 @@ def report(result: Soak, duration: float, log_rate: float) -> None:
     growth = result.growth()
     verdict = "within" if growth <= RSS_GROWTH else "NOT within"
     print(f"RSS after the first minute: {verdict} +{RSS_GROWTH:.0%} of minute 1's {result.rss[0]:.1f} MB "
-          f"(largest growth {growth:+.1%}, final {result.rss[-1]:.1f} MB)")
+          f"(largest growth {growth:+.1%}, final {result.rss[-1]:.1f} MB; {result.per_minute():+.2f} MB per simulated "
+          "minute after the first)")
 
 
 def main() -> int:

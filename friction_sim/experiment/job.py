@@ -3,8 +3,8 @@
 :class:`ExperimentSpec` is everything :func:`friction_sim.experiment.runner.run_experiment`
 needs: the plant, its initial inputs, a schedule of
 :class:`~friction_sim.core.model.commands.Command` records and the node settings.
-:class:`ExperimentResult` holds the time series a run yields, :class:`Status`
-the live view for a status line.
+:class:`ExperimentResult` holds the time series a run yields (each a compact
+:class:`Series`), :class:`Status` the live view for a status line.
 
 The runner writes a *scenario metadata record* into the recording
 (:func:`scenario_metadata`): the experiment's name, duration, initial target,
@@ -18,10 +18,11 @@ parser and the report depend on it, not on the runner.
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping, Sequence
+from array import array
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Generic, TypeVar, cast, overload
 
 from friction_sim.core.model import spec as settings
 from friction_sim.core.model.commands import Command
@@ -29,6 +30,10 @@ from friction_sim.core.model.params import Inputs, SliderParams
 
 #: Name of the MCAP metadata record that describes an experiment's scenario.
 SCENARIO_METADATA = "friction_sim_scenario"
+#: A row of a :class:`Series`: a tuple of floats, time first.
+Row = TypeVar("Row", bound=tuple[float, ...])
+#: Values per block of a :class:`Series` (64 KiB of doubles, whole rows of it).
+SERIES_BLOCK = 8192
 
 
 @dataclass(frozen=True)
@@ -99,6 +104,128 @@ class Status:
                 f"| f {self.frequency:g} Hz")
 
 
+class Series(Sequence[Row], Generic[Row]):
+    """A time series that only grows: rows of ``width`` floats, time first,
+    kept packed in ``array('d')`` blocks of :data:`SERIES_BLOCK` values.
+
+    Why not a list of tuples: an experiment's series get a row per
+    mean-velocity sample (50 a simulated second), and a tuple of two Python
+    floats costs about 110 bytes where its values are 16.  Why blocks, not
+    one array: a full block stays where it is, so an hour's megabytes grow
+    without reallocations that copy them and leave a hole in the heap as
+    large as all before.  It reads as the list did: a sequence of tuples of
+    floats (``series[-1][1]``, ``for t, v in series``, ``len``,
+    ``reversed``), the same values (doubles either way).  One thread
+    appends (the controller's listener runs on its own); a reader on another
+    sees whole rows, every row up to some recent one.
+    """
+
+    __slots__ = ("_blocks", "_per_block", "width")
+
+    def __init__(self, width: int, rows: Iterable[Row] = ()) -> None:
+        if not 1 <= width <= SERIES_BLOCK:
+            raise ValueError(f"a series has rows of 1 to {SERIES_BLOCK} values, not {width}")
+        self.width = width
+        self._per_block = SERIES_BLOCK // width * width  # values a block holds: whole rows
+        # Replaced, never changed but for its last block's growth: a reader's reference stays whole.
+        self._blocks: list[array[float]] = [array("d")]
+        self.extend(rows)
+
+    def append(self, row: Row) -> None:
+        """Add ``row`` (``width`` numbers) at the end; a ValueError (nothing added) for another width."""
+        values = array("d", row)  # (converted whole first: a bad value adds nothing)
+        if len(values) != self.width:
+            raise ValueError(f"a row of {len(values)} values in a series of {self.width}")
+        self._add(values)
+
+    def extend(self, rows: Iterable[Row]) -> None:
+        """Add ``rows`` at the end: all of them, or none if one is not ``width`` numbers (an error)."""
+        values: array[float] = array("d")
+        for row in rows:
+            if len(row) != self.width:
+                raise ValueError(f"a row of {len(row)} values in a series of {self.width}")
+            values.extend(row)
+        self._add(values)
+
+    def _add(self, values: array[float]) -> None:
+        """Append whole rows: fill the last block, then start new ones (each extend is one C call,
+        atomic under the GIL, and ends on a row's end)."""
+        at = 0
+        while at < len(values):
+            last = self._blocks[-1]
+            if len(last) == self._per_block:
+                last = array("d")
+                self._blocks = [*self._blocks, last]
+            end = at + self._per_block - len(last)
+            last.extend(values[at:end])
+            at = end
+
+    def column(self, index: int) -> array[float]:
+        """Field ``index`` of every row (0: the times), as a new array."""
+        if not 0 <= index < self.width:
+            raise IndexError(f"column {index} of a series of {self.width}")
+        values: array[float] = array("d")
+        for block in self._blocks:
+            values.extend(block[index::self.width])
+        return values
+
+    def since(self, start: float) -> Series[Row]:
+        """The rows at ``t >= start``, their times made relative to ``start`` (``t - start``)."""
+        return Series(self.width, (cast(Row, (row[0] - start, *row[1:])) for row in self if row[0] >= start))
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes its values take (8 a value; the last block's spare room for growth not counted)."""
+        return sum(len(block) for block in self._blocks) * 8
+
+    def __len__(self) -> int:
+        blocks = self._blocks
+        return ((len(blocks) - 1) * self._per_block + len(blocks[-1])) // self.width
+
+    @overload
+    def __getitem__(self, index: int) -> Row: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> Series[Row]: ...
+
+    def __getitem__(self, index: int | slice) -> Row | Series[Row]:
+        if isinstance(index, slice):
+            return Series(self.width, (self[k] for k in range(len(self))[index]))
+        blocks = self._blocks
+        n = ((len(blocks) - 1) * self._per_block + len(blocks[-1])) // self.width
+        at = index + n if index < 0 else index
+        if not 0 <= at < n:
+            raise IndexError(f"row {index} of a series of {n}")
+        block, offset = divmod(at * self.width, self._per_block)
+        return cast(Row, tuple(blocks[block][offset:offset + self.width]))
+
+    def __iter__(self) -> Iterator[Row]:
+        for block in self._blocks:
+            values = iter(block)
+            yield from cast(Iterator[Row], zip(*[values] * self.width))
+
+    def __eq__(self, other: object) -> bool:
+        """Equal to a series of the same rows, or to a list or tuple of them (what it replaced)."""
+        if isinstance(other, (Series, list, tuple)):
+            return len(other) == len(self) and all(tuple(theirs) == ours for theirs, ours in zip(other, self))
+        return NotImplemented
+
+    __hash__ = None  # type: ignore[assignment]  # mutable, like the list it replaced
+
+    def __repr__(self) -> str:
+        return f"Series(width={self.width}, {len(self)} rows)"
+
+
+def _pairs() -> Series[tuple[float, float]]:
+    """An empty series of (t, value) rows."""
+    return Series(2)
+
+
+def _drive_rows() -> Series[tuple[float, float, float, float]]:
+    """An empty series of (t, drive level, drive frequency, per drive) rows."""
+    return Series(4)
+
+
 @dataclass
 class ExperimentResult:
     """Time series of one run (simulation time in s relative to its start; speeds in m/s, forces in N).
@@ -107,12 +234,15 @@ class ExperimentResult:
     ``drive`` (resonant actuator) its drive commands then: (t, drive level,
     drive frequency [Hz], the latest window's slideway amplitude per unit drive
     [m/s^2], nan until one is read); ``commands`` are the scheduled commands as
-    the driver published them, at the time it did.
+    the driver published them, at the time it did.  The sampled series are
+    :class:`Series` (a row per sample, kept as packed doubles: a run of hours
+    must not grow by a Python tuple per sample); ``commands`` stays a list (a
+    command per schedule entry).
     """
 
-    mean_velocity: list[tuple[float, float]] = field(default_factory=list)
-    amplitude: list[tuple[float, float]] = field(default_factory=list)
-    drive: list[tuple[float, float, float, float]] = field(default_factory=list)
+    mean_velocity: Series[tuple[float, float]] = field(default_factory=_pairs)
+    amplitude: Series[tuple[float, float]] = field(default_factory=_pairs)
+    drive: Series[tuple[float, float, float, float]] = field(default_factory=_drive_rows)
     commands: list[Command] = field(default_factory=list)
     duration: float = 0.0
 
@@ -167,6 +297,6 @@ def read_scenario_metadata(meta: Mapping[str, str]) -> ScenarioRecord | None:
 
 
 __all__ = [
-    "SCENARIO_METADATA", "ExperimentResult", "ExperimentSpec", "OperatorAction", "ScenarioRecord", "Status",
+    "SCENARIO_METADATA", "ExperimentResult", "ExperimentSpec", "OperatorAction", "ScenarioRecord", "Series", "Status",
     "read_scenario_metadata", "scenario_metadata", "schedule_from_json", "schedule_json",
 ]

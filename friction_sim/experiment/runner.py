@@ -547,11 +547,10 @@ def _wait_until_connected(executor: Any, publishers: dict[str, Any], controller:
 
 
 def _shift(result: ExperimentResult, start: float) -> None:
-    """Express every time relative to the experiment's start."""
-    result.mean_velocity = [(t - start, v) for t, v in result.mean_velocity if t >= start]
-    result.amplitude = [(t - start, a) for t, a in result.amplitude if t >= start]
-    result.drive = [(t - start, level, frequency, per_drive) for t, level, frequency, per_drive in result.drive
-                    if t >= start]
+    """Express every time relative to the experiment's start (the samples before it dropped)."""
+    result.mean_velocity = result.mean_velocity.since(start)
+    result.amplitude = result.amplitude.since(start)
+    result.drive = result.drive.since(start)
 
 
 __all__ = ["ExperimentResult", "ExperimentSpec", "Status", "run_experiment", "run_standalone"]

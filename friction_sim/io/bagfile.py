@@ -168,7 +168,11 @@ class BagFile:
         self._sequence: dict[int, int] = {}
         self._chunk = bytearray()
         self._in_chunk: dict[int, _ChannelChunk] = {}
-        self._chunk_indexes: list[ChunkIndex] = []
+        #: The summary's ChunkIndex records, serialized as written: a record of 77 bytes + 10 per channel
+        #: per chunk, where a ChunkIndex object (its dict of offsets, the ints) cost ~1 KB.  A run ends a
+        #: chunk every flush_interval of wall time, so an hour holds thousands of them.
+        self._chunk_index_records = bytearray()
+        self._chunk_count = 0
         self._metadata_indexes: list[MetadataIndex] = []
         self._zstd = zstandard.ZstdCompressor()
 
@@ -278,10 +282,11 @@ class BagFile:
         self._chunk = bytearray()
         self._in_chunk = {}
         self._write(b"".join(indexes))
-        self._chunk_indexes.append(ChunkIndex(
+        self._chunk_index_records += _record(ChunkIndex(
             message_start_time=start, message_end_time=end, chunk_start_offset=chunk_start, chunk_length=len(chunk),
             message_index_offsets=offsets, message_index_length=position - chunk_start - len(chunk),
             compression="zstd", compressed_size=len(compressed), uncompressed_size=len(data)))
+        self._chunk_count += 1
 
     def _maybe_end_chunk(self) -> None:
         if len(self._chunk) > self._chunk_size:
@@ -329,23 +334,22 @@ class BagFile:
         offsets = []
         stats = self.stats
         ids = {topic: channel for topic, (channel, _) in self.channels.items()}
-        groups: list[tuple[Opcode, Sequence[McapRecord]]] = [
-            (Opcode.SCHEMA, self._schema_records),
-            (Opcode.CHANNEL, self._channel_records),
-            (Opcode.STATISTICS, [Statistics(
+        groups: list[tuple[Opcode, bytes | bytearray]] = [
+            (Opcode.SCHEMA, _records(self._schema_records)),
+            (Opcode.CHANNEL, _records(self._channel_records)),
+            (Opcode.STATISTICS, _record(Statistics(
                 message_count=stats.messages, schema_count=len(self._schema_records),
                 channel_count=len(self._channel_records), attachment_count=0,
-                metadata_count=len(self._metadata_indexes), chunk_count=len(self._chunk_indexes),
+                metadata_count=len(self._metadata_indexes), chunk_count=self._chunk_count,
                 message_start_time=stats.first_ns or 0, message_end_time=stats.last_ns or 0,
-                channel_message_counts={ids[topic]: count for topic, count in stats.per_topic.items()})]),
-            (Opcode.CHUNK_INDEX, self._chunk_indexes),
-            (Opcode.ATTACHMENT_INDEX, []),
-            (Opcode.METADATA_INDEX, self._metadata_indexes),
+                channel_message_counts={ids[topic]: count for topic, count in stats.per_topic.items()}))),
+            (Opcode.CHUNK_INDEX, self._chunk_index_records),
+            (Opcode.ATTACHMENT_INDEX, b""),
+            (Opcode.METADATA_INDEX, _records(self._metadata_indexes)),
         ]
         for opcode, records in groups:
             group_start = summary.count
-            for record in records:
-                record.write(summary)
+            summary.write(records)
             offsets.append(SummaryOffset(group_opcode=opcode, group_start=summary_start + group_start,
                                          group_length=summary.count - group_start))
         offset_start = summary_start + summary.count
@@ -409,6 +413,11 @@ def _record(record: McapRecord) -> bytes:
     record.write(builder)
     data: bytes = builder.end()  # type: ignore[no-untyped-call]  # mcap.data_stream has no annotations
     return data
+
+
+def _records(records: Sequence[McapRecord]) -> bytes:
+    """Records one after the other, as bytes (a summary group)."""
+    return b"".join(_record(record) for record in records)
 
 
 __all__ = ["MAX_STAMP_NS", "ROSBAG2_METADATA_VERSION", "ROS_DISTRO", "BagFile", "RecordingStats", "RowGroup"]

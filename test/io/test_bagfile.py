@@ -5,6 +5,7 @@ summary agreeing with the data, and the same records mcap's Writer makes."""
 from __future__ import annotations
 
 import struct
+import tracemalloc
 from pathlib import Path
 from typing import Any
 
@@ -13,7 +14,9 @@ from mcap.reader import make_reader
 from mcap.records import Channel, Chunk, ChunkIndex, Message, MessageIndex, Metadata, MetadataIndex, Schema, Statistics
 from mcap.stream_reader import StreamReader, breakup_chunk
 
+from friction_sim.io.bagfile import BagFile, RecordingStats
 from friction_sim.io.offline import record_offline
+from friction_sim.io.typesupport import DEFAULT_QOS
 
 from recording_helpers import varied_schedule
 
@@ -168,3 +171,43 @@ def test_rosbags_opens_it_as_a_rosbag2_bag(tmp_path: Path) -> None:
     assert [t for _, t, _ in poses] == [round(k * 1e6) for k in range(len(poses))]
     last = deserialize(poses[-1][2], "geometry_msgs/msg/PoseStamped")
     assert (last.header.stamp.sec, last.header.stamp.nanosec) == (1, 500_000_000) and last.header.frame_id == "slideway"
+
+
+def test_what_it_keeps_for_the_summary_is_bytes_per_chunk_not_objects(tmp_path: Path) -> None:
+    """Each chunk leaves its ChunkIndex for the summary, and a recorder ends a
+    chunk every flush_interval of wall time (an hour in real time: 14,400).
+    Kept as the serialized record (77 bytes + 10 per channel), not as a
+    ChunkIndex object with its dict of offsets (~1 KB with 7 channels: a
+    simulated hour grew a lockstep run by megabytes).  Counted by tracemalloc,
+    so the same on any machine; the summary still indexes every chunk."""
+    from std_msgs.msg import Float64
+
+    path = tmp_path / "many_chunks.mcap"
+    topics = [f"/topic{i}" for i in range(7)]
+    warm, chunks = 20, 2000
+    with path.open("wb", buffering=0) as stream:
+        bag = BagFile(stream, DEFAULT_QOS, 4 * 1024 * 1024, RecordingStats(path))
+        bag.start("ros2", "test")
+
+        def one_chunk(k: int) -> None:
+            for topic in topics:
+                bag.add(topic, Float64(data=float(k)), 1_000_000 + k)
+            bag.flush()
+
+        for k in range(warm):  # the channels registered, the counts' dict filled
+            one_chunk(k)
+        started = not tracemalloc.is_tracing()
+        if started:
+            tracemalloc.start()
+        before = tracemalloc.get_traced_memory()[0]
+        for k in range(warm, warm + chunks):
+            one_chunk(k)
+        held = tracemalloc.get_traced_memory()[0] - before
+        if started:
+            tracemalloc.stop()
+        bag.finish()
+    assert held / chunks < 1.25 * (77 + 10 * len(topics)), f"{held / chunks:.0f} bytes kept per chunk"
+    with path.open("rb") as stream:
+        summary = make_reader(stream, validate_crcs=True).get_summary()
+    assert summary is not None and len(summary.chunk_indexes) == summary.statistics.chunk_count == warm + chunks
+    assert all(len(index.message_index_offsets) == len(topics) for index in summary.chunk_indexes)
