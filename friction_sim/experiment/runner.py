@@ -196,7 +196,19 @@ def _play_lockstep(spec: ExperimentSpec, plant: _InProcess | _Attached, executor
             progress(_status(spec, t_ns / 1e9, target, plant.inputs(), result))
     if isinstance(plant, _Attached):
         scheduler.finish(plant)
+    else:
+        _collect_to_the_end(plant, executor, result)
     _shift(result, start)
+
+
+def _collect_to_the_end(plant: _InProcess, executor: Any, result: ExperimentResult) -> None:
+    """Wait until the driver has taken the last mean velocity the slider in this process
+    published (the slider says which): the run may reach its end with samples still
+    queued for the driver's subscription (one run kept 53 of 69)."""
+    last_ns = plant.last_sample_ns()
+    spin_until(executor, lambda: last_ns < 0 or (len(result.mean_velocity) > 0
+                                                 and to_ns(result.mean_velocity[-1][0]) >= last_ns),
+               LOCKSTEP_WAIT, f"the last mean velocity (t = {last_ns / 1e9:.9f} s) never reached the driver")
 
 
 def _start_recording(spec: ExperimentSpec, recorder: Any, start: float) -> None:
@@ -283,6 +295,12 @@ class _InProcess:
 
     def now_ns(self) -> int:
         return to_ns(self.now())
+
+    def last_sample_ns(self) -> int:
+        """The stamp [ns] of the last mean velocity the slider published (-1: none yet)."""
+        with self.slider.lock:
+            period = self.slider.realtime.last_period
+        return to_ns(period.t) if period is not None else -1
 
     def answered(self) -> bool:
         """In lockstep: whether every sample the slider published has its answer."""
