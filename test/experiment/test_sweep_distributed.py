@@ -125,8 +125,13 @@ def test_a_worker_killed_mid_sweep_loses_no_chunk_and_writes_none_twice(
         def kill_w2_mid_sweep(index: int) -> None:
             written.append(index)
             if len(written) == 3:
-                processing = executor.client.processing()
-                seen["held"] = list(processing.get(names["w2"], ()))
+                # The chunk just written may be w2's own: until the scheduler hands it the next one
+                # (17 are left) it holds none, and killing it then would lose nothing.  Wait for that.
+                deadline = time.monotonic() + 30.0
+                while not (held := list(executor.client.processing().get(names["w2"], ()))) \
+                        and time.monotonic() < deadline:
+                    time.sleep(0.01)
+                seen["held"] = held
                 processes["w2"].send_signal(signal.SIGKILL)
                 processes["w2"].wait(timeout=10)
 
