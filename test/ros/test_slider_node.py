@@ -95,7 +95,9 @@ def test_published_trajectory_equals_the_exact_core_whatever_the_jitter(rig) -> 
                 ("drive_force", -0.8), ("external_wrench", (0.05, 1.0)), ("excitation_amplitude", 2.0),
                 ("drive_force", 0.95)]
     send_at = time.monotonic() + 0.1
-    while time.monotonic() < end:
+    # Until every command is out (a loaded machine may run this loop late: the window is at
+    # least 1.5 s of jitter, not a deadline for the commands), and for 1.5 s at least.
+    while commands or time.monotonic() < end:
         if commands and time.monotonic() > send_at:
             probe.send(*commands.pop(0))
             send_at += 0.18
@@ -103,7 +105,6 @@ def test_published_trajectory_equals_the_exact_core_whatever_the_jitter(rig) -> 
         if rng.random() < 0.01:
             with node._lock:  # noqa: SLF001 - hold the tick thread back: jitter, late ticks
                 time.sleep(rng.choice([0.0005, 0.003, 0.012]))
-    assert not commands, "all commands were sent"
     # The tick thread takes each command at its next tick; give a loaded machine time to get there.
     assert probe.spin_until(lambda: sum(o.accepted for o in outcomes) >= 7, 10.0)
     probe.spin_until(lambda: len(probe.received["pose"]) - start >= 1500, 10.0)
