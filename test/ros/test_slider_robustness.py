@@ -142,6 +142,12 @@ def test_a_simulation_fault_ends_the_process_with_one_line_and_exit_code_3(ros: 
 # -- atomic parameter sets ---------------------------------------------------------
 
 
+#: How long 600 states may take to come [s]: only a guard against a hang.  At 2500 Hz a hopping
+#: slider's tick simulates many flights; on a machine that other work starves it publishes far
+#: below its 1 kHz (one loaded suite: fewer than 600 in 10 s), and that is not what is tested.
+STATES_GUARD = 120.0
+
+
 def test_an_atomic_set_valid_together_is_applied_whole(ros: None) -> None:
     """{excitation_frequency: 2500, real_time_factor: 1} from a real-time factor of 10
     (each alone would break f x rtf <= 20000), {mass: 0.4, excitation_amplitude: 3}
@@ -176,7 +182,7 @@ def test_an_atomic_set_valid_together_is_applied_whole(ros: None) -> None:
             """R = m g - Pa sin(theta) over the last 500 states, within [m g - Pa, m g + Pa]
             (tick jitter spreads the phases sampled)."""
             count = len(probe.received["friction_force"])
-            assert probe.spin_until(lambda: len(probe.received["friction_force"]) > count + 600, 10.0)
+            assert probe.spin_until(lambda: len(probe.received["friction_force"]) > count + 600, STATES_GUARD)
             normal = [m.wrench.force.z for m in probe.received["friction_force"][-500:]]
             return min(normal), max(normal)
 
@@ -193,7 +199,7 @@ def test_an_atomic_set_valid_together_is_applied_whole(ros: None) -> None:
         # Taken whole: Pa = 3 N > m g = 2 N, throw number 1.5: it hops.
         assert probe.set_parameters_atomically(slider, {"mass": 0.2, "excitation_amplitude": 3.0}) == (True, "")
         count = len(probe.received["pose"])
-        assert probe.spin_until(lambda: len(probe.received["pose"]) > count + 600, 10.0)
+        assert probe.spin_until(lambda: len(probe.received["pose"]) > count + 600, STATES_GUARD)
         heights = [m.pose.position.z for m in probe.received["pose"][-500:]]
         normal = {stamp_ns(m): m.wrench.force.z for m in probe.received["friction_force"][-500:]}
         flying = [m for m in probe.received["pose"][-500:] if m.pose.position.z > 0.0]
