@@ -191,7 +191,7 @@ class Series(Sequence[Row], Generic[Row]):
     def __getitem__(self, index: int | slice) -> Row | Series[Row]:
         if isinstance(index, slice):
             return Series(self.width, (self[k] for k in range(len(self))[index]))
-        blocks = self._blocks
+        blocks = self._blocks  # (one look: another thread may append meanwhile; n from the same blocks)
         n = ((len(blocks) - 1) * self._per_block + len(blocks[-1])) // self.width
         at = index + n if index < 0 else index
         if not 0 <= at < n:

@@ -34,17 +34,14 @@ class ScheduleParticipant:
         self.spec, self.driver, self.spin_until, self.timeout = spec, driver, spin_until, timeout
         kind = message_class(STAMPED_TYPE)
         self.publisher = driver.create_publisher(kind, STAMPED_COMMAND, STAMPED_DEPTH)
-        self.answered_ns = self.sampled_ns = -1
-        if attached and spec.controller:  # (in this process the slider's gate says it; a subscription costs a wake-up)
+        self.answered_ns = -1
+        # (the samples it compares with are the attached plant's, as it records them; in this
+        # process the slider's gate says what is answered: a subscription costs a wake-up)
+        if attached and spec.controller:
             driver.create_subscription(kind, CONTROL_ANSWER, self._answer, STAMPED_DEPTH)
-            driver.create_subscription(message_class("geometry_msgs/msg/TwistStamped"), "mean_velocity",
-                                       self._sample, STAMPED_DEPTH)
 
     def _answer(self, msg: Any) -> None:
         self.answered_ns = max(self.answered_ns, stamp_ns(msg.header.stamp))
-
-    def _sample(self, msg: Any) -> None:
-        self.sampled_ns = max(self.sampled_ns, stamp_ns(msg.header.stamp))
 
     def connected(self) -> bool:
         """Whether the slider listens to the driver's stamped commands."""
@@ -90,7 +87,7 @@ class ScheduleParticipant:
             return False
         if hasattr(plant, "answered"):  # (in this process: the slider's gate says it)
             return bool(plant.answered())
-        return not self.spec.controller or self.answered_ns >= self.sampled_ns
+        return not self.spec.controller or self.answered_ns >= plant.sample_ns()
 
 def timeline(spec: ExperimentSpec) -> list[tuple[int, list[Command], list[OperatorAction]]]:
     """The schedule's and the operator's times [ns, from the start], each with what happens then, and the end."""

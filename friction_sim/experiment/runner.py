@@ -363,7 +363,7 @@ class _Attached:
         # (not the input the scenario's actuator does not use: the slider refuses a value of it it does not hold)
         unused = unused_input(spec.plant.actuator)
         set_parameters(driver, executor, "slider", {name: value for name, value in _plant_values(spec).items()
-                                                     if not settings.SLIDER_NODE[name].start_only and name != unused})
+                                                    if not settings.SLIDER_NODE[name].start_only and name != unused})
         if spec.lockstep:
             _check_lockstep(driver, executor, spec)
         self.recorder = _attached_recorder(spec, driver.get_namespace())
@@ -483,8 +483,8 @@ def _wait_for_controller_model(driver: Any, executor: Any) -> None:
     subscription = driver.create_subscription(DiagnosticArray, "diagnostics", on_diagnostics, 10)
     try:
         spin_until(executor, lambda: bool(settled), 30.0,
-                    f"the controller in {driver.get_namespace()} reports no settled model on diagnostics "
-                    "within 30 s (is it running, with its diagnostics_period under 25 s?)")
+                   f"the controller in {driver.get_namespace()} reports no settled model on diagnostics "
+                   "within 30 s (is it running, with its diagnostics_period under 25 s?)")
     finally:
         driver.destroy_subscription(subscription)
 
@@ -516,7 +516,7 @@ class _OperatorHands:
                 release()
             if name == "step":
                 spin_until(self._executor, plant.standing, self.CALL_TIMEOUT,
-                            f"the slider's ~/step did not end within {self.CALL_TIMEOUT:g} s")
+                           f"the slider's ~/step did not end within {self.CALL_TIMEOUT:g} s")
 
     def act(self, now: float, start: float) -> None:
         while self._pending and self._pending[0].t <= now:
@@ -529,9 +529,9 @@ class _OperatorHands:
     def _call(self, name: str) -> None:
         client = self._clients[name]
         spin_until(self._executor, client.service_is_ready, self.CALL_TIMEOUT,
-                    f"the slider's ~/{name} service did not answer within {self.CALL_TIMEOUT:g} s")
+                   f"the slider's ~/{name} service did not answer within {self.CALL_TIMEOUT:g} s")
         spin_until(self._executor, client.call_async(self._request()).done, self.CALL_TIMEOUT,
-                    f"the slider's ~/{name} call got no answer within {self.CALL_TIMEOUT:g} s")
+                   f"the slider's ~/{name} call got no answer within {self.CALL_TIMEOUT:g} s")
 
 
 def _command_publishers(driver: Any) -> dict[str, Any]:
@@ -560,8 +560,8 @@ def _wait_until_connected(executor: Any, publishers: dict[str, Any], controller:
     nodes = (SLIDER, CONTROLLER) if controller else (SLIDER,)
     needed = {entry.name for node in nodes for entry in consumed_by(node)}
     spin_until(executor, lambda: all(publishers[name].get_subscription_count() >= 1 for name in needed)
-                and plant.ready() and (scheduler is None or scheduler.connected()), timeout,
-                f"the experiment's nodes did not connect within {timeout:g} s")
+               and plant.ready() and (scheduler is None or scheduler.connected()), timeout,
+               f"the experiment's nodes did not connect within {timeout:g} s")
 
 
 def _shift(result: ExperimentResult, start: float) -> None:

@@ -178,7 +178,7 @@ class ControllerNode(Node):
         #: then); in lockstep shut while no answer waits for a reading (they are drained with each sample).
         self.accelerometer_group = PolledGroup()
         self.accelerometer: Any = None
-        self.accelerometer = self.subscribe_accelerometer(lockstep=False)
+        self.subscribe_accelerometer(lockstep=False)
         self.names = NameWatch(self)
         self.create_timer(values["diagnostics_period"], self._guarded("diagnostics", self._publish_diagnostics_timed),
                           clock=steady)

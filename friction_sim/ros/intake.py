@@ -15,7 +15,6 @@ import time
 from typing import Any
 
 from rclpy.callback_groups import CallbackGroup
-from rclpy.guard_condition import GuardCondition
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.subscription import Subscription
@@ -128,7 +127,7 @@ def take_with_info(subscription: Subscription, limit: int) -> list[tuple[Any, di
 
 class Arrivals:
     """Sleep until a message waits on one of ``subscriptions`` (drained by their
-    owner, :class:`PolledGroup`), :meth:`wake` is called, or a timeout passes.
+    owner, :class:`PolledGroup`) or a timeout passes.
 
     A loop that drains its own subscriptions (the slider's lockstep loop) must
     not poll them while it waits for an answer: a poll every 0.1 ms costs as
@@ -139,25 +138,18 @@ class Arrivals:
 
     def __init__(self, subscriptions: list[Subscription], context: Any) -> None:
         self._subscriptions = subscriptions
-        self._guard = GuardCondition(None, None, context)
-        self._wait_set = _rclpy.WaitSet(len(subscriptions), 1, 0, 0, 0, 0, context.handle)
+        self._wait_set = _rclpy.WaitSet(len(subscriptions), 0, 0, 0, 0, 0, context.handle)
 
     def wait(self, timeout: float) -> None:
-        """Until a message waits, :meth:`wake`, or ``timeout`` seconds."""
+        """Until a message waits or ``timeout`` seconds."""
         wait_set = self._wait_set
         wait_set.clear_entities()
         for subscription in self._subscriptions:
             wait_set.add_subscription(subscription.handle)
-        wait_set.add_guard_condition(self._guard.handle)
         wait_set.wait(round(timeout * 1e9))
-
-    def wake(self) -> None:
-        """End a :meth:`wait` now (or the next one at once): something changed that the waiter must see."""
-        self._guard.trigger()
 
     def destroy(self) -> None:
         self._wait_set.destroy_when_not_in_use()
-        self._guard.destroy()
 
 
 def arrival(info: Any) -> int:

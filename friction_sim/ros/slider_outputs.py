@@ -57,9 +57,9 @@ def consistent_report(rt: Any, lock: Any, now_ns: Callable[[], int]) -> dict[str
         prediction = rt.prediction(params, inputs)
         with lock:
             if rt.slider.params is params and rt.slider.inputs is inputs:
-                return dict(rt.diagnostics(now_ns(), prediction))
+                return rt.diagnostics(now_ns(), prediction)
     with lock:
-        return dict(rt.diagnostics(now_ns(), NO_PREDICTION))
+        return rt.diagnostics(now_ns(), NO_PREDICTION)
 
 
 def publish_accelerations(publisher: Any, sinks: Sequence[Any], samples: Sequence[Acceleration], frame_id: str,

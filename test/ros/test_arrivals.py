@@ -1,9 +1,8 @@
 """intake.Arrivals: a loop that drains its own subscriptions sleeps until a
-message waits, it is woken, or its timeout passes (the lockstep slider's wait)."""
+message waits or its timeout passes (the lockstep slider's wait)."""
 
 from __future__ import annotations
 
-import threading
 import time
 import uuid
 from collections.abc import Iterator
@@ -52,22 +51,4 @@ def test_without_a_message_the_wait_lasts_its_timeout(node: Any) -> None:
     started = time.monotonic()
     arrivals.wait(0.2)
     assert time.monotonic() - started >= 0.19
-    arrivals.destroy()
-
-
-def test_wake_ends_a_wait_from_another_thread(node: Any) -> None:
-    subscription, _ = _pair(node)
-    arrivals = Arrivals([subscription], node.context)
-    waited: list[float] = []
-
-    def waiter() -> None:
-        started = time.monotonic()
-        arrivals.wait(30.0)
-        waited.append(time.monotonic() - started)
-
-    thread = threading.Thread(target=waiter)
-    thread.start()
-    arrivals.wake()
-    thread.join(timeout=25.0)
-    assert not thread.is_alive() and waited and waited[0] < 25.0
     arrivals.destroy()

@@ -24,9 +24,8 @@ from __future__ import annotations
 
 import math
 
-from friction_sim.core.physics.roots import remainders, two_sum
+from friction_sim.core.physics.roots import TWO_PI, remainders, two_sum
 
-TWO_PI = 2.0 * math.pi
 FOUR_PI2 = 4.0 * math.pi**2
 #: The machine epsilon of a double (numpy's finfo(float).eps, sys.float_info.epsilon).
 EPS = 2.220446049250313e-16
