@@ -143,7 +143,7 @@ def test_the_formulas_compile_with_numba_to_the_same_bits() -> None:
     """Written in the subset Numba compiles, like the slider's physics: compiled
     over whole arrays they give what the interpreted functions give, bit for bit
     (the nodes never import Numba; this only keeps the promise checked)."""
-    numba = pytest.importorskip("numba")
+    import numba  # (a dependency of the package: requirements.txt; imported here, not by the module)
     from numba.extending import register_jitable
 
     import friction_sim.core.engine.compiled  # noqa: F401 - registers the physics (roots) with Numba
