@@ -81,7 +81,7 @@ from foxglove.websocket import (
 
 from friction_sim.core.model.commands import Outcome
 from friction_sim.core.model.events import Event, Mode, SliderState
-from friction_sim.core.model.records import PeriodSummary
+from friction_sim.core.model.records import Acceleration, PeriodSummary
 from friction_sim.errors import LiveViewError, one_line
 from friction_sim.io import cdr
 from friction_sim.io.bagfile import MAX_STAMP_NS
@@ -94,6 +94,7 @@ from friction_sim.io.liveserver import (
     wait_until_free,
 )
 from friction_sim.io.messages import (
+    ACCELEROMETER,
     STATE_TOPICS,
     TOPIC_TYPES,
     command_topic,
@@ -216,6 +217,11 @@ class LiveView:
         """Offer a period's mean velocity on ``mean_velocity``."""
         if self._wanted((self._topic("mean_velocity"),), 1):
             self._put(("period", period, frame_id), 1)
+
+    def on_accelerations(self, samples: Sequence[Acceleration], frame_id: str, noise: float) -> None:
+        """Offer accelerometer samples on ``accelerometer`` at their own times."""
+        if samples and self._wanted((self._topic(ACCELEROMETER),), len(samples)):
+            self._put(("accelerations", tuple(samples), frame_id, noise), len(samples))
 
     def on_command(self, outcome: Outcome, frame_id: str) -> None:
         """Offer a handled command: accepted on its own topic (``sim_control``

@@ -81,7 +81,7 @@ from friction_sim.core.model import spec
 from friction_sim.core.model.commands import Outcome
 from friction_sim.core.model.events import Event, SliderState
 from friction_sim.core.model.params import Inputs, SliderParams
-from friction_sim.core.model.records import PeriodSummary
+from friction_sim.core.model.records import Acceleration, PeriodSummary
 from friction_sim.errors import ParameterError, RecordingPathError, one_line
 from friction_sim.io import cdr
 from friction_sim.io.bagfile import BagFile, RecordingStats
@@ -263,6 +263,11 @@ class Recorder:
     def on_period(self, period: PeriodSummary, frame_id: str) -> None:
         """Queue a period's mean velocity on ``mean_velocity``."""
         self._put(("period", period, frame_id), 1)
+
+    def on_accelerations(self, samples: Sequence[Acceleration], frame_id: str, noise: float) -> None:
+        """Queue accelerometer samples on ``accelerometer`` (sensor_msgs/Imu) at their own times."""
+        if samples:
+            self._put(("accelerations", tuple(samples), frame_id, noise), len(samples))
 
     def on_command(self, outcome: Outcome, frame_id: str) -> None:
         """Queue a handled command: accepted on its own topic, refused on

@@ -7,7 +7,9 @@ in order.  The state topics (pose, velocity, friction_force) and
 mean_velocity are fixed-layout messages: consecutive states are written
 many at a time, as rows of numbers in the bytes rosbags serialized for a
 template (:func:`~friction_sim.io.cdr.fixed_layouts`, checked against
-rosbags); everything else is built by :mod:`friction_sim.io.messages` and
+rosbags), and so are the accelerometer's sensor_msgs/Imu samples (a
+thousand a second: one rosbags serialization each would cost the recording
+more than the simulation); everything else is built by :mod:`friction_sim.io.messages` and
 serialized one message at a time.  Topics are stored fully qualified in the
 node's namespace, as rosbag2 names them.
 
@@ -28,16 +30,18 @@ import numpy as np
 
 from friction_sim.core.model.commands import Outcome
 from friction_sim.core.model.events import Mode, SliderState
-from friction_sim.core.model.records import PeriodSummary
+from friction_sim.core.model.records import Acceleration, PeriodSummary
 from friction_sim.errors import one_line
 from friction_sim.io.bagfile import MAX_STAMP_NS, BagFile, RowGroup
 from friction_sim.io.cdr import FixedLayout, fixed_layouts
 from friction_sim.io.messages import (
+    ACCELEROMETER,
     STATE_TOPICS,
     command_message,
     command_topic,
     event_message,
     fill_state_messages,
+    imu_message,
     mean_velocity_message,
     parameters_message,
     rejection_message,
@@ -97,6 +101,7 @@ class RecordWriter:
         self._topics: dict[str, str] = {}
         self._state_groups: dict[str, RowGroup | None] = {}
         self._period_layouts: dict[str, FixedLayout | None] = {}
+        self._imu_groups: dict[tuple[str, float], RowGroup | None] = {}
         self._templates: tuple[Any, Any, Any] | None = None  # pose, twist, wrench: the one-at-a-time path
 
     def write(self, batch: Sequence[Item]) -> None:
@@ -116,7 +121,7 @@ class RecordWriter:
             if kind == "states":
                 states.extend(item[1])
                 frame_id = item[2]
-            elif kind in ("event", "period"):
+            elif kind in ("event", "period", "accelerations"):
                 later.append(item)
             else:
                 self._write_run(states, frame_id, later)
@@ -184,6 +189,27 @@ class RecordWriter:
         else:
             self._add(topic, mean_velocity_message(period, frame_id), ns)
 
+    def _write_accelerations(self, samples: Sequence[Acceleration], frame_id: str, noise: float) -> None:
+        """Write accelerometer samples as sensor_msgs/Imu, many at a time (one by one if
+        the message has no fixed layout)."""
+        topic = self.topic(ACCELEROMETER)
+        key = (frame_id, noise)
+        if key not in self._imu_groups:
+            self._imu_groups[key] = self.file.row_group([topic], lambda ns, values: [imu_message(
+                Acceleration(ns / 1e9, *values), frame_id, noise)], 3)
+        group = self._imu_groups[key]
+        if group is None:
+            for sample in samples:
+                self._add(topic, imu_message(sample, frame_id, noise), seconds_to_ns(sample.t))
+            return
+        table = np.array([(s.t, s.x, s.y, s.z) for s in samples], dtype=np.float64)
+        ns = np.rint(table[:, 0] * 1e9)  # = seconds_to_ns(t), as the message's stamp
+        ok = (ns >= 0.0) & (ns <= MAX_STAMP_NS)  # False for NaN too
+        if not ok.all():
+            self._count_bad(int((~ok).sum()), "accelerations", "a sample time no ROS stamp holds")
+            ns, table = ns[ok], table[ok]
+        self.file.add_rows(group, ns.astype(np.int64), table[:, 1:])
+
     # -- one record at a time --------------------------------------------------------
 
     def _write_safely(self, item: Item) -> None:
@@ -193,7 +219,7 @@ class RecordWriter:
         except OSError:
             raise
         except Exception as error:  # noqa: BLE001 - one bad record must not end the recording
-            self._count_bad(3 if item[0] == "state" else 1, str(item[1])[:40] if item[0] == "msg" else item[0],
+            self._count_bad(_messages_of(item), str(item[1])[:40] if item[0] == "msg" else item[0],
                             one_line(error, with_type=True))
 
     def _write_one(self, item: Item) -> None:
@@ -205,6 +231,8 @@ class RecordWriter:
             self.file.add_metadata(item[1], item[2])
         elif kind == "period":
             self._write_period(item[1], item[2])
+        elif kind == "accelerations":
+            self._write_accelerations(item[1], item[2], item[3])
         elif kind == "state":
             self._add_state(item[1], item[2])
         else:
@@ -234,6 +262,11 @@ class RecordWriter:
             _log.warning("recording %s: dropped a %s record: %s", self.path, what, why)
 
 
+def _messages_of(item: Item) -> int:
+    """How many messages a queued record stands for."""
+    return 3 if item[0] == "state" else len(item[1]) if item[0] == "accelerations" else 1
+
+
 def record_messages(item: Item, node: str) -> list[tuple[str, Any, int]]:
     """(topic, message, log time [ns]) of a queued sink record other than
     states, as a recording holds them (the live view serves the same);
@@ -245,6 +278,8 @@ def record_messages(item: Item, node: str) -> list[tuple[str, Any, int]]:
         return [("mean_velocity", mean_velocity_message(item[1], item[2]), seconds_to_ns(item[1].t))]
     if kind == "event":
         return [("events", event_message(item[1]), seconds_to_ns(item[1].t))]
+    if kind == "accelerations":
+        return [(ACCELEROMETER, imu_message(sample, item[2], item[3]), seconds_to_ns(sample.t)) for sample in item[1]]
     if kind == "command":
         outcome: Outcome = item[1]
         if outcome.accepted:

@@ -17,7 +17,7 @@ from typing import Any, Protocol
 
 from friction_sim.core.model.commands import Outcome
 from friction_sim.core.model.events import Event, SliderState
-from friction_sim.core.model.records import PeriodSummary, Tick
+from friction_sim.core.model.records import Acceleration, PeriodSummary, Tick
 
 
 class Sink(Protocol):
@@ -34,6 +34,10 @@ class Sink(Protocol):
     def on_period(self, period: PeriodSummary, frame_id: str) -> None:
         """The mean velocity of the window ending with a completed period."""
 
+    def on_accelerations(self, samples: Sequence[Acceleration], frame_id: str, noise: float) -> None:
+        """The accelerometer's samples (noise included), in time order; ``noise`` is the
+        standard deviation [m/s^2] the messages state as their covariance."""
+
     def on_command(self, outcome: Outcome, frame_id: str) -> None:
         """A command as handled: accepted, or refused with the reason."""
 
@@ -44,11 +48,14 @@ class Sink(Protocol):
         """The run is over: finish whatever was written (idempotent)."""
 
 
-def deliver_tick(sinks: Sequence[Sink], tick: Tick, frame_id: str) -> None:
+def deliver_tick(sinks: Sequence[Sink], tick: Tick, frame_id: str, noise: float = 0.0) -> None:
     """Hand what a real-time tick passed to every sink: the states on the log
     grid (a sink whose ``published_states`` is true, a live view, gets the
-    state the tick published instead), the events and the period means."""
+    state the tick published instead), the events, the period means and the
+    accelerometer's samples (``noise``: its standard deviation)."""
     for sink in sinks:
+        if tick.accelerations:
+            sink.on_accelerations(tick.accelerations, frame_id, noise)
         states = (tick.state,) if getattr(sink, "published_states", False) else tick.samples
         if states:
             sink.on_states(states, frame_id)

@@ -125,13 +125,13 @@ from friction_sim.ros.run import (
 )
 from friction_sim.ros.slider_lockstep import LockstepLoop, runtime_for
 from friction_sim.ros.slider_outputs import (
+    AccelerometerPublisher,
     RecorderHealth,
     consistent_report,
     control_text,
     health,
     open_live_view,
     open_recorder,
-    publish_accelerations,
     recorded,
     watch_namespace,
 )
@@ -277,9 +277,10 @@ class SliderNode(Node):
         self._mean_pub = self._publisher(TwistStamped, "mean_velocity")
         self._diag_pub = self._publisher(DiagnosticArray, "diagnostics")
         accelerometer = self._rt.accelerometer
-        self._imu_pub = self._publisher(message_class("sensor_msgs/msg/Imu"), ACCELEROMETER,
-                                        accelerometer_qos()) if accelerometer else None
         self._imu_noise = accelerometer.noise if accelerometer else 0.0
+        self._imu_pub = AccelerometerPublisher(self._publisher(
+            message_class("sensor_msgs/msg/Imu"), ACCELEROMETER, accelerometer_qos()), self._frame_id,
+            self._imu_noise) if accelerometer else None
         self._pose, self._velocity, self._friction = PoseStamped(), TwistStamped(), WrenchStamped()
         self._clock_msg = ClockMsg()
         self._clock_pub: Any = None
@@ -486,10 +487,9 @@ class SliderNode(Node):
             for period in tick.periods:
                 self._mean_pub.publish(mean_velocity_message(period, self._frame_id))
             if self._imu_pub is not None:
-                publish_accelerations(self._imu_pub, (self.recorder, self.live), tick.accelerations,
-                                      self._frame_id, self._imu_noise, keep=self.lockstep is not None)
+                self._imu_pub.publish(tick.accelerations, keep=self.lockstep is not None)
             self._last_published = state
-            deliver_tick(self.sinks, tick, self._frame_id)
+            deliver_tick(self.sinks, tick, self._frame_id, self._imu_noise)
         with self._published:
             self._ticks_published = number
             self._published.notify_all()

@@ -26,6 +26,7 @@ from friction_sim.io.messages import (
     message_class,
     seconds_to_ns,
     stamp_ns,
+    time_msg,
 )
 
 #: What the slider keeps of the namespace's other topics, with the depth of its queues.
@@ -62,23 +63,29 @@ def consistent_report(rt: Any, lock: Any, now_ns: Callable[[], int]) -> dict[str
         return rt.diagnostics(now_ns(), NO_PREDICTION)
 
 
-def publish_accelerations(publisher: Any, sinks: Sequence[Any], samples: Sequence[Acceleration], frame_id: str,
-                          noise: float, *, keep: bool) -> None:
-    """The accelerometer's samples of a tick, each at its own simulation time, on the
-    topic and to the sinks that are open (the recording, the live view; None: not open).
-    A thousand a second: in real time, with no reader on the topic, a publish is work for
-    no one; ``keep`` (lockstep) publishes them anyway, into the topic's transient-local
-    history, for a controller that starts reading later (it answers a window with them)."""
-    open_sinks = [sink for sink in sinks if sink is not None]
-    publish = publisher.publish if samples and (keep or publisher.get_subscription_count()) else None
-    if publish is None and not open_sinks:
-        return
-    for sample in samples:
-        msg = imu_message(sample, frame_id, noise)
-        if publish is not None:
+class AccelerometerPublisher:
+    """The accelerometer topic's publisher: each sample of a tick as sensor_msgs/Imu at its own
+    simulation time.  A thousand a second, so one message is filled again for each (rclpy
+    serializes it as it publishes: building a new Imu costs about as much as publishing it).
+    In real time, with no reader on the topic, a publish is work for no one; ``keep``
+    (lockstep) publishes them anyway, into the topic's transient-local history, for a
+    controller that starts reading later (it answers a window with them).  The sinks (the
+    recording, the live view) get the samples from the tick, not from here."""
+
+    def __init__(self, publisher: Any, frame_id: str, noise: float) -> None:
+        self._publisher = publisher
+        self._msg = imu_message(Acceleration(0.0, 0.0, 0.0, 0.0), frame_id, noise)
+
+    def publish(self, samples: Sequence[Acceleration], *, keep: bool) -> None:
+        """Publish ``samples`` (if ``keep``, or if someone reads the topic)."""
+        if not samples or not (keep or self._publisher.get_subscription_count()):
+            return
+        msg = self._msg
+        stamp, acceleration, publish = msg.header.stamp, msg.linear_acceleration, self._publisher.publish
+        for sample in samples:
+            time_msg(seconds_to_ns(sample.t), stamp)
+            acceleration.x, acceleration.y, acceleration.z = sample.x, sample.y, sample.z
             publish(msg)
-        for sink in open_sinks:
-            sink.write(ACCELEROMETER, msg, seconds_to_ns(sample.t))
 
 
 def open_recorder(values: dict[str, Any], namespace: str, node: str) -> Any:
@@ -221,5 +228,5 @@ def health(report: dict[str, Any], fault: str = "", name_problem: str = "") -> t
     return DiagnosticStatus.WARN, "; ".join(problems)
 
 
-__all__ = ["PREDICTION_TRIES", "RecorderHealth", "consistent_report", "control_text", "health", "open_live_view",
-           "open_recorder", "publish_accelerations", "recorded", "watch_namespace"]
+__all__ = ["PREDICTION_TRIES", "AccelerometerPublisher", "RecorderHealth", "consistent_report", "control_text",
+           "health", "open_live_view", "open_recorder", "recorded", "watch_namespace"]

@@ -21,11 +21,12 @@ from mcap.reader import make_reader
 from friction_sim.core.model.commands import Command, Outcome
 from friction_sim.core.model.events import Event, EventKind, Mode, SliderState
 from friction_sim.core.model.params import Inputs, SliderParams
-from friction_sim.core.model.records import PeriodSummary
+from friction_sim.core.model.records import Acceleration, PeriodSummary
 from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import ParameterError, RecordingPathError
 from friction_sim.io import messages as M
 from friction_sim.io.offline import record_offline
+from friction_sim.io.cdr import serialize
 from friction_sim.io.reader import read_recording
 from friction_sim.io.recorder import METADATA_NAME, Recorder, qualified_topic
 from friction_sim.io.sinks import deliver_tick
@@ -91,6 +92,29 @@ def test_every_message_type_round_trips_through_the_file(tmp_path: Path) -> None
         assert message_type_name(type(msg)) == message_type_name(type(want)) and plain(msg) == plain(want), topic
     assert recording.topics["/parameters"].type_name == "rcl_interfaces/msg/ParameterEvent"
     assert recording.topics["/rejected_commands"].type_name == "diagnostic_msgs/msg/DiagnosticStatus"
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.05])
+def test_accelerometer_samples_are_written_as_the_imu_messages_rosbags_serializes(tmp_path: Path, noise: float) -> None:
+    """The accelerometer's samples go many at a time into a fixed layout: each message's bytes
+    are those of rosbags' serialization of the Imu message built one at a time, at its own stamp
+    and log time; a sample at a time no ROS stamp holds is dropped and counted, the rest kept."""
+    rng = np.random.default_rng(5)
+    samples = [Acceleration(round(0.001 * k + 2.0, 9), *rng.normal(0.0, 30.0, 3)) for k in range(50)]
+    samples.append(Acceleration(-1.0, 1.0, 2.0, 3.0))  # before time 0: no ROS stamp holds it
+    path = tmp_path / "imu.mcap"
+    with Recorder(path, metadata={"mass": 1.0}) as recorder:
+        recorder.on_accelerations(samples[:20], "rail", noise)
+        recorder.on_states([STATE], "rail")  # (between two batches: each topic stays in time order)
+        recorder.on_accelerations(samples[20:], "rail", noise)
+    assert recorder.stats.dropped == 1 and recorder.stats.error is None
+    recording = read_recording(path)
+    raws = recording.messages_on("accelerometer")
+    assert recording.topics["/accelerometer"].type_name == "sensor_msgs/msg/Imu"
+    assert [raw.log_time for raw in raws] == [M.seconds_to_ns(sample.t) for sample in samples[:-1]]
+    assert [bytes(raw.data) for raw in raws] == [serialize(M.imu_message(sample, "rail", noise))
+                                                 for sample in samples[:-1]]
+    assert len(recording.messages_on("pose")) == 1
 
 
 def test_topics_are_stored_fully_qualified_in_the_namespace(tmp_path: Path) -> None:
