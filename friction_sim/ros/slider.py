@@ -208,11 +208,14 @@ class SliderNode(Node):
         self.add_on_set_parameters_callback(self._set_parameters)
         self.add_post_set_parameters_callback(self._parameters_set)
         self._stop = threading.Event()
-        # Let the tick thread take the GIL within 0.5 ms even while the
-        # executor thread is busy with a flood of commands (default: 5 ms).
-        sys.setswitchinterval(min(sys.getswitchinterval(), TICK_SWITCH_INTERVAL))
         #: The lockstep loop (None in real time): it replaces the clock's ticks.
         self.lockstep = LockstepLoop(self) if isinstance(self._rt, LockstepSlider) else None
+        if self.lockstep is None:
+            # In real time, let the tick thread take the GIL within 0.5 ms even while the executor
+            # thread is busy with a flood of commands (default: 5 ms).  Not in lockstep, which keeps
+            # no pace: there every switch costs (a process-wide setting: the offline recorder, a
+            # producer and a writer thread, ran 4x slower with it).
+            sys.setswitchinterval(min(sys.getswitchinterval(), TICK_SWITCH_INTERVAL))
         self._ticker = threading.Thread(target=self._tick_loop, name="slider_tick", daemon=True)
         self._ticker.start()
         self._serving.set()
