@@ -110,6 +110,9 @@ INPUT_FIELDS = tuple(spec.INPUTS)
 #: Messages a command or parameter change may queue beyond the capacity before
 #: it waits (a flood brings at most the subscriptions' depth per topic and tick).
 URGENT_HEADROOM = 4096
+#: Wall time [s] the writer lets records gather after the first of a batch (unless the queue is
+#: half full): a batch then holds a tick's worth many times over, written in one numpy pass.
+GATHER = 0.02
 
 
 def plant_parameters(params: SliderParams, inputs: Inputs) -> dict[str, float | str]:
@@ -363,7 +366,8 @@ class Recorder:
                     return False
             self._items.append((item, size))
             self._pending += size
-            self._not_empty.notify()
+            if len(self._items) == 1 or self._capacity // 2 <= self._pending < self._capacity // 2 + size:
+                self._not_empty.notify()  # the first of a batch, or half full: not every call (a futex wake costs)
             return True
 
     def _wait_for_room(self, size: int, capacity: int) -> bool:
@@ -444,6 +448,8 @@ class Recorder:
                     if timeout <= 0.0:
                         break
                     self._not_empty.wait(timeout)
+                if self._items and not self._stopping and self._pending < self._capacity // 2:
+                    self._not_empty.wait(GATHER)  # gather: a numpy pass, a wake-up and a GIL hand-over a batch
                 batch = [item for item, _ in self._items]
                 self._taken += self._pending
                 self._items.clear()
