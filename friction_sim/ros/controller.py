@@ -97,7 +97,6 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TwistStamped
 from rcl_interfaces.msg import ParameterEvent, SetParametersResult
 from rclpy.clock import Clock, ClockType, ROSClock
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import qos_profile_parameter_events
@@ -125,7 +124,7 @@ from friction_sim.ros.controller_plant import ADOPTED, FOLLOWED, named, own_para
 from friction_sim.ros.graph import NameWatch
 from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, accelerometer_qos, take_all
 from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
-from friction_sim.ros.run import CONTROLLER_EXIT_CODES, node_help, run_node, wall_ns
+from friction_sim.ros.run import CONTROLLER_EXIT_CODES, QuietNode, node_help, run_node, wall_ns
 
 _T = TypeVar("_T")
 QOS_DEPTH = 10
@@ -147,7 +146,7 @@ PUBLICATIONS = (
 )
 
 
-class ControllerNode(Node):
+class ControllerNode(QuietNode):
     """Publishes the excitation amplitude that makes the slider creep at the target speed."""
 
     def __init__(self, node_name: str = "controller", **kwargs: Any) -> None:

@@ -21,6 +21,7 @@ from typing import Any
 
 import rclpy
 import rclpy.logging
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -79,6 +80,21 @@ class FaultSignal:
 
     def _raise(self) -> None:
         raise NodeFault(self.reason)
+
+
+class QuietNode(Node):
+    """A node whose publishers and subscriptions have no rclpy event handlers unless given some.
+    rclpy's default ones (a warning on an incompatible QoS) are each a waitable that its Python
+    executor visits at every wake-up: 22 of them on the controller, which in lockstep wakes for
+    every sample it answers.  (``ros2 topic info --verbose`` still shows each endpoint's QoS.)"""
+
+    def create_publisher(self, *args: Any, **kwargs: Any) -> Any:
+        kwargs.setdefault("event_callbacks", PublisherEventCallbacks(use_default_callbacks=False))
+        return super().create_publisher(*args, **kwargs)
+
+    def create_subscription(self, *args: Any, **kwargs: Any) -> Any:
+        kwargs.setdefault("event_callbacks", SubscriptionEventCallbacks(use_default_callbacks=False))
+        return super().create_subscription(*args, **kwargs)
 
 
 class SpinThread:

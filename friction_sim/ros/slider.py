@@ -74,8 +74,6 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 from rclpy.subscription import Subscription
@@ -119,6 +117,7 @@ from friction_sim.ros.run import (
     EXIT_RECORDING_FAILED,
     SLIDER_EXIT_CODES,
     FaultSignal,
+    QuietNode,
     node_help,
     run_node,
     wall_ns,
@@ -138,8 +137,6 @@ from friction_sim.ros.slider_outputs import (
 
 QOS_DEPTH = 10
 COMMANDS_PER_TICK = QOS_DEPTH
-_QUIET_PUBLISHER = PublisherEventCallbacks(use_default_callbacks=False)
-_QUIET_SUBSCRIPTION = SubscriptionEventCallbacks(use_default_callbacks=False)
 TICK_SWITCH_INTERVAL = 0.0005
 #: The node's parameters: declared once in the one vocabulary.
 PARAMETERS = spec.SLIDER_NODE
@@ -159,7 +156,7 @@ PUBLICATIONS = (
 )
 
 
-class SliderNode(Node):
+class SliderNode(QuietNode):
     """Publishes the exact slider state in real time and takes commands."""
 
     def __init__(self, node_name: str = "slider", **kwargs: Any) -> None:
@@ -290,7 +287,7 @@ class SliderNode(Node):
         self._set_publish_clock(publish_clock)
 
     def _publisher(self, kind: type, topic: str, depth: Any = QOS_DEPTH) -> Any:
-        return self.create_publisher(kind, topic, depth, event_callbacks=_QUIET_PUBLISHER)
+        return self.create_publisher(kind, topic, depth)
 
     def _set_publish_clock(self, on: bool) -> None:
         """Advertise /clock only while it is published (the tick thread publishes
@@ -308,8 +305,7 @@ class SliderNode(Node):
         polled = PolledGroup()
         self._commands: list[tuple[str, Subscription]] = [
             (entry.name, self.create_subscription(
-                message_class(entry.message_type), entry.name, _unused, QOS_DEPTH, callback_group=polled,
-                event_callbacks=_QUIET_SUBSCRIPTION))
+                message_class(entry.message_type), entry.name, _unused, QOS_DEPTH, callback_group=polled))
             for entry in consumed_by(SLIDER)
         ]
 

@@ -13,7 +13,6 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from rclpy.event_handler import SubscriptionEventCallbacks
 
 from friction_sim.core.meanspeed.urelation import NO_PREDICTION
 from friction_sim.core.model.commands import COMMANDS, PAUSE, RESET, RESUME, STEP, Outcome
@@ -148,9 +147,8 @@ def watch_namespace(node: Any, now: Callable[[], float], *, lockstep: bool) -> N
             if sink is not None:
                 sink.write(topic, msg, log_time_ns)
 
-    quiet = SubscriptionEventCallbacks(use_default_callbacks=False)
     for topic, kind in (("diagnostics", DiagnosticArray), ("target_speed", message_class("std_msgs/msg/Float64"))):
-        node.create_subscription(kind, topic, functools.partial(forward, topic), WATCHED_DEPTH, event_callbacks=quiet)
+        node.create_subscription(kind, topic, functools.partial(forward, topic), WATCHED_DEPTH)
 
 
 def pace_problems(report: dict[str, Any]) -> list[str]:
