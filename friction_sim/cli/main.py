@@ -101,7 +101,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_OneLineParser)
     for verb in verbs():
-        verb_parser = sub.add_parser(verb.name, help=verb.help)
+        # (argparse formats a help text with %: a literal one, "95 % intervals", must be doubled)
+        verb_parser = sub.add_parser(verb.name, help=verb.help.replace("%", "%%"), description=verb.help)
         verb.add_arguments(verb_parser)
         verb_parser.set_defaults(handler=verb.run)
     return parser

@@ -34,6 +34,23 @@ def test_console_script_is_installed() -> None:
     assert SCRIPT.exists(), "make's editable install puts friction-sim in the venv"
 
 
+def test_help_of_the_command_and_of_every_verb_prints_and_exits_0(capsys: pytest.CaptureFixture[str]) -> None:
+    """The first thing a newcomer types: ``friction-sim --help`` lists every verb with its
+    one-line help as written (a literal % included), and each verb's ``--help`` works."""
+    from friction_sim.cli.main import verbs
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--help"])
+    text = capsys.readouterr().out
+    assert exit_info.value.code == 0
+    flat = " ".join(text.split())
+    for verb in verbs():
+        assert verb.name in text and " ".join(verb.help.split()[:4]) in flat, verb.name
+        with pytest.raises(SystemExit) as exit_info:
+            main([verb.name, "--help"])
+        assert exit_info.value.code == 0 and f"usage: friction-sim {verb.name}" in capsys.readouterr().out
+
+
 def test_umap_point_json_matches_the_relation() -> None:
     done = run("umap", "--phi", "0.7", "--ratio", "0.5", "--json")
     assert done.returncode == 0, done.stderr
