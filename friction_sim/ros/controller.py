@@ -89,6 +89,7 @@ topics (:mod:`friction_sim.ros.controller_lockstep`).
 from __future__ import annotations
 
 import contextlib
+import threading
 import time
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
@@ -151,6 +152,8 @@ class ControllerNode(QuietNode):
 
     def __init__(self, node_name: str = "controller", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
+        #: Held by every callback and by the lockstep answers' thread: one at a time touches the law.
+        self.callback_lock = threading.RLock()
         values = declare_settings(self, PARAMETERS)
         #: The law with its counters, pending target and reports (core/runtime/controller.py).
         self.runtime = RealtimeController(values)
@@ -170,20 +173,23 @@ class ControllerNode(QuietNode):
         #: The answers to the slider's samples while it runs in lockstep (None in real time).
         self.lockstep: LockstepAnswers | None = None
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.commands = CommandBatches(self, self._apply_batch, self._guarded)
-        self.create_subscription(TwistStamped, "mean_velocity",
-                                 self._guarded("mean_velocity callback", self._on_mean_velocity), QOS_DEPTH)
+        self.commands = CommandBatches(self, self._apply_batch, self.guarded)
+        #: Open in real time; shut in lockstep, where the answers' own thread takes the samples.
+        self.samples_group = PolledGroup(open=True)
+        self.mean_velocity = self.create_subscription(
+            TwistStamped, "mean_velocity", self.guarded("mean_velocity callback", self._on_mean_velocity), QOS_DEPTH,
+            callback_group=self.samples_group)
         #: Open: each reading wakes the node.  Shut until the model is settled (the inner loop is built
         #: then); in lockstep shut while no answer waits for a reading (they are drained with each sample).
         self.accelerometer_group = PolledGroup()
         self.accelerometer: Any = None
         self.subscribe_accelerometer(lockstep=False)
         self.names = NameWatch(self)
-        self.create_timer(values["diagnostics_period"], self._guarded("diagnostics", self._publish_diagnostics_timed),
+        self.create_timer(values["diagnostics_period"], self.guarded("diagnostics", self._publish_diagnostics_timed),
                           clock=steady)
         watch_parameter_refusals(self, PARAMETERS, self._parameter_refused)
         self.add_on_set_parameters_callback(self._set_parameters_guarded)
-        self.add_post_set_parameters_callback(self._guarded("parameter update", self._parameters_set))
+        self.add_post_set_parameters_callback(self.guarded("parameter update", self._parameters_set))
         self.ready = False
         self._plant_settled = not values["plant_node"]
         self._deadline = time.monotonic() + PLANT_TIMEOUT
@@ -192,14 +198,14 @@ class ControllerNode(QuietNode):
             self._plant_future: Any = None
             self.runtime.plant_node = qualified(values["plant_node"], self.get_namespace())
             self.create_subscription(ParameterEvent, "/parameter_events",
-                                     self._guarded("plant parameter event", self._on_plant_event),
+                                     self.guarded("plant parameter event", self._on_plant_event),
                                      qos_profile_parameter_events)
         elif values["lockstep"]:  # no plant node to say so: this node's own word
             self.lockstep = LockstepAnswers(self, values["actuation_delay"], values["accelerometer_rate"])
         else:
             self.accelerometer_group.open = True
         self._matched_at: float | None = None
-        self._startup_timer = self.create_timer(0.05, self._guarded("start-up", self._start_up), clock=steady)
+        self._startup_timer = self.create_timer(0.05, self.guarded("start-up", self._start_up), clock=steady)
 
     def subscribe_accelerometer(self, *, lockstep: bool, reading: bool = True) -> Any:
         """The accelerometer subscription: volatile in real time (only readings from now on
@@ -215,7 +221,7 @@ class ControllerNode(QuietNode):
         qos = accelerometer_qos(lockstep=lockstep)
         self.accelerometer = self.create_subscription(
             message_class("sensor_msgs/msg/Imu"), "accelerometer",
-            self._guarded("accelerometer callback", self._on_acceleration), qos,
+            self.guarded("accelerometer callback", self._on_acceleration), qos,
             callback_group=self.accelerometer_group)
         return self.accelerometer
 
@@ -351,7 +357,8 @@ class ControllerNode(QuietNode):
     def _parameter_refused(self, name: str, value: Any, why: str) -> None:
         """rclpy refused a parameter value before our callbacks (range, type,
         read-only, undeclared): counted like any refusal (the watch has warned)."""
-        self.runtime.refuse(f"parameter {why}")
+        with self.callback_lock:
+            self.runtime.refuse(f"parameter {why}")
 
     def _on_mean_velocity(self, msg: TwistStamped) -> None:
         if self.lockstep is not None:
@@ -367,27 +374,33 @@ class ControllerNode(QuietNode):
             self._publish(output, boundary=t)
 
     def _on_acceleration(self, msg: Any) -> None:
-        """An accelerometer sample for the inner loop (its normal specific force)."""
-        if self.lockstep is not None:
-            self.lockstep.acceleration(stamp_ns(msg.header.stamp), msg.linear_acceleration.z)
-            return
+        """An accelerometer sample for the inner loop (its normal specific force; in lockstep the
+        answers take the readings themselves)."""
         try:
             self.runtime.take_acceleration(ns_to_seconds(stamp_ns(msg.header.stamp)), msg.linear_acceleration.z)
         except ParameterError as error:
             self._warn(f"{error}; sample ignored")
 
+    def destroy_node(self) -> None:
+        """Stop the lockstep answers' thread (if any), then the node."""
+        if self.lockstep is not None:
+            self.lockstep.stop()
+        super().destroy_node()
+
     # -- unexpected errors ------------------------------------------------------------
 
-    def _guarded(self, where: str, callback: Callable[..., _T]) -> Callable[..., _T | None]:
-        """``callback`` for the executor: an unexpected error in it is reported
-        (:meth:`_internal_error`) instead of ending the node's spin."""
+    def guarded(self, where: str, callback: Callable[..., _T]) -> Callable[..., _T | None]:
+        """``callback`` for the executor (or the lockstep answers' thread): run holding
+        :attr:`callback_lock`; an unexpected error in it is reported (:meth:`_internal_error`)
+        instead of ending the node's spin."""
 
         def run(*args: Any) -> _T | None:
-            try:
-                return callback(*args)
-            except Exception as error:  # noqa: BLE001 - the node must outlive a bug, and say so
-                self._internal_error(where, error)
-                return None
+            with self.callback_lock:
+                try:
+                    return callback(*args)
+                except Exception as error:  # noqa: BLE001 - the node must outlive a bug, and say so
+                    self._internal_error(where, error)
+                    return None
 
         return run
 
@@ -515,12 +528,13 @@ class ControllerNode(QuietNode):
 
     def _set_parameters_guarded(self, changes: list[Parameter]) -> SetParametersResult:
         """:meth:`_set_parameters`; an unexpected error in it refuses the set."""
-        try:
-            return self._set_parameters(changes)
-        except Exception as error:  # noqa: BLE001 - answer the caller, report, go on
-            self._internal_error("parameter set", error)
-            return SetParametersResult(successful=False,
-                                       reason=f"internal error: {self.runtime.last_internal_error}")
+        with self.callback_lock:
+            try:
+                return self._set_parameters(changes)
+            except Exception as error:  # noqa: BLE001 - answer the caller, report, go on
+                self._internal_error("parameter set", error)
+                return SetParametersResult(successful=False,
+                                           reason=f"internal error: {self.runtime.last_internal_error}")
 
     def _set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         """Cross-field rules, checked on a copy of the controller as it is now

@@ -129,22 +129,24 @@ class Arrivals:
     """Sleep until a message waits on one of ``subscriptions`` (drained by their
     owner, :class:`PolledGroup`) or a timeout passes.
 
-    A loop that drains its own subscriptions (the slider's lockstep loop) must
+    A loop that drains its own subscriptions (the slider's lockstep loop, the
+    controller's lockstep answers) must
     not poll them while it waits for an answer: a poll every 0.1 ms costs as
     much CPU as the answer it waits for, and the GIL with it.  rclpy has no
     public call for this; its own ``rclpy.wait_for_message`` uses the same
     wait set of the rclpy implementation, which releases the GIL while it waits.
     """
 
-    def __init__(self, subscriptions: list[Subscription], context: Any) -> None:
-        self._subscriptions = subscriptions
-        self._wait_set = _rclpy.WaitSet(len(subscriptions), 0, 0, 0, 0, 0, context.handle)
+    def __init__(self, subscriptions: list[Subscription], context: Any, capacity: int | None = None) -> None:
+        #: The subscriptions waited on (at most ``capacity``: the owner may change them between waits).
+        self.subscriptions = subscriptions
+        self._wait_set = _rclpy.WaitSet(capacity or len(subscriptions), 0, 0, 0, 0, 0, context.handle)
 
     def wait(self, timeout: float) -> None:
         """Until a message waits or ``timeout`` seconds."""
         wait_set = self._wait_set
         wait_set.clear_entities()
-        for subscription in self._subscriptions:
+        for subscription in self.subscriptions:
             wait_set.add_subscription(subscription.handle)
         wait_set.wait(round(timeout * 1e9))
 
