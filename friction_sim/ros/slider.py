@@ -263,6 +263,18 @@ class SliderNode(QuietNode):
     def publish_mean_velocity(self, msg: Any) -> None:
         self._mean_pub.publish(msg)
 
+    def flush_readings(self) -> None:
+        """Lockstep, while the loop waits: publish the held accelerometer samples a reader
+        that came since needs (see :class:`AccelerometerPublisher`)."""
+        answered = self._answered_ns()
+        if self._imu_pub is not None and answered is not None:
+            self._imu_pub.flush(answered)
+
+    def _answered_ns(self) -> int | None:
+        """In lockstep the stamp [ns] of the last sample answered (-1: none); None in real time."""
+        gate = getattr(self._rt, "gate", None)
+        return None if gate is None else int(gate.answered_ns)
+
     @property
     def fault(self) -> str:
         """Why the node stopped ('' while it runs): see :class:`SimulationFault`."""
@@ -486,7 +498,7 @@ class SliderNode(QuietNode):
             for period in tick.periods:
                 self._mean_pub.publish(mean_velocity_message(period, self._frame_id))
             if self._imu_pub is not None:
-                self._imu_pub.publish(tick.accelerations, keep=self.lockstep is not None)
+                self._imu_pub.publish(tick.accelerations, hold_after_ns=self._answered_ns())
             self._last_published = state
             deliver_tick(self.sinks, tick, self._frame_id, self._imu_noise)
         with self._published:

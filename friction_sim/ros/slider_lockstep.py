@@ -59,6 +59,7 @@ class SteppedNode(Protocol):
     def fail(self, error: BaseException) -> None: ...
     def publish_diagnostics(self, stamp_ns: int | None = None) -> None: ...
     def publish_mean_velocity(self, msg: Any) -> None: ...
+    def flush_readings(self) -> None: ...
 
 #: Wall time [s] after which an awaited sample is published again while the slider waits.
 REPEAT = 0.25
@@ -143,6 +144,7 @@ class LockstepLoop:
                 continue
             if outcomes:
                 continue
+            node.flush_readings()  # (a controller that began to read the accelerometer gets what it needs)
             blocker, joined = rt.gate.blocker(rt.t_ns)
             now = time.monotonic()
             if not blocker:

@@ -9,7 +9,8 @@ so each stays short; nothing here holds state.
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Sequence
+from collections import deque
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -20,6 +21,7 @@ from friction_sim.core.model.events import SliderState
 from friction_sim.core.model.records import Acceleration
 from friction_sim.io.messages import (
     ACCELEROMETER,
+    ACCELEROMETER_DEPTH,
     SIM_CONTROL,
     imu_message,
     message_class,
@@ -66,19 +68,47 @@ class AccelerometerPublisher:
     """The accelerometer topic's publisher: each sample of a tick as sensor_msgs/Imu at its own
     simulation time.  A thousand a second, so one message is filled again for each (rclpy
     serializes it as it publishes: building a new Imu costs about as much as publishing it).
-    In real time, with no reader on the topic, a publish is work for no one; ``keep``
-    (lockstep) publishes them anyway, into the topic's transient-local history, for a
-    controller that starts reading later (it answers a window with them).  The sinks (the
-    recording, the live view) get the samples from the tick, not from here."""
+
+    With no reader on the topic a publish is work for no one.  In real time such samples are
+    gone (a reader that comes later reads from then on).  In lockstep a controller that starts
+    reading later must still get the readings of the windows it has yet to answer (the topic is
+    transient local for it): so the samples newer than the last sample answered are held, at
+    most :data:`ACCELEROMETER_DEPTH`, and published, in order, as soon as a reader is there
+    (:meth:`flush`; the slider's loop calls it while it waits).  Each sample goes out once.
+    The sinks (the recording, the live view) get the samples from the tick, not from here."""
 
     def __init__(self, publisher: Any, frame_id: str, noise: float) -> None:
         self._publisher = publisher
         self._msg = imu_message(Acceleration(0.0, 0.0, 0.0, 0.0), frame_id, noise)
+        self._held: deque[Acceleration] = deque(maxlen=ACCELEROMETER_DEPTH)
 
-    def publish(self, samples: Sequence[Acceleration], *, keep: bool) -> None:
-        """Publish ``samples`` (if ``keep``, or if someone reads the topic)."""
-        if not samples or not (keep or self._publisher.get_subscription_count()):
+    def publish(self, samples: Sequence[Acceleration], *, hold_after_ns: int | None) -> None:
+        """Publish ``samples`` if someone reads the topic; else hold those newer than
+        ``hold_after_ns`` (lockstep: the last sample answered; None: hold none)."""
+        if not samples:
             return
+        if self._publisher.get_subscription_count():
+            self._send(self._held)
+            self._held.clear()
+            self._send(samples)
+        elif hold_after_ns is not None:
+            self._held.extend(samples)
+            self.forget_through(hold_after_ns)
+
+    def flush(self, hold_after_ns: int) -> None:
+        """Publish the held samples newer than ``hold_after_ns`` once a reader is there."""
+        self.forget_through(hold_after_ns)
+        if self._held and self._publisher.get_subscription_count():
+            self._send(self._held)
+            self._held.clear()
+
+    def forget_through(self, t_ns: int) -> None:
+        """Drop the held samples stamped at or before ``t_ns`` (their windows are answered)."""
+        held = self._held
+        while held and seconds_to_ns(held[0].t) <= t_ns:
+            held.popleft()
+
+    def _send(self, samples: Iterable[Acceleration]) -> None:
         msg = self._msg
         stamp, acceleration, publish = msg.header.stamp, msg.linear_acceleration, self._publisher.publish
         for sample in samples:

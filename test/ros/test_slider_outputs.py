@@ -8,8 +8,9 @@ from typing import Any
 
 from friction_sim.core.meanspeed.predict import predict
 from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.model.records import Acceleration
 from friction_sim.core.runtime.realtime import RealtimeSlider
-from friction_sim.ros.slider_outputs import PREDICTION_TRIES, consistent_report
+from friction_sim.ros.slider_outputs import PREDICTION_TRIES, AccelerometerPublisher, consistent_report
 
 
 class ChangingWhilePredicting(RealtimeSlider):
@@ -42,3 +43,48 @@ def test_a_plant_that_changes_at_every_try_is_reported_without_a_prediction() ->
     assert report["drive_force"] == rt.slider.inputs.drive_force
     assert math.isnan(report["predicted_U"]) and math.isnan(report["phi"])
     assert rt.made == PREDICTION_TRIES
+
+
+class Topic:
+    """A stand-in publisher: its readers are counted by the test; it keeps (stamp, x) of each message."""
+
+    def __init__(self) -> None:
+        self.readers = 0
+        self.sent: list[tuple[int, float]] = []
+
+    def get_subscription_count(self) -> int:
+        return self.readers
+
+    def publish(self, msg: Any) -> None:
+        self.sent.append((msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec, msg.linear_acceleration.x))
+
+
+def readings(first: int, count: int) -> list[Acceleration]:
+    """``count`` readings 1 ms apart from ``first`` ms, x = their index."""
+    return [Acceleration((first + k) / 1000, float(first + k), 0.0, 9.81) for k in range(count)]
+
+
+def test_accelerometer_samples_with_no_reader_are_dropped_in_real_time() -> None:
+    topic = Topic()
+    accelerometer = AccelerometerPublisher(topic, "slideway", 0.0)
+    accelerometer.publish(readings(1, 20), hold_after_ns=None)
+    topic.readers = 1
+    accelerometer.publish(readings(21, 20), hold_after_ns=None)
+    assert [x for _, x in topic.sent] == [float(k) for k in range(21, 41)]  # a reader reads from when it came
+
+
+def test_in_lockstep_a_late_reader_gets_every_sample_of_the_windows_still_to_answer_once_in_order() -> None:
+    """With no reader the samples newer than the last answered sample are held; a reader that comes
+    gets them (at a flush, or before the next samples), each once, then every sample as it is made."""
+    topic = Topic()
+    accelerometer = AccelerometerPublisher(topic, "slideway", 0.0)
+    accelerometer.publish(readings(1, 20), hold_after_ns=-1)  # the first window: nothing answered yet
+    accelerometer.publish(readings(21, 20), hold_after_ns=20_000_000)  # window 1 answered: its samples go
+    accelerometer.flush(20_000_000)
+    assert topic.sent == []
+    topic.readers = 1
+    accelerometer.flush(20_000_000)
+    accelerometer.flush(20_000_000)
+    accelerometer.publish(readings(41, 20), hold_after_ns=40_000_000)
+    assert [stamp for stamp, _ in topic.sent] == [k * 1_000_000 for k in range(21, 61)]
+    assert [x for _, x in topic.sent] == [float(k) for k in range(21, 61)]

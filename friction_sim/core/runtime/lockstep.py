@@ -96,6 +96,8 @@ class LockstepGate:
         self._seq = itertools.count()
         #: Answers taken, answers that answered no awaited sample (a repeat), stamped commands taken.
         self.answers = self.stale_answers = self.scheduled = 0
+        #: The stamp [ns] of the last sample answered (-1: none yet).
+        self.answered_ns = -1
         #: Wall time [s] spent waiting for participants; lockstep_timeouts spent waiting for one to join.
         self.waited = 0.0
         self.join_waits = 0
@@ -141,6 +143,7 @@ class LockstepGate:
         while self.awaited and self.awaited[0] <= stamp_ns:  # answers come in order: earlier ones are past
             self.awaited.popleft()
         self.answers += 1
+        self.answered_ns = stamp_ns
         self._queue(stamp_ns + self.delay_ns, _ANSWER, commands)
         return True
 
