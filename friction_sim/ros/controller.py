@@ -219,10 +219,10 @@ class ControllerNode(QuietNode):
             if not reading:
                 return None
         qos = accelerometer_qos(lockstep=lockstep)
-        self.accelerometer = self.create_subscription(
+        self.accelerometer = self.create_subscription(  # (in lockstep the answers take them, serialized)
             message_class("sensor_msgs/msg/Imu"), "accelerometer",
             self.guarded("accelerometer callback", self._on_acceleration), qos,
-            callback_group=self.accelerometer_group)
+            callback_group=self.accelerometer_group, raw=lockstep)
         return self.accelerometer
 
     @property

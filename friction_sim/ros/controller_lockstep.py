@@ -23,7 +23,7 @@ more than the answer itself, fifty times a simulated second.
 from __future__ import annotations
 
 import threading
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 from friction_sim.core.control.law import ControlOutput
 from friction_sim.core.model.spec import NS_PER_S
@@ -31,6 +31,7 @@ from friction_sim.core.runtime.answers import AnswerQueue
 from friction_sim.core.runtime.controller import RealtimeController
 from friction_sim.errors import ParameterError
 from friction_sim.io.messages import message_class, stamp_ns
+from friction_sim.io.series import imu_normals
 from friction_sim.io.stamped import CONTROL_ANSWER, STAMPED_DEPTH, STAMPED_TYPE, stamped_message
 from friction_sim.ros.intake import Arrivals, PolledGroup, take_all
 
@@ -156,10 +157,11 @@ class LockstepAnswers:
         return reads
 
     def _drain(self) -> None:
-        """Queue every accelerometer reading waiting on the topic."""
-        msg: Any
-        for msg in take_all(self.node.accelerometer, ACCELEROMETER_BATCH):
-            self.queue.acceleration(stamp_ns(msg.header.stamp), msg.linear_acceleration.z)
+        """Queue every accelerometer reading waiting on the topic (taken serialized: see
+        :func:`~friction_sim.io.series.imu_normals`)."""
+        datas = cast(list[bytes], take_all(self.node.accelerometer, ACCELEROMETER_BATCH))  # (a raw subscription)
+        for stamp, normal in imu_normals(datas):
+            self.queue.acceleration(stamp, normal)
 
     def answer_waiting(self) -> None:
         """Answer every queued sample whose turn has come (none before the model is settled)."""

@@ -100,3 +100,21 @@ def test_parameter_values_keep_their_types() -> None:
         "mass": 3, "window": 2, "clock": 1, "frame_id": 4, "gains": 8, "counts": 7, "names": 9, "flags": 6,
         "blob": 5}
     assert M.stamp_ns(msg.stamp) == 2_000_000_000 and msg.node == "/slider"
+
+
+@pytest.mark.parametrize("frames", [("slideway",), ("slideway", "a_much_longer_frame_name")])
+def test_serialized_imu_readings_give_their_stamps_and_normal_accelerations(frames: tuple[str, ...]) -> None:
+    """What the lockstep controller takes from the accelerometer topic, serialized: each message's
+    stamp and linear_acceleration.z, in order, read at numpy speed when the messages share a layout
+    and decoded one by one when they do not (frame names of two lengths)."""
+    import numpy as np
+
+    from friction_sim.core.model.records import Acceleration
+    from friction_sim.io.cdr import serialize
+    from friction_sim.io.series import imu_normals
+
+    rng = np.random.default_rng(3)
+    samples = [Acceleration(1.5 + k / 1000, *rng.normal(0.0, 20.0, 3)) for k in range(30)]
+    datas = [serialize(M.imu_message(sample, frames[k % len(frames)], 0.1)) for k, sample in enumerate(samples)]
+    assert imu_normals(datas) == [(M.seconds_to_ns(sample.t), sample.z) for sample in samples]
+    assert imu_normals([]) == []

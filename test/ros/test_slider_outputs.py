@@ -10,6 +10,7 @@ from friction_sim.core.meanspeed.predict import predict
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.model.records import Acceleration
 from friction_sim.core.runtime.realtime import RealtimeSlider
+from friction_sim.io.cdr import deserialize
 from friction_sim.ros.slider_outputs import PREDICTION_TRIES, AccelerometerPublisher, consistent_report
 
 
@@ -56,6 +57,8 @@ class Topic:
         return self.readers
 
     def publish(self, msg: Any) -> None:
+        if isinstance(msg, bytes):  # (published serialized, as rclpy's publish takes it)
+            msg = deserialize(msg, "sensor_msgs/msg/Imu")
         self.sent.append((msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec, msg.linear_acceleration.x))
 
 
