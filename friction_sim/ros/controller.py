@@ -391,7 +391,7 @@ class ControllerNode(QuietNode):
 
     def guarded(self, where: str, callback: Callable[..., _T]) -> Callable[..., _T | None]:
         """``callback`` for the executor (or the lockstep answers' thread): run holding
-        :attr:`callback_lock`; an unexpected error in it is reported (:meth:`_internal_error`)
+        :attr:`callback_lock`; an unexpected error in it is reported (:meth:`internal_error`)
         instead of ending the node's spin."""
 
         def run(*args: Any) -> _T | None:
@@ -399,12 +399,12 @@ class ControllerNode(QuietNode):
                 try:
                     return callback(*args)
                 except Exception as error:  # noqa: BLE001 - the node must outlive a bug, and say so
-                    self._internal_error(where, error)
+                    self.internal_error(where, error)
                     return None
 
         return run
 
-    def _internal_error(self, where: str, error: BaseException) -> None:
+    def internal_error(self, where: str, error: BaseException) -> None:
         """Count it, keep the reason for diagnostics (ERROR from now on), log
         each distinct error once.  The law's state is as before the input (each change
         of it is a transaction), so the input is refused and the node goes on."""
@@ -532,7 +532,7 @@ class ControllerNode(QuietNode):
             try:
                 return self._set_parameters(changes)
             except Exception as error:  # noqa: BLE001 - answer the caller, report, go on
-                self._internal_error("parameter set", error)
+                self.internal_error("parameter set", error)
                 return SetParametersResult(successful=False,
                                            reason=f"internal error: {self.runtime.last_internal_error}")
 

@@ -63,6 +63,7 @@ class AnsweringNode(Protocol):
     def decide(self, output: ControlOutput, boundary: float) -> dict[str, float]: ...
     def publish_diagnostics(self) -> None: ...
     def guarded(self, where: str, callback: Any) -> Any: ...
+    def internal_error(self, where: str, error: BaseException) -> None: ...
 
 #: The plant node's parameters read at start-up besides its model: whether it runs in
 #: lockstep, with what actuation delay, and its accelerometer's rate (the answers wait for it).
@@ -105,22 +106,29 @@ class LockstepAnswers:
         self._thread.start()
 
     def _run(self) -> None:
-        """Until stopped: sleep until a sample (or an awaited reading) waits, then answer."""
-        try:
-            while not self._stop.is_set():
-                reading = self.node.accelerometer if self._awaiting_readings else None
-                self._arrivals.subscriptions = [self.node.mean_velocity] + ([reading] if reading is not None else [])
+        """Until stopped: sleep until a sample (or an awaited reading) waits, then answer.  An
+        error in an answer is reported like any callback's, and the thread goes on; one in the
+        wait itself (the context shut down under it) is reported, and the thread ends."""
+        while not self._stop.is_set() and self.node.context.ok():
+            reading = self.node.accelerometer if self._awaiting_readings else None
+            self._arrivals.subscriptions = [self.node.mean_velocity] + ([reading] if reading is not None else [])
+            try:
                 self._arrivals.wait(_LOOK_EVERY)
-                if not self._stop.is_set():
-                    self._take()  # (an error in it is reported like any callback's: the thread goes on)
-        finally:
-            self._arrivals.destroy()
+            except Exception as error:  # noqa: BLE001 - said, never a thread that dies in silence
+                if not self._stop.is_set() and self.node.context.ok():
+                    self.node.internal_error("lockstep answers (the thread stops)", error)
+                return
+            if not self._stop.is_set():
+                self._take()
 
     def stop(self) -> None:
-        """End the answers' thread (the node is being destroyed)."""
+        """End the answers' thread (the node is being destroyed), at once: its wait is woken."""
         self._stop.set()
+        self._arrivals.wake()
         if self._thread is not threading.current_thread():
             self._thread.join(timeout=2.0)
+            if not self._thread.is_alive():
+                self._arrivals.destroy()
 
     def _take_waiting(self) -> None:
         """Take the waiting samples, in order, and answer what can be (callback lock held)."""

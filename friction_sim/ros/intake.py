@@ -140,18 +140,26 @@ class Arrivals:
     def __init__(self, subscriptions: list[Subscription], context: Any, capacity: int | None = None) -> None:
         #: The subscriptions waited on (at most ``capacity``: the owner may change them between waits).
         self.subscriptions = subscriptions
-        self._wait_set = _rclpy.WaitSet(capacity or len(subscriptions), 0, 0, 0, 0, 0, context.handle)
+        self._wait_set = _rclpy.WaitSet(capacity or len(subscriptions), 1, 0, 0, 0, 0, context.handle)
+        with context.handle:
+            self._wake = _rclpy.GuardCondition(context.handle)
 
     def wait(self, timeout: float) -> None:
-        """Until a message waits or ``timeout`` seconds."""
+        """Until a message waits, :meth:`wake` is called, or ``timeout`` seconds."""
         wait_set = self._wait_set
         wait_set.clear_entities()
         for subscription in self.subscriptions:
             wait_set.add_subscription(subscription.handle)
+        wait_set.add_guard_condition(self._wake)
         wait_set.wait(round(timeout * 1e9))
+
+    def wake(self) -> None:
+        """End the present (or the next) wait at once: its owner stops."""
+        self._wake.trigger_guard_condition()
 
     def destroy(self) -> None:
         self._wait_set.destroy_when_not_in_use()
+        self._wake.destroy_when_not_in_use()
 
 
 def arrival(info: Any) -> int:

@@ -109,6 +109,9 @@ class SpinThread:
         self._executor = SingleThreadedExecutor()
         self._executor.add_node(node)
         self._stop = threading.Event()
+        #: Triggered by :meth:`stop`: a callback ready ends the executor's wait (a wake of the executor
+        #: alone does not: it waits on until something is ready or its timeout).
+        self._wake = node.create_guard_condition(lambda: None)
         self._thread = threading.Thread(target=self._spin, name=f"{node.get_name()}_spin", daemon=True)
         self._thread.start()
 
@@ -126,7 +129,9 @@ class SpinThread:
     def stop(self) -> None:
         """End the spin (the node stays: its owner destroys it)."""
         self._stop.set()
+        self._wake.trigger()  # (out of its wait now, not at its timeout)
         self._thread.join(timeout=5.0)
+        self.node.destroy_guard_condition(self._wake)
         self._executor.shutdown(timeout_sec=0.0)
 
 
