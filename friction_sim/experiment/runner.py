@@ -5,8 +5,10 @@ running elsewhere.
 The nodes run exactly as they would under ``ros2 run``; a driver node
 publishes each scheduled :class:`~friction_sim.core.model.commands.Command` on its
 topic (as :func:`friction_sim.io.messages.command_message`) when the slider's
-simulation time reaches it, and listens to what the nodes publish.  The
-result holds the time series a report or a test needs
+simulation time reaches it (in lockstep: stamped, see
+:mod:`friction_sim.experiment.lockstep_run`), and collects what the nodes
+publish: from the topics when attached, from the slider's sinks when the nodes
+run in this process (:mod:`friction_sim.experiment.plants`).  The result holds the time series a report or a test needs
 (:class:`~friction_sim.experiment.job.ExperimentResult`);
 :mod:`friction_sim.experiment.metrics` turns them into settling time,
 overshoot and steady error.  This is the one module of the package outside
