@@ -51,13 +51,13 @@ from mcap.records import (
 
 from friction_sim.errors import RecordingError
 from friction_sim.io import cdr
+from friction_sim.io.chunks import MCAP_MAGIC
 from friction_sim.io.messages import ns_to_seconds
 from friction_sim.io.typesupport import message_definition, message_type_name, plain_yaml, qos_yaml, type_hash
 
 #: rosbag2 bag metadata version written in the ``rosbag2`` record (Jazzy).
 ROSBAG2_METADATA_VERSION = 9
 ROS_DISTRO = "jazzy"
-MCAP_MAGIC = b"\x89MCAP0\r\n"
 #: A Message record up to its data: opcode, record length, channel id, sequence, log time, publish time.
 _MESSAGE = struct.Struct("<BQHIQQ")
 #: A MessageIndex record up to its entries: opcode, record length, channel id, entries' length.

@@ -93,7 +93,7 @@ COMMAND_TOPICS = (*COMMANDS, PARAMETERS, SIM_CONTROL)
 @functools.cache
 def message_class(type_name: str) -> type:
     """The message class for ``pkg/msg/Type`` (or ``pkg/Type``), imported by name."""
-    match = _TYPE_NAME.match(type_name)
+    match = TYPE_NAME.match(type_name)
     if match is None:
         raise RecordingError(f"not a ROS 2 message type name: {type_name!r}")
     package, _, name = match.groups()
@@ -104,7 +104,8 @@ def message_class(type_name: str) -> type:
         raise RecordingError(f"message type {package}/msg/{name} is not installed") from None
 
 
-_TYPE_NAME = re.compile(r"^([a-zA-Z][a-zA-Z0-9_]*)/((?:msg|srv)/)?([a-zA-Z][a-zA-Z0-9_]*)$")
+#: A ROS 2 type name: ``pkg/msg/Type``, ``pkg/srv/Type`` or ``pkg/Type`` (package, kind, name).
+TYPE_NAME = re.compile(r"^([a-zA-Z][a-zA-Z0-9_]*)/((?:msg|srv)/)?([a-zA-Z][a-zA-Z0-9_]*)$")
 
 
 # -- time ---------------------------------------------------------------------

@@ -28,13 +28,12 @@ from typing import Any
 import yaml
 
 from friction_sim.errors import RecordingError
-from friction_sim.io.messages import message_class
+from friction_sim.io.messages import TYPE_NAME, message_class
 
 #: RMW_DURATION_INFINITE as rosbag2 serialises it (what the RMW reports for
 #: a publisher's default deadline, lifespan and liveliness lease duration).
 _INFINITE = {"sec": 9223372036, "nsec": 854775807}
 
-_TYPE_NAME = re.compile(r"^([a-zA-Z][a-zA-Z0-9_]*)/((?:msg|srv)/)?([a-zA-Z][a-zA-Z0-9_]*)$")
 # rosbag2_storage_mcap's message_definition_cache.cpp, verbatim.
 _MSG_FIELD_TYPE = re.compile(r"(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+")
 _PRIMITIVES = frozenset({
@@ -69,7 +68,7 @@ _type_names: dict[type, str] = {}  # a class's type name, looked up once (per me
 @cache
 def normalized(type_name: str) -> str:
     """``pkg/msg/Type`` for ``pkg/msg/Type`` or ``pkg/Type``; RecordingError otherwise."""
-    match = _TYPE_NAME.match(type_name)
+    match = TYPE_NAME.match(type_name)
     if match is None:
         raise RecordingError(f"not a ROS 2 message type name: {type_name!r}")
     return f"{match.group(1)}/msg/{match.group(3)}"
@@ -167,7 +166,7 @@ def service_definitions(type_name: str) -> tuple[str, str]:
     """The ``ros2msg`` texts of a service's request and response
     (``pkg/srv/Type``): the halves of its installed ``.srv`` file, each with
     its dependencies appended as :func:`message_definition` appends them."""
-    match = _TYPE_NAME.match(type_name)
+    match = TYPE_NAME.match(type_name)
     share = share_directory(match.group(1)) if match and match.group(2) == "srv/" else None
     path = share / "srv" / f"{match.group(3)}.srv" if share is not None and match else None
     if path is None or not path.is_file():

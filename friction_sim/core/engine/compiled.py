@@ -49,7 +49,15 @@ from friction_sim.core.physics import roots as _roots
 from friction_sim.core.physics import segment as _segment
 from friction_sim.core.physics.plant import excitation, kostek_applies, plant
 from friction_sim.core.physics.roots import NEVER
-from friction_sim.core.physics.segment import FLIGHT, STUCK, evaluate, next_step, to_cycle, travel
+from friction_sim.core.physics.segment import (
+    FLIGHT,
+    MAX_EVENTS_AT_ONE_INSTANT,
+    STUCK,
+    evaluate,
+    next_step,
+    to_cycle,
+    travel,
+)
 
 #: Numba's run-time settings (untyped: set and read by name).
 _CONFIG: Any = numba.config
@@ -59,8 +67,6 @@ RING = 8
 #: Slots of the memo of worked-out steps per slider (by a hash of the segment start;
 #: a periodic motion has a handful of starts, a bouncer's rarely repeat).
 MEMO = 512
-#: As the single slider: more events than this at one instant means no progress.
-MAX_EVENTS_AT_ONE_INSTANT = 1000
 #: Event kinds (the count columns).
 KINDS = 5
 #: The columns of the per-slider inputs, in the order of ``plant``'s arguments.

@@ -64,6 +64,7 @@ from friction_sim.core.physics.segment import (
     FLIGHT,
     LANDING,
     LIFT_OFF,
+    MAX_EVENTS_AT_ONE_INSTANT,
     STUCK,
     Step,
     evaluate,
@@ -89,11 +90,6 @@ _CACHE_LIMIT = 256
 #: ranges of core/spec.py they keep every state finite (the fastest accepted
 #: slider, at 2e12 m/s^2, covers 1e44 m by then).
 MAX_TIME = 2.0**53
-#: More events than this at one instant means the general model made no
-#: progress (a rounding case its guards missed): the slider raises a
-#: SimulationFault instead of looping for ever.  A real instant has at most a
-#: handful (a landing, a lift-off at once, a slip onset).
-MAX_EVENTS_AT_ONE_INSTANT = 1000
 MAX_POSITION = 1e100
 #: Event kinds by the numbers of :mod:`friction_sim.core.physics.segment`.
 _KINDS = tuple(EventKind)

@@ -41,6 +41,12 @@ from friction_sim.core.physics.roots import (
 BACKWARD, STUCK, FORWARD, FLIGHT = -1, 0, 1, 2
 #: Event kinds, numbered as events.EventKind lists them.
 SLIP_START, STICK, REVERSAL, LIFT_OFF, LANDING = 0, 1, 2, 3, 4
+#: More events than this at one instant means the general model made no
+#: progress (a rounding case its guards missed): a stepper (the single slider,
+#: the compiled population) raises a SimulationFault instead of looping for
+#: ever.  A real instant has at most a handful (a landing, a lift-off at once,
+#: a slip onset).
+MAX_EVENTS_AT_ONE_INSTANT = 1000
 
 
 class Step(NamedTuple):
