@@ -92,7 +92,7 @@ from friction_sim.core.control.sampleclock import SampleClock
 from friction_sim.core.meanspeed.inverse import Branch, rising_branch
 from friction_sim.core.meanspeed.urelation import amplitude_ratio_for, u_map
 from friction_sim.core.model import spec
-from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.model.params import Inputs, SliderParams, beats_friction
 from friction_sim.core.physics.plant import kostek_applies
 from friction_sim.errors import ParameterError
 
@@ -125,24 +125,24 @@ def speed_limit_formula(drive_force: float, model: SliderParams, frequency: floa
     the refusal's message: the words must be the rule that was applied).
 
     In Kostek's model below lift-off (:func:`uses_closed_form`) the limit is
-    :data:`SPEED_LIMIT_FACTOR` |Fd|/(m f); inf when |phi| >= 1 (it slides
-    away, and reaches any speed in time).  Beyond it the tangential excitation
+    :data:`SPEED_LIMIT_FACTOR` |Fd|/(m f); inf when |phi| > 1 (it slides
+    away, and reaches any speed in time: :func:`runs_away`).  Beyond it the tangential excitation
     Pt <= ``max_ratio``*m*g*|cot(beta)| and the slope's pull add to the drive:
     the limit is :data:`SPEED_LIMIT_FACTOR` (|Fd - m g sin(alpha)| + Pt)/(m f),
     and at least :data:`GENERAL_SPEED_MARGIN` times the fastest mean speed the
-    model shows for a <= ``max_ratio``; inf when |Fd - m g sin(alpha)| >=
+    model shows for a <= ``max_ratio``; inf when |Fd - m g sin(alpha)| >
     mu m g cos(alpha) or when the model runs away somewhere in that range (a
     hopping slider without landing friction can).
     """
     m_f = f"m = {model.mass:g} kg, f = {frequency:g} Hz"
     if uses_closed_form(model, max_ratio):
         force = abs(drive_force)
-        if force >= model.mu * model.weight:
-            return math.inf, f"none: |Fd| = {force:g} N >= mu m g = {model.mu * model.weight:g} N (|phi| >= 1)"
+        if runs_away(drive_force, model):
+            return math.inf, f"none: |Fd| = {force:g} N > mu m g = {model.mu * model.weight:g} N (|phi| > 1)"
         limit = SPEED_LIMIT_FACTOR * force / (model.mass * frequency)
         return limit, f"{SPEED_LIMIT_FACTOR:g} |Fd|/(m f) = {limit:.6g} m/s for Fd = {drive_force:g} N, {m_f}"
     if runs_away(drive_force, model):
-        return math.inf, "none: |Fd - m g sin(alpha)| >= mu m g cos(alpha) (the slider runs away)"
+        return math.inf, "none: |Fd - m g sin(alpha)| > mu m g cos(alpha) (the slider runs away)"
     samples = _branch(model, drive_force, max_ratio, 1).u
     if not np.all(np.isfinite(samples)):
         return math.inf, f"none: the model runs away somewhere in a <= {max_ratio:g}"
@@ -167,10 +167,13 @@ def uses_closed_form(model: SliderParams, max_ratio: float) -> bool:
 
 def runs_away(drive_force: float, model: SliderParams) -> bool:
     """True when the drive beats the friction whatever the excitation: |Fd -
-    m g sin(alpha)| >= mu m g cos(alpha) (Kostek: |phi| >= 1).  Coulomb friction
+    m g sin(alpha)| > mu m g cos(alpha) (Kostek: |phi| > 1).  Coulomb friction
     averages at most mu m g cos(alpha) over time (less when the slider hops),
-    and the excitation averages to nothing, so the slider then accelerates."""
-    return abs(drive_force - model.downhill_weight) >= model.mu * model.normal_weight
+    and the excitation averages to nothing, so the slider then accelerates.
+    The boundary itself does not run away (:func:`~friction_sim.core.model.params.beats_friction`,
+    the one rule, which the general mean speed's branch applies too); the closed
+    form's U is inf only beyond |phi| = 1."""
+    return beats_friction(drive_force - model.downhill_weight, model.normal_weight, model.mu)
 
 
 @dataclass(frozen=True)
@@ -211,7 +214,7 @@ class ControlOutput:
     integral: float  # I [U]
     saturated: bool  # a clamped at max_amplitude_ratio (general model: at the rising branch's end)
     unreachable: bool  # U* > U(phi, max_amplitude_ratio) (beyond the branch's end), or no drive that way
-    runaway: bool  # |phi| >= 1 (|Fd - m g sin(alpha)| >= mu m g cos(alpha)): it slides on whatever Pa is
+    runaway: bool  # |phi| > 1 (|Fd - m g sin(alpha)| > mu m g cos(alpha)): it accelerates whatever Pa is
     #: The fastest mean speed [m/s] toward the target within the ceiling of a (NaN: no target, or no branch).
     reachable_speed: float = math.nan
 
@@ -445,7 +448,7 @@ class MeanSpeedController:
         u_target = self._target * self._frequency / (model.gravity * model.mu)
         if not uses_closed_form(model, top):
             return self._decide_general(phi, u_target)
-        runaway = abs(phi) >= 1.0
+        runaway = abs(phi) > 1.0  # (runs_away in phi, the ratio the relation inverts: U(1, a) = a/(2*pi))
         if self._target == 0.0 or runaway:
             return self._output(0.0, u_target, phi, 0.0 if self._target == 0.0 else math.nan, False, False, runaway)
         if u_target == 0.0:

@@ -45,7 +45,7 @@ from numpy.typing import NDArray
 
 from friction_sim.core.meanspeed.general import REFERENCE_FREQUENCY, MeanSpeed, mean_speed
 from friction_sim.core.model import spec
-from friction_sim.core.model.params import Inputs, SliderParams, cos_degrees, sin_degrees
+from friction_sim.core.model.params import Inputs, SliderParams, beats_friction, cos_degrees, sin_degrees
 from friction_sim.errors import ParameterError
 
 #: Amplitude ratios sampled on [0, max_ratio] to find the branch.
@@ -175,7 +175,7 @@ def _branch(params: SliderParams, drive: float, fx: float, fz: float, max_ratio:
     a = max_ratio * np.arange(samples) / (samples - 1)
     a[-1] = max_ratio
     pull, load = drive + fx - sin_degrees(params.track_inclination), cos_degrees(params.track_inclination) - fz
-    if abs(pull) > params.mu * load:
+    if beats_friction(pull, load, params.mu):
         # The drive (with the slope's pull) beats the most friction the track can give on average: every
         # amplitude runs away (the excitation averages to nothing), no simulation needed to say so.
         u = np.full(samples, math.copysign(math.inf, pull))

@@ -222,14 +222,19 @@ def invert(target: float, lo: float, hi: float, f_hi: float, fixed: float, in_ph
 def amplitude_ratio(u: float, phi: float, top: float) -> float:
     """The amplitude ratio a <= ``top`` (0 < top < 1) with U(phi, a) = u, for any
     signs: 0 for u = 0, NaN where u cannot be reached (too fast, the sign of u
-    disagrees with phi's, |phi| >= 1 or phi = 0, or a NaN).
+    disagrees with phi's, |phi| > 1 or phi = 0, or a NaN).
 
-    U rises monotonically with a on (1 - |phi|, 1), so the answer is unique."""
+    U rises monotonically with a on (1 - |phi|, 1), so the answer is unique; at
+    |phi| = 1 the slider slides on with a bounded speed, U = a/(2*pi), which the
+    excitation still sets (only beyond does it run away)."""
     if u == 0.0:
         return 0.0
     magnitude = abs(phi)
-    if not (0.0 < magnitude < 1.0 and 1.0 - magnitude < top and (u > 0.0) == (phi > 0.0)):
+    if not (0.0 < magnitude <= 1.0 and 1.0 - magnitude < top and (u > 0.0) == (phi > 0.0)):
         return math.nan
+    if magnitude == 1.0:
+        ratio = TWO_PI * abs(u)
+        return ratio if ratio <= top else math.nan
     target, u_top = abs(u), u_of(magnitude, top)
     if not target <= u_top:  # (also NaN)
         return math.nan

@@ -92,8 +92,9 @@ def _closed_form(params: SliderParams, a: Floats) -> bool:
 
 def runaway_ratio(params: SliderParams) -> float:
     """The drive ratio beyond which the slider slides away uphill whatever the
-    vibration: Fd - m g sin(alpha) = mu m g cos(alpha) (the controller's
-    :func:`~friction_sim.core.control.law.runs_away` rule), over mu m g."""
+    vibration: Fd - m g sin(alpha) = mu m g cos(alpha), over mu m g (the
+    boundary of :func:`~friction_sim.core.model.params.beats_friction`, where
+    the slider itself still moves at a bounded speed)."""
     return (params.downhill_weight + params.mu * params.normal_weight) / (params.mu * params.weight)
 
 

@@ -161,7 +161,8 @@ def amplitude_ratio_for(u: ArrayLike, phi: ArrayLike, max_ratio: float = 1.0) ->
     U rises monotonically with a on (1 - phi, 1), so the answer is unique.
     Returns 0 for u == 0 (no excitation needed to stand still), and NaN where
     u cannot be reached with a < ``max_ratio`` (too fast, or the sign of u
-    disagrees with phi, or |phi| >= 1 where excitation no longer steers).
+    disagrees with phi, or |phi| > 1 where the slider runs away: at |phi| = 1
+    it slides on at U = a/(2*pi), which the excitation sets).
     """
     if not 0.0 < max_ratio <= 1.0:
         raise ParameterError("max_ratio", max_ratio, "must be in (0, 1]")

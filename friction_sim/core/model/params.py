@@ -221,6 +221,17 @@ def throw_number(params: SliderParams, inputs: Inputs) -> float:
     return inputs.excitation_amplitude / params.normal_weight
 
 
+def beats_friction(pull: float, load: float, mu: float) -> bool:
+    """Whether a slider runs away: the tangential pull (the drive with the slope's
+    and any external force) beats the most friction the track gives on average,
+    mu times the mean normal load, |pull| > mu*load (any units: N, or forces
+    over m*g).  The excitation averages to nothing, so the slider accelerates.
+    At equality it does not: its speed oscillates about a bounded mean and
+    touches zero once a period (Kostek's U = a/(2*pi) at |phi| = 1).  The one
+    runaway rule of the package."""
+    return abs(pull) > mu * load
+
+
 def plant_from(values: Mapping[str, Any], params: SliderParams | None = None,
                inputs: Inputs | None = None) -> tuple[SliderParams, Inputs]:
     """The parameters and inputs a mapping of field names gives: the fields of
@@ -247,8 +258,6 @@ _SETTINGS: dict[type, dict[str, spec.Setting]] = {SliderParams: spec.PLANT, Inpu
 
 
 __all__ = [
-    "Inputs", "SliderParams", "amplitude_ratio", "check_load", "cos_degrees", "drive_ratio", "field_values",
-    "plant_from",
-    "require_finite",
-    "require_positive", "sin_degrees", "throw_number",
+    "Inputs", "SliderParams", "amplitude_ratio", "beats_friction", "check_load", "cos_degrees", "drive_ratio",
+    "field_values", "plant_from", "require_finite", "require_positive", "sin_degrees", "throw_number",
 ]

@@ -398,7 +398,7 @@ class RealtimeController:
             (bool(namesake), namesake),
             (out.unreachable, f"target unreachable: the most it can give is {out.reachable_speed:.6g} m/s"),
             (out.saturated and not out.unreachable, "saturated"),
-            (out.runaway, "the drive beats friction (phi >= 1): no control over the speed"),
+            (out.runaway, "the drive beats friction (phi > 1): no control over the speed"),
             (bool(self.beyond_model), "the plant runs beyond its model: Pa 0"),
             (not ready, WAITING_FOR_PLANT),
             (ready and not self.active, "standing by for a target"),

@@ -286,3 +286,33 @@ def test_a_change_right_after_a_frequency_step_is_timed_by_the_samples_spacing()
     assert not clock.add(0.10, 100 * ms, 0.01, 1, 0.25), "its window [0.09, 0.10] began before the change"
     assert not clock.add(0.11, 110 * ms, 0.01, 1, 0.25), "its window began 1 ms after the change: within the margin"
     assert clock.add(0.12, 120 * ms, 0.01, 1, 0.25)
+
+
+def test_at_phi_one_the_excitation_still_sets_the_speed_and_only_beyond_it_runs_away() -> None:
+    """phi = 1 (Fd = mu m g: 1 N with the defaults) is the runaway boundary, not beyond it: the slider
+    slides on at U = a/(2 pi) (its speed touches zero once a period), so the law inverts that and the
+    loop holds the target on the exact core; one ulp more drive runs away (no control over the speed)."""
+    target = 2e-4  # U* = V f/(g mu) = 0.01, so a = 2 pi U*
+    controller = MeanSpeedController(ControllerConfig(), drive_force=1.0, frequency=50.0, target_speed=target)
+    out = controller.output
+    assert not (out.runaway or out.unreachable or out.saturated)
+    assert out.feedforward_ratio == 2.0 * math.pi * out.u_target
+    assert u_map(1.0, out.applied_ratio) == pytest.approx(out.u_target, rel=1e-15)
+    speeds = closed_loop_offline(controller, SliderParams(), 40, Inputs(drive_force=1.0))
+    assert speeds[-1] == pytest.approx(target, rel=1e-9)
+    beyond = MeanSpeedController(ControllerConfig(), drive_force=math.nextafter(1.0, 2.0), frequency=50.0,
+                                 target_speed=target)
+    assert beyond.output.runaway and beyond.output.amplitude == 0.0
+
+
+def test_the_runaway_rule_is_strict() -> None:
+    """beats_friction, the one runaway rule: beyond mu times the load, in either direction, not at it."""
+    from friction_sim.core.control.law import runs_away
+    from friction_sim.core.model.params import beats_friction
+
+    assert not beats_friction(1.0, 10.0, 0.1) and not beats_friction(-1.0, 10.0, 0.1)
+    assert beats_friction(math.nextafter(1.0, 2.0), 10.0, 0.1) and beats_friction(-math.nextafter(1.0, 2.0), 10.0, 0.1)
+    assert not runs_away(1.0, SliderParams()) and runs_away(math.nextafter(1.0, 2.0), SliderParams())
+    assert amplitude_ratio_for(0.01, 1.0, 0.95) == 2.0 * math.pi * 0.01
+    assert math.isnan(amplitude_ratio_for(0.2, 1.0, 0.95))  # a/(2 pi) <= 0.95/(2 pi) < 0.2: too fast
+    assert math.isnan(amplitude_ratio_for(-0.01, 1.0, 0.95))  # a backward speed from a forward drive

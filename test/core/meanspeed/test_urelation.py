@@ -268,15 +268,18 @@ def test_amplitude_ratio_for_unreachable_is_nan():
         (0.01, -0.7),  # wrong sign
         (-0.01, 0.7),  # wrong sign
         (0.01, 0.0),  # no drive, no steering
-        (0.01, 1.0),  # |phi| >= 1: excitation no longer steers
-        (0.01, 1.5),
-        (-0.01, -1.0),
+        (0.01, 1.5),  # |phi| > 1: it runs away, excitation no longer steers
+        (-0.01, -1.5),
+        (0.2, 1.0),  # at |phi| = 1, U = a/(2 pi) < 1/(2 pi)
         (float("nan"), 0.7),
     ]
     for u, phi in cases:
         assert math.isnan(amplitude_ratio_for(u, phi)), (u, phi)
     reachable = amplitude_ratio_for(u_top * 0.99, 0.7)
     assert 0.3 < reachable < 1.0
+    # |phi| = 1 is the runaway boundary, not beyond it: the slider slides on at U = a/(2 pi)
+    assert amplitude_ratio_for(0.01, 1.0) == amplitude_ratio_for(-0.01, -1.0) == 2.0 * math.pi * 0.01
+    assert u_map(1.0, 2.0 * math.pi * 0.01) == pytest.approx(0.01, rel=1e-15)
 
 
 def test_amplitude_ratio_for_with_max_ratio():
