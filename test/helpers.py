@@ -6,7 +6,9 @@ case of the exciter's reference (test/reference_exciter.py)."""
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import signal
+import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -113,3 +115,14 @@ def exciter_states(case: Any, times: Any) -> Any:
         state = slider.state()
         rows.append((state.x, state.v, state.z, state.vz))
     return np.array(rows), slider
+
+
+def hold_the_interpreter(seconds: float) -> float:
+    """Stall every Python thread of the process for ``seconds`` of wall time, as a
+    garbage collection does: a C call that sleeps with the GIL held (ctypes' PyDLL
+    keeps it; libc's usleep).  Returns the wall time it held it.  (It replaced a
+    calibrated amount of C work, whose length followed the machine's load: one
+    loaded CI run stalled 0.147 s for the 0.4 asked.)"""
+    start = time.perf_counter()
+    ctypes.PyDLL(None).usleep(round(seconds * 1e6))
+    return time.perf_counter() - start

@@ -5,13 +5,14 @@ from __future__ import annotations
 import dataclasses
 import math
 import threading
-import time
 
 import pytest
 
 from friction_sim.experiment import runner
 from friction_sim.experiment.acceptance import acceptance_scenarios, judge
 from friction_sim.experiment.runner import run_experiment
+
+from helpers import hold_the_interpreter
 
 
 @pytest.mark.parametrize("case", acceptance_scenarios(), ids=lambda c: c.name)
@@ -45,21 +46,6 @@ def test_the_loop_closes_and_settles_in_real_time(ros: None, name: str) -> None:
         assert verdict.metrics.steady_error <= verdict.expectation.within, verdict
 
 
-def _hold_the_interpreter(seconds: float) -> float:
-    """Hold the GIL for about ``seconds``, as a garbage collection does: every
-    Python thread of the process stops (``sum`` over a range runs in C and
-    never lets go).  Returns the time it held it."""
-    n, fastest = 200_000, math.inf
-    for _ in range(5):  # the fastest of a few: a trial the machine preempted would undersize the hold
-        start = time.perf_counter()
-        sum(range(n))
-        fastest = min(fastest, time.perf_counter() - start)
-    rate = n / max(fastest, 1e-6)
-    start = time.perf_counter()
-    sum(range(int(rate * seconds)))
-    return time.perf_counter() - start
-
-
 def test_a_stall_of_the_host_does_not_run_the_plant_ahead_of_its_controller(
         ros: None, monkeypatch: pytest.MonkeyPatch) -> None:
     """Case 3 with the whole process stalled for 0.4 s of wall time just after the
@@ -73,7 +59,7 @@ def test_a_stall_of_the_host_does_not_run_the_plant_ahead_of_its_controller(
 
     def command_message(command):  # type: ignore[no-untyped-def]
         if "drive_force" in command.values:
-            threading.Timer(0.005, lambda: held.append(_hold_the_interpreter(0.4))).start()
+            threading.Timer(0.005, lambda: held.append(hold_the_interpreter(0.4))).start()
         return publish(command)
 
     monkeypatch.setattr(runner, "command_message", command_message)

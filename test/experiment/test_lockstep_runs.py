@@ -23,6 +23,8 @@ from friction_sim.io.digest import differences, recording_digest
 from friction_sim.io.reader import read_recording
 from friction_sim.io.verify import verify
 
+from helpers import hold_the_interpreter
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -33,14 +35,6 @@ def _run(path: str, out: Path, namespace: str, **changes: object) -> dict[str, s
         spec = dataclasses.replace(spec, slider_parameters={**spec.slider_parameters, **changes})
     runner.run_experiment(spec, namespace=namespace)
     return recording_digest(out)
-
-
-def _hold_the_interpreter(seconds: float) -> None:
-    """Hold the GIL for about ``seconds`` (``sum`` over a range runs in C), as a garbage collection does."""
-    start = time.perf_counter()
-    n = 100_000
-    while time.perf_counter() - start < seconds:
-        sum(range(n))
 
 
 def test_acceptance_7_with_noise_gives_the_same_recording_with_and_without_a_stall(
@@ -56,7 +50,7 @@ def test_acceptance_7_with_noise_gives_the_same_recording_with_and_without_a_sta
 
     def promise(self, t_ns, commands=()):  # type: ignore[no-untyped-def]
         if commands == [] and t_ns >= 1_000_000_000 and not stalled:  # the first target step's point
-            threading.Timer(0.01, lambda: (_hold_the_interpreter(0.4), stalled.append(True))).start()
+            threading.Timer(0.01, lambda: (hold_the_interpreter(0.4), stalled.append(True))).start()
         publish(self, t_ns, commands)
 
     with pytest.MonkeyPatch.context() as patch:
