@@ -43,12 +43,22 @@ class Feeder:
         assert answer.success, answer.message
 
     def step_periods(self, n: int) -> None:
-        """``n`` steps of one period, each answered by the controller before the next."""
+        """``n`` steps of one period, each answered by the controller before the next: it has
+        taken the step's own sample (stamped where the step ended; a sample of before the
+        pause may still be on its way, and its answer is not this step's) and answered it."""
         for _ in range(n):
             seen = len(self.outputs)
             self.call("step")
-            answered = self.probe.spin_until(lambda seen=seen: len(self.outputs) > seen, 30.0)
-            assert answered, "the controller did not answer"
+            sample = self.slider.realtime.last_period.t  # (the step's own sample: one period, one sample)
+
+            def answered(seen: int = seen, sample: float = sample) -> bool:
+                last = self.controller.control.clock.last_stamp
+                # (stamps travel in whole ns: the controller's may lie a rounding below the slider's float)
+                return len(self.outputs) > seen and last is not None and last >= sample - 1e-9
+
+            assert self.probe.spin_until(answered, 30.0), \
+                f"the controller did not answer the sample at t = {sample} s " \
+                f"(it took the one at {self.controller.control.clock.last_stamp} s last)"
             # Its Pa reaches the paused slider, which takes it at the paused time:
             # wait for the slider to hold it (counted, however slow DDS is today).
             applied = self.outputs[-1].amplitude

@@ -78,6 +78,11 @@ class SampleClock:
                     for (t0, w0), (t1, w1) in itertools.pairwise(samples)]
         return max([0.0, *lateness])
 
+    @property
+    def last_stamp(self) -> float | None:
+        """The stamp [s] of the newest sample seen (None: none yet): which sample was taken last."""
+        return self._samples[-1][0] if self._samples else None
+
     def observe(self, stamp: float, wall_ns: int) -> None:
         """Record a sample's stamp and arrival without judging it (a controller
         standing by still learns the plant's real-time factor this way)."""
