@@ -46,6 +46,7 @@ from numpy.typing import NDArray
 from friction_sim.core.meanspeed.general import REFERENCE_FREQUENCY, MeanSpeed, mean_speed
 from friction_sim.core.model import spec
 from friction_sim.core.model.params import Inputs, SliderParams, beats_friction, cos_degrees, sin_degrees
+from friction_sim.core.physics.roots import illinois_update
 from friction_sim.errors import ParameterError
 
 #: Amplitude ratios sampled on [0, max_ratio] to find the branch.
@@ -271,16 +272,7 @@ def _solve(branch: Branch, target: float) -> float:
             best_a, best_f = x, f
         if abs(f) <= U_TOLERANCE * target:
             return x
-        if f > 0.0:
-            hi, f_hi = x, f
-            if side == 1:
-                f_lo *= 0.5
-            side = 1
-        else:
-            lo, f_lo = x, f
-            if side == -1:
-                f_hi *= 0.5
-            side = -1
+        lo, f_lo, hi, f_hi, side = illinois_update(lo, f_lo, hi, f_hi, side, x, f, f > 0.0)
         if hi - lo <= 4.0 * eps * hi:
             break
     return best_a

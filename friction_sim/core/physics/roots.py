@@ -581,3 +581,15 @@ def reduce_phase(theta: float, cycles: int) -> tuple[float, int]:
     if phase >= TWO_PI:  # rounding at the very end of a period
         phase, whole = 0.0, whole + 1
     return phase, cycles + whole
+
+
+def illinois_update(lo: float, f_lo: float, hi: float, f_hi: float, side: int, x: float, f_x: float,
+                    upper: bool) -> tuple[float, float, float, float, int]:
+    """One step of regula falsi, Illinois variant: ``x`` (value ``f_x``) replaces
+    the bracket's upper end (``upper``) or its lower one; an end that stays while
+    the other moves twice in a row has its value halved, so the bracket closes
+    from both sides.  ``side``: which end moved last (+1 upper, -1 lower, 0 none).
+    Returns (lo, f_lo, hi, f_hi, side)."""
+    if upper:
+        return lo, f_lo * 0.5 if side == 1 else f_lo, x, f_x, 1
+    return x, f_x, hi, f_hi * 0.5 if side == -1 else f_hi, -1

@@ -46,7 +46,7 @@ from typing import NamedTuple
 
 from friction_sim.core.physics.exciter import exp_terms
 from friction_sim.core.physics.plant import Form, Plant, form_at, onset_form, slip_form
-from friction_sim.core.physics.roots import NEVER, TWO_PI, harmonic, harmonic_at, reduce_phase
+from friction_sim.core.physics.roots import NEVER, TWO_PI, harmonic, harmonic_at, illinois_update, reduce_phase
 from friction_sim.core.physics.segment import (
     BACKWARD,
     FLIGHT,
@@ -201,16 +201,7 @@ def _narrowed(s: Signal, a: float, b: float, positive: bool) -> tuple[float, flo
             break
         _STEPS[0] += 1
         fm = value(s, m)
-        if _holds(fm, positive):
-            b, fb = m, fm
-            if side == 1:
-                fa *= 0.5
-            side = 1
-        else:
-            a, fa = m, fm
-            if side == -1:
-                fb *= 0.5
-            side = -1
+        a, fa, b, fb, side = illinois_update(a, fa, b, fb, side, m, fm, _holds(fm, positive))
         if b - a <= 64.0 * math.ulp(b):  # (bisection ends it in a few steps)
             break
     return a, b
