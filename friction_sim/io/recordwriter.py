@@ -78,6 +78,16 @@ def state_row_builder(frame_id: str) -> Callable[[int, Sequence[float]], Sequenc
     return make
 
 
+def imu_row_builder(frame_id: str, noise: float) -> Callable[[int, Sequence[float]], Sequence[Any]]:
+    """The accelerometer's Imu message in ``frame_id`` (covariance from ``noise``) from a
+    stamp [ns] and a row (x, y, z): what :func:`~friction_sim.io.cdr.fixed_layouts` probes
+    (the recorder, and the slider's publisher of the topic)."""
+    def make(ns: int, values: Sequence[float]) -> Sequence[Any]:
+        return [imu_message(Acceleration(ns / 1e9, *values), frame_id, noise)]
+
+    return make
+
+
 def qualified_topic(namespace: str, topic: str) -> str:
     """``topic`` as rosbag2 names it: absolute names stay, relative ones are
     resolved in ``namespace`` (``pose`` in ``/`` is ``/pose``, in ``/feeder1``
@@ -195,8 +205,7 @@ class RecordWriter:
         topic = self.topic(ACCELEROMETER)
         key = (frame_id, noise)
         if key not in self._imu_groups:
-            self._imu_groups[key] = self.file.row_group([topic], lambda ns, values: [imu_message(
-                Acceleration(ns / 1e9, *values), frame_id, noise)], 3)
+            self._imu_groups[key] = self.file.row_group([topic], imu_row_builder(frame_id, noise), 3)
         group = self._imu_groups[key]
         if group is None:
             for sample in samples:
@@ -292,5 +301,5 @@ def record_messages(item: Item, node: str) -> list[tuple[str, Any, int]]:
     raise ValueError(f"unknown record kind {kind!r}")
 
 
-__all__ = ["ROWS_PER_PASS", "STATE_VALUES", "RecordWriter", "qualified_topic", "record_messages", "state_row_builder",
-           "state_row"]
+__all__ = ["ROWS_PER_PASS", "STATE_VALUES", "RecordWriter", "imu_row_builder", "qualified_topic", "record_messages",
+           "state_row_builder", "state_row"]

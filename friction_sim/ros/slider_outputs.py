@@ -31,6 +31,7 @@ from friction_sim.io.messages import (
     stamp_ns,
     time_msg,
 )
+from friction_sim.io.recordwriter import imu_row_builder
 
 #: What the slider keeps of the namespace's other topics, with the depth of its queues.
 WATCHED_DEPTH = 10
@@ -83,7 +84,7 @@ class AccelerometerPublisher:
     def __init__(self, publisher: Any, frame_id: str, noise: float) -> None:
         self._publisher = publisher
         self._msg = imu_message(Acceleration(0.0, 0.0, 0.0, 0.0), frame_id, noise)
-        layouts = fixed_layouts(lambda ns, values: [imu_message(Acceleration(ns / 1e9, *values), frame_id, noise)], 3)
+        layouts = fixed_layouts(imu_row_builder(frame_id, noise), 3)
         #: The Imu's fixed layout (None: publish messages one by one).
         self._layout = layouts[0] if layouts else None
         self._held: deque[Acceleration] = deque(maxlen=ACCELEROMETER_DEPTH)
@@ -94,8 +95,7 @@ class AccelerometerPublisher:
         if not samples:
             return
         if self._publisher.get_subscription_count():
-            self._send(self._held)
-            self._held.clear()
+            self._send_held()
             self._send(samples)
         elif hold_after_ns is not None:
             self._held.extend(samples)
@@ -105,14 +105,17 @@ class AccelerometerPublisher:
         """Publish the held samples newer than ``hold_after_ns`` once a reader is there."""
         self.forget_through(hold_after_ns)
         if self._held and self._publisher.get_subscription_count():
-            self._send(self._held)
-            self._held.clear()
+            self._send_held()
 
     def forget_through(self, t_ns: int) -> None:
         """Drop the held samples stamped at or before ``t_ns`` (their windows are answered)."""
         held = self._held
         while held and seconds_to_ns(held[0].t) <= t_ns:
             held.popleft()
+
+    def _send_held(self) -> None:
+        self._send(self._held)
+        self._held.clear()
 
     def _send(self, samples: Iterable[Acceleration]) -> None:
         if self._layout is not None:
