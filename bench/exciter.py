@@ -5,7 +5,8 @@ Measures, in one run on this machine:
       second, the paper's case with the force actuator against the resonant
       actuator in steady state at resonance (the same motion, a quarter period
       later), and against the resonant actuator during the transient after a
-      step of drive level (f_n = 52 Hz, zeta = 0.02, driven at 50 Hz);
+      step of drive level (f_n = 52 Hz, zeta = 0.02, driven at 50 Hz), its root
+      search interpreted (plain) and compiled (the same bits);
   (b) the population engine's throughput (compiled, every event computed, and
       with the periodic shortcut) on the paper's case, force against resonant;
   (c) the agreements: the resonance curve against 50-digit mpmath, and the
@@ -30,6 +31,7 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 import mpmath
 import numpy as np
 
+from friction_sim.core.engine import transient_kernel
 from friction_sim.core.engine.population import run_batch
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.model.params import Inputs, SliderParams
@@ -103,10 +105,16 @@ def main() -> int:
     steady = single_rate(RESONANT, Inputs(), periods, repeats)
     plant = RESONANT.replace(natural_frequency=52.0)
     transient_periods = 300  # the transient of zeta = 0.02 at 52 Hz settles below rounding in ~320 periods
+    transient_kernel.use(transient_kernel.PLAIN)
+    plain = single_rate(plant, Inputs(drive_level=0.3), transient_periods, repeats, step=0.9)
+    transient_kernel.use(transient_kernel.COMPILED)
+    single_rate(plant, Inputs(drive_level=0.3), 1, 1, step=0.9)  # (load or compile it first)
     stepped = single_rate(plant, Inputs(drive_level=0.3), transient_periods, repeats, step=0.9)
     print(f"    force actuator (paper's case)              {force:12,.0f}")
     print(f"    resonant, steady at resonance               {steady:12,.0f}   ({steady / force:.2f} x force)")
-    print(f"    resonant, transient after a step of drive   {stepped:12,.0f}   ({stepped / force:.4f} x force)")
+    print(f"    resonant, transient after a step, plain     {plain:12,.0f}   ({plain / force:.4f} x force)")
+    print(f"    resonant, transient after a step, compiled  {stepped:12,.0f}   ({stepped / force:.4f} x force, "
+          f"{stepped / plain:.1f} x plain)")
     print(f"(b) population engine, N = {n}, slider-periods per second (median):")
     for shortcut in (False, True):
         off = population_rate("force", n, 20, shortcut, repeats)

@@ -22,7 +22,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "friction_sim"
 LAYERS = ["core", "io", "ros", "experiment", "cli"]
 CORE_PARTS = ["model", "physics", "engine", "meanspeed", "control", "runtime"]
-NUMBA_USERS = {"core/engine/compiled.py"}
+NUMBA_USERS = {"core/engine/compiled.py", "core/engine/transient_kernel.py"}
 RCLPY_USERS = {"ros", "experiment/runner.py"}
 MATPLOTLIB_USERS = {"cli/figures.py", "cli/recording_figure.py"}
 MODULES = sorted(PACKAGE.rglob("*.py"))

@@ -47,6 +47,7 @@ from friction_sim.core.physics import exciter as _exciter
 from friction_sim.core.physics import plant as _plant
 from friction_sim.core.physics import roots as _roots
 from friction_sim.core.physics import segment as _segment
+from friction_sim.core.physics import transient as _transient
 from friction_sim.core.physics.plant import excitation, kostek_applies, plant
 from friction_sim.core.physics.roots import NEVER
 from friction_sim.core.physics.segment import (
@@ -77,7 +78,7 @@ COLUMNS = ("mass", "mu", "gravity", "static_ratio", "excitation_angle", "excitat
 DONE, NO_PROGRESS = 0, 1
 
 #: The modules whose plain functions the compiled code calls: the physics, written once.
-PHYSICS = (_roots, _exciter, _plant, _segment)
+PHYSICS = (_roots, _exciter, _plant, _segment, _transient)
 
 
 def _register() -> None:

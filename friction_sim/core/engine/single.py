@@ -55,6 +55,7 @@ import numpy as np
 from friction_sim.core.engine.actuator import Exciter, ExciterState
 from friction_sim.core.engine.checkpoint import Checkpoint
 from friction_sim.core.engine.sampling import evaluate_many
+from friction_sim.core.engine.transient_kernel import transient_step
 from friction_sim.core.model.events import MODES as _MODES
 from friction_sim.core.model.events import CycleMark, Event, EventKind, Mode, SliderState, Trajectory
 from friction_sim.core.model.params import Inputs, SliderParams, require_finite
@@ -79,7 +80,6 @@ from friction_sim.core.physics.transient import (
     slideway_acceleration,
     transient_evaluate,
     transient_motion,
-    transient_step,
 )
 from friction_sim.errors import ParameterError, SimulationFault
 

@@ -44,9 +44,11 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import numpy as np
+
 from friction_sim.core.physics.exciter import exp_terms
 from friction_sim.core.physics.plant import Form, Plant, form_at, onset_form, slip_form
-from friction_sim.core.physics.roots import NEVER, TWO_PI, harmonic, harmonic_at, illinois_update, reduce_phase
+from friction_sim.core.physics.roots import NEVER, TWO_PI, harmonic, harmonic_at, illinois_update, reduce_phase, ulp
 from friction_sim.core.physics.segment import (
     BACKWARD,
     FLIGHT,
@@ -72,9 +74,10 @@ ROUNDING = 1e-14
 #: An interval on which the exact signal provably varies by at most this many
 #: rounding allowances is not split further (see :func:`_search`).
 FLAT = 4.0
-#: Intervals and bisection steps the root search has examined, for tests: a
-#: bound on the work of a search whatever the values.
-_STEPS = [0]
+#: A count of the intervals and bisection steps a root search examines (an int64
+#: array of one element, added to in place, so compiled code counts too): a bound
+#: on the work of a search whatever the values, for tests.
+Work = np.ndarray
 
 
 class Signal(NamedTuple):
@@ -162,7 +165,7 @@ def _holds(x: float, positive: bool) -> bool:
     return x > 0.0 if positive else x <= 0.0
 
 
-def _bisect(s: Signal, a: float, b: float, positive: bool) -> float:
+def _bisect(s: Signal, a: float, b: float, positive: bool, work: Work) -> float:
     """The first time on (a, b] where the condition holds, the condition failing at
     a and holding at b (one crossing: the signal is monotone there), to the last bit.
 
@@ -171,9 +174,9 @@ def _bisect(s: Signal, a: float, b: float, positive: bool) -> float:
     evaluations as bisection spends on a handful of bits; each keeps the
     bracket's invariant (failing at a, holding at b), and bisection then ends
     it as before, at two adjacent floats."""
-    a, b = _narrowed(s, a, b, positive)
+    a, b = _narrowed(s, a, b, positive, work)
     while True:
-        _STEPS[0] += 1
+        work[0] += 1
         m = a + 0.5 * (b - a)
         if m <= a or m >= b:
             return b
@@ -187,7 +190,7 @@ def _bisect(s: Signal, a: float, b: float, positive: bool) -> float:
 POLISH_STEPS = 8
 
 
-def _narrowed(s: Signal, a: float, b: float, positive: bool) -> tuple[float, float]:
+def _narrowed(s: Signal, a: float, b: float, positive: bool, work: Work) -> tuple[float, float]:
     """The bracket (a, b) of :func:`_bisect` narrowed by at most :data:`POLISH_STEPS` steps of
     the Illinois method; stops when a step would not land strictly inside, or the bracket is
     down to a few ulps."""
@@ -199,15 +202,15 @@ def _narrowed(s: Signal, a: float, b: float, positive: bool) -> tuple[float, flo
         m = b - fb * (b - a) / (fb - fa)
         if not a < m < b:
             break
-        _STEPS[0] += 1
+        work[0] += 1
         fm = value(s, m)
         a, fa, b, fb, side = illinois_update(a, fa, b, fb, side, m, fm, _holds(fm, positive))
-        if b - a <= 64.0 * math.ulp(b):  # (bisection ends it in a few steps)
+        if b - a <= 64.0 * ulp(b):  # (bisection ends it in a few steps)
             break
     return a, b
 
 
-def first_time(s: Signal, lo: float, hi: float, positive: bool) -> float:
+def first_time(s: Signal, lo: float, hi: float, positive: bool, work: Work) -> float:
     """The first time in [lo, hi] at which the signal is above zero (``positive``)
     or at or below it (else); ``inf`` if there is none.  Scanned a drive
     period at a time, each by branch and bound (see the module's docstring)."""
@@ -219,18 +222,18 @@ def first_time(s: Signal, lo: float, hi: float, positive: bool) -> float:
     start = lo
     while start < hi:
         stop = min(hi, start + period)
-        found = _search(s, start, stop, positive)
+        found = _search(s, start, stop, positive, work)
         if found != NEVER:
             return found
         start = stop
     return NEVER
 
 
-def _search(s: Signal, lo: float, hi: float, positive: bool) -> float:
+def _search(s: Signal, lo: float, hi: float, positive: bool, work: Work) -> float:
     """:func:`first_time` on [lo, hi], the condition failing at lo."""
     stack = [(lo, hi)]
     while stack:
-        _STEPS[0] += 1
+        work[0] += 1
         a, b = stack.pop()
         half = 0.5 * (b - a)
         m = a + half
@@ -243,7 +246,7 @@ def _search(s: Signal, lo: float, hi: float, positive: bool) -> float:
         fb_holds = _holds(value(s, b), positive)
         if abs(slope(s, m)) > curvature_bound(s, a, b) * half:
             if fb_holds:  # monotone: one crossing at most
-                return _bisect(s, a, b, positive)
+                return _bisect(s, a, b, positive, work)
             continue
         if m <= a or m >= b:
             if fb_holds:
@@ -255,9 +258,9 @@ def _search(s: Signal, lo: float, hi: float, positive: bool) -> float:
             continue  # no value on [a, b], exact or computed, meets the condition
         if high - low <= FLAT * slack(s, m):  # within rounding of zero throughout: decided by signs
             if _holds(f, positive):
-                return _bisect(s, a, m, positive)
+                return _bisect(s, a, m, positive, work)
             if fb_holds:
-                return _bisect(s, m, b, positive)
+                return _bisect(s, m, b, positive, work)
             continue
         stack.append((m, b))
         stack.append((a, m))
@@ -311,10 +314,6 @@ def _derivative_slack(s: Signal, k: int) -> float:
     return ROUNDING * (s.b1 * s.omega ** k + abs(s.kc) * abs(s.lam) ** k)
 
 
-def search_steps() -> int:
-    """How many intervals and bisection steps the root search has examined so far
-    in this process (for tests: the work of a search is bounded)."""
-    return _STEPS[0]
 
 
 # -- the gains of the transient force on each form ---------------------------------------------
@@ -333,32 +332,32 @@ def onset_gain(p: Plant, direction: int) -> float:
 # -- a segment's next event --------------------------------------------------------------------
 
 
-def _after_window(s: Signal, lo: float, hi: float, guard: bool) -> float:
+def _after_window(s: Signal, lo: float, hi: float, guard: bool, work: Work) -> float:
     """The first time the signal rises above zero; with ``guard`` (the window just
     closed: a restart at once could only come from rounding) only after it has
     been at or below zero."""
     if guard:
-        lo = first_time(s, lo, hi, False)
-    return first_time(s, lo, hi, True) if lo != NEVER else NEVER
+        lo = first_time(s, lo, hi, False, work)
+    return first_time(s, lo, hi, True, work) if lo != NEVER else NEVER
 
 
-def _returns_to_zero(rate: Signal, speed: Signal, hi: float) -> float:
+def _returns_to_zero(rate: Signal, speed: Signal, hi: float, work: Work) -> float:
     """When a speed that starts at ``speed.w0`` >= 0 first returns to zero; from
     rest it must first rise (its rate above zero) and fall (at or below): 0 if
     it never rises."""
     lo = 0.0
     if speed.w0 <= 0.0:
-        rising = first_time(rate, 0.0, hi, True)
+        rising = first_time(rate, 0.0, hi, True, work)
         if rising == NEVER:
             return 0.0
-        lo = first_time(rate, rising, hi, False)
+        lo = first_time(rate, rising, hi, False, work)
         if lo == NEVER:
             return NEVER
-    return first_time(speed, lo, hi, False)
+    return first_time(speed, lo, hi, False, work)
 
 
 def transient_step(p: Plant, c: complex, lam: complex, horizon: float, mode: int, phase0: float, v0: float,
-                   vz0: float, z0: float, closing: int, grounded: bool) -> Step:
+                   vz0: float, z0: float, closing: int, grounded: bool, work: Work) -> Step:
     """:func:`~friction_sim.core.physics.segment.next_step` under the steady forms of
     ``p`` plus the transient force Re(c*exp(lam*tau)): the next event before
     ``horizon`` (when the transient settles), or none."""
@@ -370,29 +369,29 @@ def transient_step(p: Plant, c: complex, lam: complex, horizon: float, mode: int
         height = signal(2, p.flight_z, 1.0 / p.mass, c, lam, phase0, omega, vz0, z0)
         kind = LANDING
         if z0 > 0.0:
-            delay = first_time(height, 0.0, horizon, False)
+            delay = first_time(height, 0.0, horizon, False, work)
         elif vz0 < 0.0:  # on the track and moving into it: lands at once
             delay = 0.0
         else:
-            apex = _returns_to_zero(rate, speed, horizon)
-            delay = first_time(height, apex, horizon, False) if apex != NEVER else NEVER
+            apex = _returns_to_zero(rate, speed, horizon, work)
+            delay = first_time(height, apex, horizon, False, work) if apex != NEVER else NEVER
     elif mode == STUCK:  # each candidate is sought only before the earliest found so far
         kind = SLIP_START
         for s in (FORWARD, BACKWARD):
             onset = _after_window(signal(0, onset_form(p, s), onset_gain(p, s), c, lam, phase0, omega, 0.0, 0.0),
-                                  0.0, min(delay, horizon), closing == s)
+                                  0.0, min(delay, horizon), closing == s, work)
             if onset < delay:
                 direction, delay = s, onset
         lift = _after_window(signal(0, p.lift, 1.0, c, lam, phase0, omega, 0.0, 0.0), 0.0, min(delay, horizon),
-                             grounded)
+                             grounded, work)
         if lift <= delay:  # (a lift-off at the same instant as an onset wins, as in the steady model)
             kind, direction, delay = LIFT_OFF, 0, lift
     else:
         form, gain = slip_form(p, mode), slip_gain(p, mode)
         stop = _returns_to_zero(signal(0, form, gain, c, lam, phase0, omega, 0.0, 0.0),
-                                signal(1, form, gain, c, lam, phase0, omega, mode * v0, 0.0), horizon)
+                                signal(1, form, gain, c, lam, phase0, omega, mode * v0, 0.0), horizon, work)
         lift = _after_window(signal(0, p.lift, 1.0, c, lam, phase0, omega, 0.0, 0.0), 0.0, min(stop, horizon),
-                             grounded)
+                             grounded, work)
         kind, delay = (LIFT_OFF, lift) if lift <= stop else (STICK, stop)
     if delay == NEVER:
         return NO_STEP

@@ -243,7 +243,7 @@ def test_first_time_misses_no_root(b0: float, b1: float, phase: float, re: float
     s = Signal(level, 1e-6 if level == 2 else 0.0, 0.01 if level else 0.0, b0, b1, phase, 2 * math.pi * 50.0,
                complex(re, im), complex(-sigma, omega_d))
     horizon = 0.06
-    found = first_time(s, 0.0, horizon, positive)
+    found = first_time(s, 0.0, horizon, positive, np.zeros(1, np.int64))
     grid = np.linspace(0.0, horizon, 30001)
     holds = [(value(s, float(t)) > 0.0) if positive else (value(s, float(t)) <= 0.0) for t in grid]
     first_on_grid = grid[holds.index(True)] if True in holds else math.inf

@@ -1,0 +1,165 @@
+"""The single slider's step under the exciter's transient: compiled once ready, plain until then.
+
+While the exciter's transient decays, every event of a segment is found by
+the branch-and-bound root search of :mod:`friction_sim.core.physics.transient`,
+the single slider's hot path (about 130 us a segment interpreted).  Numba
+compiles the same plain functions, as the population engine does with the
+steady physics (:mod:`friction_sim.core.engine.compiled`), and the compiled
+step is the plain one bit for bit: the same operations in the same order,
+the same libm, no fused multiply-adds (a test checks it over random cases).
+So the slider may switch to it at any instant without changing one number,
+and a lockstep recording is the same whichever ran.
+
+Compiling takes seconds on a machine's first run, then loads from the
+population engine's on-disk cache in about one.  A node must never stall on
+it, and must start without Numba, so the first transient step starts it on
+a background thread (:data:`AUTO`) and the plain step runs until it is
+ready.  :data:`COMPILED` waits for it instead (benchmarks, batch runs);
+:data:`PLAIN` never compiles (the reference the compiled step is tested
+against, or a platform without Numba).  If compiling fails, one warning
+says why and the plain step stays: slower, never different.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from friction_sim.core.physics import transient as _transient
+from friction_sim.core.physics.plant import Plant
+from friction_sim.core.physics.segment import Step
+
+#: Compile on a background thread at the first transient step; plain until ready.
+AUTO = "auto"
+#: Compile at the first transient step and wait for it.
+COMPILED = "compiled"
+#: Never compile.
+PLAIN = "plain"
+MODES = (AUTO, COMPILED, PLAIN)
+
+#: The root search's work in this process (see :data:`~friction_sim.core.physics.transient.Work`).
+WORK: np.ndarray = np.zeros(1, np.int64)
+
+_LOG = logging.getLogger(__name__)
+StepFunction = Callable[..., Step]
+
+
+class Kernel:
+    """The step in use, and the compiling of the other (one per process)."""
+
+    def __init__(self) -> None:
+        self.mode = AUTO
+        self.compiled: CompiledStep | None = None
+        self.failure: str | None = None
+        self.thread: threading.Thread | None = None
+        self.lock = threading.Lock()
+        self.plant: Plant | None = None  # the last plant found to have the compiled types
+
+    def start(self, args: tuple[Any, ...]) -> threading.Thread | None:
+        """Start compiling for the types of ``args`` (once); the thread, if one runs."""
+        with self.lock:
+            if self.thread is None and self.compiled is None and self.failure is None:
+                self.thread = threading.Thread(target=self._compile, args=(args,), daemon=True,
+                                               name="friction_sim-transient-compile")
+                self.thread.start()
+            return self.thread
+
+    def _compile(self, args: tuple[Any, ...]) -> None:
+        try:
+            self.compiled = compile_step(args)
+        except Exception as error:  # noqa: BLE001 (any failure leaves the plain step, which is never wrong)
+            self.failure = f"{type(error).__name__}: {error}"
+            _LOG.warning("the exciter's transient runs interpreted (slower, same numbers): compiling it "
+                         "failed with %s", self.failure)
+
+    def entry(self, p: Plant) -> StepFunction | None:
+        """The compiled step if it is ready and was compiled for the types of ``p``'s
+        fields (checked once per plant: the other arguments are converted by the caller)."""
+        compiled = self.compiled
+        if compiled is None or self.mode == PLAIN:
+            return None
+        if p is not self.plant:
+            if not compiled.fits(p):
+                return None
+            self.plant = p
+        return compiled.entry
+
+
+class CompiledStep:
+    """The compiled step's entry point, which skips Numba's dispatch (typing a
+    :class:`Plant` of nested named tuples costs more than the step itself), and
+    the test that a plant has the types it was compiled for."""
+
+    def __init__(self, entry: StepFunction, fits: Callable[[Plant], bool]) -> None:
+        self.entry = entry
+        self.fits = fits
+
+
+#: The process's kernel (one compile per process, like the on-disk cache it loads from).
+KERNEL = Kernel()
+
+
+def compile_step(args: tuple[Any, ...]) -> CompiledStep:
+    """The compiled :func:`~friction_sim.core.physics.transient.transient_step` for the
+    types of ``args`` (from the on-disk cache when it is there)."""
+    import numba
+
+    from friction_sim.core.engine.compiled import CACHE_DIR  # registers the physics, sets the cache
+
+    assert CACHE_DIR.is_dir()
+    typeof: Callable[[Any], Any] = numba.typeof  # (untyped in Numba)
+    dispatcher: Any = numba.njit(cache=True)(_transient.transient_step)
+    signature = tuple(typeof(arg) for arg in args)
+    dispatcher.compile(signature)
+    plant_type = signature[0]
+    return CompiledStep(dispatcher.overloads[signature].entry_point, lambda p: bool(typeof(p) == plant_type))
+
+
+def use(mode: str) -> None:
+    """Choose how transient steps run from now on: :data:`AUTO`, :data:`COMPILED` or :data:`PLAIN`."""
+    if mode not in MODES:
+        raise ValueError(f"transient kernel mode {mode!r} is not one of {', '.join(MODES)}")
+    KERNEL.mode = mode
+
+
+def mode() -> str:
+    """The mode chosen by :func:`use`."""
+    return KERNEL.mode
+
+
+def compiled_ready() -> bool:
+    """Whether the compiled step is loaded."""
+    return KERNEL.compiled is not None
+
+
+def failure() -> str | None:
+    """Why compiling failed, if it did."""
+    return KERNEL.failure
+
+
+def search_steps() -> int:
+    """The intervals and bisection steps the root search has examined in this
+    process (for tests: a bound on the work, whatever the machine)."""
+    return int(WORK[0])
+
+
+def transient_step(p: Plant, c: complex, lam: complex, horizon: float, mode: int, phase0: float, v0: float,
+                   vz0: float, z0: float, closing: int, grounded: bool) -> Step:
+    """:func:`~friction_sim.core.physics.transient.transient_step`, compiled when ready."""
+    args = (p, complex(c), complex(lam), float(horizon), int(mode), float(phase0), float(v0), float(vz0),
+            float(z0), int(closing), bool(grounded), WORK)
+    kernel = KERNEL
+    if kernel.compiled is None and kernel.mode != PLAIN and kernel.failure is None:
+        thread = kernel.start(args)
+        if kernel.mode == COMPILED and thread is not None:
+            thread.join()
+    entry = kernel.entry(p)
+    return entry(*args) if entry is not None else _transient.transient_step(*args)
+
+
+__all__ = ["AUTO", "COMPILED", "KERNEL", "MODES", "PLAIN", "WORK", "CompiledStep", "Kernel", "compile_step",
+           "compiled_ready", "failure", "mode", "search_steps", "transient_step", "use"]
