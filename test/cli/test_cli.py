@@ -258,3 +258,27 @@ def test_help_gives_each_flag_its_range() -> None:
     text = " ".join(done.stdout.split())
     assert "-1e+06 … 1e+06" in text and "2 … 2001" in text and "0 … 10" in text and "hops" in text
     assert "--landing-friction {impulsive,none}" in text and "impulsive | none; default impulsive" in text
+
+
+def _console_scripts() -> list[str]:
+    """The executables setup.py installs (read from its source: the one list of them)."""
+    import ast
+
+    tree = ast.parse((Path(__file__).resolve().parents[2] / "setup.py").read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Dict):
+            for key, value in zip(node.keys, node.values):
+                if isinstance(key, ast.Constant) and key.value == "console_scripts":
+                    return [entry.split("=")[0].strip() for entry in ast.literal_eval(value)]
+    raise AssertionError("setup.py declares no console_scripts")
+
+
+@pytest.mark.parametrize("command", [*_console_scripts(), "python -m friction_sim"])
+def test_every_installed_executable_answers_help_with_text_and_exit_0(command: str) -> None:
+    """What a newcomer types first, as they type it: each installed script (the nodes
+    included) and ``python -m friction_sim``, in a process of its own."""
+    argv = [sys.executable, "-m", "friction_sim"] if command.startswith("python") else [
+        str(Path(sys.executable).parent / command)]
+    done = subprocess.run([*argv, "--help"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "usage:" in done.stdout and len(done.stdout.splitlines()) >= 3 and "Traceback" not in done.stderr
