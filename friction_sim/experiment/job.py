@@ -86,7 +86,12 @@ class ExperimentSpec:
 
 @dataclass(frozen=True)
 class Status:
-    """A live view of a running experiment (for the status line)."""
+    """A live view of a running experiment (for the status line).
+
+    ``amplitude`` is the excitation the plant acts on: Pa [N] for the force
+    actuator; for the resonant one (``drive_level`` not None) the slideway's
+    normal acceleration amplitude in steady state [m/s^2] at that drive level
+    and frequency, its Pa being no input of that plant."""
 
     t: float
     duration: float
@@ -95,12 +100,15 @@ class Status:
     amplitude: float
     drive_force: float
     frequency: float
+    drive_level: float | None = None
 
     def line(self) -> str:
         """One line for a terminal: time, target, mean speed and the inputs in force."""
         target = "open loop" if self.target is None else f"{self.target * 1e3:.3f} mm/s"
+        excitation = (f"Pa {self.amplitude:6.3f} N" if self.drive_level is None else
+                      f"drive {self.drive_level:5.3f} | slideway {self.amplitude:6.3f} m/s^2")
         return (f"t {self.t:6.2f}/{self.duration:g} s | target {target:>12} | mean speed "
-                f"{self.mean_speed * 1e3:8.4f} mm/s | Pa {self.amplitude:6.3f} N | Fd {self.drive_force:6.3f} N "
+                f"{self.mean_speed * 1e3:8.4f} mm/s | {excitation} | Fd {self.drive_force:6.3f} N "
                 f"| f {self.frequency:g} Hz")
 
 
