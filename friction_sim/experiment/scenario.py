@@ -55,13 +55,14 @@ while paused, all at that time).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from friction_sim.core.control.law import ControllerConfig, MeanSpeedController
+from friction_sim.core.control.law import MeanSpeedController
 from friction_sim.core.model import spec as settings
 from friction_sim.core.model.commands import (
     COMMANDS,
@@ -75,7 +76,7 @@ from friction_sim.core.model.commands import (
     in_force,
 )
 from friction_sim.core.model.params import Inputs, SliderParams, check_load, plant_from
-from friction_sim.core.runtime.drive import outer_model
+from friction_sim.core.runtime.controller import MODEL, law_of
 from friction_sim.errors import FrictionSimError, ParameterError, ScenarioError
 from friction_sim.experiment.job import ExperimentSpec, OperatorAction
 from friction_sim.io.paramfile import read_params_file
@@ -357,20 +358,34 @@ class YamlParser:
         items = self.mapping(entry[0], CONTROLLER_KEYS, "controller")
         try:
             values = {key: settings.CONTROLLER_NODE[key].check(item[1]) for key, item in items.items()}
-            _controller_model(values, params, inputs)
+            controller_law(values, params, inputs)
         except ParameterError as error:
             node = items[error.field][0] if error.field in items else entry[0]
             raise self.fail(node, f"controller: {error}") from error
         return values
 
 
-def _controller_model(values: dict[str, Any], params: SliderParams, inputs: Inputs) -> MeanSpeedController:
-    """The controller the node would build from ``values`` (raises what it would refuse)."""
-    model = outer_model(params.replace(**{k: values[k] for k in settings.PLANT if k in values}))
-    config = ControllerConfig(model=model, **{k: values[k] for k in (
-        "integral_gain", "max_amplitude_ratio", "settle_margin") if k in values})
-    return MeanSpeedController(config, drive_force=inputs.drive_force, frequency=inputs.excitation_frequency,
-                               target_speed=values.get("target_speed", 0.0))
+def controller_values(section: Mapping[str, Any], params: SliderParams, inputs: Inputs) -> dict[str, Any]:
+    """Every parameter of the controller node as it runs in a scenario's experiment,
+    with the plant ``params`` and ``inputs`` in force: its defaults; the plant's drive
+    force and frequency (which it is started with and follows); the ``controller:``
+    ``section``; and, with ``plant_node`` set (the default), the plant's model and
+    mean window, which the node takes from the slider at start-up and follows
+    (friction_sim/ros/controller_plant.py).  The slider's window is its default: a
+    scenario does not set it."""
+    values = {**settings.defaults(settings.CONTROLLER_NODE), "drive_force": inputs.drive_force,
+              "excitation_frequency": inputs.excitation_frequency, **section}
+    if values["plant_node"]:
+        values.update({name: getattr(params, name) for name in MODEL},
+                      mean_window_periods=settings.SLIDER_NODE["mean_window_periods"].default)
+    return values
+
+
+def controller_law(section: Mapping[str, Any], params: SliderParams, inputs: Inputs) -> MeanSpeedController:
+    """The controller the node would build in the scenario's experiment (built by the
+    node's own :func:`~friction_sim.core.runtime.controller.law_of`), or the
+    ParameterError it would refuse with."""
+    return law_of(controller_values(section, params, inputs))
 
 
 def _text(top: dict[str, Entry], key: str, default: Any, kind: type) -> Any:
@@ -445,7 +460,7 @@ class _Schedule:
             params, inputs = apply(command, self.params, self.inputs)
             check_load(inputs.excitation_frequency, self.rate)
             if "target_speed" in command.values:
-                _controller_model({**(self.controller or {}), **command.values}, params, inputs)
+                controller_law({**(self.controller or {}), **command.values}, params, inputs)
         except ParameterError as error:
             raise self.parser.fail(item, f"{command.name} at t = {command.t!r} s: {error}") from error
         self.params, self.inputs = params, inputs
@@ -512,6 +527,6 @@ class _Operator:
 
 __all__ = [
     "CONTROLLER_KEYS", "OPERATOR_KEYS", "PLANT_KEYS", "Expectation", "Scenario", "YamlParser", "compose_mapping",
-    "load_scenario",
+    "controller_law", "controller_values", "load_scenario",
     "parse_scenario",
 ]
