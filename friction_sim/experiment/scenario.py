@@ -122,7 +122,7 @@ class Scenario:
     inputs: Inputs
     schedule: tuple[Command, ...]
     controller: dict[str, Any] | None
-    real_time_factor: float = 1.0
+    real_time_factor: float = float(settings.REAL_TIME_FACTOR.default)
     output: Path = Path("out")
     log_rate: float = float(settings.LOG_RATE.default)
     accelerometer_rate: float = float(settings.ACCELEROMETER_RATE.default)
@@ -230,6 +230,14 @@ class YamlParser:
         except ParameterError as error:
             raise self.fail(node, str(error)) from None
 
+    def whole(self, entry: Entry, setting: settings.Setting) -> int:
+        """An integer checked against ``setting`` (its range; the refusal names the line)."""
+        node, value = entry
+        try:
+            return int(setting.check(value))
+        except ParameterError as error:
+            raise self.fail(node, str(error)) from None
+
     def number(self, entry: Entry, key: str, *, positive: bool = False) -> float:
         """A finite number (> 0 with ``positive``)."""
         node, value = entry
@@ -245,9 +253,9 @@ class YamlParser:
         if "duration" not in top:
             raise self.fail(root, "missing key 'duration' (simulated seconds)")
         duration = self.number(top["duration"], "duration", positive=True)
-        rate = self.number(top["real_time_factor"], "real_time_factor", positive=True) \
-            if "real_time_factor" in top else 1.0
-        log_rate = self.number(top["log_rate"], "log_rate", positive=True) if "log_rate" in top \
+        rate = self.checked(top["real_time_factor"], settings.REAL_TIME_FACTOR) \
+            if "real_time_factor" in top else float(settings.REAL_TIME_FACTOR.default)
+        log_rate = self.checked(top["log_rate"], settings.LOG_RATE) if "log_rate" in top \
             else float(settings.LOG_RATE.default)
         accelerometer_rate = self.checked(top["accelerometer_rate"], settings.ACCELEROMETER_RATE) \
             if "accelerometer_rate" in top else float(settings.ACCELEROMETER_RATE.default)

@@ -72,7 +72,7 @@ def test_refusals_name_field_value_and_limit_in_the_vocabularys_words(bare: Node
         return descriptor_refusal(bare, Parameter(name, value=value), spec.SLIDER_NODE)
 
     assert why("mass", math.nan) == "mass = nan rejected: must be finite in [1e-06, 1e+06] kg"
-    assert why("mean_window_periods", 0) == "mean_window_periods = 0 rejected: must be in [1, 10000] periods"
+    assert why("mean_window_periods", 0) == "mean_window_periods = 0 rejected: must be an integer in [1, 10000] periods"
     assert why("mass", 2) == ("mass = 2 rejected: must be a floating-point number, not an integer "
                               "(write 2.0, not 2)")
     assert why("publish_clock", "yes") == "publish_clock = 'yes' rejected: must be true or false, not a string"
