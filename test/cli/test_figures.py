@@ -33,6 +33,7 @@ from friction_sim.core.model.commands import Command
 from friction_sim.core.model.events import EventKind
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.physics.exciter import steady_response
+from friction_sim.core.physics.roots import TWO_PI
 from friction_sim.core.runtime.simulation import SimulationResult, simulate
 from friction_sim.experiment.report import RunData
 
@@ -291,7 +292,7 @@ def test_the_trace_plots_the_single_sliders_path(params: SliderParams) -> None:
                       else (inputs.excitation_amplitude / params.mass, 0.0))
     assert lag == pytest.approx(math.pi / 2 if params.resonant else 0.0, abs=1e-12)
     e = (params.weight - inputs.drive_force / params.mu) / (params.mass * amplitude)
-    fastest = [(math.pi - math.asin(e) + lag) / (2.0 * math.pi * f) + k / f for k in range(3)]
+    fastest = [(math.pi - math.asin(e) + lag) / (TWO_PI * f) + k / f for k in range(3)]
     marks = [(t, v) for label, t, v in data.points if label == "B"]
     np.testing.assert_allclose([t for t, _ in marks], fastest, rtol=0.0, atol=1e-3 * spacing)
     # The speed at B is read off the samples linearly: below the peak by at most spacing^2/8 |dv'/dt|
