@@ -222,19 +222,12 @@ class YamlParser:
             entries[key] = (value_node, yaml.safe_load(yaml.serialize(value_node)))
         return entries
 
-    def checked(self, entry: Entry, setting: settings.Setting) -> float:
-        """A number checked against ``setting`` (its range; the refusal names the line)."""
+    def checked(self, entry: Entry, setting: settings.Setting) -> Any:
+        """A value checked against ``setting`` (its type and range; the refusal names the
+        line), as the setting's type: a float, an integer or a bool."""
         node, value = entry
         try:
-            return float(setting.check(value))
-        except ParameterError as error:
-            raise self.fail(node, str(error)) from None
-
-    def whole(self, entry: Entry, setting: settings.Setting) -> int:
-        """An integer checked against ``setting`` (its range; the refusal names the line)."""
-        node, value = entry
-        try:
-            return int(setting.check(value))
+            return setting.check(value)
         except ParameterError as error:
             raise self.fail(node, str(error)) from None
 
@@ -261,7 +254,7 @@ class YamlParser:
             if "accelerometer_rate" in top else float(settings.ACCELEROMETER_RATE.default)
         accelerometer_noise = self.checked(top["accelerometer_noise"], settings.ACCELEROMETER_NOISE) \
             if "accelerometer_noise" in top else float(settings.ACCELEROMETER_NOISE.default)
-        lockstep = bool(self.checked(top["lockstep"], settings.LOCKSTEP)) if "lockstep" in top else False
+        lockstep = self.checked(top["lockstep"], settings.LOCKSTEP) if "lockstep" in top else False
         delay = self.checked(top["actuation_delay"], settings.ACTUATION_DELAY) if "actuation_delay" in top else 0.0
         name = str(top["name"][1]) if "name" in top else "experiment"
         params, inputs = self.plant(top, rate)

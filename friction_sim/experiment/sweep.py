@@ -232,12 +232,12 @@ class _SweepParser(ScenarioParser):
             except ParameterError as error:
                 raise SweepError(str(error)) from None
         else:
-            chunk = self.whole(top["chunk_size"], settings.CHUNK_SIZE) if "chunk_size" in top else DEFAULT_CHUNK
+            chunk = self.checked(top["chunk_size"], settings.CHUNK_SIZE) if "chunk_size" in top else DEFAULT_CHUNK
         return Sweep(
             name=name,
-            settle_periods=self.whole(top["settle_periods"], settings.SETTLE_PERIODS)
+            settle_periods=self.checked(top["settle_periods"], settings.SETTLE_PERIODS)
             if "settle_periods" in top else 0,
-            periods=self.whole(top["periods"], settings.PERIODS), chunk_size=chunk,
+            periods=self.checked(top["periods"], settings.PERIODS), chunk_size=chunk,
             seed=self.integer(top["seed"], "seed", 0, 2**63 - 1) if "seed" in top else 0,
             fixed=fixed, grid=grid, points=points, samples=samples, random=random,
             output=Path(str(top["output"][1])) if "output" in top else Path("out") / "sweeps" / f"{name}.parquet",
