@@ -225,14 +225,16 @@ def flies(result: SimulationResult) -> bool:
 
 
 def _trace_title(result: SimulationResult) -> str:
-    """The inputs and the plant; the general model's angles and Gamma where they differ from Kostek's."""
+    """The inputs and the plant; the general model's angles and Gamma where they differ from Kostek's,
+    and a resonant plant's exciter (its drive level in place of Pa, which it does not use)."""
     p, i = result.params, result.inputs
-    excitation = (f"drive level {i.drive_level:g} of the resonant exciter ($f_n$ = {p.natural_frequency:g} Hz, "
-                  f"$\\zeta$ = {p.damping_ratio:g}, $A$ = {p.full_drive_acceleration:g} m/s²)" if p.resonant
-                  else f"$P_a$ = {i.excitation_amplitude:g} N")
+    excitation = f"drive level {i.drive_level:g}" if p.resonant else f"$P_a$ = {i.excitation_amplitude:g} N"
     title = (f"{excitation}, $F_d$ = {i.drive_force:g} N, $f$ = {i.excitation_frequency:g} Hz, "
              f"$\\mu$ = {p.mu:g}, $g$ = {p.gravity:g} m/s², $m$ = {p.mass:g} kg")
     extra = []
+    if p.resonant:
+        extra.append(f"resonant exciter: $f_n$ = {p.natural_frequency:g} Hz, $\\zeta$ = {p.damping_ratio:g}, "
+                     f"$A$ = {p.full_drive_acceleration:g} m/s²")
     if p.excitation_angle != 90.0 or p.excitation_phase != 0.0:
         extra.append(f"$\\beta$ = {p.excitation_angle:g}°, $\\psi$ = {p.excitation_phase:g}°")
     if p.track_inclination != 0.0:
