@@ -26,8 +26,9 @@ from friction_sim.experiment.measurements import read_fixed, read_measurements
 F_SCALE = spec.Setting("f_scale", 1.0, "-", "where the robust loss starts, in standard deviations", 1e-6, 1e6)
 STARTS = spec.Setting("starts", 4, "-", "starting points: the settings given, then drawn across the bounds", 1, 1000)
 SEED = spec.Setting("seed", 0, "-", "seed of the starting points drawn", 0, 2**31 - 1)
-SETTLE = spec.Setting("settle_periods", 100, "periods", "whole periods simulated before averaging", 0, 100_000)
-PERIODS = spec.Setting("periods", 100, "periods", "whole periods averaged per point", 1, 100_000)
+SETTLE = spec.SETTLE_PERIODS.described("whole periods simulated before averaging, per point",
+                                       default=FitOptions.settle_periods)
+PERIODS = spec.PERIODS.described("whole periods averaged per point", default=FitOptions.periods)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

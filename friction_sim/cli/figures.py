@@ -4,7 +4,8 @@ so the core and the nodes never pay for it.
 
 * :func:`u_map_figure` is the paper's Fig. 3: U over (Fd/FfN, Pa/Q).
 * :func:`trace_figure` is the paper's Fig. 2: forces with the impulse areas,
-  acceleration, velocity and displacement, with the points A, B, C.
+  acceleration, velocity and displacement, with the points A, B, C; what it
+  plots, :func:`trace_data`, comes from the sampled path alone.
 * :func:`conveyor_figure` is the general model's conveying figure: U
   against the throw number for several vibration angles, and against the
   track inclination (``friction-sim conveyor``).
@@ -23,8 +24,8 @@ Labels use mathtext (``$\\mu R$``), never spelled-out Greek.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -113,8 +114,61 @@ def _cell_edges(centres: np.ndarray) -> np.ndarray:
     return np.concatenate(([min(0.0, centres[0])], middle, [max(1.0, centres[-1])]))
 
 
+@dataclass(frozen=True)
+class TraceData:
+    """What :func:`trace_figure` draws, in SI units, all of it from the sampled path
+    (:meth:`Slider.sample <friction_sim.core.engine.single.Slider.sample>`, through
+    :func:`~friction_sim.core.runtime.simulation.simulate`) and its events: nothing
+    here restates a force law, so a resonant plant (whose excitation lags its drive)
+    is drawn as the slider moved.
+
+    ``applied`` is the applied tangential force Ft = m a - Ff at each sample (Newton's
+    law on the sampled acceleration and friction: the drive force, the slope's pull and
+    a tangential excitation together, with whatever lag the exciter has);
+    ``friction_limit`` mu R and ``friction`` |Ff| with the sampled contact force;
+    ``accelerating`` and ``decelerating`` the slipping samples where the applied force
+    along the slip is above or below |Ff|; ``points`` the marks (label, t [s], v [m/s]):
+    A where a slip starts, B where the speed peaks in it, C where it sticks.
+    """
+
+    t: np.ndarray
+    applied: np.ndarray
+    friction_limit: np.ndarray
+    friction: np.ndarray
+    accelerating: np.ndarray
+    decelerating: np.ndarray
+    acceleration: np.ndarray
+    v: np.ndarray
+    x: np.ndarray
+    z: np.ndarray
+    points: tuple[tuple[str, float, float], ...]
+    #: Ft is constant along the run (no tangential excitation): drawn as the drive force.
+    steady_force: bool
+    #: The run leaves the track within its samples (the height gets a panel).
+    flies: bool
+
+
+def trace_data(result: SimulationResult) -> TraceData:
+    """The arrays :func:`trace_figure` plots for a sampled simulation (``sample_rate`` set)."""
+    traj = result.trajectory
+    if traj is None:
+        raise ValueError("trace_figure needs a SimulationResult with a sampled trajectory")
+    applied = result.params.mass * traj.acceleration - traj.friction_force
+    friction = np.abs(traj.friction_force)
+    slipping = (traj.mode == Mode.FORWARD) | (traj.mode == Mode.BACKWARD)
+    along = np.sign(traj.v) * applied  # the applied force along the slip: above |Ff| it speeds the slider up
+    p, i = result.params, result.inputs
+    steady = p.tangential_ratio == 0.0 or (i.excitation_amplitude == 0.0 and not p.resonant)
+    return TraceData(
+        t=traj.t, applied=applied, friction_limit=result.params.mu * traj.normal_force, friction=friction,
+        accelerating=slipping & (along >= friction), decelerating=slipping & (along < friction),
+        acceleration=traj.acceleration, v=traj.v, x=traj.x, z=traj.z, points=_points(result),
+        steady_force=steady, flies=flies(result))
+
+
 def trace_figure(result: SimulationResult) -> Figure:
-    """The paper's Fig. 2 from a sampled simulation (``sample_rate`` set).
+    """The paper's Fig. 2 from a sampled simulation (``sample_rate`` set): the
+    arrays of :func:`trace_data`.
 
     The force panel's legend sits above the panel, clear of every curve; the
     velocity panel keeps headroom so the labels of A, B and C stay inside it.
@@ -122,42 +176,32 @@ def trace_figure(result: SimulationResult) -> Figure:
     track, with every lift-off and landing marked (and the drawn tangential
     force is the whole applied Ft(t) wherever it varies: an inclined
     vibration or a slope)."""
-    traj = result.trajectory
-    if traj is None:
-        raise ValueError("trace_figure needs a SimulationResult with a sampled trajectory")
-    t_ms = traj.t * 1e3
-    applied = tangential_force(result)
-    # Magnitudes along the slip: with Ft < 0 everything mirrors.
-    drive = np.abs(applied)
-    if np.ndim(applied) == 0:
+    data = trace_data(result)
+    t_ms = data.t * 1e3
+    drive = np.abs(data.applied)  # magnitudes along the slip: with Ft < 0 everything mirrors
+    if data.steady_force:
         drive_label = (r"$F_d$ (drive force)" if result.inputs.tangential_force >= 0.0
                        else r"$|F_d|$ (drive force)")
     else:
         drive_label = r"$|F_t|$ (applied tangential force)"
-    limit = result.params.mu * traj.normal_force
-    friction_magnitude = np.abs(traj.friction_force)
-    slipping = (traj.mode == Mode.FORWARD) | (traj.mode == Mode.BACKWARD)
-    # The applied force along the slip: above |Ff| it speeds the slider up.
-    along = np.sign(traj.v) * applied if np.ndim(applied) else drive
-    flights = flies(result)
 
-    fig = pyplot_free_figure(figsize=(8.0, 11.5 if flights else 9.5), layout="constrained")
-    axes = fig.subplots(5 if flights else 4, 1, sharex=True)
+    fig = pyplot_free_figure(figsize=(8.0, 11.5 if data.flies else 9.5), layout="constrained")
+    axes = fig.subplots(5 if data.flies else 4, 1, sharex=True)
     ax = axes[0]
-    ax.plot(t_ms, limit, color="tab:blue", linestyle="--", label=r"$\mu R$ (friction limit)")
-    ax.plot(t_ms, friction_magnitude, color="tab:red", linewidth=2.2, label=r"$|F_f|$ (friction force)")
-    ax.plot(t_ms, np.broadcast_to(drive, t_ms.shape), color="black", linewidth=1.0, label=drive_label)
-    ax.fill_between(t_ms, drive, friction_magnitude, where=slipping & (along >= friction_magnitude),
+    ax.plot(t_ms, data.friction_limit, color="tab:blue", linestyle="--", label=r"$\mu R$ (friction limit)")
+    ax.plot(t_ms, data.friction, color="tab:red", linewidth=2.2, label=r"$|F_f|$ (friction force)")
+    ax.plot(t_ms, drive, color="black", linewidth=1.0, label=drive_label)
+    ax.fill_between(t_ms, drive, data.friction, where=data.accelerating,
                     facecolor="none", hatch="///", edgecolor="tab:green", label="impulse accelerating")
-    ax.fill_between(t_ms, drive, friction_magnitude, where=slipping & (along < friction_magnitude),
+    ax.fill_between(t_ms, drive, data.friction, where=data.decelerating,
                     facecolor="none", hatch="\\\\\\", edgecolor="tab:orange", label="impulse decelerating")
     ax.set_ylabel("force [N]")
     ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.02, 1.0, 0.1), mode="expand", borderaxespad=0.0,
               ncol=3, fontsize=8, frameon=False)
-    panels = [(axes[1], traj.acceleration, "acceleration [m/s²]"), (axes[2], traj.v * 1e3, "velocity [mm/s]"),
-              (axes[3], traj.x * 1e6, "displacement [µm]")]
-    if flights:
-        panels.append((axes[4], traj.z * 1e6, "height z [µm]"))
+    panels = [(axes[1], data.acceleration, "acceleration [m/s²]"), (axes[2], data.v * 1e3, "velocity [mm/s]"),
+              (axes[3], data.x * 1e6, "displacement [µm]")]
+    if data.flies:
+        panels.append((axes[4], data.z * 1e6, "height z [µm]"))
     for axis, values, label in panels:
         axis.plot(t_ms, values, color="black", linewidth=1.0)
         axis.set_ylabel(label)
@@ -165,8 +209,8 @@ def trace_figure(result: SimulationResult) -> Figure:
         axis.grid(alpha=0.3)
     axes[2].set_ymargin(0.18)  # room above B's label and below A's and C's
     axes[-1].set_xlabel("time [ms]")
-    _mark_points(axes, result)
-    if flights:
+    _mark_points(axes, data.points)
+    if data.flies:
         _mark_flights(axes, result)
     fig.suptitle(_trace_title(result))
     return fig
@@ -180,26 +224,17 @@ def flies(result: SimulationResult) -> bool:
         event.kind is EventKind.LIFT_OFF and event.t <= traj.t[-1] for event in result.events)
 
 
-def tangential_force(result: SimulationResult) -> Any:
-    """The applied tangential force at the samples [N]: Ft = Fd + Fx - m g sin(alpha)
-    + Pt sin(theta + psi) with Pt = Pa cot(beta); a number where it is constant
-    (Kostek's model), else an array."""
-    traj = result.trajectory
-    assert traj is not None
-    p, i = result.params, result.inputs
-    steady = i.tangential_force - p.downhill_weight
-    tangential = i.excitation_amplitude * p.tangential_ratio
-    if tangential == 0.0:
-        return steady if p.downhill_weight != 0.0 else i.tangential_force
-    return steady + tangential * np.sin(traj.phase + math.radians(p.excitation_phase))
-
-
 def _trace_title(result: SimulationResult) -> str:
-    """The inputs and the plant; the general model's angles and Gamma where they differ from Kostek's."""
+    """The inputs and the plant; the general model's angles and Gamma where they differ from Kostek's,
+    and a resonant plant's exciter (its drive level in place of Pa, which it does not use)."""
     p, i = result.params, result.inputs
-    title = (f"$P_a$ = {i.excitation_amplitude:g} N, $F_d$ = {i.drive_force:g} N, $f$ = {i.excitation_frequency:g} Hz, "
+    excitation = f"drive level {i.drive_level:g}" if p.resonant else f"$P_a$ = {i.excitation_amplitude:g} N"
+    title = (f"{excitation}, $F_d$ = {i.drive_force:g} N, $f$ = {i.excitation_frequency:g} Hz, "
              f"$\\mu$ = {p.mu:g}, $g$ = {p.gravity:g} m/s², $m$ = {p.mass:g} kg")
     extra = []
+    if p.resonant:
+        extra.append(f"resonant exciter: $f_n$ = {p.natural_frequency:g} Hz, $\\zeta$ = {p.damping_ratio:g}, "
+                     f"$A$ = {p.full_drive_acceleration:g} m/s²")
     if p.excitation_angle != 90.0 or p.excitation_phase != 0.0:
         extra.append(f"$\\beta$ = {p.excitation_angle:g}°, $\\psi$ = {p.excitation_phase:g}°")
     if p.track_inclination != 0.0:
@@ -234,55 +269,43 @@ def _mark_flights(axes: np.ndarray, result: SimulationResult) -> None:
         height.legend(loc="upper right", fontsize=8)
 
 
-def _mark_points(axes: np.ndarray, result: SimulationResult) -> None:
-    """Mark A (slip starts), B (fastest: mu R rises back through |Ft|) and C
-    (stick) on the velocity axis, with a thin line through every panel."""
+def _points(result: SimulationResult) -> tuple[tuple[str, float, float], ...]:
+    """A (slip starts), B (fastest) and C (stick) within the samples, as (label, t, v),
+    in time order: A and C are the slider's events (v = 0 there), B each peak of the
+    speed in a slip, on the sampled path (:func:`_fastest`)."""
     traj = result.trajectory
     assert traj is not None
     end = traj.t[-1]
     events = [event for event in result.events if event.t <= end]
     stops = [event.t for event in events if event.kind is EventKind.STICK]
     ends = sorted(stops + [event.t for event in events if event.kind is EventKind.LIFT_OFF])
-    points: list[tuple[str, float]] = [("C", t) for t in stops]
+    points: list[tuple[str, float, float]] = [("C", t, 0.0) for t in stops]
     for event in events:
         if event.kind is EventKind.SLIP_START:
             stop = next((t for t in ends if t > event.t), end)
-            fastest = (_fastest(result, event.t, event.phase, stop) if np.ndim(tangential_force(result)) == 0
-                       else _fastest_sampled(result, event.t, stop))
-            points += [("A", event.t)] + [("B", t) for t in fastest]
+            points += [("A", event.t, 0.0)] + [("B", t, float(np.interp(t, traj.t, traj.v)))
+                                                for t in _fastest(result, event.t, stop)]
+    return tuple(sorted(points, key=lambda point: point[1]))
+
+
+def _mark_points(axes: np.ndarray, points: Sequence[tuple[str, float, float]]) -> None:
+    """Mark A, B and C on the velocity axis, with a thin line through every panel."""
     speed_axis = axes[2]
-    for label, t in sorted(points, key=lambda point: point[1]):
-        v = float(np.interp(t, traj.t, traj.v)) * 1e3 if label == "B" else 0.0  # v = 0 at A and C
-        speed_axis.plot(t * 1e3, v, "o", color="tab:purple", markersize=5)
+    for label, t, v in points:
+        speed_axis.plot(t * 1e3, v * 1e3, "o", color="tab:purple", markersize=5)
         # Labels clear of the curve: A left of the point (the curve leaves it to the right),
         # B on the outside of the peak, C right of the point.
         offset = {"A": (-11, 6), "B": (4, 6 if v >= 0.0 else -15), "C": (4, 6)}[label]
-        speed_axis.annotate(label, (t * 1e3, v), textcoords="offset points", xytext=offset, fontsize=9)
+        speed_axis.annotate(label, (t * 1e3, v * 1e3), textcoords="offset points", xytext=offset, fontsize=9)
         for axis in axes:
             axis.axvline(t * 1e3, color="0.75", linewidth=0.6, zorder=0)
 
 
-def _fastest(result: SimulationResult, t_start: float, phase_start: float, end: float) -> list[float]:
-    """Times after a slip start (at ``phase_start``) before ``end`` at which mu R rises
-    back through |Ft|: the speed peaks there (B), at the phase pi - asin(e) with
-    e = (m g cos(alpha) - Fz - |Ft|/mu)/Pa (R = m g cos(alpha) - Fz - Pa sin(phase);
-    Ft constant: no tangential excitation)."""
-    p, i = result.params, result.inputs
-    if i.excitation_amplitude <= 0.0:
-        return []
-    force = abs(i.tangential_force - p.downhill_weight)
-    e = (p.normal_weight - i.external_force_z - force / p.mu) / i.excitation_amplitude
-    if not -1.0 <= e <= 1.0:
-        return []
-    omega = 2.0 * math.pi * i.excitation_frequency
-    first = t_start + ((math.pi - math.asin(e) - phase_start) % (2.0 * math.pi)) / omega
-    return list(np.arange(first, end, 2.0 * math.pi / omega))
-
-
-def _fastest_sampled(result: SimulationResult, t_start: float, end: float) -> list[float]:
-    """Where the speed peaks in a slip from ``t_start`` to ``end`` when Ft varies
-    (no closed form for B): each sign change of the acceleration along the slip from
-    + to -, between two samples, placed by linear interpolation."""
+def _fastest(result: SimulationResult, t_start: float, end: float) -> list[float]:
+    """Where the speed peaks in a slip from ``t_start`` to ``end`` (B: mu R rises back
+    through |Ft|): each sign change of the sampled acceleration along the slip from
+    + to -, between two samples, placed by linear interpolation (within a small part
+    of the sample spacing: the acceleration is smooth within a slip)."""
     traj = result.trajectory
     assert traj is not None
     inside = np.nonzero((traj.t > t_start) & (traj.t < end) & (traj.mode != Mode.STUCK)

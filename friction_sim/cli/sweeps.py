@@ -18,8 +18,9 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from friction_sim.cli.options import Verb
+from friction_sim.cli.options import Verb, add_flag
 from friction_sim.cli.progress import TerminalProgress
+from friction_sim.core.model import spec as settings
 from friction_sim.errors import ParameterError
 
 
@@ -50,8 +51,7 @@ def add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
     where.add_argument("--scheduler", metavar="tcp://HOST:8786", help="run on an existing Dask cluster")
     parser.add_argument("--connect-timeout", type=float, default=20.0, metavar="S",
                         help="seconds to wait for --scheduler (default 20)")
-    parser.add_argument("--chunk-size", type=_count(1), metavar="N",
-                        help="points per batch-core call (default: the sweep's chunk_size)")
+    add_flag(parser, settings.CHUNK_SIZE.described("points per batch-core call (default: the sweep's chunk_size)"))
     parser.add_argument("--engine", choices=("compiled", "scalar"), default="compiled",
                         help="population engine (compiled: the default, scalar: the loop over the single slider, "
                              "the reference, for comparison)")

@@ -19,7 +19,7 @@ from friction_sim.core.model.commands import in_force
 from friction_sim.core.model.params import Inputs
 from friction_sim.experiment.job import ExperimentResult
 from friction_sim.experiment.metrics import StepMetrics, step_metrics
-from friction_sim.experiment.scenario import Expectation, Scenario, load_scenario
+from friction_sim.experiment.scenario import Expectation, Scenario, controller_values, load_scenario
 
 
 def config_dir() -> Path:
@@ -87,9 +87,10 @@ def inputs_at(scenario: Scenario, t: float) -> Inputs:
 
 
 def _unreachable(scenario: Scenario, target: float, t: float) -> bool:
-    """Whether the plant cannot reach ``target`` (the controller saturates)."""
+    """Whether the plant cannot reach ``target`` (the controller saturates): the plant's
+    own model (not the controller's, which may be wrong) under the controller's ceiling."""
     inputs = inputs_at(scenario, t)
-    top = float((scenario.controller or {}).get("max_amplitude_ratio", 0.95))
+    top = controller_values(scenario.controller or {}, scenario.params, inputs)["max_amplitude_ratio"]
     controller = MeanSpeedController(ControllerConfig(model=scenario.params, max_amplitude_ratio=top),
                                      drive_force=inputs.drive_force, frequency=inputs.excitation_frequency,
                                      target_speed=target)

@@ -55,13 +55,14 @@ while paused, all at that time).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from friction_sim.core.control.law import ControllerConfig, MeanSpeedController
+from friction_sim.core.control.law import MeanSpeedController
 from friction_sim.core.model import spec as settings
 from friction_sim.core.model.commands import (
     COMMANDS,
@@ -75,7 +76,7 @@ from friction_sim.core.model.commands import (
     in_force,
 )
 from friction_sim.core.model.params import Inputs, SliderParams, check_load, plant_from
-from friction_sim.core.runtime.drive import outer_model
+from friction_sim.core.runtime.controller import MODEL, law_of
 from friction_sim.errors import FrictionSimError, ParameterError, ScenarioError
 from friction_sim.experiment.job import ExperimentSpec, OperatorAction
 from friction_sim.io.paramfile import read_params_file
@@ -121,7 +122,7 @@ class Scenario:
     inputs: Inputs
     schedule: tuple[Command, ...]
     controller: dict[str, Any] | None
-    real_time_factor: float = 1.0
+    real_time_factor: float = float(settings.REAL_TIME_FACTOR.default)
     output: Path = Path("out")
     log_rate: float = float(settings.LOG_RATE.default)
     accelerometer_rate: float = float(settings.ACCELEROMETER_RATE.default)
@@ -221,11 +222,12 @@ class YamlParser:
             entries[key] = (value_node, yaml.safe_load(yaml.serialize(value_node)))
         return entries
 
-    def checked(self, entry: Entry, setting: settings.Setting) -> float:
-        """A number checked against ``setting`` (its range; the refusal names the line)."""
+    def checked(self, entry: Entry, setting: settings.Setting) -> Any:
+        """A value checked against ``setting`` (its type and range; the refusal names the
+        line), as the setting's type: a float, an integer or a bool."""
         node, value = entry
         try:
-            return float(setting.check(value))
+            return setting.check(value)
         except ParameterError as error:
             raise self.fail(node, str(error)) from None
 
@@ -244,15 +246,15 @@ class YamlParser:
         if "duration" not in top:
             raise self.fail(root, "missing key 'duration' (simulated seconds)")
         duration = self.number(top["duration"], "duration", positive=True)
-        rate = self.number(top["real_time_factor"], "real_time_factor", positive=True) \
-            if "real_time_factor" in top else 1.0
-        log_rate = self.number(top["log_rate"], "log_rate", positive=True) if "log_rate" in top \
+        rate = self.checked(top["real_time_factor"], settings.REAL_TIME_FACTOR) \
+            if "real_time_factor" in top else float(settings.REAL_TIME_FACTOR.default)
+        log_rate = self.checked(top["log_rate"], settings.LOG_RATE) if "log_rate" in top \
             else float(settings.LOG_RATE.default)
         accelerometer_rate = self.checked(top["accelerometer_rate"], settings.ACCELEROMETER_RATE) \
             if "accelerometer_rate" in top else float(settings.ACCELEROMETER_RATE.default)
         accelerometer_noise = self.checked(top["accelerometer_noise"], settings.ACCELEROMETER_NOISE) \
             if "accelerometer_noise" in top else float(settings.ACCELEROMETER_NOISE.default)
-        lockstep = bool(self.checked(top["lockstep"], settings.LOCKSTEP)) if "lockstep" in top else False
+        lockstep = self.checked(top["lockstep"], settings.LOCKSTEP) if "lockstep" in top else False
         delay = self.checked(top["actuation_delay"], settings.ACTUATION_DELAY) if "actuation_delay" in top else 0.0
         name = str(top["name"][1]) if "name" in top else "experiment"
         params, inputs = self.plant(top, rate)
@@ -357,20 +359,34 @@ class YamlParser:
         items = self.mapping(entry[0], CONTROLLER_KEYS, "controller")
         try:
             values = {key: settings.CONTROLLER_NODE[key].check(item[1]) for key, item in items.items()}
-            _controller_model(values, params, inputs)
+            controller_law(values, params, inputs)
         except ParameterError as error:
             node = items[error.field][0] if error.field in items else entry[0]
             raise self.fail(node, f"controller: {error}") from error
         return values
 
 
-def _controller_model(values: dict[str, Any], params: SliderParams, inputs: Inputs) -> MeanSpeedController:
-    """The controller the node would build from ``values`` (raises what it would refuse)."""
-    model = outer_model(params.replace(**{k: values[k] for k in settings.PLANT if k in values}))
-    config = ControllerConfig(model=model, **{k: values[k] for k in (
-        "integral_gain", "max_amplitude_ratio", "settle_margin") if k in values})
-    return MeanSpeedController(config, drive_force=inputs.drive_force, frequency=inputs.excitation_frequency,
-                               target_speed=values.get("target_speed", 0.0))
+def controller_values(section: Mapping[str, Any], params: SliderParams, inputs: Inputs) -> dict[str, Any]:
+    """Every parameter of the controller node as it runs in a scenario's experiment,
+    with the plant ``params`` and ``inputs`` in force: its defaults; the plant's drive
+    force and frequency (which it is started with and follows); the ``controller:``
+    ``section``; and, with ``plant_node`` set (the default), the plant's model and
+    mean window, which the node takes from the slider at start-up and follows
+    (friction_sim/ros/controller_plant.py).  The slider's window is its default: a
+    scenario does not set it."""
+    values = {**settings.defaults(settings.CONTROLLER_NODE), "drive_force": inputs.drive_force,
+              "excitation_frequency": inputs.excitation_frequency, **section}
+    if values["plant_node"]:
+        values.update({name: getattr(params, name) for name in MODEL},
+                      mean_window_periods=settings.SLIDER_NODE["mean_window_periods"].default)
+    return values
+
+
+def controller_law(section: Mapping[str, Any], params: SliderParams, inputs: Inputs) -> MeanSpeedController:
+    """The controller the node would build in the scenario's experiment (built by the
+    node's own :func:`~friction_sim.core.runtime.controller.law_of`), or the
+    ParameterError it would refuse with."""
+    return law_of(controller_values(section, params, inputs))
 
 
 def _text(top: dict[str, Entry], key: str, default: Any, kind: type) -> Any:
@@ -445,7 +461,7 @@ class _Schedule:
             params, inputs = apply(command, self.params, self.inputs)
             check_load(inputs.excitation_frequency, self.rate)
             if "target_speed" in command.values:
-                _controller_model({**(self.controller or {}), **command.values}, params, inputs)
+                controller_law({**(self.controller or {}), **command.values}, params, inputs)
         except ParameterError as error:
             raise self.parser.fail(item, f"{command.name} at t = {command.t!r} s: {error}") from error
         self.params, self.inputs = params, inputs
@@ -512,6 +528,6 @@ class _Operator:
 
 __all__ = [
     "CONTROLLER_KEYS", "OPERATOR_KEYS", "PLANT_KEYS", "Expectation", "Scenario", "YamlParser", "compose_mapping",
-    "load_scenario",
+    "controller_law", "controller_values", "load_scenario",
     "parse_scenario",
 ]

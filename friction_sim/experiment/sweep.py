@@ -90,7 +90,7 @@ MAX_POINTS = 10**9
 MAX_GRID_VALUES = 100_000
 #: A truncated distribution must keep at least this share of its mass (else the file is refused).
 MIN_MASS = 1e-3
-DEFAULT_CHUNK = 5000
+DEFAULT_CHUNK = int(settings.CHUNK_SIZE.default)
 
 
 class SweepError(FrictionSimError):
@@ -226,15 +226,18 @@ class _SweepParser(ScenarioParser):
             * samples
         if size > MAX_POINTS:
             raise self.fail(root, f"{size} points: at most {MAX_POINTS} per sweep")
-        chunk = chunk_size if chunk_size is not None else (
-            self.integer(top["chunk_size"], "chunk_size", 1, 10**7) if "chunk_size" in top else DEFAULT_CHUNK)
-        if not 1 <= chunk <= 10**7:
-            raise SweepError(f"chunk_size = {chunk!r} rejected: must be an integer in [1, 10000000]")
+        if chunk_size is not None:  # the caller's (the command line's --chunk-size): checked here, once
+            try:
+                chunk = int(settings.CHUNK_SIZE.check(chunk_size))
+            except ParameterError as error:
+                raise SweepError(str(error)) from None
+        else:
+            chunk = self.checked(top["chunk_size"], settings.CHUNK_SIZE) if "chunk_size" in top else DEFAULT_CHUNK
         return Sweep(
             name=name,
-            settle_periods=self.integer(top["settle_periods"], "settle_periods", 0, 10**6)
+            settle_periods=self.checked(top["settle_periods"], settings.SETTLE_PERIODS)
             if "settle_periods" in top else 0,
-            periods=self.integer(top["periods"], "periods", 1, 10**7), chunk_size=chunk,
+            periods=self.checked(top["periods"], settings.PERIODS), chunk_size=chunk,
             seed=self.integer(top["seed"], "seed", 0, 2**63 - 1) if "seed" in top else 0,
             fixed=fixed, grid=grid, points=points, samples=samples, random=random,
             output=Path(str(top["output"][1])) if "output" in top else Path("out") / "sweeps" / f"{name}.parquet",

@@ -282,7 +282,8 @@ class ControllerNode(QuietNode):
                                      for name, value in zip(read, response.values, strict=True)]))
             lockstep = {name: values.pop(name) for name in LOCKSTEP_READ}
             level = values.pop("drive_level")  # the resonant plant's level in force: the inner loop starts there
-            self.runtime.plant_drive_level = None if level is None else float(level)
+            # Checked here, where it comes in: the inner loop starts from it as from a level in range.
+            self.runtime.plant_drive_level = None if level is None else float(spec.DRIVE_LEVEL.check(level))
             update = own_parameters(values)
         except (TypeError, ValueError) as error:
             self._settle(f"plant parameters unusable ({error}): using this node's own", warn=True)

@@ -18,12 +18,22 @@ from matplotlib.text import Text
 from PIL import Image
 
 from friction_sim.cli.experiments import write_report
-from friction_sim.cli.figures import FIGURE_DPI, conveyor_figure, save_figure, trace_figure, u_map_figure
+from friction_sim.cli.figures import (
+    FIGURE_DPI,
+    conveyor_figure,
+    save_figure,
+    trace_data,
+    trace_figure,
+    u_map_figure,
+)
+from friction_sim.core.engine.single import Slider
 from friction_sim.core.meanspeed.conveyor import conveyor_sweep
 from friction_sim.core.meanspeed.urelation import u_grid
 from friction_sim.core.model.commands import Command
 from friction_sim.core.model.events import EventKind
 from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.physics.exciter import steady_response
+from friction_sim.core.physics.roots import TWO_PI
 from friction_sim.core.runtime.simulation import SimulationResult, simulate
 from friction_sim.experiment.report import RunData
 
@@ -240,3 +250,69 @@ def test_the_conveyor_figure_marks_gammas_peaks_reversal_and_irregular_points() 
     assert sweep.reversal is not None
     assert any(float(line.get_xdata()[0]) == sweep.reversal for line in bottom.get_lines())
     assert spelled_out_greek(texts) == []
+
+
+#: A resonant feeder driven at its natural frequency: the slideway's vibration lags the drive by
+#: a quarter period (drive level 0.5 gives 5 m/s^2 there, the paper's Pa = 5 N on 1 kg).
+RESONANT = SliderParams(actuator="resonant", natural_frequency=50.0, damping_ratio=0.02, full_drive_acceleration=10.0)
+
+
+@pytest.mark.parametrize("params", [SliderParams(), RESONANT], ids=["default", "resonant"])
+def test_the_trace_plots_the_single_sliders_path(params: SliderParams) -> None:
+    """What the trace plots (trace_data) is the single slider's motion, state by state,
+    and B sits where mu R rises back through |Ft| with the contact force as the slider
+    feels it: for the resonant plant a quarter period after the drive's own phase."""
+    inputs = Inputs(drive_force=0.7)
+    f = inputs.excitation_frequency
+    spacing = 1.0 / (2000.0 * f)
+    result = simulate(params, inputs, 3.0 / f, sample_rate=1.0 / spacing)
+    data = trace_data(result)
+    slider = Slider(params, inputs)
+    states = []
+    for t in data.t:
+        slider.advance_to(float(t))
+        states.append(slider.state())
+
+    def column(name: str) -> np.ndarray:
+        return np.array([getattr(state, name) for state in states])
+
+    def same(drawn: np.ndarray, exact: np.ndarray) -> None:  # numpy's sin against libm's: the last bits
+        np.testing.assert_allclose(drawn, exact, rtol=1e-12, atol=1e-12 * float(np.max(np.abs(exact))))
+
+    for drawn, name in ((data.x, "x"), (data.v, "v"), (data.acceleration, "acceleration")):
+        same(drawn, column(name))
+    same(data.friction_limit, params.mu * column("normal_force"))
+    same(data.friction, np.abs(column("friction_force")))
+    same(data.applied, params.mass * column("acceleration") - column("friction_force"))
+    np.testing.assert_allclose(data.applied, inputs.drive_force, rtol=1e-12)  # beta = 90: Ft is Fd
+    assert data.steady_force
+
+    amplitude, lag = (steady_response(inputs.drive_level, params.full_drive_acceleration, f,
+                                      params.natural_frequency, params.damping_ratio) if params.resonant
+                      else (inputs.excitation_amplitude / params.mass, 0.0))
+    assert lag == pytest.approx(math.pi / 2 if params.resonant else 0.0, abs=1e-12)
+    e = (params.weight - inputs.drive_force / params.mu) / (params.mass * amplitude)
+    fastest = [(math.pi - math.asin(e) + lag) / (TWO_PI * f) + k / f for k in range(3)]
+    marks = [(t, v) for label, t, v in data.points if label == "B"]
+    np.testing.assert_allclose([t for t, _ in marks], fastest, rtol=0.0, atol=1e-3 * spacing)
+    # The speed at B is read off the samples linearly: below the peak by at most spacing^2/8 |dv'/dt|
+    # (the acceleration's rate around B, inside the slip).
+    for (t, v), exact in zip(marks, fastest):
+        k = int(np.searchsorted(data.t, t))
+        jerk = float(np.max(np.abs(np.diff(data.acceleration[k - 3:k + 3])))) / spacing
+        assert 0.0 <= slider_speed(params, inputs, exact) - v <= spacing**2 / 8.0 * jerk, (t, v)
+
+    figure = trace_figure(result)
+    force, speed = figure.axes[0], figure.axes[2]
+    drawn = {line.get_label(): line.get_ydata() for line in force.get_lines()}
+    np.testing.assert_array_equal(drawn[r"$\mu R$ (friction limit)"], data.friction_limit)
+    np.testing.assert_array_equal(drawn[r"$|F_f|$ (friction force)"], data.friction)
+    np.testing.assert_array_equal(drawn[r"$F_d$ (drive force)"], np.abs(data.applied))
+    np.testing.assert_array_equal(speed.get_lines()[0].get_ydata(), data.v * 1e3)
+    assert [text.xy for text in speed.texts if text.get_text() == "B"] == [(t * 1e3, v * 1e3) for t, v in marks]
+
+
+def slider_speed(params: SliderParams, inputs: Inputs, t: float) -> float:
+    slider = Slider(params, inputs)
+    slider.advance_to(t)
+    return slider.state().v

@@ -80,7 +80,8 @@ def test_a_sweep_runs_resumes_and_reports(tmp_path: Path, capsys: pytest.Capture
 @pytest.mark.parametrize(("args", "message"), [
     (["sweep", "{bad}"], r"\{bad\}: line 3: mu = -1.0 rejected: must be in \[1e-06, 10\]$"),
     (["sweep", "{good}", "--workers", "-1"], r"argument --workers: '-1' rejected|-1 rejected: must be an integer"),
-    (["sweep", "{good}", "--chunk-size", "0"], r"0 rejected: must be an integer >= 1"),
+    (["sweep", "{good}", "--chunk-size", "0"],
+     r"--chunk-size: chunk_size = 0 rejected: must be an integer in \[1, 10000000\] points"),
     (["sweep", "{good}", "--output", "{tmp}/r.csv"], r"--output = '.*r.csv' rejected: must end in .parquet$"),
     (["sweep", "{tmp}/missing.yaml"], r"missing.yaml: cannot read: No such file or directory$"),
     (["sweep", "{good}", "--scheduler", "tcp://127.0.0.1:{port}", "--connect-timeout", "1"],

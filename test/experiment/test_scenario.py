@@ -7,11 +7,13 @@ from pathlib import Path
 
 import pytest
 
+from friction_sim.core.model import spec as settings
 from friction_sim.core.model.commands import Command
 from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.runtime.controller import MODEL, config_of
 from friction_sim.errors import ScenarioError
 from friction_sim.experiment.acceptance import acceptance_scenarios, config_dir
-from friction_sim.experiment.scenario import load_scenario, parse_scenario
+from friction_sim.experiment.scenario import controller_law, load_scenario, parse_scenario
 
 GOOD = """\
 name: good
@@ -201,3 +203,41 @@ def test_the_readme_scenario_example_is_a_valid_scenario() -> None:
     scenario = parse_scenario(readme[start:readme.index("```", start)], "README.md")
     assert scenario.accelerometer_noise > 0.0 and scenario.expect and scenario.operator
     assert "parameters" in {c.name for c in scenario.schedule}
+
+
+RESONANT = """\
+duration: 1.0
+plant: {actuator: resonant, natural_frequency: 52.0, drive_level: 0.3}
+controller: {target_speed: 0.0002, integral_gain: 0.3, inner_loop: %s}
+schedule:
+  - {t: 0.5, target_speed: 0.0003}
+"""
+
+
+@pytest.mark.parametrize("inner_loop", [True, False])
+def test_a_scenarios_controller_is_the_nodes_build(inner_loop: bool) -> None:
+    """The scenario checks the controller the node builds (config_of): its mean window
+    and whether it learns the secant come along (behind an inner loop it does not)."""
+    scenario = parse_scenario(RESONANT % str(inner_loop).lower())
+    assert scenario.controller is not None
+    law = controller_law(scenario.controller, scenario.params, scenario.inputs)
+    node = {**settings.defaults(settings.CONTROLLER_NODE),  # the node's parameters once it took the plant's
+            **{name: getattr(scenario.params, name) for name in MODEL},
+            "mean_window_periods": settings.SLIDER_NODE["mean_window_periods"].default,
+            "drive_force": scenario.inputs.drive_force, "excitation_frequency": scenario.inputs.excitation_frequency,
+            **scenario.controller}
+    assert law.config == config_of(node)
+    assert law.config.secant is not inner_loop and law.config.integral_gain == 0.3
+    assert law.config.mean_window_periods == node["mean_window_periods"]
+    assert law.config.model.actuator == "force", "the outer law sets Pa directly"
+    assert law.output.target_speed == 0.0002
+
+
+def test_a_scenarios_controller_without_plant_node_keeps_its_own_model() -> None:
+    scenario = parse_scenario("duration: 1.0\nplant: {mu: 0.1}\ncontroller: {mu: 0.12, plant_node: ''}\n")
+    assert scenario.controller is not None
+    assert controller_law(scenario.controller, scenario.params, scenario.inputs).config.model.mu == 0.12
+    followed = parse_scenario("duration: 1.0\nplant: {mu: 0.1}\ncontroller: {mu: 0.12}\n")
+    assert followed.controller is not None
+    assert controller_law(followed.controller, followed.params, followed.inputs).config.model.mu == 0.1, \
+        "the node takes its plant node's model at start-up"

@@ -4,13 +4,15 @@ before any work, with the file, the line and the reason."""
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from friction_sim.core.model import spec
-from friction_sim.core.model.params import SliderParams, cos_degrees
+from friction_sim.core.model.params import Inputs, SliderParams, cos_degrees
+from friction_sim.errors import ParameterError
 from friction_sim.experiment.sweep import BLOCK, SweepError, load_sweep, materialize, parse_sweep
 
 CONFIG = Path(__file__).resolve().parents[2] / "config"
@@ -177,3 +179,35 @@ def test_a_chunk_size_override_is_checked() -> None:
     assert parse_sweep("periods: 2\n", chunk_size=3).chunk_size == 3
     with pytest.raises(SweepError, match="chunk_size = 0 rejected"):
         parse_sweep("periods: 2\n", chunk_size=0)
+
+
+@pytest.mark.parametrize("setting", [spec.SETTLE_PERIODS, spec.PERIODS, spec.CHUNK_SIZE], ids=lambda s: s.name)
+def test_the_averaging_windows_ranges_are_the_specs_everywhere(setting: spec.Setting,
+                                                               capsys: pytest.CaptureFixture[str]) -> None:
+    """settle_periods, periods and chunk_size have one range (core/model/spec.py): a sweep file,
+    the command line (calibrate's window, sweep's --chunk-size) and the general mean speed
+    take its bounds and refuse one beyond them with the same words."""
+    from friction_sim.cli.main import build_parser
+    from friction_sim.core.meanspeed.general import mean_speed
+
+    assert setting.low is not None and setting.high is not None
+    low, high = int(setting.low), int(setting.high)
+    window = {"settle_periods": 0, "periods": 1, "chunk_size": 1}
+    for good in (low, high):
+        sweep = parse_sweep("\n".join(f"{key}: {good if key == setting.name else value}"
+                                      for key, value in window.items()) + "\n")
+        assert getattr(sweep, setting.name) == good
+    command = ["calibrate", "m.csv", "--fit", "mu"] if setting.name != "chunk_size" else ["sweep", "s.yaml"]
+    for bad in (low - 1, high + 1):
+        with pytest.raises(SweepError) as caught:
+            parse_sweep("\n".join(f"{key}: {bad if key == setting.name else value}"
+                                  for key, value in window.items()) + "\n")
+        words = str(caught.value).split("line ")[1].split(": ", 1)[1]
+        assert words == f"{setting.name} = {bad} rejected: must be an integer in [{low}, {high}] {setting.unit}"
+        with pytest.raises(SystemExit):
+            build_parser().parse_args([*command, setting.option, str(bad)])
+        assert words in capsys.readouterr().err
+        if setting.name != "chunk_size":
+            with pytest.raises(ParameterError, match=re.escape(words)):
+                mean_speed(SliderParams(), Inputs(drive_force=0.2, excitation_amplitude=5.0), simulate=True,
+                           **{"settle_periods": 1, "periods": 1, setting.name: bad})

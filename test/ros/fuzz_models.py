@@ -69,7 +69,7 @@ class ParameterModel:
         refused = False
         for name, value in items:
             if name not in self.values:
-                refused = True  # not declared: the node's pre-set callback counts it, then rclpy refuses
+                refused = True  # not declared: rclpy refuses it, the node counts it
                 continue
             if name == USE_SIM_TIME:
                 refused |= not isinstance(value, bool)
@@ -94,7 +94,7 @@ class ParameterModel:
 
     def refuse(self) -> Verdict:
         """A set refused by rclpy's checks: counted once, whatever is wrong in it
-        (the pre-set callback stops at its first bad value, as rclpy does)."""
+        (rclpy stops at its first bad value, and the node counts its refusal once)."""
         self.rejected.add(1)
         return Verdict(False)
 

@@ -1,6 +1,6 @@
-"""What both nodes share (friction_sim/ros/{run,parameters,intake,graph}.py): the mirror of rclpy's
-own parameter checks agrees with rclpy, refused input is warned about on a
-cheap throttle, and run_node's exit codes."""
+"""What both nodes share (friction_sim/ros/{run,parameters,intake,graph}.py): what rclpy's own
+parameter checks refuse is reported once each, in rclpy's words, and nothing else; refused input
+is warned about on a cheap throttle; and run_node's exit codes."""
 
 from __future__ import annotations
 
@@ -13,6 +13,8 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.exceptions import ParameterNotDeclaredException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -20,7 +22,7 @@ from friction_sim.core.model import spec
 from friction_sim.errors import FrictionSimError
 from friction_sim.ros import intake
 from friction_sim.ros.intake import ThrottledWarning
-from friction_sim.ros.parameters import declare_settings, descriptor_refusal
+from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
 from friction_sim.ros.run import EXIT_BAD_PARAMETER, EXIT_FAULT, FaultSignal, run_node
 
 from ros_harness import namespace
@@ -43,40 +45,107 @@ def edges(setting: spec.Setting) -> list[float]:
 
 @pytest.fixture
 def bare(ros: None) -> Iterator[Node]:
-    """A node with the slider's parameters and descriptors, and no callbacks of ours."""
+    """A node with the slider's parameters and descriptors, and no callbacks of ours: rclpy's verdicts."""
     node = Node("bare", namespace=namespace())
     declare_settings(node, spec.SLIDER_NODE)
     yield node
     node.destroy_node()
 
 
-def test_the_mirror_of_rclpys_checks_agrees_with_rclpy(bare: Node) -> None:
+class Watched(Node):
+    """A node with the slider's parameters, the refusal watch, and an on-set callback of its own,
+    added after the watch as the nodes add theirs: it refuses a landing_friction outside the
+    choices (as the slider does), which the watch must leave to it."""
+
+    def __init__(self) -> None:
+        super().__init__("watched", namespace=namespace())
+        declare_settings(self, spec.SLIDER_NODE)
+        self.reports: list[tuple[str, Any, str]] = []
+        self.own_refusals = 0
+        watch_parameter_refusals(self, spec.SLIDER_NODE, lambda *report: self.reports.append(report))
+        self.add_on_set_parameters_callback(self._own)
+
+    def _own(self, parameters: list[Parameter]) -> SetParametersResult:
+        for parameter in parameters:
+            if parameter.name == "landing_friction" and parameter.value not in spec.LANDING_FRICTION.choices:
+                self.own_refusals += 1
+                return SetParametersResult(successful=False, reason="the node's own")
+        return SetParametersResult(successful=True)
+
+    def why(self, name: str, value: Any) -> str:
+        """What the watch reported of setting ``name`` to ``value`` ('' if nothing)."""
+        before = len(self.reports)
+        self.set_parameters([Parameter(name, value=value)])
+        assert len(self.reports) - before <= 1, "a refusal is reported once"
+        return self.reports[-1][2] if len(self.reports) > before else ""
+
+
+@pytest.fixture
+def watched(ros: None) -> Iterator[Watched]:
+    node = Watched()
+    yield node
+    node.destroy_node()
+
+
+def test_the_watch_reports_exactly_what_rclpy_refuses(bare: Node, watched: Watched) -> None:
+    """Each value rclpy's own checks refuse (on a node without callbacks) is reported once,
+    with rclpy's own reason; what rclpy lets through is not, the node's own refusals included."""
     checked = 0
     for (name, _setting), value in itertools.chain(
             itertools.product(spec.SLIDER_NODE.items(), CANDIDATES),
             ((item, value) for item in spec.SLIDER_NODE.items() for value in edges(item[1]))):
-        parameter = Parameter(name, value=value)
-        verdict = bare._apply_descriptors([parameter], bare._descriptors, True)  # noqa: SLF001 - rclpy's own
-        mirror = descriptor_refusal(bare, parameter, spec.SLIDER_NODE)
-        assert bool(mirror) == (not verdict.successful), (name, value, mirror, verdict.reason)
-        if mirror:
-            assert mirror.startswith(name) and "rejected" in mirror, mirror
-            checked += 1
+        (verdict,) = bare.set_parameters([Parameter(name, value=value)])
+        own_before = watched.own_refusals
+        (answer,) = watched.set_parameters([Parameter(name, value=value)])
+        own = watched.own_refusals - own_before
+        assert answer.successful == (verdict.successful and not own), (name, value)
+        if verdict.successful:
+            assert len(watched.reports) == checked, (name, value, watched.reports[-1:])
+            continue
+        checked += 1
+        assert not own, "rclpy refused it before the node's own callback"
+        assert len(watched.reports) == checked, (name, value, verdict.reason)
+        assert answer.reason == verdict.reason, "the caller hears rclpy's own reason"
+        assert watched.reports[-1] == (name, value, f"{name} = {value!r} rejected: {verdict.reason}" + (
+            " (write 2.0, not 2)" if type(value) is int and _setting.kind is float else ""))
     assert checked > 200
-    unknown = descriptor_refusal(bare, Parameter("no_such", value=1.0), spec.SLIDER_NODE)
-    assert "no such parameter" in unknown and "mass" in unknown
+    assert watched.why("landing_friction", "sticky") == "" and watched.own_refusals >= 1, \
+        "a string reaches the node's own check, which refuses it; the watch reports nothing"
+    with pytest.raises(ParameterNotDeclaredException):
+        watched.set_parameters_atomically([Parameter("no_such", value=1.0)])
+    name, value, unknown = watched.reports[-1]
+    assert (name, value) == ("no_such", 1.0) and "no such parameter" in unknown and "mass" in unknown
 
 
-def test_refusals_name_field_value_and_limit_in_the_vocabularys_words(bare: Node) -> None:
-    def why(name: str, value: Any) -> str:
-        return descriptor_refusal(bare, Parameter(name, value=value), spec.SLIDER_NODE)
+def test_an_atomic_set_rclpy_refuses_is_reported_once_naming_the_culprit(watched: Watched) -> None:
+    result = watched.set_parameters_atomically([Parameter("mu", value=0.2), Parameter("mass", value=-1.0),
+                                                Parameter("gravity", value=-1.0)])
+    assert not result.successful and len(watched.reports) == 1
+    name, value, why = watched.reports[0]
+    assert (name, value) == ("mass", -1.0) and why.startswith("mass = -1.0 rejected: ") and "1e-06" in why
+    result = watched.set_parameters_atomically([Parameter("mu", value=0.2), Parameter("mass", value=2)])
+    assert not result.successful and len(watched.reports) == 2
+    assert watched.reports[1][0] == "mu, mass", "rclpy's wrong-type reason names no parameter: the set is named"
+    assert watched.set_parameters_atomically([Parameter("mu", value=0.2), Parameter("mass", value=2.0)]).successful
+    assert len(watched.reports) == 2
 
-    assert why("mass", math.nan) == "mass = nan rejected: must be finite in [1e-06, 1e+06] kg"
-    assert why("mean_window_periods", 0) == "mean_window_periods = 0 rejected: must be in [1, 10000] periods"
-    assert why("mass", 2) == ("mass = 2 rejected: must be a floating-point number, not an integer "
-                              "(write 2.0, not 2)")
-    assert why("publish_clock", "yes") == "publish_clock = 'yes' rejected: must be true or false, not a string"
-    assert "read-only" in why("log_rate", 10.0) and "log_rate = 10.0" in why("log_rate", 10.0)
+
+def test_refusals_name_field_value_and_limit(watched: Watched) -> None:
+    """rclpy's reason names the field, the value and the limit; the report begins with
+    the field and the value in the vocabulary's words."""
+    nan = watched.why("mass", math.nan)
+    assert nan.startswith("mass = nan rejected: ") and "Min: 1e-06" in nan and "Max: 1000000.0" in nan
+    window = watched.why("mean_window_periods", 0)
+    assert window.startswith("mean_window_periods = 0 rejected: ") and "Min: 1, Max: 10000" in window
+    assert watched.why("mass", 2).startswith("mass = 2 rejected: Wrong parameter type")
+    assert watched.why("mass", 2).endswith("(write 2.0, not 2)")
+    assert watched.why("publish_clock", "yes").startswith("publish_clock = 'yes' rejected: Wrong parameter type")
+    assert "read-only" in watched.why("log_rate", 10.0) and "log_rate = 10.0" in watched.why("log_rate", 10.0)
+    restitution = watched.why("restitution", 1.0)
+    assert restitution.startswith("restitution = 1.0 rejected: ") and "Max: 0.99" in restitution
+    angle = watched.why("excitation_angle", 0.0)
+    assert angle.startswith("excitation_angle = 0.0 rejected: ") and "Min: 0.1" in angle
+    assert watched.why("landing_friction", 1.0).startswith("landing_friction = 1.0 rejected: Wrong parameter type")
 
 
 def test_the_general_models_descriptors_derive_from_the_spec(bare: Node) -> None:
@@ -91,15 +160,6 @@ def test_the_general_models_descriptors_derive_from_the_spec(bare: Node) -> None
     landing = bare.describe_parameter("landing_friction")
     assert landing.type == Parameter.Type.STRING.value and landing.additional_constraints == "one of: impulsive, none"
     assert bare.get_parameter("landing_friction").value == "impulsive"
-
-    def why(name: str, value: Any) -> str:
-        return descriptor_refusal(bare, Parameter(name, value=value), spec.SLIDER_NODE)
-
-    assert why("restitution", 1.0) == "restitution = 1.0 rejected: must be in [0, 0.99]"
-    assert why("excitation_angle", 0.0) == "excitation_angle = 0.0 rejected: must be in [0.1, 90] deg"
-    assert why("landing_friction", 1.0) == ("landing_friction = 1.0 rejected: must be a string, "
-                                            "not a floating-point number")
-    assert why("landing_friction", "sticky") == "", "a string reaches the node's own check"
 
 
 def test_the_throttled_warning_warns_once_per_interval_and_counts_the_rest(

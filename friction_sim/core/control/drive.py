@@ -136,6 +136,23 @@ class _Planned:
     gain_ratio: float
 
 
+def saturated_level(level: float) -> float:
+    """``level`` within the exciter's drive range (:data:`spec.DRIVE_LEVEL`'s bounds,
+    [0, 1]): the saturation of a level a controller worked out, the least and the most
+    the actuator can be driven at; not a check of an input (those are refused at the
+    edge, as the slider's drive_level command and parameter are)."""
+    return min(max(level, _LEAST_LEVEL), _MOST_LEVEL)
+
+
+def _drive_range() -> tuple[float, float]:
+    low, high = spec.DRIVE_LEVEL.low, spec.DRIVE_LEVEL.high
+    assert low is not None and high is not None, "a drive level is bounded both ways"
+    return float(low), float(high)
+
+
+_LEAST_LEVEL, _MOST_LEVEL = _drive_range()
+
+
 def _limited(value: float, limit: float) -> float:
     """``value`` within +-``limit``."""
     return min(max(value, -limit), limit)
@@ -158,7 +175,9 @@ class DriveLoop:
         #: Drive periods between two boundaries (the slider's mean_window_periods).
         self.cycles = int(spec.MEAN_WINDOW_PERIODS.check(cycles))
         self.frequency = float(spec.EXCITATION_FREQUENCY.check(frequency))
-        self.drive_level = float(spec.DRIVE_LEVEL.check(drive_level))
+        #: The level in force: ``drive_level`` (a level in the drive range: one this runtime
+        #: saturated, or the plant's, checked where it was read), then each boundary's.
+        self.drive_level = drive_level
         self.smoothing, self.correction_gain, self.tracking = smoothing, correction_gain, tracking
         #: Measured over modelled amplitude per unit drive (1: the model is right).
         self.gain_ratio = 1.0
@@ -220,7 +239,7 @@ class DriveLoop:
         near = abs(reachable - self._reference) <= 1e-2 * max(reachable, 1e-12)
         asked_before, self._asked = self._asked, wanted_amplitude
         self._steady_boundaries = self._steady_boundaries + 1 if near and wanted_amplitude == asked_before else 0
-        level = min(max(self._plan(elapsed, self.cycles / self.frequency), 0.0), 1.0)
+        level = saturated_level(self._plan(elapsed, self.cycles / self.frequency))
         self._way = self._driven(self._way, elapsed, level)
         self.drive_level = level
         self._planned = [*self._planned[-63:], _Planned(t, self.frequency, level, self._way, self.natural_frequency,
@@ -351,4 +370,5 @@ class DriveLoop:
 __all__ = [
     "AGREEMENT", "LAG_FIRST", "LAG_LEARNING", "LEARNING_STEP", "MAX_FREQUENCY_STEP", "MAX_GAIN_CORRECTION",
     "MAX_LAG_CORRECTION", "REGULARIZATION", "DriveLoop", "lag_sensitivity", "natural_frequency_from_lag",
+    "saturated_level",
 ]

@@ -56,9 +56,9 @@ from friction_sim.core.physics.plant import closed_form_applies, kostek_applies
 from friction_sim.errors import ParameterError
 
 #: The most periods a simulated motion may take to settle before it is averaged as it is.
-DEFAULT_SETTLE_PERIODS = 200
+DEFAULT_SETTLE_PERIODS = int(spec.SETTLE_PERIODS.default)
 #: The periods an irregular (non-repeating) motion is averaged over after settling.
-DEFAULT_PERIODS = 200
+DEFAULT_PERIODS = int(spec.PERIODS.default)
 #: The longest repeat looked for, in excitation periods.
 MAX_PERIOD_MULTIPLE = 16
 #: Period-start states match when v, z and vz agree to this fraction of the
@@ -108,8 +108,8 @@ def mean_speed(params: SliderParams, inputs: Inputs, *, settle_periods: int = DE
     periodic within ``settle_periods`` (repeats up to ``max_multiple``
     periods), else averaged over ``periods`` after them.
     """
-    settle_periods = _count("settle_periods", settle_periods, 0)
-    periods = _count("periods", periods, 1)
+    settle_periods = int(spec.SETTLE_PERIODS.check(settle_periods))
+    periods = int(spec.PERIODS.check(periods))
     max_multiple = _count("max_multiple", max_multiple, 1)
     if not simulate and closed_form_applies(params, inputs):
         return _closed_form(params, inputs)

@@ -96,7 +96,8 @@ class Setting:
             if not math.isfinite(number):
                 raise ParameterError(self.name, number, f"must be finite{self._range_words()}")
         if (self.low is not None and number < self.low) or (self.high is not None and number > self.high):
-            raise ParameterError(self.name, number, f"must be{self._range_words()}")
+            raise ParameterError(self.name, number, f"must be{' an integer' if kind is int else ''}"
+                                                    f"{self._range_words()}")
         return number
 
     @property
@@ -110,13 +111,18 @@ class Setting:
         return f" {self.unit}" if self.dimensioned else ""
 
     def _range_words(self) -> str:
-        low, high, unit = self.low, self.high, self.unit_suffix
+        """The range after "must be": `` in [1e-06, 10]``, an integer's bounds written
+        out whole (`` in [1, 10000000]``, not 1e+07)."""
+        whole = self.kind is int
+        low, high = (None if bound is None else f"{int(bound)}" if whole else f"{bound:g}"
+                     for bound in (self.low, self.high))
+        unit = self.unit_suffix
         if low is not None and high is not None:
-            return f" in [{low:g}, {high:g}]{unit}"
+            return f" in [{low}, {high}]{unit}"
         if low is not None:
-            return f" >= {low:g}{unit}"
+            return f" >= {low}{unit}"
         if high is not None:
-            return f" <= {high:g}{unit}"
+            return f" <= {high}{unit}"
         return ""
 
     def range_text(self) -> str:
@@ -262,6 +268,14 @@ STEP_PERIODS = Setting("step_periods", 1, "periods", "excitation periods one ~/s
 STEP_TIME = Setting("step_time", 0.0, "s", "simulated seconds one ~/step call advances (0: step_periods "
                     "periods instead)", 0.0, 100.0)
 
+# -- mean-speed windows of batch runs (sweeps, calibrations, the general mean speed) -------------
+
+SETTLE_PERIODS = Setting("settle_periods", 200, "periods", "whole excitation periods simulated before the mean "
+                         "speed is averaged (the general mean speed: the most the motion may take to repeat)",
+                         0, 1_000_000)
+PERIODS = Setting("periods", 200, "periods", "whole excitation periods the mean speed is averaged over", 1, 10_000_000)
+CHUNK_SIZE = Setting("chunk_size", 5000, "points", "points of a sweep per batch-core call (a Dask task)", 1, 10_000_000)
+
 # -- the controller ------------------------------------------------------------------
 
 TARGET_SPEED = Setting("target_speed", 0.0002, "m/s", "target mean speed V*", -1e3, 1e3)
@@ -346,6 +360,7 @@ def defaults(settings: dict[str, Setting]) -> dict[str, Value]:
 
 
 __all__ = [
-    "CONTROLLER_NODE", "INPUTS", "MAX_MEAN_WINDOW", "MAX_PERIODS_PER_SECOND", "PLANT", "SLIDER_NODE",
+    "CHUNK_SIZE", "CONTROLLER_NODE", "INPUTS", "MAX_MEAN_WINDOW", "MAX_PERIODS_PER_SECOND", "PERIODS", "PLANT",
+    "SETTLE_PERIODS", "SLIDER_NODE",
     "Setting", "Value", "defaults", "markdown_table", "table",
 ]

@@ -80,6 +80,17 @@ def config_of(values: Mapping[str, Any]) -> ControllerConfig:
     )
 
 
+def law_of(values: Mapping[str, Any], *, target: bool = True) -> MeanSpeedController:
+    """The mean-speed law a controller builds from its parameter ``values`` (every
+    parameter of the controller node): :func:`config_of`, the drive force and
+    frequency, and the target (``target`` False: none yet).  The one build of a
+    controller: the node's runtime and a scenario's check both call it, so they
+    cannot differ.  A ParameterError names what the law refuses."""
+    return MeanSpeedController(config_of(values), drive_force=values["drive_force"],
+                               frequency=values["excitation_frequency"],
+                               target_speed=values["target_speed"] if target else 0.0)
+
+
 def beyond_model_after(config: ControllerConfig) -> int:
     """Samples beyond the limit, in a row, that show a plant beyond its model:
     past the mean window of samples still on their way after a change, and the
@@ -126,14 +137,11 @@ class RealtimeController:
         #: The target waiting for the plant's model, or None.
         self.pending_target: float | None = None
         try:
-            self.control = MeanSpeedController(
-                config_of(values), drive_force=values["drive_force"], frequency=values["excitation_frequency"],
-                target_speed=values["target_speed"])
+            self.control = law_of(values)
         except ParameterError:
             if not values["plant_node"] or values["target_speed"] == 0.0:
                 raise
-            self.control = MeanSpeedController(config_of(values), drive_force=values["drive_force"],
-                                               frequency=values["excitation_frequency"])
+            self.control = law_of(values, target=False)
             self.pending_target = values["target_speed"]
         self.active: bool = values["active"]
         #: The inner loop while the plant's actuator is resonant, else None.
@@ -439,5 +447,5 @@ class RealtimeController:
 
 __all__ = [
     "CONFIG", "ERROR", "MODEL", "OK", "WAITING_FOR_PLANT", "WARN", "RealtimeController", "Status",
-    "beyond_model_after", "config_of", "plant_words", "taken_words",
+    "beyond_model_after", "config_of", "law_of", "plant_words", "taken_words",
 ]

@@ -28,7 +28,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from friction_sim.core.control.drive import DriveLoop
+from friction_sim.core.control.drive import DriveLoop, saturated_level
 from friction_sim.core.control.lockin import LockIn, Vibration
 from friction_sim.core.model import spec
 from friction_sim.core.model.params import SliderParams
@@ -97,7 +97,7 @@ class DriveRuntime:
         """The level whose steady amplitude is ``wanted_amplitude`` [m/s^2] by the model, in [0, 1]."""
         per_level, _ = steady_response(1.0, model.full_drive_acceleration, frequency, model.natural_frequency,
                                        model.damping_ratio)
-        return min(max(wanted_amplitude / per_level, 0.0), 1.0) if per_level > 0.0 else 0.0
+        return saturated_level(wanted_amplitude / per_level) if per_level > 0.0 else 0.0
 
     @property
     def frequency(self) -> float:
@@ -113,7 +113,7 @@ class DriveRuntime:
     def steady(self, wanted_amplitude: float) -> DriveCommand:
         """The level the model's steady gain gives for ``wanted_amplitude`` [m/s^2]
         at the frequency in force, in [0, 1] (the drive without the inner loop)."""
-        self.loop.drive_level = min(max(self.loop.level_for(wanted_amplitude), 0.0), 1.0)
+        self.loop.drive_level = saturated_level(self.loop.level_for(wanted_amplitude))
         return DriveCommand(self.loop.drive_level, self.loop.frequency, False, self.per_drive)
 
     @property

@@ -11,7 +11,7 @@ import pytest
 
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.model.params import Inputs, SliderParams
-from friction_sim.core.model.spec import CONTROLLER_NODE, defaults
+from friction_sim.core.model.spec import CONTROLLER_NODE, DRIVE_LEVEL, defaults
 from friction_sim.core.physics.exciter import steady_response
 from friction_sim.core.runtime.accelerometer import Accelerometer
 from friction_sim.core.runtime.controller import RealtimeController
@@ -191,3 +191,20 @@ def test_a_reading_no_slideway_of_the_model_gives_is_refused_even_before_the_fir
         runtime.take_acceleration(0.0, 1.0001 * limit)
     runtime.take_acceleration(0.0, -0.999 * limit)
     assert runtime.drive.samples == 1 and runtime.drive.samples_refused == 1 and runtime.rejected == 1
+
+
+def test_a_level_worked_out_saturates_at_the_specs_drive_range() -> None:
+    """The levels the runtime works out (the start, the steady gain's, each boundary's)
+    saturate at drive_level's bounds as the spec declares them (a control law's
+    saturation: the actuator gives no more, and no less)."""
+    low, high = DRIVE_LEVEL.low, DRIVE_LEVEL.high
+    per_level, _ = steady_response(1.0, PLANT.full_drive_acceleration, 50.0, PLANT.natural_frequency,
+                                   PLANT.damping_ratio)
+    beyond = 3.0 * per_level  # three times the amplitude at full drive
+    runtime = DriveRuntime(PLANT, 50.0, beyond, inner_loop=False, tracking=False, cycles=1)
+    assert runtime.start_level == high
+    assert runtime.steady(-beyond).level == low and runtime.steady(beyond).level == high
+    assert runtime.steady(0.5 * per_level).level == pytest.approx(0.5, rel=1e-12)
+    looped = DriveRuntime(PLANT, 50.0, 0.5 * per_level, inner_loop=True, tracking=False, cycles=1)
+    levels = [looped.boundary(k / 50.0, beyond).level for k in range(1, 40)]
+    assert max(levels) == high and min(levels) >= low
