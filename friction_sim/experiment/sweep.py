@@ -58,6 +58,7 @@ import numpy as np
 import yaml
 
 from friction_sim.core.model import spec as settings
+from friction_sim.core.model.dimensionless import amplitude_for, amplitude_for_throw, drive_force_for
 from friction_sim.core.model.spec import Setting
 from friction_sim.errors import FrictionSimError, ParameterError
 from friction_sim.experiment.scenario import Entry, compose_mapping
@@ -506,13 +507,13 @@ def derive_fields(columns: dict[str, np.ndarray], given: dict[str, np.ndarray]) 
     """Fields set by derived keys: excitation_amplitude and drive_force (from the
     mass, g, mu and slope in ``columns``; sweeps and calibration share it)."""
     weight = columns["mass"].astype(float) * columns["gravity"].astype(float)
-    if "throw_number" in given:
-        columns["excitation_amplitude"] = given["throw_number"] * weight * _degrees_cos(
-            columns["track_inclination"].astype(float))
+    if "throw_number" in given:  # Gamma m g cos(alpha)
+        columns["excitation_amplitude"] = amplitude_for_throw(
+            given["throw_number"], weight * _degrees_cos(columns["track_inclination"].astype(float)))
     if "amplitude_ratio" in given:
-        columns["excitation_amplitude"] = given["amplitude_ratio"] * weight
+        columns["excitation_amplitude"] = amplitude_for(given["amplitude_ratio"], weight)
     if "drive_ratio" in given:
-        columns["drive_force"] = given["drive_ratio"] * (columns["mu"].astype(float) * weight)
+        columns["drive_force"] = drive_force_for(given["drive_ratio"], columns["mu"].astype(float), weight)
 
 
 def check_points(sweep: Sweep, columns: dict[str, np.ndarray]) -> None:

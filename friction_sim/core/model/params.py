@@ -205,33 +205,6 @@ def check_load(frequency: float, rate: float, field: str = "excitation_frequency
     raise ParameterError(field, frequency, f"must be <= {limit / rate:g} Hz at real_time_factor {rate:g} {why}")
 
 
-def drive_ratio(params: SliderParams, inputs: Inputs) -> float:
-    """phi = Fd / (mu*m*g): the drive force over the nominal friction force."""
-    return inputs.drive_force / (params.mu * params.weight)
-
-
-def amplitude_ratio(params: SliderParams, inputs: Inputs) -> float:
-    """a = Pa / (m*g): the excitation amplitude over the weight."""
-    return inputs.excitation_amplitude / params.weight
-
-
-def throw_number(params: SliderParams, inputs: Inputs) -> float:
-    """Gamma = Pa / (m*g*cos(alpha)): above 1 the slider leaves the track once
-    per period (with no external force), at sin(theta) = 1/Gamma."""
-    return inputs.excitation_amplitude / params.normal_weight
-
-
-def beats_friction(pull: float, load: float, mu: float) -> bool:
-    """Whether a slider runs away: the tangential pull (the drive with the slope's
-    and any external force) beats the most friction the track gives on average,
-    mu times the mean normal load, |pull| > mu*load (any units: N, or forces
-    over m*g).  The excitation averages to nothing, so the slider accelerates.
-    At equality it does not: its speed oscillates about a bounded mean and
-    touches zero once a period (Kostek's U = a/(2*pi) at |phi| = 1).  The one
-    runaway rule of the package."""
-    return abs(pull) > mu * load
-
-
 def plant_from(values: Mapping[str, Any], params: SliderParams | None = None,
                inputs: Inputs | None = None) -> tuple[SliderParams, Inputs]:
     """The parameters and inputs a mapping of field names gives: the fields of
@@ -258,6 +231,6 @@ _SETTINGS: dict[type, dict[str, spec.Setting]] = {SliderParams: spec.PLANT, Inpu
 
 
 __all__ = [
-    "Inputs", "SliderParams", "amplitude_ratio", "beats_friction", "check_load", "cos_degrees", "drive_ratio",
-    "field_values", "plant_from", "require_finite", "require_positive", "sin_degrees", "throw_number",
+    "Inputs", "SliderParams", "check_load", "cos_degrees", "field_values", "plant_from", "require_finite",
+    "require_positive", "sin_degrees",
 ]

@@ -35,6 +35,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+from friction_sim.core.model.dimensionless import TWO_PI
 from friction_sim.core.physics.roots import hypot
 
 #: A transient whose force is below this fraction of the plant's force scale
@@ -87,7 +88,7 @@ def steady_response(drive_level: float, full_drive_acceleration: float, frequenc
 
 def eigenvalue(natural_frequency: float, damping_ratio: float) -> complex:
     """lambda = -zeta*omega_n + i*omega_d: the slideway's free motion is Re(D*exp(lambda*t))."""
-    omega_n = 2.0 * math.pi * natural_frequency
+    omega_n = TWO_PI * natural_frequency
     return complex(-damping_ratio * omega_n, omega_n * math.sqrt((1.0 - damping_ratio) * (1.0 + damping_ratio)))
 
 

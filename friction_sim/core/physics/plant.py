@@ -21,9 +21,10 @@ import math
 from fractions import Fraction
 from typing import Any, NamedTuple
 
+from friction_sim.core.model.dimensionless import TWO_PI, throw_number
 from friction_sim.core.model.params import Inputs, SliderParams, cos_degrees, sin_degrees
 from friction_sim.core.physics.exciter import steady_response
-from friction_sim.core.physics.roots import TWO_PI, hypot
+from friction_sim.core.physics.roots import hypot
 
 #: A rebound slower than this many units of g*cos(alpha)/omega (gravity would
 #: stop it within a millionth of a radian of excitation phase) is a plastic
@@ -216,8 +217,8 @@ def steady_excitation(params: SliderParams, inputs: Inputs) -> tuple[float, floa
 
 def steady_throw_number(params: SliderParams, inputs: Inputs) -> float:
     """Gamma = Pa/(m*g*cos(alpha)) of the steady excitation (the resonant actuator's
-    steady Pa; :func:`~friction_sim.core.model.params.throw_number` for the force actuator's)."""
-    return steady_excitation(params, inputs)[0] / params.normal_weight
+    steady Pa, the force actuator's as set)."""
+    return throw_number(steady_excitation(params, inputs)[0], params.normal_weight)
 
 
 def plant_of(params: SliderParams, inputs: Inputs, in_flight: bool = False) -> Plant:
