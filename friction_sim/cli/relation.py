@@ -17,7 +17,7 @@ from friction_sim.cli.options import MODEL_OPTIONS, Verb, add_flag, add_model_op
 from friction_sim.core.model import spec
 from friction_sim.core.model.dimensionless import amplitude_for, drive_force_for, throw_number
 from friction_sim.core.model.params import Inputs, SliderParams
-from friction_sim.core.physics.plant import closed_form_applies
+from friction_sim.core.physics.plant import closed_form_applies, is_kostek
 from friction_sim.errors import FrictionSimError
 
 MAX_GRID = 2001
@@ -50,7 +50,7 @@ def umap(args: argparse.Namespace) -> int:
     from friction_sim.core.meanspeed import urelation
 
     params = model(args)
-    grid = urelation.u_grid(args.grid) if params.is_kostek else _general_grid(args.grid, params)
+    grid = urelation.u_grid(args.grid) if is_kostek(params) else _general_grid(args.grid, params)
     if args.csv is not None:
         from friction_sim.io.export import write_umap_csv
 

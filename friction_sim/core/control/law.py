@@ -101,7 +101,7 @@ from friction_sim.core.model.dimensionless import (
     nondimensional_speed,
 )
 from friction_sim.core.model.params import Inputs, SliderParams
-from friction_sim.core.physics.plant import kostek_applies
+from friction_sim.core.physics.plant import is_kostek, kostek_applies
 from friction_sim.errors import ParameterError
 
 #: The state r = U_cmd/U* stays within these bounds: a model may be off by a
@@ -307,7 +307,7 @@ class MeanSpeedController:
         if name not in _INPUTS:
             raise ParameterError(name, value, f"unknown input; known: {', '.join(_INPUTS)}")
         number = float(_INPUTS[name].check(value))
-        kostek = self._config.model.is_kostek  # elsewhere the vibration conveys too: any direction may be reachable
+        kostek = is_kostek(self._config.model)  # elsewhere the vibration conveys too: any direction may be reachable
         if name == "target_speed":
             force = self._drive_force
             if kostek and number != 0.0 and (force == 0.0 or math.copysign(1.0, number) != math.copysign(1.0, force)):
@@ -441,7 +441,7 @@ class MeanSpeedController:
         with self._transaction():
             self._config = config
             target, force = self._target, self._drive_force
-            if config.model.is_kostek and target != 0.0 and (
+            if is_kostek(config.model) and target != 0.0 and (
                     force == 0.0 or math.copysign(1.0, target) != math.copysign(1.0, force)):
                 self._target = 0.0
             self._plant_changed()

@@ -288,17 +288,16 @@ def u_general(phi: ArrayLike, a: ArrayLike, model: SliderParams | None = None, *
     flight = np.zeros(phi_arr.shape)
     stick = np.zeros(phi_arr.shape)
     runaway = np.zeros(phi_arr.shape, dtype=bool)
-    exact = np.zeros(phi_arr.shape, dtype=bool)
-    if params.is_kostek:  # the closed form's rule, for these amplitudes (no external force)
-        exact = kostek_applies(params.excitation_angle, params.track_inclination, params.static_ratio,
-                               amplitude_for(a_arr, params.weight), params.weight, 0.0)
-        if np.any(exact):
-            u[exact] = u_map(phi_arr[exact], a_arr[exact])
-            runaway[exact] = np.isinf(u[exact])
-            multiple[exact] = np.where(runaway[exact], 0, 1)
-            if details:
-                for index in zip(*np.nonzero(exact)):
-                    stick[index] = _closed_form_stick(float(phi_arr[index]), float(a_arr[index]))
+    # the closed form's rule, for these amplitudes (no external force)
+    exact = np.asarray(kostek_applies(params.excitation_angle, params.track_inclination, params.static_ratio,
+                                      amplitude_for(a_arr, params.weight), params.weight, 0.0))
+    if np.any(exact):
+        u[exact] = u_map(phi_arr[exact], a_arr[exact])
+        runaway[exact] = np.isinf(u[exact])
+        multiple[exact] = np.where(runaway[exact], 0, 1)
+        if details:
+            for index in zip(*np.nonzero(exact)):
+                stick[index] = _closed_form_stick(float(phi_arr[index]), float(a_arr[index]))
     weight = params.weight
     for index in np.ndindex(phi_arr.shape):
         if exact[index]:

@@ -113,11 +113,6 @@ class SliderParams:
         """cot(beta): the tangential excitation amplitude over the normal one (0 at 90 degrees)."""
         return cos_degrees(self.excitation_angle) / sin_degrees(self.excitation_angle)
 
-    @property
-    def is_kostek(self) -> bool:
-        """True for Kostek's model: normal excitation, level track, one friction coefficient."""
-        return self.excitation_angle == 90.0 and self.track_inclination == 0.0 and self.static_ratio == 1.0
-
     def replace(self, **changes: Any) -> SliderParams:
         """A copy with ``changes`` applied, validated like a new instance."""
         return _replace(self, changes)

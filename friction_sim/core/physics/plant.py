@@ -95,14 +95,26 @@ class Plant(NamedTuple):
     mu_s: float
 
 
+def kostek_plant(excitation_angle: Any, track_inclination: Any, static_ratio: Any) -> Any:
+    """Kostek's plant: normal excitation, a level track, one friction coefficient
+    (the U relation's map holds on it for every amplitude below the load).
+    Floats, or numpy arrays elementwise."""
+    return (excitation_angle == 90.0) & (track_inclination == 0.0) & (static_ratio == 1.0)  # (& : arrays too)
+
+
+def is_kostek(params: SliderParams) -> bool:
+    """:func:`kostek_plant` for validated parameters (whatever the actuator)."""
+    return bool(kostek_plant(params.excitation_angle, params.track_inclination, params.static_ratio))
+
+
 def kostek_applies(excitation_angle: Any, track_inclination: Any, static_ratio: Any, excitation_amplitude: Any,
                    weight: Any, external_force_z: Any) -> Any:
-    """Kostek's model: normal excitation, a level track, one friction coefficient, and
-    an excitation below the load, so the slider never leaves the track.  The one
-    rule for where the paper's closed forms (its fast segments, the U relation) hold.
-    Floats, or numpy arrays elementwise."""
-    return ((excitation_angle == 90.0) & (track_inclination == 0.0) & (static_ratio == 1.0)  # (& : arrays too)
-            & (excitation_amplitude < weight - external_force_z))
+    """Kostek's model: his plant (:func:`kostek_plant`) and an excitation below the
+    load, so the slider never leaves the track.  The one rule for where the
+    paper's closed forms (its fast segments, the U relation) hold.  Floats, or
+    numpy arrays elementwise."""
+    return kostek_plant(excitation_angle, track_inclination, static_ratio) & (
+        excitation_amplitude < weight - external_force_z)
 
 
 def closed_form_applies(params: SliderParams, inputs: Inputs) -> bool:
