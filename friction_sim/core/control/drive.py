@@ -79,6 +79,7 @@ from friction_sim.core.physics.exciter import (
     rebased,
     response,
     slideway_state,
+    steady_acceleration,
     steady_slideway,
 )
 
@@ -189,7 +190,7 @@ class DriveLoop:
 
     def _amplitude(self, level: float) -> float:
         """The steady normal acceleration amplitude [m/s^2] the model gives at drive ``level``."""
-        return level * self.model.full_drive_acceleration * self._response()[0] * self.gain_ratio
+        return steady_acceleration(level, self.model.full_drive_acceleration, self._response()[0]) * self.gain_ratio
 
     @property
     def full_drive_amplitude(self) -> float:
