@@ -11,6 +11,8 @@ the field, the value and the limit; the ranges come from
 physical refusal beyond the ranges: an amplitude above the weight makes the
 slider hop, which the core follows exactly.  Every path into the
 simulation (topics, parameters, scenarios, the CLI, replay) goes through them.
+Their dimensionless groups (phi, a, Gamma, U) and the runaway rule are
+:mod:`friction_sim.core.model.dimensionless`'s.
 
 Paper's Fig. 2 case (Kostek): Pa = 5 N, Fd = 0.7 N, f = 50 Hz, mu = 0.1,
 g = 10 m/s^2, m = 1 kg.  These are the defaults everywhere.
