@@ -37,8 +37,15 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 import numpy as np
 
 from friction_sim.core.engine.single import Slider
-from friction_sim.core.meanspeed.urelation import dimensional_speed, u_grid, u_map
+from friction_sim.core.meanspeed.urelation import u_grid, u_map
 from friction_sim.core.model.commands import Command
+from friction_sim.core.model.dimensionless import (
+    amplitude_for,
+    amplitude_for_throw,
+    dimensional_speed,
+    drive_force_for,
+    throw_number,
+)
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.runtime.simulation import random_schedule, run_schedule, simulate
 
@@ -159,8 +166,8 @@ def mean_speed_accuracy(quick: bool) -> None:
         phi, a = rng.uniform(0.05, 0.999), rng.uniform(0.02, 0.95)
         if u_map(phi, a) < 1e-4:
             continue
-        inputs = Inputs(drive_force=phi * PARAMS.mu * PARAMS.weight,
-                        excitation_amplitude=a * PARAMS.weight, excitation_frequency=FREQUENCY)
+        inputs = Inputs(drive_force=drive_force_for(phi, PARAMS.mu, PARAMS.weight),
+                        excitation_amplitude=amplitude_for(a, PARAMS.weight), excitation_frequency=FREQUENCY)
         result = simulate(PARAMS, inputs, 1.0, settle=0.1)
         expected = dimensional_speed(u_map(phi, a), FREQUENCY, PARAMS.gravity, PARAMS.mu)
         worst = max(worst, abs(result.mean_velocity - expected) / expected)
@@ -192,13 +199,12 @@ def long_run_phase_error(quick: bool) -> None:
 
 #: (e): Gamma = 2 on a level track, vibration at 30 degrees, mu = 0.5, no drive, plastic landings.
 FLIGHT_PARAMS = SliderParams(mass=1.0, mu=0.5, gravity=10.0, excitation_angle=30.0)
-FLIGHT_INPUTS = Inputs(drive_force=0.0, excitation_amplitude=2.0 * FLIGHT_PARAMS.normal_weight,
+FLIGHT_INPUTS = Inputs(drive_force=0.0, excitation_amplitude=amplitude_for_throw(2.0, FLIGHT_PARAMS.normal_weight),
                        excitation_frequency=FREQUENCY)
 
 
 def flight_throughput(quick: bool) -> None:
     from friction_sim.core.model.events import EventKind
-    from friction_sim.core.model.params import throw_number
 
     from reference_general import GeneralModel
     from reference_general import solve as reference_general_solve
@@ -224,7 +230,8 @@ def flight_throughput(quick: bool) -> None:
     check.advance_to(ref_duration)
     core_rate, ref_rate = periods_core / core_time, periods_ref / ref_time
     landings, lift_offs = counts[EventKind.LANDING], counts[EventKind.LIFT_OFF]
-    print(f"(e) flight case: Gamma = {throw_number(FLIGHT_PARAMS, FLIGHT_INPUTS):g}, vibration angle "
+    gamma = throw_number(FLIGHT_INPUTS.excitation_amplitude, FLIGHT_PARAMS.normal_weight)
+    print(f"(e) flight case: Gamma = {gamma:g}, vibration angle "
           f"{FLIGHT_PARAMS.excitation_angle:g} deg, mu = {FLIGHT_PARAMS.mu:g}, Fd = 0, e = 0, impulsive landings")
     print(f"    {periods_core:,} periods: " + ", ".join(f"{k.value} {n}" for k, n in counts.items())
           + f"  ({landings / periods_core:.3f} landings and {lift_offs / periods_core:.3f} lift-offs per period;"

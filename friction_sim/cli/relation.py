@@ -15,8 +15,9 @@ import numpy as np
 
 from friction_sim.cli.options import MODEL_OPTIONS, Verb, add_flag, add_model_options, model, print_json, say_saved
 from friction_sim.core.model import spec
-from friction_sim.core.model.params import Inputs, SliderParams, throw_number
-from friction_sim.core.physics.plant import closed_form_applies
+from friction_sim.core.model.dimensionless import amplitude_for, drive_force_for, throw_number
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.physics.plant import closed_form_applies, is_kostek
 from friction_sim.errors import FrictionSimError
 
 MAX_GRID = 2001
@@ -49,7 +50,7 @@ def umap(args: argparse.Namespace) -> int:
     from friction_sim.core.meanspeed import urelation
 
     params = model(args)
-    grid = urelation.u_grid(args.grid) if params.is_kostek else _general_grid(args.grid, params)
+    grid = urelation.u_grid(args.grid) if is_kostek(params) else _general_grid(args.grid, params)
     if args.csv is not None:
         from friction_sim.io.export import write_umap_csv
 
@@ -82,7 +83,8 @@ def _umap_point(args: argparse.Namespace) -> int:
     if phi is None or ratio is None:
         raise FrictionSimError("umap needs --phi and --ratio for one point, or --grid N for the map")
     params = model(args)
-    inputs = Inputs(drive_force=phi * params.mu * params.weight, excitation_amplitude=ratio * params.weight)
+    inputs = Inputs(drive_force=drive_force_for(phi, params.mu, params.weight),
+                    excitation_amplitude=amplitude_for(ratio, params.weight))
     if not closed_form_applies(params, inputs):
         return _general_point(args, params, inputs)
     u = urelation.u_map(phi, ratio) + 0.0  # + 0.0: no '-0.0' where a backward drive stands still
@@ -108,11 +110,12 @@ def _general_point(args: argparse.Namespace, params: SliderParams, inputs: Input
 
     phi, ratio = args.phi, args.amplitude_ratio
     result = mean_speed(params, inputs)
+    gamma = throw_number(inputs.excitation_amplitude, params.normal_weight)
     u = result.u + 0.0
     motion = general_motion(result)
     if args.json:
         print_json({
-            "phi": phi, "amplitude_ratio": ratio, "throw_number": throw_number(params, inputs), "U": u,
+            "phi": phi, "amplitude_ratio": ratio, "throw_number": gamma, "U": u,
             "motion": motion, "periodic": result.periodic, "period_multiple": result.period_multiple,
             "settle_periods": result.settle_periods, "periods": result.periods,
             "flight_fraction": result.flight_fraction, "stick_fraction": result.stick_fraction,
@@ -120,7 +123,7 @@ def _general_point(args: argparse.Namespace, params: SliderParams, inputs: Input
             **{s.name: getattr(params, s.name) for s in MODEL_OPTIONS},
         })
         return 0
-    print(f"U({phi:g}, {ratio:g}) = {u!r}  (Gamma = {throw_number(params, inputs):g})")
+    print(f"U({phi:g}, {ratio:g}) = {u!r}  (Gamma = {gamma:g})")
     print(motion)
     return 0
 

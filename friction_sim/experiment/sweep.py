@@ -58,6 +58,8 @@ import numpy as np
 import yaml
 
 from friction_sim.core.model import spec as settings
+from friction_sim.core.model.dimensionless import amplitude_for, amplitude_for_throw, drive_force_for
+from friction_sim.core.model.params import cos_degrees
 from friction_sim.core.model.spec import Setting
 from friction_sim.errors import FrictionSimError, ParameterError
 from friction_sim.experiment.scenario import Entry, compose_mapping
@@ -491,12 +493,11 @@ def materialize(sweep: Sweep, start: int, stop: int) -> dict[str, np.ndarray]:
     return columns
 
 
-def _degrees_cos(angles: np.ndarray) -> np.ndarray:
-    """cos of angles in degrees, exact at multiples of 90 (as core.params.cos_degrees)."""
-    out = np.cos(np.radians(angles))
-    quarter = np.mod(angles, 90.0) == 0.0
-    out[quarter] = np.array([1.0, 0.0, -1.0, 0.0])[(angles[quarter] // 90.0).astype(int) % 4]
-    return out
+def _cos_degrees(angles: np.ndarray) -> np.ndarray:
+    """:func:`~friction_sim.core.model.params.cos_degrees` of each angle (the plant's
+    own cos(alpha), bit for bit), taken once per distinct angle."""
+    distinct, where = np.unique(angles, return_inverse=True)
+    return np.array([cos_degrees(float(angle)) for angle in distinct])[where.reshape(angles.shape)]
 
 
 def setting_of(key: str) -> Setting:
@@ -509,13 +510,13 @@ def derive_fields(columns: dict[str, np.ndarray], given: dict[str, np.ndarray]) 
     """Fields set by derived keys: excitation_amplitude and drive_force (from the
     mass, g, mu and slope in ``columns``; sweeps and calibration share it)."""
     weight = columns["mass"].astype(float) * columns["gravity"].astype(float)
-    if "throw_number" in given:
-        columns["excitation_amplitude"] = given["throw_number"] * weight * _degrees_cos(
-            columns["track_inclination"].astype(float))
+    if "throw_number" in given:  # Gamma m g cos(alpha), as SliderParams.normal_weight is m g cos(alpha)
+        columns["excitation_amplitude"] = amplitude_for_throw(
+            given["throw_number"], weight * _cos_degrees(columns["track_inclination"].astype(float)))
     if "amplitude_ratio" in given:
-        columns["excitation_amplitude"] = given["amplitude_ratio"] * weight
+        columns["excitation_amplitude"] = amplitude_for(given["amplitude_ratio"], weight)
     if "drive_ratio" in given:
-        columns["drive_force"] = given["drive_ratio"] * (columns["mu"].astype(float) * weight)
+        columns["drive_force"] = drive_force_for(given["drive_ratio"], columns["mu"].astype(float), weight)
 
 
 def check_points(sweep: Sweep, columns: dict[str, np.ndarray]) -> None:

@@ -15,8 +15,9 @@ import pytest
 
 from friction_sim.cli.main import build_parser, main
 from friction_sim.cli.relation import NEVER_MOVES, SLIPS_ALWAYS, STICK_SLIP, motion_regime
-from friction_sim.core.meanspeed.urelation import dimensional_speed, u_map
+from friction_sim.core.meanspeed.urelation import u_map
 from friction_sim.core.model import spec
+from friction_sim.core.model.dimensionless import dimensional_speed
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.runtime.simulation import simulate
 

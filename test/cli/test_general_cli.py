@@ -26,6 +26,7 @@ from friction_sim.core.meanspeed.general import mean_speed, u_general
 from friction_sim.core.model import spec
 from friction_sim.core.model.events import EventKind
 from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.physics.plant import is_kostek
 from friction_sim.io.export import CONVEYOR_COLUMNS as CSV_COLUMNS
 
 SCRIPT = Path(sys.executable).parent / "friction-sim"
@@ -55,7 +56,7 @@ def test_the_model_flags_reach_the_params(command: str) -> None:
     assert params == expected
     defaults = build_parser().parse_args([command, *extra])
     default_params = commands.model(defaults) if command == "umap" else commands.plant(defaults)[0]
-    assert default_params == SliderParams() and default_params.is_kostek
+    assert default_params == SliderParams() and is_kostek(default_params)
 
 
 def test_every_plant_setting_is_a_flag_of_simulate_and_trace() -> None:

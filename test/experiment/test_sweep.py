@@ -52,7 +52,7 @@ def test_a_design_expands_to_grid_times_points_times_samples() -> None:
     assert np.array_equal(columns["excitation_angle"][:42], np.repeat([30.0, 60.0], 21))
     assert np.array_equal(np.unique(columns["throw_number"]), np.linspace(0.5, 2.0, 4))
     assert np.all(columns["mass"] == 2.0) and np.all(columns["gravity"] == spec.GRAVITY.default)
-    # the derived amplitude is Gamma m g cos(alpha), as core.params.throw_number reads it back
+    # the derived amplitude is Gamma m g cos(alpha), as core.model.dimensionless.throw_number reads it back
     for i in (0, 10, 30, 100, 167):
         params = SliderParams(mass=2.0, track_inclination=float(columns["track_inclination"][i]))
         expected = columns["throw_number"][i] * params.weight * cos_degrees(params.track_inclination)
@@ -109,7 +109,7 @@ def test_a_list_and_fixed_values_and_drive_ratio() -> None:
                         "  - {drive_ratio: -0.25, mass: 3}\n")
     columns = materialize(sweep, 0, 2)
     assert sweep.size == 2 and sweep.settle_periods == 0
-    assert list(columns["drive_force"]) == [0.5 * (0.2 * (1 * 10.0)), -0.25 * (0.2 * (3 * 10.0))]  # phi (mu m g)
+    assert list(columns["drive_force"]) == [0.5 * 0.2 * (1 * 10.0), -0.25 * 0.2 * (3 * 10.0)]  # phi mu (m g)
 
 
 def test_the_shipped_sweeps_load() -> None:

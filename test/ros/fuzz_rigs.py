@@ -36,6 +36,7 @@ from friction_sim.core.meanspeed.urelation import u_map
 from friction_sim.core.model import spec
 from friction_sim.core.model.commands import COMMANDS, CONTROLLER, SLIDER, consumed_by, unused_input
 from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.physics.plant import is_kostek
 from friction_sim.errors import ParameterError
 from friction_sim.io.messages import message_class
 
@@ -72,7 +73,7 @@ def check_prediction(values: dict[str, str], params: SliderParams | None = None,
         return
     phi, ratio, u = (_number(values[k]) for k in ("phi", "amplitude_ratio", "predicted_U"))
     if params is not None and inputs is not None and not (
-            params.is_kostek and inputs.excitation_amplitude < params.weight - inputs.external_force_z):
+            is_kostek(params) and inputs.excitation_amplitude < params.weight - inputs.external_force_z):
         try:
             general = predict(params, inputs).u
         except Exception:  # noqa: BLE001 - the node reports nan when there is no prediction

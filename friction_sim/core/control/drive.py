@@ -71,6 +71,7 @@ import numpy as np
 
 from friction_sim.core.control.lockin import MIN_SAMPLES, Vibration, fit_period
 from friction_sim.core.model import spec
+from friction_sim.core.model.dimensionless import TWO_PI
 from friction_sim.core.model.params import SliderParams
 from friction_sim.core.physics.exciter import (
     Slideway,
@@ -78,6 +79,7 @@ from friction_sim.core.physics.exciter import (
     rebased,
     response,
     slideway_state,
+    steady_acceleration,
     steady_slideway,
 )
 
@@ -200,14 +202,14 @@ class DriveLoop:
         return self._response()[1]
 
     def _omega(self) -> float:
-        return 2.0 * math.pi * self.frequency
+        return TWO_PI * self.frequency
 
     def _lam(self) -> complex:
         return eigenvalue(self.natural_frequency, self.model.damping_ratio)
 
     def _amplitude(self, level: float) -> float:
         """The steady normal acceleration amplitude [m/s^2] the model gives at drive ``level``."""
-        return level * self.model.full_drive_acceleration * self._response()[0] * self.gain_ratio
+        return steady_acceleration(level, self.model.full_drive_acceleration, self._response()[0]) * self.gain_ratio
 
     @property
     def full_drive_amplitude(self) -> float:
@@ -256,7 +258,7 @@ class DriveLoop:
         of a transient, from a level that took effect later than planned, has
         decayed by e then).  Until then a mean speed measured is not yet the
         answer to the amplitude asked for."""
-        decay = self.frequency / (2.0 * math.pi * self.model.damping_ratio * self.natural_frequency)
+        decay = self.frequency / (TWO_PI * self.model.damping_ratio * self.natural_frequency)
         return self._steady_boundaries > 2 + math.ceil(decay / self.cycles)
 
     def set_frequency(self, frequency: float) -> None:
@@ -313,7 +315,7 @@ class DriveLoop:
         planned = self._planned_for(reading)
         if planned is None or len(reading.times) < MIN_SAMPLES or not reading.amplitude > 0.0 or self._stepped(planned):
             return
-        normal = [slideway_state(planned.way, 2.0 * math.pi * planned.frequency * (t - planned.t_start),
+        normal = [slideway_state(planned.way, TWO_PI * planned.frequency * (t - planned.t_start),
                                  t - planned.t_start)[2] for t in reading.times]
         expected = fit_period(reading.times, normal, reading.t_start, reading.t_end, reading.cycles)
         if not expected.amplitude > 0.0:
@@ -321,7 +323,7 @@ class DriveLoop:
         if abs(reading.amplitude / expected.amplitude - 1.0) > AGREEMENT:
             self._steady_boundaries = 0  # the plant is not where the model put it (a load, a wrong model)
         driven = planned.frequency
-        lag_error = math.remainder(reading.lag - expected.lag, 2.0 * math.pi)
+        lag_error = math.remainder(reading.lag - expected.lag, TWO_PI)
         steady_lag = response(driven, planned.natural_frequency, self.model.damping_ratio).lag + _limited(
             lag_error, MAX_LAG_CORRECTION)
         if 0.0 < steady_lag < math.pi:

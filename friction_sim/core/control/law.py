@@ -92,8 +92,16 @@ from friction_sim.core.control.sampleclock import SampleClock
 from friction_sim.core.meanspeed.inverse import Branch, rising_branch
 from friction_sim.core.meanspeed.urelation import amplitude_ratio_for, u_map
 from friction_sim.core.model import spec
-from friction_sim.core.model.params import Inputs, SliderParams, beats_friction
-from friction_sim.core.physics.plant import kostek_applies
+from friction_sim.core.model.dimensionless import (
+    amplitude_for,
+    amplitude_ratio,
+    beats_friction,
+    dimensional_speed,
+    drive_ratio,
+    nondimensional_speed,
+)
+from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.physics.plant import is_kostek, kostek_applies
 from friction_sim.errors import ParameterError
 
 #: The state r = U_cmd/U* stays within these bounds: a model may be off by a
@@ -146,8 +154,9 @@ def speed_limit_formula(drive_force: float, model: SliderParams, frequency: floa
     samples = _branch(model, drive_force, max_ratio, 1).u
     if not np.all(np.isfinite(samples)):
         return math.inf, f"none: the model runs away somewhere in a <= {max_ratio:g}"
-    fastest = float(np.max(np.abs(samples))) * model.gravity * model.mu / frequency
-    pull = abs(drive_force - model.downhill_weight) + max_ratio * model.weight * abs(model.tangential_ratio)
+    fastest = dimensional_speed(float(np.max(np.abs(samples))), frequency, model.gravity, model.mu)
+    tangential = amplitude_for(max_ratio, model.weight) * abs(model.tangential_ratio)  # Pt at the top
+    pull = abs(drive_force - model.downhill_weight) + tangential
     by_pull = SPEED_LIMIT_FACTOR * pull / (model.mass * frequency)
     by_model = GENERAL_SPEED_MARGIN * fastest
     limit = max(by_pull, by_model)
@@ -162,7 +171,7 @@ def uses_closed_form(model: SliderParams, max_ratio: float) -> bool:
     controller of issue 10, unchanged); elsewhere it inverts the general mean
     speed on its rising branch (:mod:`friction_sim.core.meanspeed.inverse`)."""
     return bool(kostek_applies(model.excitation_angle, model.track_inclination, model.static_ratio,
-                               max_ratio * model.weight, model.weight, 0.0))  # the closed form's rule at the top
+                               amplitude_for(max_ratio, model.weight), model.weight, 0.0))  # the rule at the top
 
 
 def runs_away(drive_force: float, model: SliderParams) -> bool:
@@ -170,7 +179,7 @@ def runs_away(drive_force: float, model: SliderParams) -> bool:
     m g sin(alpha)| > mu m g cos(alpha) (Kostek: |phi| > 1).  Coulomb friction
     averages at most mu m g cos(alpha) over time (less when the slider hops),
     and the excitation averages to nothing, so the slider then accelerates.
-    The boundary itself does not run away (:func:`~friction_sim.core.model.params.beats_friction`,
+    The boundary itself does not run away (:func:`~friction_sim.core.model.dimensionless.beats_friction`,
     the one rule, which the general mean speed's branch applies too); the closed
     form's U is inf only beyond |phi| = 1."""
     return beats_friction(drive_force - model.downhill_weight, model.normal_weight, model.mu)
@@ -298,7 +307,7 @@ class MeanSpeedController:
         if name not in _INPUTS:
             raise ParameterError(name, value, f"unknown input; known: {', '.join(_INPUTS)}")
         number = float(_INPUTS[name].check(value))
-        kostek = self._config.model.is_kostek  # elsewhere the vibration conveys too: any direction may be reachable
+        kostek = is_kostek(self._config.model)  # elsewhere the vibration conveys too: any direction may be reachable
         if name == "target_speed":
             force = self._drive_force
             if kostek and number != 0.0 and (force == 0.0 or math.copysign(1.0, number) != math.copysign(1.0, force)):
@@ -369,8 +378,8 @@ class MeanSpeedController:
         """Move the state r on a clean sample (see the module doc)."""
         config = self.config
         # The shortfall in the target's direction, in units of U (finite: |speed| is within the limit).
-        error = math.copysign(1.0, self._target) * (self._target - speed) * self._frequency / (
-            config.model.gravity * config.model.mu)
+        error = nondimensional_speed(math.copysign(1.0, self._target) * (self._target - speed), self._frequency,
+                                     config.model.gravity, config.model.mu)
         if out.saturated and error > 0.0:
             return  # anti-windup: never further in the direction of a saturated output
         command = abs(out.u_target) * self._ratio
@@ -411,12 +420,12 @@ class MeanSpeedController:
         """The largest amplitude ratio a the law applies: max_amplitude_ratio, or
         less where the actuator gives less."""
         top, limit = self.config.max_amplitude_ratio, self._actuator_limit
-        return top if limit is None else min(top, limit / self.config.model.weight)
+        return top if limit is None else min(top, amplitude_ratio(limit, self.config.model.weight))
 
     def _speed(self, u: float) -> float:
         """The mean speed [m/s] of ``u`` in the model's units (U = V f/(g mu))."""
         model = self.config.model
-        return u * model.gravity * model.mu / self._frequency
+        return dimensional_speed(u, self._frequency, model.gravity, model.mu)
 
     # -- the law ----------------------------------------------------------------
 
@@ -432,7 +441,7 @@ class MeanSpeedController:
         with self._transaction():
             self._config = config
             target, force = self._target, self._drive_force
-            if config.model.is_kostek and target != 0.0 and (
+            if is_kostek(config.model) and target != 0.0 and (
                     force == 0.0 or math.copysign(1.0, target) != math.copysign(1.0, force)):
                 self._target = 0.0
             self._plant_changed()
@@ -444,8 +453,8 @@ class MeanSpeedController:
 
     def _decide(self) -> ControlOutput:
         model, top = self.config.model, self.config.max_amplitude_ratio
-        phi = self._drive_force / (model.mu * model.weight)
-        u_target = self._target * self._frequency / (model.gravity * model.mu)
+        phi = drive_ratio(self._drive_force, model.mu, model.weight)
+        u_target = nondimensional_speed(self._target, self._frequency, model.gravity, model.mu)
         if not uses_closed_form(model, top):
             return self._decide_general(phi, u_target)
         runaway = abs(phi) > 1.0  # (runs_away in phi, the ratio the relation inverts: U(1, a) = a/(2*pi))
@@ -512,7 +521,7 @@ class MeanSpeedController:
 
     def _output(self, ratio: float, u_target: float, phi: float, feedforward: float,
                 saturated: bool, unreachable: bool, runaway: bool, reachable_speed: float = math.nan) -> ControlOutput:
-        amplitude = ratio * self.config.model.weight
+        amplitude = amplitude_for(ratio, self.config.model.weight)
         if self._actuator_limit is not None:  # (ratio <= limit/weight may round to a Pa an ulp above the limit)
             amplitude = min(amplitude, self._actuator_limit)
         return ControlOutput(

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from friction_sim.core.model.dimensionless import TWO_PI
 from friction_sim.errors import ParameterError
 
 #: A period's fit needs at least this many samples (three unknowns, and one to spare).
@@ -71,7 +72,7 @@ def fit_period(times: Iterable[float], normal: Iterable[float], t_start: float, 
         raise ParameterError("period", (t_start, t_end), "must end after it starts")
     if t.size < MIN_SAMPLES or t.size != z.size:
         raise ParameterError("samples", int(t.size), f"a period needs at least {MIN_SAMPLES} accelerometer samples")
-    theta = 2.0 * math.pi * cycles * (t - t_start) / (t_end - t_start)
+    theta = TWO_PI * cycles * (t - t_start) / (t_end - t_start)
     design = np.column_stack([np.ones_like(theta), np.sin(theta), np.cos(theta)])
     (offset, in_phase, quadrature), *_ = np.linalg.lstsq(design, z, rcond=None)
     # q'' = -P/m = -R sin(theta - lag) = I sin(theta) + Q cos(theta): I = -R cos(lag), Q = R sin(lag)

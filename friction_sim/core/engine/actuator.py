@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+from friction_sim.core.model.dimensionless import TWO_PI
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.physics.exciter import (
     Slideway,
@@ -26,7 +27,7 @@ from friction_sim.core.physics.exciter import (
     steady_slideway,
 )
 from friction_sim.core.physics.plant import Plant
-from friction_sim.core.physics.roots import NEVER, TWO_PI
+from friction_sim.core.physics.roots import NEVER
 
 
 class ExciterState(NamedTuple):

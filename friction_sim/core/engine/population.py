@@ -43,6 +43,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.model import spec
+from friction_sim.core.model.dimensionless import nondimensional_speed
 from friction_sim.core.model.events import EventKind
 from friction_sim.core.model.params import Inputs, SliderParams, plant_from
 from friction_sim.core.model.records import share
@@ -271,7 +272,7 @@ def finish(pop: Population, settle: int, count: int, x: tuple[Floats, Floats], s
     velocity = (x[1] - x[0]) / duration
     return BatchResult(
         n=pop.n, settle_periods=settle, periods=count, mean_velocity=velocity,
-        u=velocity * frequency / (pop.columns["gravity"] * pop.columns["mu"]),
+        u=nondimensional_speed(velocity, frequency, pop.columns["gravity"], pop.columns["mu"]),
         flight_fraction=share(flight[1] - flight[0], duration), stick_fraction=share(stuck[1] - stuck[0], duration),
         event_counts={kind: counts[:, k].copy() for k, kind in enumerate(EVENT_KINDS)}, samples=samples)
 

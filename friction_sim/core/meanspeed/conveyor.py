@@ -42,6 +42,7 @@ from friction_sim.core.meanspeed.general import (
     MeanSpeedGrid,
     mean_speed,
 )
+from friction_sim.core.model.dimensionless import amplitude_for_throw
 from friction_sim.core.model.params import Inputs, SliderParams
 
 #: The vibration angles of panel 1 [deg].
@@ -117,7 +118,8 @@ def plant(angle: float, inclination: float, mu: float) -> SliderParams:
 def point(angle: float, inclination: float, gamma: float, mu: float) -> MeanSpeed:
     """The mean speed at throw number ``gamma`` with Fd = 0 (Pa = Gamma m g cos(alpha))."""
     params = plant(angle, inclination, mu)
-    return mean_speed(params, Inputs(drive_force=0.0, excitation_amplitude=gamma * params.normal_weight))
+    amplitude = amplitude_for_throw(gamma, params.normal_weight)
+    return mean_speed(params, Inputs(drive_force=0.0, excitation_amplitude=amplitude))
 
 
 def curve(xs: NDArray[np.float64], results: Sequence[MeanSpeed]) -> Curve:

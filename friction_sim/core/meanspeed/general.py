@@ -50,6 +50,12 @@ from numpy.typing import ArrayLike, NDArray
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.meanspeed.urelation import kostek_prediction, moves, stop_phase_advance, u_map
 from friction_sim.core.model import spec
+from friction_sim.core.model.dimensionless import (
+    TWO_PI,
+    amplitude_for,
+    drive_force_for,
+    nondimensional_speed,
+)
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.model.records import share
 from friction_sim.core.physics.plant import closed_form_applies, kostek_applies
@@ -140,7 +146,7 @@ def _closed_form_stick(phi: float, a: float) -> float:
         return 1.0
     if abs(phi) >= 1.0:
         return 0.0
-    return 1.0 - float(stop_phase_advance(phi, a)) / (2.0 * math.pi)
+    return 1.0 - float(stop_phase_advance(phi, a)) / TWO_PI
 
 
 class _Start:
@@ -160,7 +166,7 @@ def _scales(params: SliderParams, inputs: Inputs) -> tuple[float, float]:
     amplitude = inputs.excitation_amplitude
     forces = (params.weight + amplitude * (1.0 + abs(params.tangential_ratio)) + abs(inputs.tangential_force)
               + abs(inputs.external_force_z))
-    omega = 2.0 * math.pi * inputs.excitation_frequency
+    omega = TWO_PI * inputs.excitation_frequency
     speed = forces / params.mass / omega
     return STATE_TOLERANCE * speed, STATE_TOLERANCE * speed / omega
 
@@ -202,7 +208,8 @@ def _window(params: SliderParams, inputs: Inputs, starts: list[_Start], first: i
     if runaway:
         velocity = math.copysign(math.inf, end.v)
     return MeanSpeed(
-        u=velocity * frequency / (params.gravity * params.mu), mean_velocity=velocity, periodic=periodic,
+        u=nondimensional_speed(velocity, frequency, params.gravity, params.mu), mean_velocity=velocity,
+        periodic=periodic,
         period_multiple=count if periodic else 0, settle_periods=first, periods=count,
         flight_fraction=share(end.flight - begin.flight, duration),
         stick_fraction=share(end.stuck - begin.stuck, duration),
@@ -281,23 +288,22 @@ def u_general(phi: ArrayLike, a: ArrayLike, model: SliderParams | None = None, *
     flight = np.zeros(phi_arr.shape)
     stick = np.zeros(phi_arr.shape)
     runaway = np.zeros(phi_arr.shape, dtype=bool)
-    exact = np.zeros(phi_arr.shape, dtype=bool)
-    if params.is_kostek:  # the closed form's rule, for these amplitudes (no external force)
-        exact = kostek_applies(params.excitation_angle, params.track_inclination, params.static_ratio,
-                               a_arr * params.weight, params.weight, 0.0)
-        if np.any(exact):
-            u[exact] = u_map(phi_arr[exact], a_arr[exact])
-            runaway[exact] = np.isinf(u[exact])
-            multiple[exact] = np.where(runaway[exact], 0, 1)
-            if details:
-                for index in zip(*np.nonzero(exact)):
-                    stick[index] = _closed_form_stick(float(phi_arr[index]), float(a_arr[index]))
+    # the closed form's rule, for these amplitudes (no external force)
+    exact = np.asarray(kostek_applies(params.excitation_angle, params.track_inclination, params.static_ratio,
+                                      amplitude_for(a_arr, params.weight), params.weight, 0.0))
+    if np.any(exact):
+        u[exact] = u_map(phi_arr[exact], a_arr[exact])
+        runaway[exact] = np.isinf(u[exact])
+        multiple[exact] = np.where(runaway[exact], 0, 1)
+        if details:
+            for index in zip(*np.nonzero(exact)):
+                stick[index] = _closed_form_stick(float(phi_arr[index]), float(a_arr[index]))
     weight = params.weight
     for index in np.ndindex(phi_arr.shape):
         if exact[index]:
             continue
-        inputs = Inputs(drive_force=float(phi_arr[index]) * params.mu * weight,
-                        excitation_amplitude=float(a_arr[index]) * weight, excitation_frequency=frequency)
+        inputs = Inputs(drive_force=drive_force_for(float(phi_arr[index]), params.mu, weight),
+                        excitation_amplitude=amplitude_for(float(a_arr[index]), weight), excitation_frequency=frequency)
         result = mean_speed(params, inputs, settle_periods=settle_periods, periods=periods)
         u[index], multiple[index], flight[index] = result.u, result.period_multiple, result.flight_fraction
         runaway[index], stick[index] = result.runaway, result.stick_fraction

@@ -45,7 +45,8 @@ from numpy.typing import NDArray
 
 from friction_sim.core.meanspeed.general import REFERENCE_FREQUENCY, MeanSpeed, mean_speed
 from friction_sim.core.model import spec
-from friction_sim.core.model.params import Inputs, SliderParams, beats_friction, cos_degrees, sin_degrees
+from friction_sim.core.model.dimensionless import amplitude_for, amplitude_ratio, beats_friction
+from friction_sim.core.model.params import Inputs, SliderParams, cos_degrees, sin_degrees
 from friction_sim.core.physics.roots import illinois_update
 from friction_sim.errors import ParameterError
 
@@ -141,8 +142,8 @@ def rising_branch(params: SliderParams, inputs: Inputs, max_ratio: float, direct
     # in units of its weight (1 kg at 1 m/s^2), so every mass and gravity of one shape shares it.
     weight = params.weight
     unit = params.replace(mass=1.0, gravity=1.0)
-    return _branch(unit, inputs.drive_force / weight, inputs.external_force_x / weight,
-                   inputs.external_force_z / weight, float(max_ratio), direction, samples)
+    return _branch(unit, amplitude_ratio(inputs.drive_force, weight), amplitude_ratio(inputs.external_force_x, weight),
+                   amplitude_ratio(inputs.external_force_z, weight), float(max_ratio), direction, samples)
 
 
 def amplitude_ratio_for_general(u: float, params: SliderParams, inputs: Inputs, max_ratio: float) -> float:
@@ -160,7 +161,8 @@ def amplitude_ratio_for_general(u: float, params: SliderParams, inputs: Inputs, 
 
 
 def _mean(params: SliderParams, inputs: Inputs, ratio: float) -> MeanSpeed:
-    plant = inputs.replace(excitation_amplitude=ratio * params.weight, excitation_frequency=REFERENCE_FREQUENCY)
+    plant = inputs.replace(excitation_amplitude=amplitude_for(ratio, params.weight),
+                           excitation_frequency=REFERENCE_FREQUENCY)
     return mean_speed(params, plant, settle_periods=BRANCH_SETTLE_PERIODS, periods=BRANCH_PERIODS)
 
 

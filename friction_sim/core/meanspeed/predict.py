@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from friction_sim.core.meanspeed.general import mean_speed
 from friction_sim.core.meanspeed.urelation import Prediction, kostek_prediction
+from friction_sim.core.model.dimensionless import amplitude_ratio, drive_ratio
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.physics.plant import steady_excitation
 
@@ -27,10 +28,10 @@ def predict(params: SliderParams, inputs: Inputs) -> Prediction:
     if exact is not None:
         return exact
     result = mean_speed(params, inputs)
-    phi = inputs.tangential_force / (params.mu * params.weight)
-    ratio = steady_excitation(params, inputs)[0] / params.weight  # (the resonant actuator's steady Pa)
+    phi = drive_ratio(inputs.tangential_force, params.mu, params.weight)
+    ratio = amplitude_ratio(steady_excitation(params, inputs)[0], params.weight)  # (the resonant actuator's steady Pa)
     return Prediction(
-        phi=inputs.drive_force / (params.mu * params.weight), amplitude_ratio=ratio, u=result.u,
+        phi=drive_ratio(inputs.drive_force, params.mu, params.weight), amplitude_ratio=ratio, u=result.u,
         mean_velocity=result.mean_velocity, effective_phi=phi, effective_amplitude_ratio=ratio,
         effective_gravity=params.gravity,
     )

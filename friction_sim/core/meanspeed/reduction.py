@@ -31,8 +31,16 @@ from numpy.typing import ArrayLike, NDArray
 
 from friction_sim.core.engine.population import run_batch
 from friction_sim.core.meanspeed.general import DEFAULT_PERIODS, DEFAULT_SETTLE_PERIODS
-from friction_sim.core.meanspeed.urelation import drive_ratio_for, nondimensional_speed
+from friction_sim.core.meanspeed.urelation import drive_ratio_for
 from friction_sim.core.model import spec
+from friction_sim.core.model.dimensionless import (
+    TWO_PI,
+    amplitude_for,
+    dimensional_speed,
+    drive_force_for,
+    drive_ratio,
+    nondimensional_speed,
+)
 from friction_sim.core.model.params import Inputs, SliderParams, field_values
 from friction_sim.core.physics.plant import kostek_applies
 from friction_sim.errors import ParameterError
@@ -86,16 +94,16 @@ def apparent_friction_ratio(speed: ArrayLike, ratio: ArrayLike, params: SliderPa
 def _closed_form(params: SliderParams, a: Floats) -> bool:
     """Whether every amplitude ratio lies in Kostek's model for ``params`` (no hop)."""
     return not params.resonant and bool(np.all(kostek_applies(
-        params.excitation_angle, params.track_inclination, params.static_ratio, a * params.weight,
+        params.excitation_angle, params.track_inclination, params.static_ratio, amplitude_for(a, params.weight),
         params.weight, 0.0)))
 
 
 def runaway_ratio(params: SliderParams) -> float:
     """The drive ratio beyond which the slider slides away uphill whatever the
     vibration: Fd - m g sin(alpha) = mu m g cos(alpha), over mu m g (the
-    boundary of :func:`~friction_sim.core.model.params.beats_friction`, where
+    boundary of :func:`~friction_sim.core.model.dimensionless.beats_friction`, where
     the slider itself still moves at a bounded speed)."""
-    return (params.downhill_weight + params.mu * params.normal_weight) / (params.mu * params.weight)
+    return drive_ratio(params.downhill_weight + params.mu * params.normal_weight, params.mu, params.weight)
 
 
 def _bisected(v: Floats, a: Floats, params: SliderParams, frequency: float) -> Floats:
@@ -117,8 +125,8 @@ def _bisected(v: Floats, a: Floats, params: SliderParams, frequency: float) -> F
 def _speed(phi: Floats, a: Floats, params: SliderParams, frequency: float) -> Floats:
     """The exact mean speed [m/s] of ``params`` at each (phi, a), on the population engine."""
     values = {**field_values(params, Inputs()), "actuator": "force", "excitation_frequency": frequency,
-              "drive_force": (phi * params.mu * params.weight).ravel(),
-              "excitation_amplitude": (a * params.weight).ravel()}
+              "drive_force": drive_force_for(phi, params.mu, params.weight).ravel(),
+              "excitation_amplitude": amplitude_for(a, params.weight).ravel()}
     batch = run_batch(values, settle_periods=DEFAULT_SETTLE_PERIODS, periods=DEFAULT_PERIODS)
     return np.asarray(batch.mean_velocity, dtype=float).reshape(phi.shape)
 
@@ -134,7 +142,8 @@ def reduction_curves(params: SliderParams = LOMAKIN, frequency: float = LOMAKIN_
     marked = np.asarray(marked_speeds, dtype=float)
     if points < 2 or ratios_.size == 0 or marked.size == 0:
         raise ParameterError("points", points, "need at least 2 points, one ratio and one speed")
-    fastest = float(np.max(ratios_)) * params.gravity * params.mu / (2.0 * math.pi * frequency)
+    # U = a/(2 pi) at |phi| = 1: its 2 pi joins the frequency, a*g*mu/(2 pi f)
+    fastest = dimensional_speed(float(np.max(ratios_)), TWO_PI * frequency, params.gravity, params.mu)
     speeds = np.linspace(0.0, fastest, points)
     amplitudes = np.linspace(0.0, float(np.max(ratios_)), points)
     by_speed = apparent_friction_ratio(speeds[None, :], ratios_[:, None], params, frequency)

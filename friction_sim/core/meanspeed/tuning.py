@@ -21,7 +21,7 @@ from friction_sim.core.engine.population import run_batch
 from friction_sim.core.meanspeed.general import DEFAULT_PERIODS, DEFAULT_SETTLE_PERIODS
 from friction_sim.core.model import spec
 from friction_sim.core.model.params import Inputs, SliderParams, field_values
-from friction_sim.core.physics.exciter import response
+from friction_sim.core.physics.exciter import response, steady_acceleration
 
 Floats = NDArray[np.float64]
 
@@ -63,7 +63,8 @@ def tuning_curve(params: SliderParams, inputs: Inputs, frequencies: Floats, *,
                             for f in frequencies]).T.reshape(2, -1)
     values = {**field_values(params, inputs), "excitation_frequency": frequencies}
     batch = run_batch(values, settle_periods=settle_periods, periods=periods, threads=threads)
-    return TuningCurve(params, inputs, frequencies, inputs.drive_level * params.full_drive_acceleration * gains,
+    return TuningCurve(params, inputs, frequencies,
+                       steady_acceleration(inputs.drive_level, params.full_drive_acceleration, gains),
                        np.degrees(lags), batch.mean_velocity, batch.flight_fraction)
 
 

@@ -66,6 +66,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from friction_sim.core.meanspeed import kostek
+from friction_sim.core.model.dimensionless import amplitude_ratio, dimensional_speed, drive_ratio
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.physics.plant import closed_form_applies
 from friction_sim.errors import ParameterError
@@ -193,16 +194,6 @@ def drive_ratio_for(u: ArrayLike, a: ArrayLike) -> Any:
     return _elementwise(kostek.drive_ratio, float, u_arr, a_arr)
 
 
-def nondimensional_speed(v: ArrayLike, frequency: float, gravity: float, mu: float) -> Any:
-    """U = V*f/(g*mu) from a dimensional mean speed V [m/s]."""
-    return _result(np.asarray(v, float) * frequency / (gravity * mu), v)
-
-
-def dimensional_speed(u: ArrayLike, frequency: float, gravity: float, mu: float) -> Any:
-    """V = U*g*mu/f [m/s] from a nondimensional mean speed U."""
-    return _result(np.asarray(u, float) * gravity * mu / frequency, u)
-
-
 @dataclass(frozen=True)
 class UMap:
     """U over a grid: ``u[i, j]`` belongs to ``amplitude_ratio[i]`` and ``phi[j]``."""
@@ -256,12 +247,13 @@ def kostek_prediction(params: SliderParams, inputs: Inputs) -> Prediction | None
         return None
     load = params.weight - inputs.external_force_z
     # (m*g - Fz)/m as g - Fz/m: exactly g without an external force (Fz > 0 lifts)
-    phi, ratio, gravity = (inputs.tangential_force / (params.mu * load), inputs.excitation_amplitude / load,
+    phi, ratio, gravity = (drive_ratio(inputs.tangential_force, params.mu, load),
+                           amplitude_ratio(inputs.excitation_amplitude, load),
                            params.gravity - inputs.external_force_z / params.mass)
     u = u_map(phi, ratio)
     return Prediction(
-        phi=inputs.drive_force / (params.mu * params.weight),
-        amplitude_ratio=inputs.excitation_amplitude / params.weight,
+        phi=drive_ratio(inputs.drive_force, params.mu, params.weight),
+        amplitude_ratio=amplitude_ratio(inputs.excitation_amplitude, params.weight),
         u=u,
         mean_velocity=dimensional_speed(u, inputs.excitation_frequency, gravity, params.mu),
         effective_phi=phi, effective_amplitude_ratio=ratio, effective_gravity=gravity,

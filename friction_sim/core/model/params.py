@@ -11,6 +11,8 @@ the field, the value and the limit; the ranges come from
 physical refusal beyond the ranges: an amplitude above the weight makes the
 slider hop, which the core follows exactly.  Every path into the
 simulation (topics, parameters, scenarios, the CLI, replay) goes through them.
+Their dimensionless groups (phi, a, Gamma, U) and the runaway rule are
+:mod:`friction_sim.core.model.dimensionless`'s.
 
 Paper's Fig. 2 case (Kostek): Pa = 5 N, Fd = 0.7 N, f = 50 Hz, mu = 0.1,
 g = 10 m/s^2, m = 1 kg.  These are the defaults everywhere.
@@ -113,11 +115,6 @@ class SliderParams:
         """cot(beta): the tangential excitation amplitude over the normal one (0 at 90 degrees)."""
         return cos_degrees(self.excitation_angle) / sin_degrees(self.excitation_angle)
 
-    @property
-    def is_kostek(self) -> bool:
-        """True for Kostek's model: normal excitation, level track, one friction coefficient."""
-        return self.excitation_angle == 90.0 and self.track_inclination == 0.0 and self.static_ratio == 1.0
-
     def replace(self, **changes: Any) -> SliderParams:
         """A copy with ``changes`` applied, validated like a new instance."""
         return _replace(self, changes)
@@ -205,33 +202,6 @@ def check_load(frequency: float, rate: float, field: str = "excitation_frequency
     raise ParameterError(field, frequency, f"must be <= {limit / rate:g} Hz at real_time_factor {rate:g} {why}")
 
 
-def drive_ratio(params: SliderParams, inputs: Inputs) -> float:
-    """phi = Fd / (mu*m*g): the drive force over the nominal friction force."""
-    return inputs.drive_force / (params.mu * params.weight)
-
-
-def amplitude_ratio(params: SliderParams, inputs: Inputs) -> float:
-    """a = Pa / (m*g): the excitation amplitude over the weight."""
-    return inputs.excitation_amplitude / params.weight
-
-
-def throw_number(params: SliderParams, inputs: Inputs) -> float:
-    """Gamma = Pa / (m*g*cos(alpha)): above 1 the slider leaves the track once
-    per period (with no external force), at sin(theta) = 1/Gamma."""
-    return inputs.excitation_amplitude / params.normal_weight
-
-
-def beats_friction(pull: float, load: float, mu: float) -> bool:
-    """Whether a slider runs away: the tangential pull (the drive with the slope's
-    and any external force) beats the most friction the track gives on average,
-    mu times the mean normal load, |pull| > mu*load (any units: N, or forces
-    over m*g).  The excitation averages to nothing, so the slider accelerates.
-    At equality it does not: its speed oscillates about a bounded mean and
-    touches zero once a period (Kostek's U = a/(2*pi) at |phi| = 1).  The one
-    runaway rule of the package."""
-    return abs(pull) > mu * load
-
-
 def plant_from(values: Mapping[str, Any], params: SliderParams | None = None,
                inputs: Inputs | None = None) -> tuple[SliderParams, Inputs]:
     """The parameters and inputs a mapping of field names gives: the fields of
@@ -258,6 +228,6 @@ _SETTINGS: dict[type, dict[str, spec.Setting]] = {SliderParams: spec.PLANT, Inpu
 
 
 __all__ = [
-    "Inputs", "SliderParams", "amplitude_ratio", "beats_friction", "check_load", "cos_degrees", "drive_ratio",
-    "field_values", "plant_from", "require_finite", "require_positive", "sin_degrees", "throw_number",
+    "Inputs", "SliderParams", "check_load", "cos_degrees", "field_values", "plant_from", "require_finite",
+    "require_positive", "sin_degrees",
 ]

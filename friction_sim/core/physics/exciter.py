@@ -33,8 +33,9 @@ compiles (see :mod:`friction_sim.core.physics.roots`).
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import NamedTuple, overload
 
+from friction_sim.core.model.dimensionless import TWO_PI, Real
 from friction_sim.core.physics.roots import hypot
 
 #: A transient whose force is below this fraction of the plant's force scale
@@ -71,8 +72,13 @@ def peak_gain(damping_ratio: float) -> float:
     return 2.0 * damping_ratio
 
 
-def steady_acceleration(drive_level: float, full_drive_acceleration: float, gain: float) -> float:
-    """The steady normal acceleration amplitude of the slideway [m/s^2], u*A*G."""
+@overload
+def steady_acceleration(drive_level: float, full_drive_acceleration: float, gain: float) -> float: ...
+@overload
+def steady_acceleration(drive_level: Real, full_drive_acceleration: Real, gain: Real) -> Real: ...
+def steady_acceleration(drive_level: Real, full_drive_acceleration: Real, gain: Real) -> Real:
+    """The steady normal acceleration amplitude of the slideway [m/s^2], u*A*G: the
+    one rule (floats, or numpy arrays elementwise: a tuning curve's gains)."""
     return drive_level * full_drive_acceleration * gain
 
 
@@ -87,7 +93,7 @@ def steady_response(drive_level: float, full_drive_acceleration: float, frequenc
 
 def eigenvalue(natural_frequency: float, damping_ratio: float) -> complex:
     """lambda = -zeta*omega_n + i*omega_d: the slideway's free motion is Re(D*exp(lambda*t))."""
-    omega_n = 2.0 * math.pi * natural_frequency
+    omega_n = TWO_PI * natural_frequency
     return complex(-damping_ratio * omega_n, omega_n * math.sqrt((1.0 - damping_ratio) * (1.0 + damping_ratio)))
 
 

@@ -21,9 +21,10 @@ import math
 from fractions import Fraction
 from typing import Any, NamedTuple
 
+from friction_sim.core.model.dimensionless import TWO_PI, throw_number
 from friction_sim.core.model.params import Inputs, SliderParams, cos_degrees, sin_degrees
 from friction_sim.core.physics.exciter import steady_response
-from friction_sim.core.physics.roots import TWO_PI, hypot
+from friction_sim.core.physics.roots import hypot
 
 #: A rebound slower than this many units of g*cos(alpha)/omega (gravity would
 #: stop it within a millionth of a radian of excitation phase) is a plastic
@@ -94,14 +95,26 @@ class Plant(NamedTuple):
     mu_s: float
 
 
+def kostek_plant(excitation_angle: Any, track_inclination: Any, static_ratio: Any) -> Any:
+    """Kostek's plant: normal excitation, a level track, one friction coefficient
+    (the U relation's map holds on it for every amplitude below the load).
+    Floats, or numpy arrays elementwise."""
+    return (excitation_angle == 90.0) & (track_inclination == 0.0) & (static_ratio == 1.0)  # (& : arrays too)
+
+
+def is_kostek(params: SliderParams) -> bool:
+    """:func:`kostek_plant` for validated parameters (whatever the actuator)."""
+    return bool(kostek_plant(params.excitation_angle, params.track_inclination, params.static_ratio))
+
+
 def kostek_applies(excitation_angle: Any, track_inclination: Any, static_ratio: Any, excitation_amplitude: Any,
                    weight: Any, external_force_z: Any) -> Any:
-    """Kostek's model: normal excitation, a level track, one friction coefficient, and
-    an excitation below the load, so the slider never leaves the track.  The one
-    rule for where the paper's closed forms (its fast segments, the U relation) hold.
-    Floats, or numpy arrays elementwise."""
-    return ((excitation_angle == 90.0) & (track_inclination == 0.0) & (static_ratio == 1.0)  # (& : arrays too)
-            & (excitation_amplitude < weight - external_force_z))
+    """Kostek's model: his plant (:func:`kostek_plant`) and an excitation below the
+    load, so the slider never leaves the track.  The one rule for where the
+    paper's closed forms (its fast segments, the U relation) hold.  Floats, or
+    numpy arrays elementwise."""
+    return kostek_plant(excitation_angle, track_inclination, static_ratio) & (
+        excitation_amplitude < weight - external_force_z)
 
 
 def closed_form_applies(params: SliderParams, inputs: Inputs) -> bool:
@@ -216,8 +229,8 @@ def steady_excitation(params: SliderParams, inputs: Inputs) -> tuple[float, floa
 
 def steady_throw_number(params: SliderParams, inputs: Inputs) -> float:
     """Gamma = Pa/(m*g*cos(alpha)) of the steady excitation (the resonant actuator's
-    steady Pa; :func:`~friction_sim.core.model.params.throw_number` for the force actuator's)."""
-    return steady_excitation(params, inputs)[0] / params.normal_weight
+    steady Pa, the force actuator's as set)."""
+    return throw_number(steady_excitation(params, inputs)[0], params.normal_weight)
 
 
 def plant_of(params: SliderParams, inputs: Inputs, in_flight: bool = False) -> Plant:

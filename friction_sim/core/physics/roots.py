@@ -26,7 +26,9 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-TWO_PI = 2.0 * math.pi
+# (TWO_PI as TWO_PI: re-exported for the modules that still take it from here)
+from friction_sim.core.model.dimensionless import TWO_PI as TWO_PI
+
 NEVER = math.inf
 
 #: Phase tolerance [rad] below which a rounding-level distance from the slip

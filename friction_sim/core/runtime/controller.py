@@ -46,6 +46,7 @@ from friction_sim.core.control.law import (
     uses_closed_form,
 )
 from friction_sim.core.model import spec
+from friction_sim.core.model.dimensionless import amplitude_for
 from friction_sim.core.model.params import SliderParams, plant_from
 from friction_sim.core.runtime.drive import DriveCommand, DriveRuntime, drive_settings, outer_model
 from friction_sim.errors import ParameterError
@@ -369,7 +370,7 @@ class RealtimeController:
             config = self.control.config
             limit = self.control.actuator_limit
             ceiling = (f"Pa <= {config.max_amplitude_ratio:g} m g" if limit is None or
-                       limit >= config.max_amplitude_ratio * config.model.weight else
+                       limit >= amplitude_for(config.max_amplitude_ratio, config.model.weight) else
                        f"Pa <= {limit:.4g} N, the actuator at full drive")
             if uses_closed_form(config.model, config.max_amplitude_ratio):
                 where = f"with {ceiling}"

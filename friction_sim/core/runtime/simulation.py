@@ -22,8 +22,9 @@ from typing import Any
 import numpy as np
 
 from friction_sim.core.engine.single import Slider
-from friction_sim.core.meanspeed.urelation import kostek_prediction, nondimensional_speed
+from friction_sim.core.meanspeed.urelation import kostek_prediction
 from friction_sim.core.model.commands import Command, take
+from friction_sim.core.model.dimensionless import amplitude_ratio, drive_ratio, nondimensional_speed
 from friction_sim.core.model.events import Event, EventKind, Trajectory
 from friction_sim.core.model.params import Inputs, SliderParams, field_values, require_finite
 from friction_sim.core.model.records import share
@@ -231,8 +232,8 @@ def _relation(params: SliderParams, inputs: Inputs, mean_velocity: float) -> _Re
     general = mean_speed(params, inputs)
     return _Relation(
         u_measured=nondimensional_speed(mean_velocity, f, params.gravity, params.mu), u_exact=general.u,
-        phi=inputs.tangential_force / (params.mu * params.weight),
-        amplitude_ratio=inputs.excitation_amplitude / params.weight, closed_form=False,
+        phi=drive_ratio(inputs.tangential_force, params.mu, params.weight),
+        amplitude_ratio=amplitude_ratio(inputs.excitation_amplitude, params.weight), closed_form=False,
         periodic=general.periodic)
 
 

@@ -26,8 +26,9 @@ import numpy as np
 import pytest
 
 from friction_sim.core.engine.single import Slider
-from friction_sim.core.meanspeed.urelation import dimensional_speed, u_map
+from friction_sim.core.meanspeed.urelation import u_map
 from friction_sim.core.model.commands import Command
+from friction_sim.core.model.dimensionless import dimensional_speed
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.runtime.simulation import random_schedule, run_schedule
 

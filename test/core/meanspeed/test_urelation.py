@@ -18,10 +18,8 @@ from scipy.optimize import brentq
 
 from friction_sim.core.meanspeed.urelation import (
     amplitude_ratio_for,
-    dimensional_speed,
     motion_boundary,
     moves,
-    nondimensional_speed,
     slip_start_phase,
     stop_phase_advance,
     u_map,
@@ -70,8 +68,6 @@ def test_scalars_give_python_floats():
     assert type(motion_boundary(0.3)) is float
     assert type(moves(0.7, 0.5)) is bool
     assert type(amplitude_ratio_for(0.005, 0.7)) is float
-    assert type(nondimensional_speed(1e-3, 50.0, 10.0, 0.1)) is float
-    assert type(dimensional_speed(0.01, 50.0, 10.0, 0.1)) is float
 
 
 def test_arrays_broadcast():
@@ -307,21 +303,6 @@ def test_a_101_by_101_grid_is_its_points_one_by_one():
     assert u.shape == (101, 101)
     for i, j in np.random.default_rng(3).integers(0, 101, size=(200, 2)):
         assert u[i, j] == u_map(float(phi[i, j]), float(a[i, j]))
-
-
-def test_dimensional_round_trip():
-    f, g, mu = 50.0, 10.0, 0.1
-    u = u_map(0.7, 0.5)
-    v = dimensional_speed(u, f, g, mu)
-    assert v == pytest.approx(u * g * mu / f, rel=1e-15)
-    assert nondimensional_speed(v, f, g, mu) == pytest.approx(u, rel=1e-15)
-    assert nondimensional_speed(v, f, g, mu) == pytest.approx(v * f / (g * mu), rel=1e-15)
-    # rtol 1e-15 below: two multiplications and a division each way, <= 1.5 ulp (3.3e-16) apart
-    us = np.array([[0.0, 1e-3], [-2e-2, 0.5]])
-    vs = dimensional_speed(us, 33.0, 9.81, 0.25)
-    assert vs.shape == (2, 2)
-    assert np.allclose(nondimensional_speed(vs, 33.0, 9.81, 0.25), us, rtol=1e-15, atol=0)
-    assert np.allclose(vs, us * 9.81 * 0.25 / 33.0, rtol=1e-15, atol=0)
 
 
 @pytest.mark.parametrize("bad, text", [(1.0, "1.0"), (1.2, "1.2"), (float("nan"), "nan"),

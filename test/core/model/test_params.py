@@ -12,15 +12,15 @@ import numpy as np
 import pytest
 
 from friction_sim.core.engine.single import Slider
+from friction_sim.core.model.dimensionless import amplitude_ratio, throw_number
 from friction_sim.core.model.events import EventKind, Mode
 from friction_sim.core.model.params import (
     Inputs,
     SliderParams,
-    amplitude_ratio,
     cos_degrees,
     sin_degrees,
-    throw_number,
 )
+from friction_sim.core.physics.plant import is_kostek
 from friction_sim.errors import FrictionSimError, ParameterError
 
 NAN = float("nan")
@@ -241,9 +241,10 @@ def test_the_general_plant_accepts_its_edges():
 
 def test_derived_forces_of_the_general_plant_are_exact_at_the_kostek_case():
     kostek = SliderParams()
-    assert kostek.is_kostek and kostek.tangential_ratio == 0.0  # cot(90 deg) exactly 0, not 6e-17
+    assert is_kostek(kostek) and kostek.tangential_ratio == 0.0  # cot(90 deg) exactly 0, not 6e-17
     assert (kostek.normal_weight, kostek.downhill_weight) == (10.0, 0.0)
-    assert throw_number(kostek, Inputs()) == 0.5 == amplitude_ratio(kostek, Inputs())
+    pa = Inputs().excitation_amplitude
+    assert throw_number(pa, kostek.normal_weight) == 0.5 == amplitude_ratio(pa, kostek.weight)
     for angle in (-270.0, -180.0, -90.0, 0.0, 90.0, 180.0, 270.0, 360.0):  # exact at the right angles
         assert sin_degrees(angle) == round(math.sin(math.radians(angle)))
         assert cos_degrees(angle) == round(math.cos(math.radians(angle)))
@@ -253,13 +254,14 @@ def test_derived_forces_of_the_general_plant_are_exact_at_the_kostek_case():
 def test_derived_forces_of_a_tilted_vibration_on_a_slope(alpha, beta):
     params = SliderParams(mass=2.0, gravity=9.81, excitation_angle=beta, track_inclination=alpha)
     weight = 2.0 * 9.81
-    assert not params.is_kostek
+    assert not is_kostek(params)
     assert params.normal_weight == pytest.approx(weight * math.cos(math.radians(alpha)), rel=1e-15)
     assert params.downhill_weight == pytest.approx(weight * math.sin(math.radians(alpha)), rel=1e-15, abs=0.0)
     assert params.tangential_ratio == pytest.approx(1.0 / math.tan(math.radians(beta)), rel=1e-14)
     inputs = Inputs(excitation_amplitude=30.0)
-    assert throw_number(params, inputs) == pytest.approx(30.0 / (weight * math.cos(math.radians(alpha))), rel=1e-15)
-    assert not SliderParams(static_ratio=1.5).is_kostek
+    assert throw_number(inputs.excitation_amplitude, params.normal_weight) == pytest.approx(
+        30.0 / (weight * math.cos(math.radians(alpha))), rel=1e-15)
+    assert not is_kostek(SliderParams(static_ratio=1.5))
 
 
 @pytest.mark.parametrize("amplitude, fz", [(10.0, 0.0), (12.0, 0.0), (4.0, 6.0), (0.0, 10.0), (1e6, -1e6),
@@ -268,7 +270,7 @@ def test_an_amplitude_or_lifting_force_above_the_weight_is_accepted(amplitude, f
     # No lift-off refusal any more: the slider hops (the throw number above 1).
     inputs = Inputs(excitation_amplitude=amplitude, external_force_z=fz)
     assert (inputs.excitation_amplitude, inputs.external_force_z) == (amplitude, fz)
-    assert throw_number(SliderParams(), inputs) == amplitude / 10.0
+    assert throw_number(inputs.excitation_amplitude, SliderParams().normal_weight) == amplitude / 10.0
 
 
 # --------------------------------------------------------------------------

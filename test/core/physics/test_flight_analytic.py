@@ -28,6 +28,7 @@ import pytest
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.model.events import EventKind
 from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.physics.plant import is_kostek
 
 import reference
 
@@ -204,7 +205,7 @@ def test_defaults_reduce_to_kostek_exactly(phi: float, a: float) -> None:
     """Slip starts at t_n = (n + theta_A/(2 pi))/f and x(t_n) = n*D, theta_A and D
     from the textbook closed form in mpmath (test/reference.py), to 1e-12."""
     params = SliderParams(mass=1.0, mu=0.1, gravity=10.0)
-    assert params.is_kostek and params.restitution == 0.0 and params.landing_friction == "impulsive"
+    assert is_kostek(params) and params.restitution == 0.0 and params.landing_friction == "impulsive"
     inputs = Inputs(drive_force=phi * params.mu * params.weight, excitation_amplitude=a * params.weight,
                     excitation_frequency=50.0)
     (fraction_hi, fraction_lo), _, travel = reference.paper_case_slip(

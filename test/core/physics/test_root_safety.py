@@ -26,8 +26,9 @@ from hypothesis import strategies as st
 from friction_sim.core.engine.single import MAX_POSITION, MAX_TIME, Slider
 from friction_sim.core.meanspeed.predict import predict
 from friction_sim.core.model import spec
+from friction_sim.core.model.dimensionless import TWO_PI
 from friction_sim.core.model.params import Inputs, SliderParams
-from friction_sim.core.physics.roots import NEVER, TWO_PI, next_slip_start, slip_stop_delay
+from friction_sim.core.physics.roots import NEVER, next_slip_start, slip_stop_delay
 from friction_sim.errors import ParameterError
 
 FUZZ = settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
