@@ -42,16 +42,10 @@ SOURCES = sorted([*(ROOT / "friction_sim").rglob("*.py"), *(ROOT / "bench").rglo
 #: to be edited here): (file, the line's text, kind).  Remove an entry once its file
 #: calls the vocabulary (an entry whose line is gone fails the test below).
 ALLOWED: set[tuple[str, str, str]] = {
-    ("friction_sim/cli/figures.py", "omega = 2.0 * math.pi * i.excitation_frequency", "2*pi"),
-    ("friction_sim/cli/figures.py",
-     "first = t_start + ((math.pi - math.asin(e) - phase_start) % (2.0 * math.pi)) / omega", "2*pi"),
-    ("friction_sim/cli/figures.py", "return list(np.arange(first, end, 2.0 * math.pi / omega))", "2*pi"),
     # TWO_PI through roots' re-export (roots takes it from the vocabulary)
     ("friction_sim/core/engine/single.py",
      "from friction_sim.core.physics.roots import NEVER, TWO_PI, reduce_phase, two_sum", "2*pi"),
     ("friction_sim/core/physics/segment.py", "from friction_sim.core.physics.roots import (", "2*pi"),
-    ("friction_sim/core/physics/transient.py", "from friction_sim.core.physics.roots import NEVER, TWO_PI, harmonic, "
-     "harmonic_at, illinois_update, reduce_phase", "2*pi"),
 }
 
 MU = {"mu"}

@@ -42,6 +42,7 @@ import numba
 import numpy as np
 from numba.extending import register_jitable
 
+from friction_sim.core.model import dimensionless as _dimensionless
 from friction_sim.core.model import params as _params
 from friction_sim.core.physics import exciter as _exciter
 from friction_sim.core.physics import plant as _plant
@@ -97,7 +98,8 @@ _register()
 
 def _sources() -> list[Path]:
     """The files whose code the compiled engine is made of."""
-    return [Path(module.__file__) for module in (_params, *PHYSICS) if module.__file__] + [Path(__file__)]
+    modules = (_params, _dimensionless, *PHYSICS)
+    return [Path(module.__file__) for module in modules if module.__file__] + [Path(__file__)]
 
 
 def cache_directory() -> Path:

@@ -46,9 +46,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from friction_sim.core.model.dimensionless import TWO_PI
 from friction_sim.core.physics.exciter import exp_terms
 from friction_sim.core.physics.plant import Form, Plant, form_at, onset_form, slip_form
-from friction_sim.core.physics.roots import NEVER, TWO_PI, harmonic, harmonic_at, illinois_update, reduce_phase, ulp
+from friction_sim.core.physics.roots import NEVER, harmonic, harmonic_at, illinois_update, reduce_phase, ulp
 from friction_sim.core.physics.segment import (
     BACKWARD,
     FLIGHT,
