@@ -45,13 +45,13 @@ from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.model.records import Tick
 from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.core.runtime.simulation import random_schedule
+from friction_sim.experiment.offline import record_offline
+from friction_sim.experiment.verify import verify
 from friction_sim.io import cdr
 from friction_sim.io.messages import STATE_TOPICS, fill_state_messages, seconds_to_ns, state_messages
-from friction_sim.io.offline import record_offline
 from friction_sim.io.reader import read_recording
 from friction_sim.io.recorder import Recorder
 from friction_sim.io.sinks import deliver_tick
-from friction_sim.io.verify import verify
 
 RTF = 100.0
 LOG_RATE = 1000.0
@@ -241,7 +241,7 @@ task, path = sys.argv[1], Path(sys.argv[2])
 started = time.perf_counter()
 if task == "verify":
     from friction_sim.io.reader import read_recording
-    from friction_sim.io.verify import verify
+    from friction_sim.experiment.verify import verify
     recording = read_recording(path)
     note = "passed" if verify(recording).passed else "FAILED"
     messages = recording.message_count

@@ -29,7 +29,7 @@ read it as they read a recorded bag:
 Log times are simulation time in whole nanoseconds.
 
 :class:`Recorder` is a :class:`~friction_sim.io.sinks.Sink`: the slider node
-and :func:`friction_sim.io.offline.record_offline` hand it what a run
+and :func:`friction_sim.experiment.offline.record_offline` hand it what a run
 produces.  Its methods only put a record on a bounded queue (one entry per
 call: a tick's states go together); a background thread builds the
 messages (the state topics many at a time, :class:`~friction_sim.io.cdr.FixedLayout`),

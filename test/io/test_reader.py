@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 
 from friction_sim.cli.replay import run
-from friction_sim.io.offline import record_offline
+from friction_sim.experiment.offline import record_offline
 from friction_sim.io.reader import read_recording
 
 from recording_helpers import plain, replay_args, rewrite, varied_schedule

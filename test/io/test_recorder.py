@@ -24,9 +24,9 @@ from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.model.records import Acceleration, PeriodSummary
 from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import ParameterError, RecordingPathError
+from friction_sim.experiment.offline import record_offline
 from friction_sim.io import messages as M
 from friction_sim.io.cdr import serialize
-from friction_sim.io.offline import record_offline
 from friction_sim.io.reader import read_recording
 from friction_sim.io.recorder import METADATA_NAME, Recorder, qualified_topic
 from friction_sim.io.sinks import deliver_tick

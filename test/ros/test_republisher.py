@@ -19,7 +19,7 @@ from rclpy.executors import SingleThreadedExecutor
 from friction_sim.cli.progress import TerminalProgress
 from friction_sim.core.model.commands import Command
 from friction_sim.errors import RecordingError
-from friction_sim.io.offline import record_offline
+from friction_sim.experiment.offline import record_offline
 from friction_sim.io.reader import read_recording
 from friction_sim.ros.republisher import publish
 

@@ -21,12 +21,12 @@ from friction_sim.core.model.commands import COMMANDS, PARAMETERS, RESET, Comman
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import ParameterError
-from friction_sim.io.offline import record_offline
+from friction_sim.experiment.offline import record_offline
+from friction_sim.experiment.verify import recorded_commands, sample_times, verify
 from friction_sim.io.reader import read_recording
 from friction_sim.io.recorder import Recorder, plant_parameters, recording_metadata
 from friction_sim.io.series import POSITION_XZ, VELOCITY_XZ, state_blocks
 from friction_sim.io.sinks import deliver_tick
-from friction_sim.io.verify import recorded_commands, sample_times, verify
 
 from recording_helpers import replay_args
 
