@@ -128,6 +128,7 @@ from friction_sim.ros.slider_outputs import (
     RecorderHealth,
     consistent_report,
     control_text,
+    finish_recording,
     health,
     open_live_view,
     open_recorder,
@@ -224,18 +225,11 @@ class SliderNode(QuietNode):
         if self._ticker.is_alive() and threading.current_thread() is not self._ticker:
             self._ticker.join(timeout=2.0)
         if self.recorder is not None:
-            stats = self.recorder.finish()  # never raises: a failure is in stats.error
-            simulated = f"{stats.last_ns / 1e9 if stats.last_ns else 0.0:.3f} s simulated"
-            if stats.error:
+            failed, note = finish_recording(self.recorder)
+            if failed:
                 self.exit_code = EXIT_RECORDING_FAILED
-                what = stats.error.split("; ")[0]  # the recorder's one line, without "the run goes on"
-                note = f"{what}; the {stats.messages} messages written ({simulated}) are readable; " \
-                       f"exit code {EXIT_RECORDING_FAILED}"
-            else:
-                note = f"recording finished: {stats.path} ({stats.messages} messages, {simulated}, " \
-                       f"{stats.dropped} dropped)"
             if self.context.ok():
-                (self.get_logger().error if stats.error else self.get_logger().info)(note)
+                (self.get_logger().error if failed else self.get_logger().info)(note)
             else:  # after Ctrl-C the context (and /rosout) is gone already
                 print(f"[slider] {note}", file=sys.stderr)
         for sink in self.sinks:

@@ -1,6 +1,7 @@
 """Where the slider node's run goes besides its topics, and what it says
-about itself: the recorder and the live view it opens from its parameters,
-the health line of its diagnostics, and the answer to a control call.
+about itself: the recorder and the live view it opens from its parameters
+(and what it says of the recording once finished), the health line of its
+diagnostics, and the answer to a control call.
 
 Kept apart from :mod:`friction_sim.ros.slider` (the node's wiring and tick)
 so each stays short; nothing here holds state.
@@ -32,6 +33,7 @@ from friction_sim.io.messages import (
     time_msg,
 )
 from friction_sim.io.recordwriter import imu_row_builder
+from friction_sim.ros.run import EXIT_RECORDING_FAILED
 
 #: What the slider keeps of the namespace's other topics, with the depth of its queues.
 WATCHED_DEPTH = 10
@@ -148,6 +150,18 @@ def open_recorder(values: dict[str, Any], namespace: str, node: str) -> Any:
 
     return Recorder(values["log_path"], metadata=recorded(values), namespace=namespace, node=node,
                     block_when_full=True)
+
+
+def finish_recording(recorder: Any) -> tuple[bool, str]:
+    """Finish the slider's recording (never raises: a failure is in its stats): whether it
+    failed (the node then exits with EXIT_RECORDING_FAILED), and the line the node logs."""
+    stats = recorder.finish()
+    simulated = f"{stats.last_ns / 1e9 if stats.last_ns else 0.0:.3f} s simulated"
+    if stats.error:
+        what = stats.error.split("; ")[0]  # the recorder's one line, without "the run goes on"
+        return True, (f"{what}; the {stats.messages} messages written ({simulated}) are readable; "
+                      f"exit code {EXIT_RECORDING_FAILED}")
+    return False, f"recording finished: {stats.path} ({stats.messages} messages, {simulated}, {stats.dropped} dropped)"
 
 
 def open_live_view(values: dict[str, Any], namespace: str, node: str, services: list[Any]) -> Any:
@@ -277,4 +291,4 @@ def health(report: dict[str, Any], fault: str = "", name_problem: str = "") -> t
 
 
 __all__ = ["PREDICTION_TRIES", "AccelerometerPublisher", "RecorderHealth", "consistent_report", "control_text",
-           "health", "open_live_view", "open_recorder", "recorded", "watch_namespace"]
+           "finish_recording", "health", "open_live_view", "open_recorder", "recorded", "watch_namespace"]
