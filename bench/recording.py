@@ -8,7 +8,7 @@ against baselines measured in the same run):
        filled, serialized by rosbags, written with mcap's Writer), and raw
        mcap ``Writer.add_message`` calls with bytes serialized beforehand;
   (w2) the Recorder fed as the node feeds it (``deliver_tick``: a tick's states
-       in one ``on_states`` call, then its events and period means), from
+       in one ``StatesRecord``, then its events and period means), from
        ticks made beforehand at real_time_factor 100 and the default log_rate
        1000 Hz, as fast as the Recorder takes them: state samples recorded per
        second (each = pose, velocity, friction_force), with the producer

@@ -33,6 +33,7 @@ from friction_sim.io.messages import (
     time_msg,
 )
 from friction_sim.io.recordwriter import imu_row_builder
+from friction_sim.io.sinks import MessageRecord, deliver
 from friction_sim.ros.run import EXIT_RECORDING_FAILED
 
 #: What the slider keeps of the namespace's other topics, with the depth of its queues.
@@ -186,8 +187,8 @@ def open_live_view(values: dict[str, Any], namespace: str, node: str, services: 
 
 def watch_namespace(node: Any, now: Callable[[], float], *, lockstep: bool) -> None:
     """Keep what other nodes put on ``node``'s namespace's ``diagnostics`` (the
-    controller's, and the slider's own) and ``target_speed`` for a recording or a
-    live view (``node.recorder``, ``node.live``), logged at the simulation time
+    controller's, and the slider's own) and ``target_speed`` for the node's sinks
+    (``node.sinks``: a recording, a live view), logged at the simulation time
     ``now()``, so the file and the view show the whole feeder (the shipped layout
     plots the target against the mean speed).  The subscriptions exist whether
     or not anything records, so the number of subscribers of ``target_speed``
@@ -201,15 +202,13 @@ def watch_namespace(node: Any, now: Callable[[], float], *, lockstep: bool) -> N
     own = node.get_fully_qualified_name()
 
     def forward(topic: str, msg: Any) -> None:
-        if node.recorder is None and node.live is None:
+        if not node.sinks:
             return
         log_time_ns = seconds_to_ns(now())
         if lockstep and topic == "diagnostics" and (not 0 < stamp_ns(msg.header.stamp) <= log_time_ns or any(
                 status.hardware_id == own for status in msg.status)):
             return  # (its own: recorded as it publishes them)
-        for sink in (node.recorder, node.live):
-            if sink is not None:
-                sink.write(topic, msg, log_time_ns)
+        deliver(node.sinks, MessageRecord(topic, msg, log_time_ns))
 
     for topic, kind in (("diagnostics", DiagnosticArray), ("target_speed", message_class("std_msgs/msg/Float64"))):
         node.create_subscription(kind, topic, functools.partial(forward, topic), WATCHED_DEPTH)
