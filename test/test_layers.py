@@ -24,9 +24,6 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "friction_sim"
 LAYERS = ["core", "io", "ros", "experiment", "cli"]
 CORE_PARTS = ["model", "physics", "engine", "meanspeed", "control", "runtime"]
-#: Modules a layer must not import although they come before it: io runs no simulation.
-SIMULATORS = ("friction_sim.core.engine", "friction_sim.core.runtime")
-NO_SIMULATION = {"io"}
 NUMBA_USERS = {"core/engine/compiled.py"}
 RCLPY_USERS = {"ros", "experiment/runner.py"}
 MATPLOTLIB_USERS = {"cli/figures.py", "cli/recording_figure.py"}
@@ -119,6 +116,11 @@ def test_imports_point_one_way(path: Path) -> None:
         parts = name.split(".")
         if parts[0] == "friction_sim" and len(parts) > 1 and parts[1] in LAYERS:
             assert parts[1] in allowed, f"{where(path)} ({layer}) imports {name}, a later layer"
+
+
+#: Modules a layer must not import although they come before it: io runs no simulation.
+SIMULATORS = ("friction_sim.core.engine", "friction_sim.core.runtime")
+NO_SIMULATION = {"io"}
 
 
 def runs_a_simulator(name: str) -> bool:
