@@ -47,10 +47,10 @@ import rclpy
 
 from friction_sim.core.model.commands import CONTROLS, RESET
 from friction_sim.experiment.job import ExperimentSpec, Status
+from friction_sim.experiment.offline import record_offline
 from friction_sim.experiment.runner import run_experiment
 from friction_sim.experiment.scenario import load_scenario
 from friction_sim.io.digest import differences, recording_digest, run_digest
-from friction_sim.io.offline import record_offline
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = (ROOT / "config" / "acceptance_7_resonant_steps.yaml", ROOT / "config" / "demo.yaml")

@@ -8,7 +8,7 @@ against baselines measured in the same run):
        filled, serialized by rosbags, written with mcap's Writer), and raw
        mcap ``Writer.add_message`` calls with bytes serialized beforehand;
   (w2) the Recorder fed as the node feeds it (``deliver_tick``: a tick's states
-       in one ``on_states`` call, then its events and period means), from
+       in one ``StatesRecord``, then its events and period means), from
        ticks made beforehand at real_time_factor 100 and the default log_rate
        1000 Hz, as fast as the Recorder takes them: state samples recorded per
        second (each = pose, velocity, friction_force), with the producer
@@ -45,13 +45,13 @@ from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.model.records import Tick
 from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.core.runtime.simulation import random_schedule
+from friction_sim.experiment.offline import record_offline
+from friction_sim.experiment.verify import verify
 from friction_sim.io import cdr
 from friction_sim.io.messages import STATE_TOPICS, fill_state_messages, seconds_to_ns, state_messages
-from friction_sim.io.offline import record_offline
 from friction_sim.io.reader import read_recording
 from friction_sim.io.recorder import Recorder
 from friction_sim.io.sinks import deliver_tick
-from friction_sim.io.verify import verify
 
 RTF = 100.0
 LOG_RATE = 1000.0
@@ -241,7 +241,7 @@ task, path = sys.argv[1], Path(sys.argv[2])
 started = time.perf_counter()
 if task == "verify":
     from friction_sim.io.reader import read_recording
-    from friction_sim.io.verify import verify
+    from friction_sim.experiment.verify import verify
     recording = read_recording(path)
     note = "passed" if verify(recording).passed else "FAILED"
     messages = recording.message_count

@@ -34,7 +34,7 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
 from friction_sim.core.model.commands import Command
-from friction_sim.io.offline import record_offline
+from friction_sim.experiment.offline import record_offline
 from friction_sim.io.reader import Recording, read_recording
 from friction_sim.ros.republisher import publish
 

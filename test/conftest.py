@@ -16,6 +16,7 @@ the environment when rclpy initialises, so they must be set here:
 import os
 import random
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 from hypothesis import settings
@@ -54,3 +55,21 @@ def failing_core(monkeypatch: pytest.MonkeyPatch) -> None:
     from helpers import fail_on_poison
 
     fail_on_poison(monkeypatch)
+
+
+@pytest.fixture(scope='module')
+def real_recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """2 s at 1 kHz with random commands, external forces, a refused command
+    and a plant change (the recording tests of test/io and test/experiment)."""
+    import numpy as np
+
+    from friction_sim.core.model.commands import Command
+    from friction_sim.core.runtime.simulation import random_schedule
+    from friction_sim.experiment.offline import record_offline
+
+    path = tmp_path_factory.mktemp('rec') / 'run.mcap'
+    schedule = random_schedule(np.random.default_rng(21), 2.0, external=True)
+    schedule += [Command(0.7, 'excitation_amplitude', {'excitation_amplitude': -4.0}),  # refused: Pa < 0
+                 Command(1.1, 'parameters', {'mass': 1.3})]
+    record_offline(path, schedule=schedule, duration=2.0)
+    return path

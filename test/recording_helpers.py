@@ -15,6 +15,7 @@ from friction_sim.core.model.commands import Command
 from friction_sim.core.runtime.simulation import random_schedule
 from friction_sim.io.reader import read_recording
 from friction_sim.io.recorder import METADATA_NAME, Recorder
+from friction_sim.io.sinks import MessageRecord
 
 
 def replay_args(path: Path, **options: Any) -> argparse.Namespace:
@@ -35,7 +36,7 @@ def rewrite(source: Path, target: Path, edit: Callable[[str, int, Any], Any] = l
         for raw in recording.messages:
             msg = edit(raw.topic, raw.log_time, recording.decode(raw))
             if msg is not None:
-                out.write(raw.topic, msg, raw.log_time)
+                out.write(MessageRecord(raw.topic, msg, raw.log_time))
     return target
 
 

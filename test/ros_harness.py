@@ -23,6 +23,8 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from std_msgs.msg import Float64
 
+from friction_sim.io.sinks import CommandRecord, Record
+
 OUTPUTS = {
     "pose": PoseStamped,
     "velocity": TwistStamped,
@@ -46,15 +48,12 @@ class CommandLog:
     def __init__(self, outcomes: list[Any]) -> None:
         self.outcomes = outcomes
 
-    def on_states(self, states: object, frame_id: str) -> None: ...
-    def on_event(self, event: object) -> None: ...
-    def on_period(self, period: object, frame_id: str) -> None: ...
-    def on_accelerations(self, samples: object, frame_id: str, noise: float) -> None: ...
-    def on_parameters(self, values: object, t: float, *, changed: bool) -> None: ...
-    def close(self) -> None: ...
+    def write(self, record: Record) -> bool:
+        if isinstance(record, CommandRecord):
+            self.outcomes.append(record.outcome)
+        return True
 
-    def on_command(self, outcome: Any, frame_id: str) -> None:
-        self.outcomes.append(outcome)
+    def close(self) -> None: ...
 
 
 def namespace() -> str:

@@ -2,7 +2,9 @@
 
 core <- io <- ros <- experiment <- cli: a module may import its own layer and
 the layers before it, never one after it; inside core the same holds for its
-parts (model <- physics <- engine <- meanspeed <- control <- runtime).  No
+parts (model <- physics <- engine <- meanspeed <- control <- runtime).  io
+holds formats, files and sinks: it may use core's types and formulas but never
+its simulators (engine, runtime); re-simulation lives in experiment.  No
 import circle anywhere, not even inside a sub-package (lazy imports count:
 they only hide a circle).  core needs only numpy, Numba (in the compiled
 engine alone, which the nodes never import) and the standard library; only
@@ -114,6 +116,28 @@ def test_imports_point_one_way(path: Path) -> None:
         parts = name.split(".")
         if parts[0] == "friction_sim" and len(parts) > 1 and parts[1] in LAYERS:
             assert parts[1] in allowed, f"{where(path)} ({layer}) imports {name}, a later layer"
+
+
+#: Modules a layer must not import although they come before it: io runs no simulation.
+SIMULATORS = ("friction_sim.core.engine", "friction_sim.core.runtime")
+NO_SIMULATION = {"io"}
+
+
+def runs_a_simulator(name: str) -> bool:
+    """Whether importing module ``name`` brings in a simulator: the engine or a runtime."""
+    return any(name == simulator or name.startswith(simulator + ".") for simulator in SIMULATORS)
+
+
+@pytest.mark.parametrize("path", [p for p in MODULES if layer_of(p) in NO_SIMULATION], ids=where)
+def test_io_holds_formats_files_and_sinks_and_runs_no_simulation(path: Path) -> None:
+    for name in imports(path):
+        assert not runs_a_simulator(name), \
+            f"{where(path)} ({layer_of(path)}) imports {name}, a simulator: re-simulation belongs in experiment"
+
+
+def test_the_simulation_check_finds_a_simulator() -> None:
+    assert runs_a_simulator("friction_sim.core.engine") and runs_a_simulator("friction_sim.core.runtime.realtime")
+    assert not runs_a_simulator("friction_sim.core.model.params") and not runs_a_simulator("friction_sim.core.engines")
 
 
 def core_part(path: Path) -> str | None:

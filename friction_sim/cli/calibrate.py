@@ -74,8 +74,8 @@ def _recording(args: argparse.Namespace, options: FitOptions) -> int:
     """A recording: fit its trajectory (the commands in force are the file's own)."""
     from friction_sim.cli.figures import run_calibration_figure, save_figure
     from friction_sim.experiment.calibration_run import calibrate_run
+    from friction_sim.experiment.verify import recorded_run
     from friction_sim.io.reader import read_recording
-    from friction_sim.io.verify import recorded_run
 
     if args.fixed is not None or args.set:
         raise CalibrationError("--fixed and --set do not apply to a recording: its settings are the file's")

@@ -22,8 +22,8 @@ from friction_sim.cli.options import Verb, add_flag
 from friction_sim.cli.progress import TerminalProgress
 from friction_sim.core.model import spec
 from friction_sim.errors import RecordingError
+from friction_sim.experiment.verify import DEFAULT_TOLERANCE, verify
 from friction_sim.io.reader import Recording, read_recording
-from friction_sim.io.verify import DEFAULT_TOLERANCE, verify
 
 EXIT_OK, EXIT_MISMATCH, EXIT_ERROR = 0, 1, 2
 

@@ -1,3 +1,4 @@
-"""friction_sim.experiment: scenario files (:mod:`.scenario`), what an experiment is and yields (:mod:`.spec`),
-step metrics (:mod:`.metrics`), the report (:mod:`.report`), the acceptance cases (:mod:`.acceptance`), and the
-one ROS module here, the runner (:mod:`.runner`)."""
+"""friction_sim.experiment: where the simulation meets files and nodes.  Scenario files (:mod:`.scenario`), what an
+experiment is and yields (:mod:`.job`), step metrics (:mod:`.metrics`), the report (:mod:`.report`), the acceptance
+cases (:mod:`.acceptance`), the re-simulation of a recording (:mod:`.verify`: ``replay --verify``, calibration's
+fit), a recording made without ROS (:mod:`.offline`), and the one ROS module here, the runner (:mod:`.runner`)."""

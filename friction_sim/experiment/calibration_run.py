@@ -4,7 +4,7 @@ A recording holds the plant's initial values, every command that was in force
 and when, and the slider's trajectory: the position x and velocity v sampled
 on the log grid.  With the parameters being fitted replaced, the run is
 re-simulated exactly from the same commands (the re-simulation of ``replay
---verify``, :func:`friction_sim.io.verify.resimulate`), and the fit minimizes
+--verify``, :func:`friction_sim.experiment.verify.resimulate`), and the fit minimizes
 the differences at every recorded sample.
 
 Position and velocity are measured by different means and in different units,
@@ -40,7 +40,7 @@ from friction_sim.experiment.calibration import (
     fit_least_squares,
     parameters_file,
 )
-from friction_sim.io.verify import RecordedRun, resimulate
+from friction_sim.experiment.verify import RecordedRun, resimulate
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ node and its executor come from :mod:`friction_sim.experiment.runner`.)
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import Any
 
 from friction_sim.core.model import spec as settings
@@ -21,13 +21,11 @@ from friction_sim.core.model.commands import (
     PARAMETERS,
     SLIDER,
     Command,
-    Outcome,
     apply,
     consumed_by,
     unused_input,
 )
 from friction_sim.core.model.params import Inputs
-from friction_sim.core.model.records import PeriodSummary
 from friction_sim.core.runtime.controller import WAITING_FOR_PLANT
 from friction_sim.core.runtime.lockstep import to_ns
 from friction_sim.errors import ExperimentError, ParameterError
@@ -41,6 +39,7 @@ from friction_sim.io.messages import (
     seconds_to_ns,
     stamp_ns,
 )
+from friction_sim.io.sinks import MessageRecord, PeriodRecord, Record
 from friction_sim.io.stamped import STAMPED_COMMAND, STAMPED_TYPE
 from friction_sim.ros.driving import get_parameters, overrides, set_parameters, spin_until
 
@@ -200,7 +199,7 @@ class AttachedPlant:
             if self.recorder is not None and (self._pose_ns >= 0 or topic not in COMMANDS):
                 # commands are logged when seen (their stamps are the sender's), states at their stamps
                 log_ns = self._pose_ns if topic in COMMANDS else stamp_ns(msg.header.stamp)
-                self.recorder.write(topic, msg, log_ns)
+                self.recorder.write(MessageRecord(topic, msg, log_ns))
 
         return keep
 
@@ -324,23 +323,11 @@ class _SampleSink:
     def __init__(self, result: ExperimentResult) -> None:
         self._result = result
 
-    def on_period(self, period: PeriodSummary, frame_id: str) -> None:
-        _keep_sample(self._result, seconds_to_ns(period.t), period.mean_velocity)
-
-    def on_states(self, states: Sequence[Any], frame_id: str) -> None:
-        """(states are not the result's)"""
-
-    def on_event(self, event: Any) -> None:
-        """(events are not the result's)"""
-
-    def on_accelerations(self, samples: Sequence[Any], frame_id: str, noise: float) -> None:
-        """(the accelerometer is not the result's)"""
-
-    def on_command(self, outcome: Outcome, frame_id: str) -> None:
-        """(the result holds the schedule's commands, from the driver)"""
-
-    def on_parameters(self, values: Any, t: float, *, changed: bool) -> None:
-        """(parameters are not the result's)"""
+    def write(self, record: Record) -> bool:
+        """Keep a period's mean; the rest is not the result's (the schedule's commands come from the driver)."""
+        if isinstance(record, PeriodRecord):
+            _keep_sample(self._result, seconds_to_ns(record.period.t), record.period.mean_velocity)
+        return True
 
     def close(self) -> None:
         """(nothing to finish)"""

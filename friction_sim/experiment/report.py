@@ -247,8 +247,8 @@ def run_data_from_recording(path: Path, tolerance: float = TOLERANCE) -> RunData
     command.  The file is streamed; RecordingError (one line) if the
     recorder dropped messages.
     """
+    from friction_sim.experiment.verify import initial_plant, recorded_commands
     from friction_sim.io.reader import read_recording
-    from friction_sim.io.verify import initial_plant, recorded_commands
 
     recording = read_recording(path)
     recording.refuse_dropped("summarised")

@@ -58,6 +58,7 @@ from friction_sim.io.messages import (
     command_message,
     message_class,
 )
+from friction_sim.io.sinks import CommandRecord
 from friction_sim.ros.driving import set_parameters, spin_once, spin_until
 
 Progress = Callable[[Status], None]
@@ -218,7 +219,7 @@ def _record_unseen(recorder: Any, command: Command) -> None:
     in a recording that does not see it: an attached run's, and the initial
     target (a controller parameter, not a message)."""
     if recorder is not None and not command.for_slider:
-        recorder.on_command(Outcome(command.at(round(command.t * 1e9) / 1e9)), "")
+        recorder.write(CommandRecord(Outcome(command.at(round(command.t * 1e9) / 1e9)), ""))
 
 
 def _status(spec: ExperimentSpec, now: float, target: float | None, inputs: Inputs,

@@ -24,7 +24,7 @@ The server is the SDK's (``foxglove.start_server``) in a context of its
 own, so several live views in one process never share channels.  It binds
 to ``127.0.0.1`` unless told otherwise; port 0 lets the OS choose (tests).
 
-Cost to the caller (the node's 1 kHz tick thread): the sink methods never
+Cost to the caller (the node's 1 kHz tick thread): :meth:`LiveView.write` never
 block and never encode.  A record for topics no client subscribes to is
 counted (:attr:`LiveView.skipped`) and forgotten at once, once its channels
 are advertised (a dictionary look-up and a set test; the SDK's subscribe and
@@ -69,7 +69,7 @@ import logging
 import threading
 import time
 from collections import deque
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import foxglove
@@ -79,9 +79,7 @@ from foxglove.websocket import (
     ServerListener,
 )
 
-from friction_sim.core.model.commands import Outcome
-from friction_sim.core.model.events import Event, Mode, SliderState
-from friction_sim.core.model.records import Acceleration, PeriodSummary
+from friction_sim.core.model.events import Mode, SliderState
 from friction_sim.errors import LiveViewError, one_line
 from friction_sim.io import cdr
 from friction_sim.io.bagfile import MAX_STAMP_NS
@@ -94,10 +92,8 @@ from friction_sim.io.liveserver import (
     wait_until_free,
 )
 from friction_sim.io.messages import (
-    ACCELEROMETER,
     STATE_TOPICS,
     TOPIC_TYPES,
-    command_topic,
     fill_state_messages,
     node_name,
     seconds_to_ns,
@@ -105,12 +101,14 @@ from friction_sim.io.messages import (
 )
 from friction_sim.io.recordwriter import (
     STATE_VALUES,
-    Item,
     qualified_topic,
+    record_kind,
     record_messages,
+    record_topics,
     state_row,
     state_row_builder,
 )
+from friction_sim.io.sinks import CommandRecord, EventRecord, ParametersRecord, Record, StatesRecord, record_size
 from friction_sim.io.typesupport import message_definition, message_type_name
 
 _log = logging.getLogger("friction_sim.io.live")
@@ -119,6 +117,8 @@ _log = logging.getLogger("friction_sim.io.live")
 COMMANDS_PER_SECOND = 100
 #: Messages an event, command or parameter change may queue beyond the capacity.
 URGENT_HEADROOM = 1024
+#: The records that may use URGENT_HEADROOM (few, and a viewer would miss each one lost).
+_URGENT = frozenset({EventRecord, CommandRecord, ParametersRecord})
 #: Topics advertised at start (relative names; see the module docstring).
 ADVERTISED = (*STATE_TOPICS, "mean_velocity", "events", "rejected_commands", "parameters")
 
@@ -171,7 +171,7 @@ class LiveView:
         self._interval = float(interval)
         self._lock = threading.Lock()
         self._wake = threading.Condition(self._lock)
-        self._items: deque[tuple[Item, int]] = deque()
+        self._items: deque[tuple[Record, int]] = deque()
         self._pending = 0
         self._stopping = False
         self._closed = False
@@ -203,54 +203,27 @@ class LiveView:
 
     # -- the caller's side: the sink ---------------------------------------------------
 
-    def on_states(self, states: Sequence[SliderState], frame_id: str) -> None:
-        """Offer states as pose, velocity and friction_force at their own times."""
-        if states and self._wanted(self._state_topics, 3 * len(states)):
-            self._put(("states", tuple(states), frame_id), 3 * len(states))
-
-    def on_event(self, event: Event) -> None:
-        """Offer a stick/slip/flight event on ``events``."""
-        if self._wanted((self._topic("events"),), 1):
-            self._put(("event", event), 1, urgent=True)
-
-    def on_period(self, period: PeriodSummary, frame_id: str) -> None:
-        """Offer a period's mean velocity on ``mean_velocity``."""
-        if self._wanted((self._topic("mean_velocity"),), 1):
-            self._put(("period", period, frame_id), 1)
-
-    def on_accelerations(self, samples: Sequence[Acceleration], frame_id: str, noise: float) -> None:
-        """Offer accelerometer samples on ``accelerometer`` at their own times."""
-        if samples and self._wanted((self._topic(ACCELEROMETER),), len(samples)):
-            self._put(("accelerations", tuple(samples), frame_id, noise), len(samples))
-
-    def on_command(self, outcome: Outcome, frame_id: str) -> None:
-        """Offer a handled command: accepted on its own topic (``sim_control``
-        for pause, resume, step, reset), refused on ``rejected_commands``; at
-        most :data:`COMMANDS_PER_SECOND` a topic (a flood is thinned, counted)."""
-        topic = self._topic(command_topic(outcome.name) if outcome.accepted else "rejected_commands")
-        if self._wanted((topic,), 1) and not self._thinned(topic):
-            self._put(("command", outcome, frame_id), 1, urgent=True)
-
-    def on_parameters(self, values: Mapping[str, Any], t: float, *, changed: bool) -> None:
-        """Offer parameter values on ``parameters`` (new at start, or changed)."""
-        if self._wanted((self._topic("parameters"),), 1):
-            self._put(("parameters", dict(values), t, changed), 1, urgent=True)
-
-    def write(self, topic: str, msg: Any, log_time_ns: int) -> bool:
-        """Offer any ROS 2 message ``msg`` on ``topic`` at ``log_time_ns``
-        (simulation time, ns): diagnostics, /clock, target_speed.  Encoded
-        later, on the background thread: do not change ``msg`` afterwards.
-        False if it was dropped (queue full, failed or closed; counted);
-        True if it was queued or nobody watches the topic."""
-        if not self._wanted((self._topic(topic),), 1):
+    def write(self, record: Record) -> bool:
+        """Offer a sink record (:mod:`friction_sim.io.sinks`) on its topics: the
+        states as pose, velocity and friction_force, each event, period mean,
+        accelerometer sample, command (accepted on its own topic, ``sim_control``
+        for pause, resume, step, reset; refused on ``rejected_commands``: at most
+        :data:`COMMANDS_PER_SECOND` a topic, a flood is thinned, counted),
+        parameter set, /clock and any other message (diagnostics, target_speed)
+        at its own simulation time.  Built and encoded later, on the background
+        thread, and only if a client subscribes to one of its topics (or it has
+        no channel yet); else counted skipped.  False if it was dropped (queue
+        full, failed or closed; counted)."""
+        size = record_size(record)
+        if not size:
             return True
-        return self._put(("msg", topic, msg, log_time_ns), 1)
-
-    def wants(self, topic: str) -> bool:
-        """Whether :meth:`write` on ``topic`` would queue a message (a client
-        subscribes to it, or it has no channel yet): build one only then."""
-        name = self._topic(topic)
-        return name in self._live or name not in self._advertised
+        topics = self._qualified(record)
+        if not self._wanted(topics, size):
+            return True
+        kind = type(record)
+        if kind is CommandRecord and self._thinned(topics[0]):
+            return True
+        return self._put(record, size, urgent=kind in _URGENT)
 
     def close(self) -> None:
         """Stop the thread and the server (the port is free when it returns);
@@ -348,6 +321,12 @@ class LiveView:
             name = self._topics[topic] = qualified_topic(self.namespace, topic)
         return name
 
+    def _qualified(self, record: Record) -> tuple[str, ...]:
+        """The fully qualified names of ``record``'s topics."""
+        if isinstance(record, StatesRecord):
+            return self._state_topics
+        return tuple(self._topic(topic) for topic in record_topics(record))
+
     def _wanted(self, topics: tuple[str, ...], size: int) -> bool:
         """Whether a record for ``topics`` must be queued: some client
         subscribes to one of them, or one is not advertised yet (its first
@@ -374,7 +353,7 @@ class LiveView:
             self._command_windows[topic] = (start, served + 1)
             return False
 
-    def _put(self, item: Item, size: int, *, urgent: bool = False) -> bool:
+    def _put(self, item: Record, size: int, *, urgent: bool = False) -> bool:
         """Queue ``item`` (``size`` messages) unless the queue is full, the view
         failed or is closing (then count it dropped); never waits."""
         with self._lock:
@@ -407,7 +386,7 @@ class LiveView:
     def _run(self) -> None:
         """Take records off the queue and serve them until closed; a failure is
         recorded in :attr:`error`, logged once and shown to the clients."""
-        batch: list[tuple[Item, int]] = []
+        batch: list[tuple[Record, int]] = []
         served = 0
         try:
             while True:
@@ -440,15 +419,15 @@ class LiveView:
         with contextlib.suppress(Exception):  # a courtesy to the clients; the error is already recorded
             self._server.publish_status(text, foxglove.StatusLevel.Error)
 
-    def _serve(self, item: Item, size: int) -> None:
+    def _serve(self, record: Record, size: int) -> None:
         """Build, encode and log the messages of one record."""
-        if item[0] == "states":
-            self._serve_states(item[1], item[2])
+        if isinstance(record, StatesRecord):
+            self._serve_states(record.states, record.frame_id)
             return
         try:
-            messages = record_messages(item, self.node)
+            messages = record_messages(record, self.node)
         except Exception as error:  # noqa: BLE001 - one bad record must not end the live view
-            self._count_bad(size, item[0], one_line(error, with_type=True))
+            self._count_bad(size, record_kind(record), one_line(error, with_type=True))
             return
         for topic, msg, log_time_ns in messages:
             self._log_message(self._topic(topic), msg, log_time_ns)

@@ -28,8 +28,8 @@ metadata record which way ``external_force_z`` points
 without the key was written before, when positive force.z pressed the
 slider on the track; :attr:`Recording.external_force_z_sign` (-1 for such a
 file) turns its commands and parameters into today's convention
-(:func:`friction_sim.io.verify.recorded_commands` and
-:func:`~friction_sim.io.verify.initial_parameters` apply it).
+(:func:`friction_sim.experiment.verify.recorded_commands` and
+:func:`~friction_sim.experiment.verify.initial_parameters` apply it).
 
 Errors (missing file, not MCAP, not a friction_sim recording, a finished
 file damaged in its middle, a file with dropped messages where the tool

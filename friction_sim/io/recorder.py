@@ -26,10 +26,11 @@ read it as they read a recorded bag:
   (``serialized_metadata``, bag metadata version 9) as rosbag2 writes on
   close.  A file that was never finished has neither.
 
-Log times are simulation time in whole nanoseconds.
+Log times are simulation time in whole nanoseconds (so the file holds no
+``/clock``: ``ros2 bag play --clock`` publishes it from them).
 
 :class:`Recorder` is a :class:`~friction_sim.io.sinks.Sink`: the slider node
-and :func:`friction_sim.io.offline.record_offline` hand it what a run
+and :func:`friction_sim.experiment.offline.record_offline` hand it what a run
 produces.  Its methods only put a record on a bounded queue (one entry per
 call: a tick's states go together); a background thread builds the
 messages (the state topics many at a time, :class:`~friction_sim.io.cdr.FixedLayout`),
@@ -72,21 +73,19 @@ import threading
 import time
 import weakref
 from collections import deque
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from pathlib import Path
 from types import TracebackType
 from typing import IO, Any
 
 from friction_sim.core.model import spec
-from friction_sim.core.model.commands import Outcome
-from friction_sim.core.model.events import Event, SliderState
 from friction_sim.core.model.params import Inputs, SliderParams
-from friction_sim.core.model.records import Acceleration, PeriodSummary
 from friction_sim.errors import ParameterError, RecordingPathError, one_line
 from friction_sim.io import cdr
 from friction_sim.io.bagfile import BagFile, RecordingStats
 from friction_sim.io.messages import TOPIC_TYPES, message_class, node_name, value_text
-from friction_sim.io.recordwriter import Item, RecordWriter, qualified_topic
+from friction_sim.io.recordwriter import Item, Metadata, RecordWriter, qualified_topic
+from friction_sim.io.sinks import ClockRecord, CommandRecord, ParametersRecord, Record, record_size
 from friction_sim.io.typesupport import DEFAULT_QOS
 
 _log = logging.getLogger("friction_sim.io.recorder")
@@ -110,6 +109,8 @@ INPUT_FIELDS = tuple(spec.INPUTS)
 #: Messages a command or parameter change may queue beyond the capacity before
 #: it waits (a flood brings at most the subscriptions' depth per topic and tick).
 URGENT_HEADROOM = 4096
+#: The records that may use URGENT_HEADROOM: commands and parameter changes.
+_URGENT = frozenset({CommandRecord, ParametersRecord})
 #: Wall time [s] the writer lets records gather after the first of a batch (unless the queue is
 #: half full): a batch then holds a tick's worth many times over, written in one numpy pass.
 GATHER = 0.02
@@ -151,14 +152,13 @@ class Recorder:
     """Writes ROS 2 messages to one MCAP file from a background thread; a Sink.
 
     >>> with Recorder("run.mcap", metadata={"mass": 1.0}) as rec:   # doctest: +SKIP
-    ...     rec.write("drive_force", Float64(data=0.7), 1_000_000)
+    ...     rec.write(MessageRecord("drive_force", Float64(data=0.7), 1_000_000))
 
-    :meth:`write`, :meth:`add_metadata` and the sink methods (``on_*``) are
-    thread-safe and cheap (one queue put per call).  They wait only when the
-    queue is full and ``block_when_full`` is True (see the module docstring).
-    A message passed to :meth:`write` is serialized later, on the writer
-    thread: do not change it afterwards (the sink methods take immutable
-    records and build the messages on that thread).
+    :meth:`write` and :meth:`add_metadata` are thread-safe and cheap (one
+    queue put per call).  They wait only when the queue is full and
+    ``block_when_full`` is True (see the module docstring).  A record's
+    messages are built and serialized later, on the writer thread: do not
+    change a message (or a dict of parameters) once written.
 
     ``metadata`` becomes the ``friction_sim`` MCAP metadata record, written
     first, with ``external_force_z_convention`` (default ``lifts``, the
@@ -252,49 +252,30 @@ class Recorder:
             raise RecordingPathError(self._setting, self._given, f"cannot write there: {_reason(error)}") from None
         return mcap
 
-    # -- the caller's side: the sink -----------------------------------------------
+    # -- the caller's side: the sink, and metadata --------------------------------------
 
-    def on_states(self, states: Sequence[SliderState], frame_id: str) -> None:
-        """Queue exact states as pose, velocity and friction_force at their own times."""
-        if states:
-            self._put(("states", tuple(states), frame_id), 3 * len(states))
-
-    def on_event(self, event: Event) -> None:
-        """Queue a stick/slip event on ``events``."""
-        self._put(("event", event), 1)
-
-    def on_period(self, period: PeriodSummary, frame_id: str) -> None:
-        """Queue a period's mean velocity on ``mean_velocity``."""
-        self._put(("period", period, frame_id), 1)
-
-    def on_accelerations(self, samples: Sequence[Acceleration], frame_id: str, noise: float) -> None:
-        """Queue accelerometer samples on ``accelerometer`` (sensor_msgs/Imu) at their own times."""
-        if samples:
-            self._put(("accelerations", tuple(samples), frame_id, noise), len(samples))
-
-    def on_command(self, outcome: Outcome, frame_id: str) -> None:
-        """Queue a handled command: accepted on its own topic, refused on
-        ``rejected_commands``, at the simulation time it was handled."""
-        self._put(("command", outcome, frame_id), 1, urgent=True)
-
-    def on_parameters(self, values: Mapping[str, Any], t: float, *, changed: bool) -> None:
-        """Queue parameter values on ``parameters`` (new at start, or changed)."""
-        self._put(("parameters", dict(values), t, changed), 1, urgent=True)
+    def write(self, record: Record) -> bool:
+        """Queue a sink record (:mod:`friction_sim.io.sinks`): the states as pose,
+        velocity and friction_force, each event, period mean, accelerometer sample
+        (sensor_msgs/Imu), command (accepted on its own topic, refused on
+        ``rejected_commands``) and parameter set at its own simulation time, any
+        other message at its log time.  A :class:`~friction_sim.io.sinks.ClockRecord`
+        is not recorded: every message's log time is the simulation time already
+        (``ros2 bag play --clock`` publishes /clock from them).  False if it was
+        not queued (dropped, failed, or finished; counted)."""
+        kind = type(record)  # (records are final classes: the type says what each is, cheaper than isinstance)
+        if kind is ClockRecord:
+            return True
+        size = record_size(record)
+        return not size or self._put(record, size, urgent=kind in _URGENT)
 
     def close(self) -> None:
         """Finish the file (see :meth:`finish`)."""
         self.finish()
 
-    # -- the caller's side: messages and metadata ------------------------------------
-
-    def write(self, topic: str, msg: Any, log_time_ns: int) -> bool:
-        """Queue ``msg`` for ``topic`` at ``log_time_ns`` (simulation time, ns).
-        False if it was not queued (dropped, failed, or finished; counted)."""
-        return self._put(("msg", topic, msg, log_time_ns), 1)
-
     def add_metadata(self, name: str, data: Mapping[str, Any]) -> bool:
         """Queue an MCAP metadata record (values written as text)."""
-        return self._put(("metadata", name, {str(k): value_text(v) for k, v in data.items()}), 0)
+        return self._put(Metadata(name, {str(k): value_text(v) for k, v in data.items()}), 0)
 
     # -- state ----------------------------------------------------------------------
 

@@ -22,13 +22,12 @@ ROS stamp holds, a value of no parameter type) is dropped, counted in
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from friction_sim.core.model.commands import Outcome
 from friction_sim.core.model.events import Mode, SliderState
 from friction_sim.core.model.records import Acceleration, PeriodSummary
 from friction_sim.errors import one_line
@@ -43,16 +42,39 @@ from friction_sim.io.messages import (
     fill_state_messages,
     imu_message,
     mean_velocity_message,
+    message_class,
     parameters_message,
     rejection_message,
     seconds_to_ns,
     state_messages,
+    time_msg,
+)
+from friction_sim.io.sinks import (
+    AccelerationsRecord,
+    ClockRecord,
+    CommandRecord,
+    EventRecord,
+    MessageRecord,
+    ParametersRecord,
+    PeriodRecord,
+    Record,
+    StatesRecord,
+    record_size,
 )
 from friction_sim.io.typesupport import message_type_name
 
 _log = logging.getLogger("friction_sim.io.recorder")
 
-Item = tuple[Any, ...]
+
+class Metadata(NamedTuple):
+    """An MCAP metadata record for the file (the recorder's own, not a sink record)."""
+
+    name: str
+    data: Mapping[str, str]
+
+
+#: What the recorder queues: a sink record, or metadata.
+Item = Record | Metadata
 #: States encoded per numpy pass (bounds how long the writer holds the GIL at once).
 ROWS_PER_PASS = 2048
 
@@ -116,22 +138,21 @@ class RecordWriter:
 
     def write(self, batch: Sequence[Item]) -> None:
         """Write the records of ``batch``.  The states of consecutive ticks
-        (of one frame) go together, before those ticks' events and period
-        means; any other record (a command, parameters, a message, metadata)
-        keeps its place: everything queued before it is written before it.
-        Each topic stays in time order."""
+        (of one frame) go together, before those ticks' events, period means
+        and accelerometer samples; any other record (a command, parameters, a
+        message, metadata) keeps its place: everything queued before it is
+        written before it.  Each topic stays in time order."""
         states: list[SliderState] = []
         frame_id = ""
-        later: list[Item] = []  # events and periods of the ticks whose states are in ``states``
+        later: list[Item] = []  # events, periods and samples of the ticks whose states are in ``states``
         for item in batch:
-            kind = item[0]
-            if kind == "states" and states and item[2] != frame_id:
-                self._write_run(states, frame_id, later)
-                states, later = [], []
-            if kind == "states":
-                states.extend(item[1])
-                frame_id = item[2]
-            elif kind in ("event", "period", "accelerations"):
+            if isinstance(item, StatesRecord):
+                if states and item.frame_id != frame_id:
+                    self._write_run(states, frame_id, later)
+                    states, later = [], []
+                states.extend(item.states)
+                frame_id = item.frame_id
+            elif isinstance(item, (EventRecord, PeriodRecord, AccelerationsRecord)):
                 later.append(item)
             else:
                 self._write_run(states, frame_id, later)
@@ -162,7 +183,7 @@ class RecordWriter:
             part = states[first:first + ROWS_PER_PASS]
             if group is None:
                 for state in part:
-                    self._write_safely(("state", state, frame_id))
+                    self._write_safely(StatesRecord((state,), frame_id))
                 continue
             try:
                 table = np.array([(s.t, *state_row(s)) for s in part], dtype=np.float64)
@@ -228,22 +249,22 @@ class RecordWriter:
         except OSError:
             raise
         except Exception as error:  # noqa: BLE001 - one bad record must not end the recording
-            self._count_bad(_messages_of(item), str(item[1])[:40] if item[0] == "msg" else item[0],
+            self._count_bad(1 if isinstance(item, Metadata) else record_size(item), record_kind(item),
                             one_line(error, with_type=True))
 
     def _write_one(self, item: Item) -> None:
         """Build the messages of one queued record and write them."""
-        kind = item[0]
-        if kind == "msg":
-            self._add(self.topic(item[1]), item[2], item[3])
-        elif kind == "metadata":
-            self.file.add_metadata(item[1], item[2])
-        elif kind == "period":
-            self._write_period(item[1], item[2])
-        elif kind == "accelerations":
-            self._write_accelerations(item[1], item[2], item[3])
-        elif kind == "state":
-            self._add_state(item[1], item[2])
+        if isinstance(item, MessageRecord):
+            self._add(self.topic(item.topic), item.msg, item.log_time_ns)
+        elif isinstance(item, Metadata):
+            self.file.add_metadata(item.name, dict(item.data))
+        elif isinstance(item, PeriodRecord):
+            self._write_period(item.period, item.frame_id)
+        elif isinstance(item, AccelerationsRecord):
+            self._write_accelerations(item.samples, item.frame_id, item.noise)
+        elif isinstance(item, StatesRecord):  # (one by one: the states' messages have no fixed layout)
+            for state in item.states:
+                self._add_state(state, item.frame_id)
         else:
             for topic, msg, log_time_ns in record_messages(item, self.node):
                 self._add(self.topic(topic), msg, log_time_ns)
@@ -271,35 +292,56 @@ class RecordWriter:
             _log.warning("recording %s: dropped a %s record: %s", self.path, what, why)
 
 
-def _messages_of(item: Item) -> int:
-    """How many messages a queued record stands for."""
-    return 3 if item[0] == "state" else len(item[1]) if item[0] == "accelerations" else 1
+def record_kind(item: Item) -> str:
+    """What ``item`` is, for a warning: a message's topic, else its kind (``states``, ``event``, ...)."""
+    if isinstance(item, MessageRecord):
+        return str(item.topic)[:40]
+    return type(item).__name__.removesuffix("Record").lower()
 
 
-def record_messages(item: Item, node: str) -> list[tuple[str, Any, int]]:
-    """(topic, message, log time [ns]) of a queued sink record other than
-    states, as a recording holds them (the live view serves the same);
-    parameter events name ``node``, the slider's fully qualified name."""
-    kind = item[0]
-    if kind == "msg":
-        return [(item[1], item[2], int(item[3]))]
-    if kind == "period":
-        return [("mean_velocity", mean_velocity_message(item[1], item[2]), seconds_to_ns(item[1].t))]
-    if kind == "event":
-        return [("events", event_message(item[1]), seconds_to_ns(item[1].t))]
-    if kind == "accelerations":
-        return [(ACCELEROMETER, imu_message(sample, item[2], item[3]), seconds_to_ns(sample.t)) for sample in item[1]]
-    if kind == "command":
-        outcome: Outcome = item[1]
-        if outcome.accepted:
-            return [(command_topic(outcome.name), command_message(outcome.command, item[2], node),
-                     seconds_to_ns(outcome.t))]
-        return [("rejected_commands", rejection_message(outcome), seconds_to_ns(outcome.t))]
-    if kind == "parameters":
-        return [("parameters", parameters_message(item[1], item[2], changed=item[3], node=node),
-                 seconds_to_ns(item[2]))]
-    raise ValueError(f"unknown record kind {kind!r}")
+def record_topics(record: Record) -> tuple[str, ...]:
+    """The topics (relative names, or absolute ones) the messages of ``record`` go on."""
+    if isinstance(record, StatesRecord):
+        return STATE_TOPICS
+    if isinstance(record, MessageRecord):
+        return (record.topic,)
+    if isinstance(record, CommandRecord):
+        return (command_topic(record.outcome.name) if record.outcome.accepted else "rejected_commands",)
+    return _TOPICS[type(record)]
 
 
-__all__ = ["ROWS_PER_PASS", "STATE_VALUES", "RecordWriter", "imu_row_builder", "qualified_topic", "record_messages",
-           "state_row_builder", "state_row"]
+#: The one topic of each kind of record that has one whatever it holds.
+_TOPICS: dict[type, tuple[str]] = {EventRecord: ("events",), PeriodRecord: ("mean_velocity",),
+                                   AccelerationsRecord: (ACCELEROMETER,), ParametersRecord: ("parameters",),
+                                   ClockRecord: ("/clock",)}
+
+
+def record_messages(record: Record, node: str) -> list[tuple[str, Any, int]]:
+    """(topic, message, log time [ns]) of a sink record other than states, as a
+    recording holds them (the live view serves the same); parameter events
+    name ``node``, the slider's fully qualified name."""
+    if isinstance(record, StatesRecord):
+        raise ValueError("states are written many at a time, not as single messages")
+    (topic,) = record_topics(record)
+    if isinstance(record, AccelerationsRecord):
+        return [(topic, imu_message(sample, record.frame_id, record.noise), seconds_to_ns(sample.t))
+                for sample in record.samples]
+    if isinstance(record, MessageRecord):
+        return [(topic, record.msg, int(record.log_time_ns))]
+    if isinstance(record, PeriodRecord):
+        return [(topic, mean_velocity_message(record.period, record.frame_id), seconds_to_ns(record.period.t))]
+    if isinstance(record, EventRecord):
+        return [(topic, event_message(record.event), seconds_to_ns(record.event.t))]
+    if isinstance(record, CommandRecord):
+        outcome = record.outcome
+        message = command_message(outcome.command, record.frame_id, node) if outcome.accepted \
+            else rejection_message(outcome)
+        return [(topic, message, seconds_to_ns(outcome.t))]
+    if isinstance(record, ParametersRecord):
+        return [(topic, parameters_message(record.values, record.t, changed=record.changed, node=node),
+                 seconds_to_ns(record.t))]
+    return [(topic, message_class("rosgraph_msgs/msg/Clock")(clock=time_msg(record.t_ns)), record.t_ns)]
+
+
+__all__ = ["ROWS_PER_PASS", "STATE_VALUES", "Item", "Metadata", "RecordWriter", "imu_row_builder", "qualified_topic",
+           "record_kind", "record_messages", "record_topics", "state_row_builder", "state_row"]

@@ -108,7 +108,15 @@ from friction_sim.io.messages import (
     seconds_to_ns,
     time_msg,
 )
-from friction_sim.io.sinks import Sink, deliver_tick
+from friction_sim.io.sinks import (
+    ClockRecord,
+    CommandRecord,
+    MessageRecord,
+    ParametersRecord,
+    Sink,
+    deliver,
+    deliver_tick,
+)
 from friction_sim.ros.graph import NameWatch
 from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, accelerometer_qos, take_all
 from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
@@ -128,6 +136,7 @@ from friction_sim.ros.slider_outputs import (
     RecorderHealth,
     consistent_report,
     control_text,
+    finish_recording,
     health,
     open_live_view,
     open_recorder,
@@ -167,7 +176,8 @@ class SliderNode(QuietNode):
         #: The exit code run_node ends with (0, or EXIT_RECORDING_FAILED after a failed recording).
         self.exit_code = 0
         self._serving = threading.Event()  # set once the node is whole: the live view may call in before
-        #: Consumers of the run (the recorder, a live view, a test's probe).
+        #: Consumers of the run (the recorder, a live view, a test's probe): whatever the node
+        #: records or serves reaches them as sink records (:mod:`friction_sim.io.sinks`), and only so.
         self.sinks: list[Sink] = []
         self.recorder = open_recorder(values, self.get_namespace(), self.get_fully_qualified_name())
         self._recorder_health = RecorderHealth(self.recorder)
@@ -184,8 +194,7 @@ class SliderNode(QuietNode):
             self.sinks.append(self.live)
             self.get_logger().info(f"live view: open {self.live.url} in Foxglove (config/"
                                    "friction_sim.foxglove_layout.json is the layout)")
-        for sink in self.sinks:
-            sink.on_parameters(recorded(values), 0.0, changed=False)
+        deliver(self.sinks, ParametersRecord(recorded(values), 0.0, False))
         self._frame_id: str = values["frame_id"]
         self._lock = threading.Lock()
         self._warn = ThrottledWarning(self.get_logger())
@@ -224,18 +233,11 @@ class SliderNode(QuietNode):
         if self._ticker.is_alive() and threading.current_thread() is not self._ticker:
             self._ticker.join(timeout=2.0)
         if self.recorder is not None:
-            stats = self.recorder.finish()  # never raises: a failure is in stats.error
-            simulated = f"{stats.last_ns / 1e9 if stats.last_ns else 0.0:.3f} s simulated"
-            if stats.error:
+            failed, note = finish_recording(self.recorder)
+            if failed:
                 self.exit_code = EXIT_RECORDING_FAILED
-                what = stats.error.split("; ")[0]  # the recorder's one line, without "the run goes on"
-                note = f"{what}; the {stats.messages} messages written ({simulated}) are readable; " \
-                       f"exit code {EXIT_RECORDING_FAILED}"
-            else:
-                note = f"recording finished: {stats.path} ({stats.messages} messages, {simulated}, " \
-                       f"{stats.dropped} dropped)"
             if self.context.ok():
-                (self.get_logger().error if stats.error else self.get_logger().info)(note)
+                (self.get_logger().error if failed else self.get_logger().info)(note)
             else:  # after Ctrl-C the context (and /rosout) is gone already
                 print(f"[slider] {note}", file=sys.stderr)
         for sink in self.sinks:
@@ -400,8 +402,7 @@ class SliderNode(QuietNode):
         a recording must hold them in the order the core took them (verify
         replays them in that order, each a change of its own)."""
         for outcome in outcomes:
-            for sink in self.sinks:
-                sink.on_command(outcome, self._frame_id)
+            deliver(self.sinks, CommandRecord(outcome, self._frame_id))
 
     def warn_refused(self, outcome: Outcome, warn: Callable[[str], Any] | None = None) -> None:
         """Warn about a refusal (by default on the node's throttle: a flood of bad
@@ -478,13 +479,14 @@ class SliderNode(QuietNode):
         self._publish_states(tick, fresh, self._clock_of(tick, fresh))
 
     def _clock_of(self, tick: Tick, fresh: bool) -> int:
-        """Count the tick and publish /clock (lock held: the publisher may go); its number."""
+        """Count the tick and publish /clock, to the topic and the sinks (lock held: the
+        publisher may go); its number."""
         self._ticks_computed += 1
         if fresh and self._clock_pub is not None:
-            time_msg(seconds_to_ns(tick.state.t), self._clock_msg.clock)
+            t_ns = seconds_to_ns(tick.state.t)
+            time_msg(t_ns, self._clock_msg.clock)
             self._clock_pub.publish(self._clock_msg)
-            if self.live is not None and self.live.wants("/clock"):  # a message of its own: encoded later
-                self.live.write("/clock", ClockMsg(clock=self._clock_msg.clock), seconds_to_ns(tick.state.t))
+            deliver(self.sinks, ClockRecord(t_ns))
         return self._ticks_computed
 
     def _publish_states(self, tick: Tick, fresh: bool, number: int) -> None:
@@ -534,9 +536,7 @@ class SliderNode(QuietNode):
             msg.header.stamp = self.get_clock().now().to_msg()
         else:  # lockstep: recorded here, not when it comes back (the run may end before it does)
             time_msg(stamp_ns, msg.header.stamp)
-            for sink in (self.recorder, self.live):
-                if sink is not None:
-                    sink.write("diagnostics", msg, stamp_ns)
+            deliver(self.sinks, MessageRecord("diagnostics", msg, stamp_ns))
         self._diag_pub.publish(msg)
 
     # -- parameters ---------------------------------------------------------------
@@ -570,8 +570,7 @@ class SliderNode(QuietNode):
         others = {p.name for p in changes} - set(spec.PLANT) - set(spec.INPUTS)
         if others:
             t = self._rt.clock.now(wall_ns())
-            for sink in self.sinks:
-                sink.on_parameters({n: self.get_parameter(n).value for n in others}, t, changed=True)
+            deliver(self.sinks, ParametersRecord({n: self.get_parameter(n).value for n in others}, t, True))
 
 
 def _unused(msg: Any) -> None:

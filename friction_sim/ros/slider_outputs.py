@@ -1,6 +1,7 @@
 """Where the slider node's run goes besides its topics, and what it says
-about itself: the recorder and the live view it opens from its parameters,
-the health line of its diagnostics, and the answer to a control call.
+about itself: the recorder and the live view it opens from its parameters
+(and what it says of the recording once finished), the health line of its
+diagnostics, and the answer to a control call.
 
 Kept apart from :mod:`friction_sim.ros.slider` (the node's wiring and tick)
 so each stays short; nothing here holds state.
@@ -32,6 +33,8 @@ from friction_sim.io.messages import (
     time_msg,
 )
 from friction_sim.io.recordwriter import imu_row_builder
+from friction_sim.io.sinks import MessageRecord, deliver
+from friction_sim.ros.run import EXIT_RECORDING_FAILED
 
 #: What the slider keeps of the namespace's other topics, with the depth of its queues.
 WATCHED_DEPTH = 10
@@ -150,6 +153,18 @@ def open_recorder(values: dict[str, Any], namespace: str, node: str) -> Any:
                     block_when_full=True)
 
 
+def finish_recording(recorder: Any) -> tuple[bool, str]:
+    """Finish the slider's recording (never raises: a failure is in its stats): whether it
+    failed (the node then exits with EXIT_RECORDING_FAILED), and the line the node logs."""
+    stats = recorder.finish()
+    simulated = f"{stats.last_ns / 1e9 if stats.last_ns else 0.0:.3f} s simulated"
+    if stats.error:
+        what = stats.error.split("; ")[0]  # the recorder's one line, without "the run goes on"
+        return True, (f"{what}; the {stats.messages} messages written ({simulated}) are readable; "
+                      f"exit code {EXIT_RECORDING_FAILED}")
+    return False, f"recording finished: {stats.path} ({stats.messages} messages, {simulated}, {stats.dropped} dropped)"
+
+
 def open_live_view(values: dict[str, Any], namespace: str, node: str, services: list[Any]) -> Any:
     """A LiveView on ``foxglove_port`` (None when it is 0; -1: a port the
     system chooses when the server binds, which the view's ``port`` and ``url``
@@ -172,8 +187,8 @@ def open_live_view(values: dict[str, Any], namespace: str, node: str, services: 
 
 def watch_namespace(node: Any, now: Callable[[], float], *, lockstep: bool) -> None:
     """Keep what other nodes put on ``node``'s namespace's ``diagnostics`` (the
-    controller's, and the slider's own) and ``target_speed`` for a recording or a
-    live view (``node.recorder``, ``node.live``), logged at the simulation time
+    controller's, and the slider's own) and ``target_speed`` for the node's sinks
+    (``node.sinks``: a recording, a live view), logged at the simulation time
     ``now()``, so the file and the view show the whole feeder (the shipped layout
     plots the target against the mean speed).  The subscriptions exist whether
     or not anything records, so the number of subscribers of ``target_speed``
@@ -187,15 +202,13 @@ def watch_namespace(node: Any, now: Callable[[], float], *, lockstep: bool) -> N
     own = node.get_fully_qualified_name()
 
     def forward(topic: str, msg: Any) -> None:
-        if node.recorder is None and node.live is None:
+        if not node.sinks:
             return
         log_time_ns = seconds_to_ns(now())
         if lockstep and topic == "diagnostics" and (not 0 < stamp_ns(msg.header.stamp) <= log_time_ns or any(
                 status.hardware_id == own for status in msg.status)):
             return  # (its own: recorded as it publishes them)
-        for sink in (node.recorder, node.live):
-            if sink is not None:
-                sink.write(topic, msg, log_time_ns)
+        deliver(node.sinks, MessageRecord(topic, msg, log_time_ns))
 
     for topic, kind in (("diagnostics", DiagnosticArray), ("target_speed", message_class("std_msgs/msg/Float64"))):
         node.create_subscription(kind, topic, functools.partial(forward, topic), WATCHED_DEPTH)
@@ -277,4 +290,4 @@ def health(report: dict[str, Any], fault: str = "", name_problem: str = "") -> t
 
 
 __all__ = ["PREDICTION_TRIES", "AccelerometerPublisher", "RecorderHealth", "consistent_report", "control_text",
-           "health", "open_live_view", "open_recorder", "recorded", "watch_namespace"]
+           "finish_recording", "health", "open_live_view", "open_recorder", "recorded", "watch_namespace"]

@@ -11,7 +11,7 @@ import pytest
 from friction_sim.cli.recording_figure import plot
 from friction_sim.core.model.commands import Command
 from friction_sim.core.model.params import Inputs, SliderParams
-from friction_sim.io.offline import record_offline
+from friction_sim.experiment.offline import record_offline
 from friction_sim.io.reader import read_recording
 from friction_sim.io.series import POSITION_XZ, state_values
 

@@ -167,9 +167,9 @@ def _recorded(tmp_path: Path, **changes: Any) -> Any:
     """A recording of the simulator itself: a part that hops (Pa 12 -> 14 N at 80 degrees), mu 0.12, e 0.3."""
     from friction_sim.core.model.commands import Command
     from friction_sim.core.model.params import Inputs, SliderParams
-    from friction_sim.io.offline import record_offline
+    from friction_sim.experiment.offline import record_offline
+    from friction_sim.experiment.verify import recorded_run
     from friction_sim.io.reader import read_recording
-    from friction_sim.io.verify import recorded_run
 
     schedule = [Command(0.5, "excitation_amplitude", {"excitation_amplitude": 14.0}), *changes.pop("schedule", [])]
     record_offline(tmp_path / "run.mcap", SliderParams(mu=0.12, restitution=0.3, excitation_angle=80.0),

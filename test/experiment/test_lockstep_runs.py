@@ -19,9 +19,9 @@ import pytest
 from friction_sim.core.runtime.lockstep import CONTROLLER
 from friction_sim.experiment import runner
 from friction_sim.experiment.scenario import load_scenario
+from friction_sim.experiment.verify import verify
 from friction_sim.io.digest import differences, recording_digest
 from friction_sim.io.reader import read_recording
-from friction_sim.io.verify import verify
 
 from helpers import hold_the_interpreter
 

@@ -14,8 +14,8 @@ from friction_sim.cli.experiments import report_recording, run_scenario
 from friction_sim.cli.progress import TerminalProgress
 from friction_sim.core.meanspeed.predict import predict
 from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.experiment.verify import verify
 from friction_sim.io.reader import read_recording
-from friction_sim.io.verify import verify
 
 SCENARIO = """\
 name: short
@@ -173,8 +173,8 @@ def test_the_stick_fraction_of_a_hopping_run_counts_flights_as_moving(tmp_path: 
     from friction_sim.core.engine.single import Slider
     from friction_sim.core.model.commands import Command
     from friction_sim.core.model.events import EventKind, Mode
+    from friction_sim.experiment.offline import record_offline
     from friction_sim.experiment.report import build_report, run_data_from_recording
-    from friction_sim.io.offline import record_offline
 
     params, inputs = SliderParams(), Inputs(excitation_amplitude=15.0)
     schedule = [Command(0.2, "excitation_amplitude", {"excitation_amplitude": 25.0}),

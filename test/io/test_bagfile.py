@@ -14,8 +14,8 @@ from mcap.reader import make_reader
 from mcap.records import Channel, Chunk, ChunkIndex, Message, MessageIndex, Metadata, MetadataIndex, Schema, Statistics
 from mcap.stream_reader import StreamReader, breakup_chunk
 
+from friction_sim.experiment.offline import record_offline
 from friction_sim.io.bagfile import BagFile, RecordingStats
-from friction_sim.io.offline import record_offline
 from friction_sim.io.typesupport import DEFAULT_QOS
 
 from recording_helpers import varied_schedule

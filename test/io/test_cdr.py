@@ -18,6 +18,7 @@ from friction_sim.io import cdr
 from friction_sim.io import messages as M
 from friction_sim.io.reader import read_recording
 from friction_sim.io.recorder import Recorder
+from friction_sim.io.sinks import StatesRecord
 
 #: Values a float64 field may hold, awkward ones included.
 ODD = [0.0, -0.0, 5e-324, -5e-324, 2.2250738585072014e-308, 1.7976931348623157e308, -1e-300, math.inf, -math.inf,
@@ -90,7 +91,7 @@ def test_a_recording_holds_exactly_the_bytes_rosbags_writes(tmp_path: Path) -> N
     path = tmp_path / "bytes.mcap"
     with Recorder(path, metadata={"mass": 1.0}) as recorder:
         for first in range(0, len(states), 250):
-            recorder.on_states(states[first:first + 250], FRAMES[(first // 250) % len(FRAMES)])
+            recorder.write(StatesRecord(tuple(states[first:first + 250]), FRAMES[(first // 250) % len(FRAMES)]))
     assert recorder.stats.dropped == 0
     recording = read_recording(path, require_friction_sim=False)
     for topic_index, topic in enumerate(M.STATE_TOPICS):

@@ -15,9 +15,9 @@ from friction_sim.cli.recording_figure import command_marks
 from friction_sim.cli.replay import run
 from friction_sim.errors import RecordingError
 from friction_sim.experiment.report import build_report, run_data_from_recording
+from friction_sim.experiment.verify import verify
 from friction_sim.io.reader import Channel, Recording, read_recording
 from friction_sim.io.recorder import SUMMARY_METADATA_NAME
-from friction_sim.io.verify import verify
 
 from recording_helpers import copy_recording, replay_args
 

@@ -17,11 +17,11 @@ from friction_sim.cli.replay import run
 from friction_sim.core.model.commands import Command
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.errors import RecordingError
-from friction_sim.io.offline import record_offline
+from friction_sim.experiment.offline import record_offline
+from friction_sim.experiment.verify import initial_parameters, recorded_commands, verify
 from friction_sim.io.reader import read_recording
 from friction_sim.io.recorder import CONVENTION_KEY, FORMAT, METADATA_NAME
 from friction_sim.io.series import FORCE, POSITION_XZ, VELOCITY_XZ, state_values
-from friction_sim.io.verify import initial_parameters, recorded_commands, verify
 
 from recording_helpers import replay_args, rewrite
 

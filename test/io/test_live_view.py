@@ -21,7 +21,6 @@ from pathlib import Path
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mcap.reader import make_reader
-from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64, String
 
 from friction_sim.core.model.commands import Command, Outcome
@@ -32,6 +31,15 @@ from friction_sim.io import cdr
 from friction_sim.io.live import ADVERTISED, LiveView
 from friction_sim.io.messages import TOPIC_TYPES, seconds_to_ns, state_messages
 from friction_sim.io.recorder import Recorder
+from friction_sim.io.sinks import (
+    ClockRecord,
+    CommandRecord,
+    EventRecord,
+    MessageRecord,
+    ParametersRecord,
+    PeriodRecord,
+    StatesRecord,
+)
 from friction_sim.io.typesupport import message_definition
 
 from foxglove_client import FoxgloveClient, Received
@@ -125,7 +133,7 @@ def test_states_reach_a_client_with_their_values_and_times(view: LiveView) -> No
     with FoxgloveClient(view.url) as client:
         subscribed(client, view, *STATE_TOPICS)
         for i in range(0, len(states), 4):  # as the node hands them: a few per call
-            view.on_states(states[i:i + 4], "slideway")
+            view.write(StatesRecord(tuple(states[i:i + 4]), "slideway"))
         received = by_topic(client.collect(until=lambda got: len(got) >= 3 * len(states)))
     assert [len(received[topic]) for topic in STATE_TOPICS] == [len(states)] * 3
     for s, pose, velocity, force in zip(states, *(received[topic] for topic in STATE_TOPICS)):
@@ -145,27 +153,26 @@ def test_states_reach_a_client_with_their_values_and_times(view: LiveView) -> No
 
 
 def test_events_commands_parameters_and_written_messages_arrive_decoded(view: LiveView) -> None:
-    view.write("diagnostics", diagnostics(0.0), 0)  # first use: advertises /feeder1/diagnostics
-    view.on_command(ACCEPTED, "slideway")  # likewise /feeder1/drive_force
-    assert view.wants("/clock")  # no channel yet: the first message makes it
-    view.write("/clock", Clock(), 0)  # absolute: not in the namespace
+    skipped = view.skipped
+    view.write(MessageRecord("diagnostics", diagnostics(0.0), 0))  # first use: advertises /feeder1/diagnostics
+    view.write(CommandRecord(ACCEPTED, "slideway"))  # likewise /feeder1/drive_force
+    view.write(ClockRecord(0))  # likewise /clock (absolute: not in the namespace); its message is built then
     advertised(view, f"{NS}/diagnostics", f"{NS}/drive_force", "/clock")
-    assert not view.wants("/clock")  # nobody subscribes: the node need not build one
+    assert wait_until(lambda: view.skipped == skipped + 3)  # (served to no one, on the view's thread)
+    view.write(ClockRecord(1_000_000))  # nobody subscribes: skipped at once, no message built
+    assert view.skipped == skipped + 4
     topics = [f"{NS}/{name}" for name in ("events", "drive_force", "rejected_commands", "mean_velocity",
                                           "parameters", "diagnostics")] + ["/clock"]
     with FoxgloveClient(view.url) as client:
         subscribed(client, view, *topics)
-        assert view.wants("/clock")
         assert client.channels[f"{NS}/diagnostics"]["schemaName"] == "diagnostic_msgs/msg/DiagnosticArray"
-        view.on_event(EVENT)
-        view.on_command(ACCEPTED, "slideway")
-        view.on_command(REFUSED, "slideway")
-        view.on_period(PERIOD, "slideway")
-        view.on_parameters(PARAMETERS, 0.016, changed=True)
-        assert view.write("diagnostics", diagnostics(0.017), seconds_to_ns(0.017))
-        clock = Clock()
-        clock.clock.sec, clock.clock.nanosec = 0, 18_000_000
-        view.write("/clock", clock, 18_000_000)
+        view.write(EventRecord(EVENT))
+        view.write(CommandRecord(ACCEPTED, "slideway"))
+        view.write(CommandRecord(REFUSED, "slideway"))
+        view.write(PeriodRecord(PERIOD, "slideway"))
+        view.write(ParametersRecord(PARAMETERS, 0.016, True))
+        assert view.write(MessageRecord("diagnostics", diagnostics(0.017), seconds_to_ns(0.017)))
+        view.write(ClockRecord(18_000_000))
         received = {m.topic: m for m in client.collect(until=lambda got: len(got) >= len(topics))}
     assert sorted(received) == sorted(topics)
 
@@ -205,19 +212,19 @@ def test_a_client_gets_the_bytes_a_recording_holds(view: LiveView, tmp_path: Pat
     client gets is the message the recording holds at that topic and time."""
     path = tmp_path / "run.mcap"
     sinks = [view, Recorder(path, metadata={"mass": 1.0}, namespace=NS)]
-    view.write("target_speed", Float64(data=0.0), 0)
+    view.write(MessageRecord("target_speed", Float64(data=0.0), 0))
     advertised(view, f"{NS}/target_speed")
     topics = [*STATE_TOPICS, *(f"{NS}/{name}" for name in ("events", "rejected_commands", "mean_velocity",
                                                            "parameters", "target_speed"))]
     with FoxgloveClient(view.url) as client:
         subscribed(client, view, *topics)
         for sink in sinks:
-            sink.on_parameters(PARAMETERS, 0.0, changed=False)
-            sink.on_states([state(i) for i in range(1, 11)], "slideway")
-            sink.on_event(EVENT)
-            sink.on_command(REFUSED, "slideway")
-            sink.on_period(PERIOD, "slideway")
-            sink.write("target_speed", Float64(data=3e-4), seconds_to_ns(0.02))
+            sink.write(ParametersRecord(PARAMETERS, 0.0, False))
+            sink.write(StatesRecord(tuple(state(i) for i in range(1, 11)), "slideway"))
+            sink.write(EventRecord(EVENT))
+            sink.write(CommandRecord(REFUSED, "slideway"))
+            sink.write(PeriodRecord(PERIOD, "slideway"))
+            sink.write(MessageRecord("target_speed", Float64(data=3e-4), seconds_to_ns(0.02)))
         sinks[1].close()
         expected = 30 + 5
         received = client.collect(until=lambda got: len(got) >= expected)
@@ -237,7 +244,7 @@ def test_nothing_is_encoded_without_a_subscriber_and_a_burst_never_blocks(view: 
     with FoxgloveClient(view.url) as client:
         subscribed(client, view, f"{NS}/events")  # a client, but not on the state topics
         for _ in range(100_000):
-            view.on_states((s,), "slideway")
+            view.write(StatesRecord((s,), "slideway"))
     assert view.encoded == 0 and view.sent == 0
     assert view.skipped == 300_000 and view.dropped == 0
 
@@ -262,9 +269,9 @@ def test_a_burst_beyond_what_the_thread_encodes_is_dropped_and_counted_never_wai
     try:
         with FoxgloveClient(view.url) as client:
             subscribed(client, view, f"{NS}/pose")
-            view.on_states((states[0],), "slideway")
+            view.write(StatesRecord((states[0],), "slideway"))
             assert wait_until(held.is_set)
-            burst = threading.Thread(target=lambda: [view.on_states((s,), "slideway") for s in states[1:]])
+            burst = threading.Thread(target=lambda: [view.write(StatesRecord((s,), "slideway")) for s in states[1:]])
             burst.start()
             burst.join(timeout=120.0)  # a hang guard: the burst ends while the server is still held
             assert not burst.is_alive() and not release.is_set(), "the caller waited for the serving thread"
@@ -336,10 +343,10 @@ def test_a_port_that_is_no_port_is_refused(port: object) -> None:
 def test_close_is_idempotent_frees_the_port_and_refuses_later_records() -> None:
     view = LiveView(0)
     port = view.port
-    view.write("diagnostics", diagnostics(0.0), 0)  # queued (first use) until closed
+    view.write(MessageRecord("diagnostics", diagnostics(0.0), 0))  # queued (first use) until closed
     view.close()
     view.close()
-    assert view.write("diagnostics_2", diagnostics(0.0), 0) is False
+    assert view.write(MessageRecord("diagnostics_2", diagnostics(0.0), 0)) is False
     # The port is free again: a server binds it (as a server binds, SO_REUSEADDR: no listener is
     # left, whatever connections linger).  Held by this socket, not released and bound again later.
     with socket.socket() as probe:
@@ -350,8 +357,8 @@ def test_close_is_idempotent_frees_the_port_and_refuses_later_records() -> None:
 
 def test_two_views_in_one_process_share_no_channels() -> None:
     with LiveView(0) as first, LiveView(0) as second:
-        first.write("only_first", Float64(data=1.0), 0)
-        second.write("only_second", Float64(data=2.0), 0)
+        first.write(MessageRecord("only_first", Float64(data=1.0), 0))
+        second.write(MessageRecord("only_second", Float64(data=2.0), 0))
         advertised(first, "/only_first")
         advertised(second, "/only_second")
         with FoxgloveClient(first.url) as a, FoxgloveClient(second.url) as b:
@@ -362,8 +369,8 @@ def test_two_views_in_one_process_share_no_channels() -> None:
             assert "/only_second" not in a.channels and "/only_first" not in b.channels
             subscribed(a, first, "/pose")
             subscribed(b, second, "/pose")
-            first.on_states([state(1)], "one")
-            second.on_states([state(2)], "two")
+            first.write(StatesRecord((state(1),), "one"))
+            second.write(StatesRecord((state(2),), "two"))
             got_a, got_b = a.collect(until=lambda got: got), b.collect(until=lambda got: got)
     assert [m.message.header.frame_id for m in got_a] == ["one"]
     assert [m.message.header.frame_id for m in got_b] == ["two"]
@@ -375,14 +382,14 @@ def test_a_client_that_sends_garbage_or_vanishes_does_not_stop_the_others(view: 
         rude = FoxgloveClient(view.url).__enter__()
         subscribed(rude, view, f"{NS}/pose")
         assert wait_until(lambda: view.clients == 2)
-        view.on_states([state(1)], "slideway")
+        view.write(StatesRecord((state(1),), "slideway"))
         rude.ws.send("{not json")
         rude.ws.send(b"\xff\x00\x01garbage")
         rude.ws.send('{"op": "subscribe", "subscriptions": [{"id": 1, "channelId": 99999}]}')
         rude.ws.socket.shutdown(socket.SHUT_RDWR)  # gone mid-stream, no closing handshake
         rude.ws.socket.close()
         for i in range(2, 200):
-            view.on_states([state(i)], "slideway")
+            view.write(StatesRecord((state(i),), "slideway"))
         received = steady.collect(until=lambda got: len(got) >= 199)
         assert wait_until(lambda: view.clients == 1)
         with contextlib.suppress(Exception):
@@ -393,14 +400,14 @@ def test_a_client_that_sends_garbage_or_vanishes_does_not_stop_the_others(view: 
 
 
 def test_a_record_no_message_holds_is_dropped_and_counted(view: LiveView, caplog: pytest.LogCaptureFixture) -> None:
-    view.write("mixed", Float64(data=1.0), 0)
+    view.write(MessageRecord("mixed", Float64(data=1.0), 0))
     advertised(view, f"{NS}/mixed")
     with FoxgloveClient(view.url) as client:
         subscribed(client, view, f"{NS}/mixed", *STATE_TOPICS)
-        view.write("mixed", String(data="other type"), 1)  # a topic keeps its first type
-        view.write("mixed", Float64(data=2.0), -5)  # before time 0: no ROS stamp
-        view.on_states([SliderState(math.nan, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, Mode.STUCK)], "slideway")
-        view.write("mixed", Float64(data=3.0), 7)
+        view.write(MessageRecord("mixed", String(data="other type"), 1))  # a topic keeps its first type
+        view.write(MessageRecord("mixed", Float64(data=2.0), -5))  # before time 0: no ROS stamp
+        view.write(StatesRecord((SliderState(math.nan, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, Mode.STUCK),), "slideway"))
+        view.write(MessageRecord("mixed", Float64(data=3.0), 7))
         received = client.collect(until=lambda got: got)
     assert [(m.topic, m.log_time_ns, m.message.data) for m in received] == [(f"{NS}/mixed", 7, 3.0)]
     assert view.dropped == 1 + 1 + 3 and view.error is None
@@ -415,12 +422,12 @@ def test_a_thread_that_dies_says_why_and_the_view_refuses_records(
     monkeypatch.setattr(view, "_serve", broken)
     with caplog.at_level(logging.ERROR, logger="friction_sim.io.live"), FoxgloveClient(view.url) as client:
         subscribed(client, view, f"{NS}/pose")
-        view.on_states([state(1)], "slideway")
+        view.write(StatesRecord((state(1),), "slideway"))
         assert wait_until(lambda: view.error is not None)
         client.collect(until=lambda _: bool(client.statuses), timeout=2.0)
         assert view.dropped == 3  # the record the thread died on
-        view.on_states([state(2)], "slideway")  # still subscribed: refused, counted
-        assert view.write("anything", Float64(data=0.0), 0) is False
+        view.write(StatesRecord((state(2),), "slideway"))  # still subscribed: refused, counted
+        assert view.write(MessageRecord("anything", Float64(data=0.0), 0)) is False
         assert view.dropped == 3 + 3 + 1
     assert view.error == "live view stopped: RuntimeError: encoder exploded"
     assert view.stats()["live_view_error"] == view.error
@@ -434,7 +441,7 @@ def test_stats_for_the_diagnostics(view: LiveView) -> None:
                             "live_view_dropped": 0, "live_view_thinned": 0, "live_view_error": ""}
     with FoxgloveClient(view.url) as client:
         subscribed(client, view, f"{NS}/pose", f"{NS}/events")
-        view.on_states([state(1)], "slideway")
+        view.write(StatesRecord((state(1),), "slideway"))
         client.collect(until=lambda got: got)
         assert view.stats()["live_view_clients"] == 1 and view.stats()["live_view_sent"] == 1
 
@@ -447,7 +454,8 @@ def test_a_flood_of_commands_is_thinned_for_the_viewer_and_counted() -> None:
     with LiveView(0, namespace=NS) as view, FoxgloveClient(view.url) as client:
         subscribed(client, view, f"{NS}/rejected_commands")
         for k in range(10_000):
-            view.on_command(Outcome(Command(k * 1e-4, "drive_force", {"drive_force": math.nan}), "nan"), "slideway")
+            refused = Outcome(Command(k * 1e-4, "drive_force", {"drive_force": math.nan}), "nan")
+            view.write(CommandRecord(refused, "slideway"))
         got = client.collect(1.0)
         assert 0 < len(got) <= COMMANDS_PER_SECOND * 2
         assert view.thinned >= 10_000 - 2 * COMMANDS_PER_SECOND

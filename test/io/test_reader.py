@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 
 from friction_sim.cli.replay import run
-from friction_sim.io.offline import record_offline
+from friction_sim.experiment.offline import record_offline
 from friction_sim.io.reader import read_recording
 
 from recording_helpers import plain, replay_args, rewrite, varied_schedule
@@ -84,7 +84,7 @@ from friction_sim.core.model.commands import Command
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.io.recorder import Recorder, plant_parameters, recording_metadata
-from friction_sim.io.sinks import deliver_tick
+from friction_sim.io.sinks import CommandRecord, ParametersRecord, deliver_tick
 
 path, mode, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3])
 params, inputs = SliderParams(), Inputs()
@@ -96,13 +96,13 @@ signal.signal(signal.SIGTERM, stop)
 rt = RealtimeSlider(params, inputs, wall_ns=time.monotonic_ns(), log_rate=1000.0)
 try:
     with Recorder(path, recording_metadata(params, inputs, log_rate=1000.0)) as recorder:
-        recorder.on_parameters({**plant_parameters(params, inputs), "log_rate": 1000.0}, 0.0, changed=False)
+        recorder.write(ParametersRecord({**plant_parameters(params, inputs), "log_rate": 1000.0}, 0.0, False))
         started, n, announced = time.monotonic(), 0, False
         while True:
             now = time.monotonic_ns()
             if rt.slider.t >= 0.075 + 0.15 * n:  # a command every 0.15 s of simulation time
                 command = Command(0.0, "drive_force", {"drive_force": 0.55 + 0.03 * (n % 7)})
-                recorder.on_command(rt.command(command, now), "")
+                recorder.write(CommandRecord(rt.command(command, now), ""))
                 n += 1
             deliver_tick([recorder], rt.tick(now), "slideway")
             if not announced and time.monotonic() - started >= seconds:

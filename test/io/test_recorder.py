@@ -24,12 +24,21 @@ from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.model.records import Acceleration, PeriodSummary
 from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import ParameterError, RecordingPathError
+from friction_sim.experiment.offline import record_offline
 from friction_sim.io import messages as M
 from friction_sim.io.cdr import serialize
-from friction_sim.io.offline import record_offline
 from friction_sim.io.reader import read_recording
 from friction_sim.io.recorder import METADATA_NAME, Recorder, qualified_topic
-from friction_sim.io.sinks import deliver_tick
+from friction_sim.io.sinks import (
+    AccelerationsRecord,
+    CommandRecord,
+    EventRecord,
+    MessageRecord,
+    ParametersRecord,
+    PeriodRecord,
+    StatesRecord,
+    deliver_tick,
+)
 from friction_sim.io.typesupport import message_definition, message_type_name, share_directory, type_hash
 
 from recording_helpers import plain, varied_schedule
@@ -63,13 +72,13 @@ def test_every_message_type_round_trips_through_the_file(tmp_path: Path) -> None
     from std_msgs.msg import String
 
     with Recorder(path, metadata={"mass": 1.0}) as recorder:
-        recorder.on_parameters(records["parameters"], 0.0, changed=False)
-        recorder.on_states([records["state"]], "rail")
-        recorder.on_event(records["event"])
-        recorder.on_period(records["period"], "rail")
+        recorder.write(ParametersRecord(records["parameters"], 0.0, False))
+        recorder.write(StatesRecord((records["state"],), "rail"))
+        recorder.write(EventRecord(records["event"]))
+        recorder.write(PeriodRecord(records["period"], "rail"))
         for outcome in records["commands"]:
-            recorder.on_command(outcome, "rail")
-        assert recorder.write("notes", String(data="hello"), 42)
+            recorder.write(CommandRecord(outcome, "rail"))
+        assert recorder.write(MessageRecord("notes", String(data="hello"), 42))
         assert recorder.dropped == 0, "every record was queued"
     expected: list[tuple[str, int, Any]] = [("parameters", 0, M.parameters_message(records["parameters"], 0.0))]
     ns = M.seconds_to_ns(STATE.t)
@@ -104,9 +113,9 @@ def test_accelerometer_samples_are_written_as_the_imu_messages_rosbags_serialize
     samples.append(Acceleration(-1.0, 1.0, 2.0, 3.0))  # before time 0: no ROS stamp holds it
     path = tmp_path / "imu.mcap"
     with Recorder(path, metadata={"mass": 1.0}) as recorder:
-        recorder.on_accelerations(samples[:20], "rail", noise)
-        recorder.on_states([STATE], "rail")  # (between two batches: each topic stays in time order)
-        recorder.on_accelerations(samples[20:], "rail", noise)
+        recorder.write(AccelerationsRecord(tuple(samples[:20]), "rail", noise))
+        recorder.write(StatesRecord((STATE,), "rail"))  # (between two batches: each topic stays in time order)
+        recorder.write(AccelerationsRecord(tuple(samples[20:]), "rail", noise))
     assert recorder.stats.dropped == 1 and recorder.stats.error is None
     recording = read_recording(path)
     raws = recording.messages_on("accelerometer")
@@ -122,9 +131,9 @@ def test_topics_are_stored_fully_qualified_in_the_namespace(tmp_path: Path) -> N
 
     path = tmp_path / "ns.mcap"
     with Recorder(path, metadata={"mass": 1.0}, namespace="/feeder1") as recorder:
-        recorder.on_states([STATE], "slideway")
-        recorder.on_event(every_record()["event"])
-        recorder.write("/tf_note", String(data="absolute names stay"), 5)
+        recorder.write(StatesRecord((STATE,), "slideway"))
+        recorder.write(EventRecord(every_record()["event"]))
+        recorder.write(MessageRecord("/tf_note", String(data="absolute names stay"), 5))
     with path.open("rb") as stream:
         summary = make_reader(stream).get_summary()
     assert summary is not None
@@ -210,7 +219,7 @@ def test_written_data_is_readable_within_the_flush_interval_while_recording(tmp_
     recorder = Recorder(path, metadata={"mass": 1.0}, flush_interval=0.2)
     try:
         written = time.monotonic()
-        recorder.on_states([STATE], "slideway")
+        recorder.write(StatesRecord((STATE,), "slideway"))
         while time.monotonic() - written < 60.0:  # a hang guard only
             live = read_recording(path, require_friction_sim=False)
             if live.messages:
@@ -251,7 +260,7 @@ def test_a_full_queue_drops_and_counts_without_blocking_a_caller_that_does_not_w
     accepted = 0
     for state in states(100):
         before = recorder.dropped
-        recorder.on_states([state], "slideway")
+        recorder.write(StatesRecord((state,), "slideway"))
         accepted += recorder.dropped == before
     # The writer is stalled until the gate opens: a call that waited for it would
     # never have returned, and the recorder counts every wait (none, below).
@@ -265,7 +274,7 @@ def test_a_full_queue_drops_and_counts_without_blocking_a_caller_that_does_not_w
     assert recording.dropped == 3 * (100 - accepted), "the file says how many messages it lacks"
     assert len(recording.messages_on("pose")) == accepted
     before = recorder.dropped
-    recorder.on_states([STATE], "slideway")
+    recorder.write(StatesRecord((STATE,), "slideway"))
     assert recorder.dropped == before + 3, "after finish nothing is written, and that is counted"
 
 
@@ -277,7 +286,7 @@ def test_a_producer_that_waits_loses_nothing_and_resumes_when_the_writer_moves(t
 
     def produce() -> None:
         for state in states(50):
-            recorder.on_states([state], "slideway")
+            recorder.write(StatesRecord((state,), "slideway"))
         returned_at.append(time.monotonic())
         done.set()
 
@@ -303,9 +312,9 @@ def test_a_command_never_waits_behind_a_queue_full_of_states(tmp_path: Path) -> 
     parameter change (also sent from the node's parameter-service thread) has
     headroom beyond the capacity, so a parameter set is answered at once."""
     recorder = StalledRecorder(tmp_path / "urgent.mcap", metadata={"mass": 1.0}, queue_size=30)
-    recorder.on_states(states(10), "slideway")  # 30 messages: the queue is full
-    recorder.on_command(Outcome(Command(0.001, "drive_force", {"drive_force": 0.8})), "slideway")
-    recorder.on_parameters({"publish_rate": 500.0}, 0.001, changed=True)
+    recorder.write(StatesRecord(tuple(states(10)), "slideway"))  # 30 messages: the queue is full
+    recorder.write(CommandRecord(Outcome(Command(0.001, "drive_force", {"drive_force": 0.8})), "slideway"))
+    recorder.write(ParametersRecord({"publish_rate": 500.0}, 0.001, True))
     assert recorder.waits == 0  # the writer is stalled: a wait would never have ended
     recorder.gate.set()
     stats = recorder.finish()
@@ -331,10 +340,10 @@ def test_a_bad_message_is_dropped_without_ending_the_recording(tmp_path: Path) -
 
     path = tmp_path / "bad.mcap"
     with Recorder(path, metadata={"mass": 1.0}) as recorder:
-        recorder.write("drive_force", Float64(data=0.5), 1)
-        recorder.write("drive_force", String(data="not a force"), 2)  # another type on the same topic
-        recorder.on_parameters({"odd": object()}, 0.0, changed=False)  # no ROS parameter type holds this
-        recorder.on_states([STATE], "slideway")
+        recorder.write(MessageRecord("drive_force", Float64(data=0.5), 1))
+        recorder.write(MessageRecord("drive_force", String(data="not a force"), 2))  # another type on the same topic
+        recorder.write(ParametersRecord({"odd": object()}, 0.0, False))  # no ROS parameter type holds this
+        recorder.write(StatesRecord((STATE,), "slideway"))
     assert recorder.stats.dropped == 2 and recorder.stats.error is None
     recording = read_recording(path)
     assert recording.complete and len(recording.messages_on("drive_force")) == 1 and recording.dropped == 2
@@ -358,7 +367,7 @@ def test_recorded_states_are_on_the_grid_whatever_the_tick_times(tmp_path: Path)
             while commands and commands[0] <= wall:
                 when = int(commands.pop(0))
                 command = Command(0.0, "drive_force", {"drive_force": float(rng.uniform(-1, 1))})
-                recorder.on_command(rt.command(command, when), "")
+                recorder.write(CommandRecord(rt.command(command, when), ""))
             deliver_tick([recorder], rt.tick(wall), "slideway")
     recording = read_recording(path, require_friction_sim=False)
     times = np.array([raw.log_time for raw in recording.messages_on("pose")])

@@ -25,6 +25,7 @@ from friction_sim.core.model.events import Mode, SliderState
 from friction_sim.errors import RecordingPathError
 from friction_sim.io.reader import read_recording
 from friction_sim.io.recorder import Recorder
+from friction_sim.io.sinks import StatesRecord
 
 STATE = SliderState(t=0.0, x=1.5e-4, v=-2.5e-3, acceleration=0.3, friction_force=-0.95, normal_force=9.5,
                     phase=1.0, mode=Mode.BACKWARD)
@@ -90,7 +91,7 @@ from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import RecordingPathError
 from friction_sim.io.recorder import Recorder, plant_parameters, recording_metadata
-from friction_sim.io.sinks import deliver_tick
+from friction_sim.io.sinks import ParametersRecord, deliver_tick
 params, inputs = SliderParams(), Inputs()
 try:
     recorder = Recorder(path, recording_metadata(params, inputs, log_rate=1000.0), flush_interval=0.02,
@@ -98,8 +99,8 @@ try:
 except RecordingPathError as error:
     print(json.dumps({"start_error": str(error)}))
     sys.exit(0)
-recorder.on_parameters({**plant_parameters(params, inputs), "log_rate": 1000.0, "frame_id": "slideway",
-                        "mean_window_periods": 1}, 0.0, changed=False)
+recorder.write(ParametersRecord({**plant_parameters(params, inputs), "log_rate": 1000.0, "frame_id": "slideway",
+                                 "mean_window_periods": 1}, 0.0, False))
 rt = RealtimeSlider(params, inputs, wall_ns=0, real_time_factor=10.0, log_rate=1000.0)
 waits_after, puts_after, failed_at = 0, 0, None
 for k in range(1, ticks + 1):
@@ -209,7 +210,8 @@ def test_a_disk_that_fills_wakes_a_waiting_producer_and_later_puts_are_counted_n
 
     def produce() -> None:
         for first in range(0, 40_000, 100):
-            recorder.on_states(states(first, 100), "slideway")  # 300 messages: the queue holds one such put
+            # 300 messages: the queue holds one such put
+            recorder.write(StatesRecord(tuple(states(first, 100)), "slideway"))
         produced.set()
 
     producer = threading.Thread(target=produce)
@@ -223,7 +225,7 @@ def test_a_disk_that_fills_wakes_a_waiting_producer_and_later_puts_are_counted_n
     assert written > 0 and recorder.dropped == 0
     assert written + recorder.unrecorded == 120_000, "every message is in the file or counted"
     before, waits = recorder.unrecorded, recorder.waits
-    recorder.on_states(states(50_000, 1000), "slideway")
+    recorder.write(StatesRecord(tuple(states(50_000, 1000)), "slideway"))
     assert recorder.waits == waits and recorder.unrecorded == before + 3000, "refused at once, counted"
     stats = recorder.finish()
     assert stats.error == recorder.error and stats.messages == written and recorder.finish() is stats
@@ -249,9 +251,9 @@ class CrashingRecorder(Recorder):
 def test_a_writer_that_crashes_releases_the_waiting_producer(tmp_path: Path) -> None:
     recorder = CrashingRecorder(tmp_path / "crash.mcap", metadata={"mass": 1.0}, queue_size=9)
     done = threading.Event()
-    producer = threading.Thread(target=lambda: (recorder.on_states(states(0, 100), "slideway"),
-                                                [recorder.on_states([s], "slideway") for s in states(100, 50)],
-                                                done.set()))
+    producer = threading.Thread(target=lambda: (
+        recorder.write(StatesRecord(tuple(states(0, 100)), "slideway")),
+        [recorder.write(StatesRecord((s,), "slideway")) for s in states(100, 50)], done.set()))
     producer.start()
     assert not done.wait(0.5), "the producer waits while the writer works"
     recorder.gate.set()
@@ -276,7 +278,7 @@ def test_a_producer_never_waits_for_a_writer_thread_that_is_gone(tmp_path: Path)
     while recorder.writer_alive:
         time.sleep(0.01)
     for state in states(0, 10):  # a wait on a full queue nobody empties would never end
-        recorder.on_states([state], "slideway")
+        recorder.write(StatesRecord((state,), "slideway"))
     assert recorder.dropped == 3 * 7, "3 states fit in the queue; the rest is counted"
     assert recorder.finish().dropped == 30, "and the 3 states no writer took are counted at finish"
 
@@ -292,7 +294,7 @@ def test_a_disk_that_fills_at_finish_is_reported_by_finish_not_raised(tmp_path: 
         room = start + 10  # what is written at start fits, the first chunk does not
 
     recorder = LateRecorder(path, metadata={"mass": 1.0}, flush_interval=3600.0)  # nothing written before finish
-    recorder.on_states(states(0, 10), "slideway")
+    recorder.write(StatesRecord(tuple(states(0, 10)), "slideway"))
     assert recorder.error is None
     stats = recorder.finish()
     assert stats.error == recorder.error and stats.error is not None

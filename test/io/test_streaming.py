@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 
 from friction_sim.core.model.commands import Command
+from friction_sim.experiment.offline import record_offline
 from friction_sim.experiment.report import PICTURE_POINTS, build_report, run_data_from_recording
-from friction_sim.io.offline import record_offline
+from friction_sim.experiment.verify import verify
 from friction_sim.io.reader import read_recording
 from friction_sim.io.series import Thinner
-from friction_sim.io.verify import verify
 
 from recording_helpers import copy_recording
 

@@ -24,6 +24,18 @@ import pytest
 from rclpy.parameter import Parameter
 
 from friction_sim.errors import LiveViewError
+from friction_sim.io.reader import read_recording
+from friction_sim.io.sinks import (
+    AccelerationsRecord,
+    ClockRecord,
+    CommandRecord,
+    EventRecord,
+    MessageRecord,
+    ParametersRecord,
+    PeriodRecord,
+    Record,
+    StatesRecord,
+)
 from friction_sim.ros.slider import SliderNode
 
 from foxglove_client import FoxgloveClient, Received
@@ -131,6 +143,58 @@ def test_a_client_receives_what_the_node_publishes(live: LiveRig) -> None:
     assert max(p.log_time_ns for p in poses) == step_end == round(live.node.realtime.slider.t * 1e9)
     stats = live.node.live.stats()  # type: ignore[union-attr]
     assert stats["live_view_clients"] == 1 and stats["live_view_sent"] > 0 and not stats["live_view_error"]
+
+
+class RecordLog:
+    """A sink beside the recorder and the live view: keeps every record the node hands its sinks."""
+
+    def __init__(self) -> None:
+        self.records: list[Record] = []
+
+    def write(self, record: Record) -> bool:
+        self.records.append(record)
+        return True
+
+    def close(self) -> None: ...
+
+
+def test_clock_and_diagnostics_reach_the_sinks_by_the_one_path_and_the_recording_holds_no_clock(
+        ros: None, tmp_path: Path) -> None:
+    """With publish_clock the node hands /clock to its sinks as it publishes it: the live
+    view serves it (stamped with the simulation time it carries), the recording keeps none
+    (its log times are that time already); a sink the node was given gets every kind of
+    record the recorder and the live view get, /clock and diagnostics included."""
+    ns, path, log = namespace(), tmp_path / "run.mcap", RecordLog()
+    node = SliderNode(namespace=ns, parameter_overrides=[
+        Parameter("foxglove_port", value=ANY_PORT), Parameter("log_path", value=str(path)),
+        Parameter("publish_clock", value=True), Parameter("diagnostics_period", value=0.2)])
+    node.sinks.append(log)
+    probe = Probe(ns, node)
+    try:
+        assert node.live is not None
+        with FoxgloveClient(node.live.url) as client:
+            client.subscribe("/clock")
+            clocks = client.collect(until=lambda got: len(got) >= 100, timeout=60.0)
+        probe.send("drive_force", 0.5)
+        assert node.set_parameters([Parameter("frame_id", value="slideway")])[0].successful
+        assert probe.spin_until(lambda: any(isinstance(r, CommandRecord) for r in log.records)
+                                and any(isinstance(r, MessageRecord) and r.topic == "diagnostics"
+                                        for r in log.records), 60.0)
+    finally:
+        probe.close()
+        node.destroy_node()
+    assert len(clocks) >= 100 and all(c.topic == "/clock" for c in clocks)
+    stamps = [c.log_time_ns for c in clocks]
+    assert stamps == sorted(set(stamps)), "each tick's time once, in order"
+    assert all(c.message.clock.sec * 1_000_000_000 + c.message.clock.nanosec == c.log_time_ns for c in clocks)
+    kinds = {type(r) for r in log.records}
+    assert {ParametersRecord, StatesRecord, PeriodRecord, EventRecord, CommandRecord, ClockRecord,
+            MessageRecord} <= kinds, kinds
+    assert all(isinstance(r, (StatesRecord, EventRecord, PeriodRecord, AccelerationsRecord, CommandRecord,
+                              ParametersRecord, ClockRecord, MessageRecord)) for r in log.records)
+    recording = read_recording(path)
+    assert recording.topic_name("/clock") is None and recording.count(recording.topic_name("pose") or "") > 100
+    assert recording.topic_name("diagnostics") is not None
 
 
 def test_a_taken_port_stops_the_node_at_start_naming_it(ros: None) -> None:

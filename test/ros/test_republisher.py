@@ -19,8 +19,9 @@ from rclpy.executors import SingleThreadedExecutor
 from friction_sim.cli.progress import TerminalProgress
 from friction_sim.core.model.commands import Command
 from friction_sim.errors import RecordingError
-from friction_sim.io.offline import record_offline
+from friction_sim.experiment.offline import record_offline
 from friction_sim.io.reader import read_recording
+from friction_sim.io.sinks import StatesRecord
 from friction_sim.ros.republisher import publish
 
 from recording_helpers import plain
@@ -171,7 +172,7 @@ def test_publish_moves_a_namespaced_recording_and_streams_it(ros: None, tmp_path
         slider.advance_to(k / 100)
         states.append(slider.state())
     with Recorder(path, recording_metadata(SliderParams(), Inputs(), log_rate=100.0), namespace="/feeder1") as rec:
-        rec.on_states(states, "slideway")
+        rec.write(StatesRecord(tuple(states), "slideway"))
     recording = read_recording(path)
     assert "/feeder1/pose" in recording.topics
     monkeypatch.setattr(Recording, "messages", property(lambda self: pytest.fail("read the whole file")))

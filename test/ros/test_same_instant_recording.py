@@ -11,8 +11,8 @@ from pathlib import Path
 from rclpy.parameter import Parameter
 
 from friction_sim.core.model.commands import PARAMETERS
+from friction_sim.experiment.verify import recorded_commands, verify
 from friction_sim.io.reader import read_recording
-from friction_sim.io.verify import recorded_commands, verify
 from friction_sim.ros.slider import SliderNode
 
 from ros_harness import Probe, namespace

@@ -23,8 +23,8 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.model.commands import Outcome
 from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.experiment.verify import recorded_commands, verify
 from friction_sim.io.reader import read_recording
-from friction_sim.io.verify import recorded_commands, verify
 from friction_sim.ros.slider import SliderNode
 
 from ros_harness import OUTPUTS, CommandLog, Probe, diagnostics_values, namespace, stamp_ns

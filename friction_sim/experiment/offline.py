@@ -3,8 +3,10 @@
 :func:`record_offline` drives :class:`~friction_sim.core.runtime.realtime.RealtimeSlider`
 with a counter instead of a wall clock and hands what it produces to a
 :class:`~friction_sim.io.recorder.Recorder` through the same sink calls as
-the node (:func:`~friction_sim.io.sinks.deliver_tick`, ``on_command``,
-``on_parameters``), so an offline recording and a live one are the same file.
+the node (:func:`~friction_sim.io.sinks.deliver_tick`, a
+:class:`~friction_sim.io.sinks.CommandRecord` per command, a
+:class:`~friction_sim.io.sinks.ParametersRecord` at start), so an offline
+recording and a live one are the same file.
 Commands reach it as they reach the node: topic commands through
 :meth:`~friction_sim.core.runtime.realtime.RealtimeSlider.commands` (a tick's
 take), a ``parameters`` command through
@@ -28,7 +30,7 @@ from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import ParameterError
 from friction_sim.io.messages import seconds_to_ns
 from friction_sim.io.recorder import Recorder, RecordingStats, plant_parameters, recording_metadata
-from friction_sim.io.sinks import deliver_tick
+from friction_sim.io.sinks import CommandRecord, ParametersRecord, deliver_tick
 
 
 def record_offline(
@@ -66,8 +68,8 @@ def record_offline(
     options = {"block_when_full": True, "setting": "path", **(recorder_options or {})}
     with Recorder(path, recording_metadata(params, inputs, log_rate=log_rate, frame_id=frame_id, **extra),
                   **options) as recorder:
-        recorder.on_parameters({**plant_parameters(params, inputs), "log_rate": float(log_rate),
-                                "frame_id": frame_id, "mean_window_periods": mean_window_periods}, 0.0, changed=False)
+        recorder.write(ParametersRecord({**plant_parameters(params, inputs), "log_rate": float(log_rate),
+                                         "frame_id": frame_id, "mean_window_periods": mean_window_periods}, 0.0, False))
         _run(rt, recorder, batches, seconds_to_ns(duration), rate, frame_id)
     return recorder.stats
 
@@ -83,7 +85,7 @@ def _run(rt: RealtimeSlider, recorder: Recorder, batches: list[tuple[int, list[C
         while pending and pending[-1][0] <= tick_ns:
             t_ns, batch = pending.pop()
             for outcome in _handle(rt, batch, t_ns):
-                recorder.on_command(outcome, frame_id)
+                recorder.write(CommandRecord(outcome, frame_id))
         deliver_tick([recorder], rt.tick(tick_ns), frame_id)
         if tick_ns >= end_ns:
             return

@@ -11,9 +11,9 @@ import pytest
 from friction_sim.cli.replay import run
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.runtime.simulation import random_schedule
-from friction_sim.io.offline import record_offline
+from friction_sim.experiment.offline import record_offline
+from friction_sim.experiment.verify import verify
 from friction_sim.io.reader import read_recording
-from friction_sim.io.verify import verify
 
 from recording_helpers import replay_args, rewrite
 

@@ -21,12 +21,12 @@ from friction_sim.core.model.commands import COMMANDS, PARAMETERS, RESET, Comman
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import ParameterError
-from friction_sim.io.offline import record_offline
+from friction_sim.experiment.offline import record_offline
+from friction_sim.experiment.verify import recorded_commands, sample_times, verify
 from friction_sim.io.reader import read_recording
 from friction_sim.io.recorder import Recorder, plant_parameters, recording_metadata
 from friction_sim.io.series import POSITION_XZ, VELOCITY_XZ, state_blocks
-from friction_sim.io.sinks import deliver_tick
-from friction_sim.io.verify import recorded_commands, sample_times, verify
+from friction_sim.io.sinks import CommandRecord, ParametersRecord, deliver_tick
 
 from recording_helpers import replay_args
 
@@ -45,8 +45,8 @@ class NodeRun:
     def __init__(self, path: Path, params: SliderParams, inputs: Inputs) -> None:
         self.rt = RealtimeSlider(params, inputs, wall_ns=0, publish_rate=1e9 / TICK_NS, log_rate=LOG_RATE)
         self.recorder = Recorder(path, recording_metadata(params, inputs, log_rate=LOG_RATE), block_when_full=True)
-        self.recorder.on_parameters({**plant_parameters(params, inputs), "log_rate": LOG_RATE,
-                                     "frame_id": "slideway"}, 0.0, changed=False)
+        self.recorder.write(ParametersRecord({**plant_parameters(params, inputs), "log_rate": LOG_RATE,
+                                              "frame_id": "slideway"}, 0.0, False))
         self.wall_ns = 0
 
     def ticks(self, n: int) -> None:
@@ -70,7 +70,7 @@ class NodeRun:
 
     def record(self, outcome: Outcome) -> None:
         assert outcome.accepted, outcome.reason
-        self.recorder.on_command(outcome, "slideway")
+        self.recorder.write(CommandRecord(outcome, "slideway"))
 
     def close(self) -> None:
         self.recorder.finish()

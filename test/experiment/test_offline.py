@@ -8,8 +8,8 @@ import numpy as np
 
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.runtime.simulation import random_schedule, run_schedule
+from friction_sim.experiment.offline import record_offline
 from friction_sim.io import messages as M
-from friction_sim.io.offline import record_offline
 from friction_sim.io.reader import read_recording
 
 
