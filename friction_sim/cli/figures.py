@@ -33,6 +33,8 @@ import numpy as np
 
 from friction_sim.core.meanspeed.urelation import UMap
 from friction_sim.core.model.events import EventKind, Mode
+from friction_sim.core.model.params import Inputs
+from friction_sim.core.physics.plant import steady_excitation
 from friction_sim.core.runtime.simulation import SimulationResult
 from friction_sim.experiment.report import RunData, SegmentRow, inputs_at
 
@@ -489,22 +491,41 @@ def _hollow(ax: Any, x: np.ndarray, u: np.ndarray, periodic: np.ndarray, colour:
                 linewidth=0.0)
 
 
-def report_figure(data: RunData, rows: Sequence[SegmentRow]) -> Figure:
-    """Target and measured mean speed, Pa, Fd and f against time, the
-    segments' starts marked."""
-    fig = pyplot_free_figure(figsize=(10.0, 9.0), layout="constrained")
-    ax_v, ax_pa, ax_fd, ax_f = fig.subplots(4, 1, sharex=True)
-    _speed_panel(ax_v, data, rows)
+def input_panels(data: RunData) -> list[tuple[str, list[float], list[float]]]:
+    """The report picture's input panels as (label, times, values) steps: what the
+    plant acts on.  The force actuator: Pa, Fd, f.  The resonant one (whose Pa is
+    no input): its drive level u, the slideway's steady normal acceleration
+    amplitude u*A*G(f/f_n) [m/s^2] at each, Fd and f."""
     times = [0.0] + [c.t for c in data.commands] + [data.duration]
     states = [data.inputs] + [inputs_at(data, c.t) for c in data.commands]
-    for axis, name, label in ((ax_pa, "excitation_amplitude", "Pa [N]"), (ax_fd, "drive_force", "Fd [N]"),
-                              (ax_f, "excitation_frequency", "f [Hz]")):
-        axis.step(times, [getattr(s, name) for s in states] + [getattr(states[-1], name)], where="post")
+    params = data.params
+    quantities: list[tuple[str, Callable[[Inputs], float]]] = [
+        ("Pa [N]", lambda i: i.excitation_amplitude)]
+    if params.resonant:
+        quantities = [("drive level u", lambda i: i.drive_level),
+                      ("slideway [m/s$^2$]", lambda i: steady_excitation(params, i)[0] / params.mass)]
+    quantities += [("Fd [N]", lambda i: i.drive_force), ("f [Hz]", lambda i: i.excitation_frequency)]
+    panels = []
+    for label, of in quantities:
+        values = [of(state) for state in states]
+        panels.append((label, times, values + values[-1:]))
+    return panels
+
+
+def report_figure(data: RunData, rows: Sequence[SegmentRow]) -> Figure:
+    """Target and measured mean speed, and the inputs in force (:func:`input_panels`)
+    against time, the segments' starts marked."""
+    panels = input_panels(data)
+    fig = pyplot_free_figure(figsize=(10.0, 9.0 + 1.8 * (len(panels) - 3)), layout="constrained")
+    ax_v, *axes = fig.subplots(1 + len(panels), 1, sharex=True)
+    _speed_panel(ax_v, data, rows)
+    for axis, (label, times, values) in zip(axes, panels):
+        axis.step(times, values, where="post")
         axis.set_ylabel(label)
     for r in rows[1:]:
-        for axis in (ax_v, ax_pa, ax_fd, ax_f):
+        for axis in (ax_v, *axes):
             axis.axvline(r.start, color="0.8", linewidth=0.7, zorder=0)
-    ax_f.set_xlabel("simulation time [s]")
+    axes[-1].set_xlabel("simulation time [s]")
     fig.suptitle(data.name)
     return fig
 

@@ -316,3 +316,24 @@ def slider_speed(params: SliderParams, inputs: Inputs, t: float) -> float:
     slider = Slider(params, inputs)
     slider.advance_to(t)
     return slider.state().v
+
+
+def test_the_report_picture_shows_a_resonant_plant_by_drive_level_and_slideway_amplitude() -> None:
+    from friction_sim.cli.figures import input_panels, report_figure
+    from friction_sim.core.physics.plant import steady_excitation
+    from friction_sim.experiment.report import build_report
+
+    params = SliderParams(actuator="resonant", natural_frequency=52.0)
+    data = RunData(params=params, inputs=Inputs(drive_level=0.4), duration=2.0, name="resonant steps",
+                   schedule=[Command(1.0, "drive_level", {"drive_level": 0.7})],
+                   commands=[Command(1.0, "drive_level", {"drive_level": 0.7})],
+                   mean_velocity=[(0.02 * k, 2e-4 if k < 50 else 4e-4) for k in range(1, 100)])
+    panels = {label: (times, values) for label, times, values in input_panels(data)}
+    assert list(panels) == ["drive level u", "slideway [m/s$^2$]", "Fd [N]", "f [Hz]"]
+    assert panels["drive level u"] == ([0.0, 1.0, 2.0], [0.4, 0.7, 0.7])
+    slideway = [steady_excitation(params, Inputs(drive_level=u))[0] / params.mass for u in (0.4, 0.7, 0.7)]
+    assert panels["slideway [m/s$^2$]"][1] == slideway and slideway[1] > slideway[0] > 0.0
+    labels = [axis.get_ylabel() for axis in report_figure(data, build_report(data)).axes]
+    assert labels[1:] == list(panels) and not any("Pa" in label for label in labels)
+    # the force actuator keeps its Pa
+    assert [label for label, _, _ in input_panels(report_data())] == ["Pa [N]", "Fd [N]", "f [Hz]"]
