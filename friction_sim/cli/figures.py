@@ -416,8 +416,8 @@ def reduction_figure(curves: ReductionCurves) -> Figure:
     fig = pyplot_free_figure(figsize=(11.0, 4.8), layout="constrained")
     left, right = fig.subplots(1, 2, sharey=True)
     params = curves.params
-    for ratio, row in zip(curves.ratios, curves.by_speed):
-        left.plot(curves.speeds * 1e3, row, linewidth=1.3, label=f"Pa/Q = {ratio:g}")
+    for ratio, speeds, row in zip(curves.ratios, curves.speeds, curves.by_speed):
+        left.plot(speeds * 1e3, row, linewidth=1.3, label=f"Pa/Q = {ratio:g}")
     for speed, row in zip(curves.marked_speeds, curves.by_amplitude):
         right.plot(curves.amplitudes, row, linewidth=1.3, label=f"V = {speed * 1e3:g} mm/s")
     left.set_xlabel("mean speed V [mm/s]")

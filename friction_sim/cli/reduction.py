@@ -42,9 +42,9 @@ def features(curves: ReductionCurves) -> list[str]:
     """What the curves say, as lines of text."""
     lines = [f"mu = {curves.params.mu:g}, g = {curves.params.gravity:g} m/s^2, f = {curves.frequency:g} Hz "
              f"({'closed form' if curves.closed_form else 'general model, bisection on the exact mean speed'})"]
-    for ratio, row in zip(curves.ratios, curves.by_speed):
+    for ratio, speeds, row in zip(curves.ratios, curves.speeds, curves.by_speed):
         reached = np.isfinite(row)
-        top = curves.speeds[reached][-1] if np.any(reached) else 0.0
+        top = speeds[reached][-1] if np.any(reached) else 0.0
         lines.append(f"Pa/Q = {ratio:g}: mu_app/mu = {row[0]:.4g} at V -> 0 (breakaway), "
                      f"{row[reached][-1]:.4g} at {top * 1e3:.4g} mm/s" if np.any(reached) else
                      f"Pa/Q = {ratio:g}: no steady stick-slip in the range")

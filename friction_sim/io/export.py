@@ -72,7 +72,7 @@ def write_reduction_csv(curves: ReductionCurves, path: Path) -> Path:
         writer = csv.writer(stream)
         writer.writerow(REDUCTION_COLUMNS)
         for i, ratio in enumerate(curves.ratios):
-            for j, speed in enumerate(curves.speeds):
+            for j, speed in enumerate(curves.speeds[i]):
                 writer.writerow(_reduction_row("speed", ratio, speed, curves.by_speed[i, j], mu))
         for i, speed in enumerate(curves.marked_speeds):
             for j, ratio in enumerate(curves.amplitudes):

@@ -31,6 +31,10 @@ def test_the_curves_under_lomakin_s_conditions(tmp_path: Path) -> None:
         assert float(row["apparent_friction"]) == pytest.approx(0.156 * phi, rel=1e-15)
         if ratio > 0.0:  # the forward relation gives back the speed (U = V f/(g mu))
             assert u_map(phi, ratio) * 10.0 * 0.156 / 100.0 == pytest.approx(speed, rel=1e-11, abs=1e-18)
+    for ratio in (0.2, 0.4, 0.6, 0.8):  # every curve keeps its exact end point: U = a/(2 pi), phi = 1
+        last = [r for r in rows if r["view"] == "speed" and float(r["amplitude_ratio"]) == ratio][-1]
+        assert last["apparent_friction_ratio"] == "1.0"
+        assert float(last["mean_speed"]) == pytest.approx(ratio * 10.0 * 0.156 / (2 * math.pi * 100.0), rel=1e-15)
     first = next(r for r in rows if r["view"] == "speed" and float(r["amplitude_ratio"]) == 0.4)
     assert float(first["mean_speed"]) == 0.0 and float(first["apparent_friction_ratio"]) == pytest.approx(0.6)
     assert math.isclose(float(first["apparent_friction"]), 0.156 * 0.6, rel_tol=1e-15)

@@ -59,7 +59,8 @@ BISECTIONS = 52
 class ReductionCurves:
     """mu_app/mu (the drive ratio phi) needed to slide at a mean speed, two ways:
     ``by_speed[i, j]`` at amplitude ratio ``ratios[i]`` (a = Pa/Q, Q = m g) and
-    mean speed ``speeds[j]`` [m/s]; ``by_amplitude[i, j]`` at mean speed
+    mean speed ``speeds[i, j]`` [m/s] (each curve its own speeds: see
+    :func:`reduction_curves`); ``by_amplitude[i, j]`` at mean speed
     ``marked_speeds[i]`` and amplitude ratio ``amplitudes[j]``.  NaN where no
     steady stick-slip reaches that speed (only a slider that runs away would go
     faster).  ``closed_form``: Kostek's exact inverse (else the general mean speed's)."""
@@ -131,26 +132,40 @@ def _speed(phi: Floats, a: Floats, params: SliderParams, frequency: float) -> Fl
     return np.asarray(batch.mean_velocity, dtype=float).reshape(phi.shape)
 
 
+def speed_fractions(points: int) -> Floats:
+    """Where a curve's ``points`` lie, as fractions 0..1 of its speed range: squares
+    of an even grid.  From breakaway phi rises as the square root of the speed
+    (dphi/dV is infinite at V = 0), so an even grid in V draws that vertical rise as
+    one straight segment; on this one phi steps about evenly there too."""
+    fractions: Floats = np.linspace(0.0, 1.0, points) ** 2
+    return fractions
+
+
 def reduction_curves(params: SliderParams = LOMAKIN, frequency: float = LOMAKIN_FREQUENCY, *,
                      ratios: ArrayLike = (0.2, 0.4, 0.6, 0.8), marked_speeds: ArrayLike = (2e-4, 5e-4, 1e-3),
                      points: int = 101) -> ReductionCurves:
-    """Both views of the reduction: against the mean speed, from 0 to the fastest
-    periodic stick-slip of the largest ratio (a g mu/(2 pi f) on Kostek's model),
-    at each of ``ratios``; against the amplitude ratio, from 0 to the largest of
+    """Both views of the reduction: against the mean speed at each of ``ratios``,
+    from 0 to that ratio's fastest periodic stick-slip on Kostek's model (U = a/(2
+    pi), where phi = 1 exactly; beyond his model, to the largest ratio's), the
+    points closer toward 0 (:func:`speed_fractions`); against the amplitude ratio, from 0 to the largest of
     ``ratios`` (below 1: Kostek's model has no hop), at each of ``marked_speeds``."""
     ratios_ = np.asarray(ratios, dtype=float)
     marked = np.asarray(marked_speeds, dtype=float)
     if points < 2 or ratios_.size == 0 or marked.size == 0:
         raise ParameterError("points", points, "need at least 2 points, one ratio and one speed")
-    # U = a/(2 pi) at |phi| = 1: its 2 pi joins the frequency, a*g*mu/(2 pi f)
-    fastest = dimensional_speed(float(np.max(ratios_)), TWO_PI * frequency, params.gravity, params.mu)
-    speeds = np.linspace(0.0, fastest, points)
     amplitudes = np.linspace(0.0, float(np.max(ratios_)), points)
-    by_speed = apparent_friction_ratio(speeds[None, :], ratios_[:, None], params, frequency)
-    by_amplitude = apparent_friction_ratio(marked[:, None], amplitudes[None, :], params, frequency)
     closed = _closed_form(params, np.concatenate([ratios_, amplitudes]))
+    # each curve's end: U = a/(2 pi), phi = 1 (Kostek's model: its own ratio's; beyond it, the largest's)
+    top_u = (ratios_ if closed else np.full(ratios_.shape, np.max(ratios_))) / TWO_PI
+    u = top_u[:, None] * speed_fractions(points)[None, :]
+    speeds = dimensional_speed(u, frequency, params.gravity, params.mu)
+    if closed:  # from U itself: its end is a/(2 pi) exactly, where phi = 1 (a round trip through V may overshoot)
+        by_speed = np.asarray(drive_ratio_for(u, ratios_[:, None]), dtype=float)
+    else:
+        by_speed = apparent_friction_ratio(speeds, ratios_[:, None], params, frequency)
+    by_amplitude = apparent_friction_ratio(marked[:, None], amplitudes[None, :], params, frequency)
     return ReductionCurves(params, frequency, ratios_, speeds, by_speed, marked, amplitudes, by_amplitude, closed)
 
 
 __all__ = ["BISECTIONS", "LOMAKIN", "LOMAKIN_FREQUENCY", "ReductionCurves", "apparent_friction_ratio",
-           "reduction_curves", "runaway_ratio"]
+           "reduction_curves", "runaway_ratio", "speed_fractions"]

@@ -29,14 +29,15 @@ def test_lomakin_s_conditions_give_the_exact_inverse_and_its_ends() -> None:
     curves = reduction_curves(points=41)
     assert curves.closed_form and curves.params == LOMAKIN and curves.frequency == LOMAKIN_FREQUENCY
     assert np.array_equal(curves.by_speed[:, 0], 1.0 - curves.ratios), "breakaway under the vibration"
-    assert curves.by_speed[-1, -1] == 1.0, "the largest ratio's fastest stick-slip needs the full friction"
+    assert np.array_equal(curves.by_speed[:, -1], np.ones(curves.ratios.size)), \
+        "each ratio's fastest stick-slip needs the full friction: every curve reaches 1"
     g, mu, f = LOMAKIN.gravity, LOMAKIN.mu, LOMAKIN_FREQUENCY
-    for ratio, row in zip(curves.ratios, curves.by_speed):
-        reached = np.isfinite(row)
-        assert np.all(np.diff(row[reached]) > 0.0), "faster needs more drive: the friction seems larger"
-        assert np.all(curves.speeds[~reached] > ratio * g * mu / (2 * math.pi * f)), "NaN only beyond phi = 1"
-        speeds = np.asarray(u_map(row[reached], ratio)) * g * mu / f
-        assert speeds == pytest.approx(curves.speeds[reached], rel=1e-11, abs=1e-18)
+    for ratio, speeds, row in zip(curves.ratios, curves.speeds, curves.by_speed):
+        assert np.all(np.isfinite(row)), "no point dropped: each curve ends at its own fastest speed"
+        assert np.all(np.diff(row) > 0.0), "faster needs more drive: the friction seems larger"
+        assert speeds[0] == 0.0 and speeds[-1] == pytest.approx(ratio * g * mu / (2 * math.pi * f), rel=1e-15)
+        forward = np.asarray(u_map(row, ratio)) * g * mu / f
+        assert forward == pytest.approx(speeds, rel=1e-11, abs=1e-18)
     for row in curves.by_amplitude:
         reached = np.isfinite(row)
         assert np.all(np.diff(row[reached]) < 0.0), "more vibration, less apparent friction at the same speed"
@@ -63,7 +64,7 @@ def test_beyond_kostek_s_model_the_phi_found_gives_the_speed_asked_for() -> None
     assert not curves.closed_form
     assert np.any(curves.by_speed < 0.0), "a tilted vibration conveys by itself: a braking force holds the speed"
     for ratio, row in zip(curves.ratios, curves.by_speed):
-        for speed, phi in zip(curves.speeds[1::3], row[1::3]):
+        for speed, phi in zip(curves.speeds[0][1::3], row[1::3]):
             if not math.isfinite(phi):
                 continue
             weight = params.weight
@@ -82,3 +83,15 @@ def test_bad_inputs_are_refused_naming_them() -> None:
         apparent_friction_ratio(1e-4, 0.5, LOMAKIN, 0.0)
     with pytest.raises(ParameterError, match="points"):
         reduction_curves(points=1)
+
+
+@pytest.mark.parametrize("ratio", [0.2, 0.6, 0.8])
+def test_the_rise_from_breakaway_is_drawn_not_jumped(ratio: float) -> None:
+    """phi rises as the square root of the speed from breakaway (1 - a), vertically
+    at V = 0: the first step of a curve must be a small part of its whole rise, as
+    small as the later steps (on an even grid in V, a = 0.8 jumped 0.2 -> 0.29 at
+    once, 11 % of the rise to 1, in the first of 100 steps)."""
+    curves = reduction_curves(ratios=(ratio,), points=101)
+    row = curves.by_speed[0]
+    steps = np.diff(row) / (row[-1] - row[0])
+    assert steps[0] < 0.02 and steps[0] <= 2.0 * np.median(steps)
