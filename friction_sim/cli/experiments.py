@@ -7,6 +7,14 @@ report (``<name>.md`` and ``<name>.png``) from that recording alone, exactly
 as ``friction-sim report`` would.
 
 ``report_recording``: that report, from any recording (``friction-sim report``).
+
+Both judge the scenario's ``expect`` entries (the recording holds the
+scenario's text), print a line for each with PASS or FAIL and what was
+measured, add them to the Markdown report, and exit 1 when one fails, so a
+scenario stands in CI as a test.  The table's settling column uses the band
+each segment's ``expect`` states.  An expectation on the amplitude per unit
+drive needs the controller's drive readings, which the live run has and a
+recording does not: ``report`` says NOT JUDGED for it.
 """
 
 from __future__ import annotations
@@ -22,6 +30,8 @@ from friction_sim.cli.options import Verb, add_foxglove
 from friction_sim.cli.progress import TerminalProgress
 from friction_sim.core.runtime.progress import Progress
 from friction_sim.errors import FrictionSimError
+from friction_sim.experiment.acceptance import Verdict, judge, judged, verdict_line
+from friction_sim.experiment.job import ExperimentResult
 from friction_sim.experiment.report import (
     RunData,
     SegmentRow,
@@ -32,6 +42,9 @@ from friction_sim.experiment.report import (
 )
 from friction_sim.experiment.scenario import load_scenario
 
+#: The exit status of ``experiment`` and ``report`` when an ``expect`` entry was judged and failed.
+EXIT_EXPECTATION_FAILED = 1
+
 
 @dataclass(frozen=True)
 class JobOutput:
@@ -41,6 +54,13 @@ class JobOutput:
     recording: Path
     picture: Path
     report: Path
+    #: The scenario's ``expect`` judged (empty: it states none, or the recording holds no scenario).
+    verdicts: list[Verdict] = dataclasses.field(default_factory=list)
+
+    @property
+    def failed(self) -> bool:
+        """Whether an expectation was judged and not met."""
+        return any(not verdict.met for verdict in judged(self.verdicts))
 
 
 def run_scenario(path: Path, *, output: Path | None = None, attach: str | None = None,
@@ -67,30 +87,41 @@ def run_scenario(path: Path, *, output: Path | None = None, attach: str | None =
     pace = "in lockstep, as fast as it computes" if spec.lockstep else f"at {scenario.real_time_factor:g}x real time"
     print(f"running {path} ({scenario.duration:g} s simulated {pace})", file=stream)
     try:
-        run_standalone(spec, namespace=attach or scenario.namespace, attach=attach is not None,
-                       progress=lambda now: live.show(now.line(), step=int(now.t)))
+        result = run_standalone(spec, namespace=attach or scenario.namespace, attach=attach is not None,
+                                progress=lambda now: live.show(now.line(), step=int(now.t)))
     finally:
         live.close()
-    return report_recording(recording, folder, stream=stream)
+    return report_recording(recording, folder, stream=stream, live=result)
 
 
-def report_recording(recording: Path, folder: Path | None = None, *, stream: TextIO = sys.stdout) -> JobOutput:
-    """Build the report of a recording (``friction-sim report``) and print the table."""
+def report_recording(recording: Path, folder: Path | None = None, *, stream: TextIO = sys.stdout,
+                     live: ExperimentResult | None = None) -> JobOutput:
+    """Build the report of a recording (``friction-sim report``), print the table and
+    the ``expect`` verdicts (judged on ``live``, the run's own series, when given;
+    else on the recording's mean speeds)."""
     data = run_data_from_recording(recording)
-    rows, markdown, picture = write_report(data, folder or recording.parent, recording.stem)
+    verdicts = [] if data.scenario is None else judge(data.scenario, live or ExperimentResult(
+        mean_velocity=data.all_mean_velocity, duration=data.duration))
+    rows, markdown, picture = write_report(data, folder or recording.parent, recording.stem, verdicts)
     print(table_text(rows), file=stream)
+    for verdict in verdicts:
+        print(verdict_line(verdict), file=stream)
     print(f"recording: {recording}\npicture:   {picture}\nreport:    {markdown}", file=stream)
-    return JobOutput(rows, recording, picture, markdown)
+    return JobOutput(rows, recording, picture, markdown, verdicts)
 
 
-def write_report(data: RunData, folder: Path, stem: str) -> tuple[list[SegmentRow], Path, Path]:
+def write_report(data: RunData, folder: Path, stem: str,
+                 verdicts: list[Verdict] | None = None) -> tuple[list[SegmentRow], Path, Path]:
     """Write <stem>.md and <stem>.png into ``folder``; return rows and paths."""
     from friction_sim.cli.figures import report_figure, save_figure
 
     rows = build_report(data)
     folder.mkdir(parents=True, exist_ok=True)
     markdown = folder / f"{stem}.md"
-    markdown.write_text(report_markdown(data, rows, f"{stem}.png"))
+    text = report_markdown(data, rows, f"{stem}.png")
+    if verdicts:
+        text += "\n## Expectations\n\n" + "".join(f"- {verdict_line(v)}\n" for v in verdicts)
+    markdown.write_text(text)
     picture = folder / f"{stem}.png"
     save_figure(report_figure(data, rows), picture)
     return rows, markdown, picture
@@ -122,15 +153,14 @@ def experiment(args: argparse.Namespace) -> int:
     if args.foxglove is not None and args.attach is not None:
         raise FrictionSimError("--foxglove with --attach: the slider runs elsewhere; start it with "
                                "--foxglove (or foxglove_port) instead")
-    run_scenario(args.scenario, output=args.output, attach=args.attach, foxglove_port=args.foxglove,
-                 lockstep=args.lockstep)
-    return 0
+    job = run_scenario(args.scenario, output=args.output, attach=args.attach, foxglove_port=args.foxglove,
+                       lockstep=args.lockstep)
+    return EXIT_EXPECTATION_FAILED if job.failed else 0
 
 
 def report(args: argparse.Namespace) -> int:
     """``report``: rebuild an experiment's report from its recording alone."""
-    report_recording(args.recording, args.output)
-    return 0
+    return EXIT_EXPECTATION_FAILED if report_recording(args.recording, args.output).failed else 0
 
 
 VERBS = (
@@ -140,4 +170,5 @@ VERBS = (
 
 
 
-__all__ = ["VERBS", "JobOutput", "experiment", "report", "report_recording", "run_scenario", "write_report"]
+__all__ = ["EXIT_EXPECTATION_FAILED", "VERBS", "JobOutput", "experiment", "report", "report_recording", "run_scenario",
+           "write_report"]

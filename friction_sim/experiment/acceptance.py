@@ -47,6 +47,25 @@ class Verdict:
     met: bool
 
 
+def verdict_line(verdict: Verdict) -> str:
+    """One line per expectation for the report: what it asked, PASS or FAIL, and what was
+    measured (NOT JUDGED where the run's record lacks what it needs)."""
+    e, m = verdict.expectation, verdict.metrics
+    asked = (f"expect t = {e.t:g} s: {e.quantity.replace('_', ' ')} within {e.within * 100:g} % in <= {e.periods} "
+             f"periods" + (f", overshoot <= {e.overshoot * 100:g} %" if math.isfinite(e.overshoot) else ""))
+    if not math.isfinite(verdict.target):
+        return (f"{asked}: NOT JUDGED (no {e.quantity.replace('_', ' ')} before the change in this record: "
+                f"{'the controller reads it, a recording does not hold it' if e.quantity != 'mean_speed' else 'none'})")
+    periods = m.settling_periods
+    settled = "never settled" if math.isinf(periods) else f"settled in {periods:g} period{'s' * (periods != 1)}"
+    return f"{asked}: {'PASS' if verdict.met else 'FAIL'} ({settled}, overshoot {m.overshoot * 100:.2f} %)"
+
+
+def judged(verdicts: list[Verdict]) -> list[Verdict]:
+    """The verdicts that could be judged (a target to judge against)."""
+    return [v for v in verdicts if math.isfinite(v.target)]
+
+
 def judge(scenario: Scenario, result: ExperimentResult) -> list[Verdict]:
     """Each expectation of ``scenario`` checked against a run."""
     verdicts = []

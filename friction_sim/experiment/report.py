@@ -40,8 +40,10 @@ from typing import Any
 from friction_sim.core.meanspeed.predict import predict
 from friction_sim.core.model.commands import COMMANDS, Command, in_force
 from friction_sim.core.model.params import Inputs, SliderParams
-from friction_sim.experiment.job import SCENARIO_METADATA, ScenarioRecord, read_scenario_metadata
+from friction_sim.errors import FrictionSimError
+from friction_sim.experiment.job import SCENARIO_METADATA, ScenarioRecord, Series, read_scenario_metadata
 from friction_sim.experiment.metrics import settling_periods
+from friction_sim.experiment.scenario import Scenario, parse_scenario
 
 TOLERANCE = 0.01
 #: About how many mean-speed samples a report read from a recording keeps for its picture.
@@ -73,6 +75,17 @@ class RunData:
     #: ``events`` and ``velocity`` hold only the samples the rows at this
     #: tolerance depend on, plus a thinned mean-speed curve for the picture.
     tolerance: float = TOLERANCE
+    #: The band of the segment that starts at each key: the ``within`` its scenario's
+    #: ``expect`` states for the mean speed after that change (else ``tolerance``).
+    bands: dict[float, float] = field(default_factory=dict)
+    #: The scenario the recording was made from, when it holds its text (to judge its ``expect``).
+    scenario: Scenario | None = None
+    #: Every mean-speed sample (t, v) of a recording, for the ``expect`` verdicts.
+    all_mean_velocity: Series[tuple[float, float]] = field(default_factory=lambda: Series(2))
+
+    def band(self, start: float) -> float:
+        """The settling band of the segment that starts at ``start``."""
+        return self.bands.get(start, self.tolerance)
 
 
 @dataclass(frozen=True)
@@ -179,10 +192,10 @@ def stick_window(data: RunData, end: float) -> tuple[float, float]:
 
 def build_report(data: RunData, tolerance: float | None = None) -> list[SegmentRow]:
     """One row per segment between scheduled commands (settling band
-    ``tolerance``, by default the data's)."""
+    ``tolerance``, by default each segment's: :meth:`RunData.band`)."""
     labels = {c.t: command_label(c) for c in data.schedule}  # the last command at a time names it
-    band = data.tolerance if tolerance is None else tolerance
-    return [_segment(data, start, end, labels.get(start, "start"), band) for start, end in segments(data)]
+    return [_segment(data, start, end, labels.get(start, "start"), data.band(start) if tolerance is None else tolerance)
+            for start, end in segments(data)]
 
 
 def _segment(data: RunData, start: float, end: float, label: str, tolerance: float) -> SegmentRow:
@@ -261,6 +274,8 @@ def run_data_from_recording(path: Path, tolerance: float = TOLERANCE) -> RunData
     params, inputs = in_force([c for c in recorded if c.t < 0.0], params, inputs, 0.0)
     commands = [c for c in recorded if c.t >= 0.0]
     scenario = _scenario_record(meta)
+    source = _recorded_scenario(meta)
+    bands = {e.t: e.within for e in source.expect if e.quantity == "mean_speed"} if source else {}
     if scenario is not None:
         schedule, duration, name = list(scenario.schedule), scenario.duration, scenario.name
         targets = _scheduled_targets(scenario)
@@ -269,7 +284,7 @@ def run_data_from_recording(path: Path, tolerance: float = TOLERANCE) -> RunData
         duration, name = recording.end_ns / 1e9 - start, recording.path.stem
         targets = [(c.t, c.values["target_speed"]) for c in every if "target_speed" in c.values]
     data = RunData(params=params, inputs=inputs, duration=duration, schedule=schedule, commands=commands,
-                   targets=sorted(targets), name=name, tolerance=tolerance)
+                   targets=sorted(targets), name=name, tolerance=tolerance, bands=bands, scenario=source)
     _Keeper(data, recording.count("mean_velocity")).read(recording, start_ns)
     return data
 
@@ -296,6 +311,7 @@ class _Keeper:
     def __init__(self, data: RunData, samples: int) -> None:
         self.data = data
         self.spans = [(start, end) + segment_target(data, start) for start, end in segments(data)]
+        self.bands = [data.band(start) for start, _ in segments(data)]
         # per segment: the last sample outside the band, the first inside after it, the last
         self.outside: list[_Sample | None] = [None] * len(self.spans)
         self.inside: list[_Sample | None] = [None] * len(self.spans)
@@ -341,9 +357,10 @@ class _Keeper:
         """One mean-speed sample (time order)."""
         sample = (self.count, t, v)
         self.count += 1
+        self.data.all_mean_velocity.append((t, v))
         for k, (start, end, _, target) in enumerate(self.spans):
             if start < t <= end + 1e-9:
-                inside = abs(v - target) <= self.data.tolerance * abs(target) if target else v == 0.0
+                inside = abs(v - target) <= self.bands[k] * abs(target) if target else v == 0.0
                 if not inside:
                     self.outside[k], self.inside[k] = sample, None
                 elif self.inside[k] is None:
@@ -399,10 +416,19 @@ def _scenario_record(meta: dict[str, str]) -> ScenarioRecord | None:
     record = read_scenario_metadata(meta)
     if record is not None or "scenario" not in meta:
         return record
-    from friction_sim.experiment.scenario import parse_scenario
-
     scenario = parse_scenario(meta["scenario"], meta.get("file", "<recorded scenario>"))
     return ScenarioRecord(scenario.name, scenario.duration, scenario.initial_target, scenario.schedule, None)
+
+
+def _recorded_scenario(meta: dict[str, str]) -> Scenario | None:
+    """The scenario whose text the recording holds (None: a plain slider recording, or a
+    text this version cannot read: then nothing is judged, and the report says so)."""
+    if "scenario" not in meta:
+        return None
+    try:
+        return parse_scenario(meta["scenario"], meta.get("file", "<recorded scenario>"))
+    except FrictionSimError:
+        return None
 
 
 def _scheduled_targets(scenario: ScenarioRecord) -> list[tuple[float, float]]:
