@@ -15,20 +15,20 @@ the mean velocity is (x at the start of period settle+periods - x at the
 start of period settle)/(periods/f).  An event that happens exactly at a
 period start belongs to the period it starts (the scalar core's order).
 
-Two engines give the same numbers (to 1e-12 relative, see test_batch.py):
+Two engines give the same numbers:
 
-* ``"scalar"``: a loop over :class:`~friction_sim.core.engine.single.Slider`, the
-  exact reference (and the baseline of bench/batch.py);
-* ``"numpy"`` (the default): :mod:`friction_sim.core.batchcore`, all sliders
-  advanced together event by event with numpy arrays, in the same closed
-  forms, no Python loop over sliders.  A slider's result does not depend on
-  the other sliders of its batch (bit for bit), so a sweep may chunk freely.
+* ``"compiled"`` (the default): :mod:`friction_sim.core.engine.compiled`, the
+  single slider's physics (the same plain functions) compiled with Numba, each
+  slider advanced event by event to its own end, in parallel over cores.  A
+  slider's window is the single slider's bit for bit; a slider's result does
+  not depend on the other sliders of its batch, so a sweep may chunk freely.
+  With ``periodic_shortcut`` a motion that repeats bit for bit is
+  extrapolated over the rest of its window.
+* ``"scalar"``: a loop over :class:`~friction_sim.core.engine.single.Slider`,
+  the interpreted reference (and the baseline of bench/batch.py).
 
-A numpy round costs ~1-4 ms whatever the number of sliders still running, so
-a batch lasts about as many rounds as its busiest slider has events (outside
-the periodic motions, which the engine extrapolates): a handful of chaotic
-bouncers can dominate.  ``scalar_tail=k`` hands the last k running sliders to
-the scalar core (their results are then the scalar core's, to rounding the same).
+The first compiled run on a machine compiles (seconds), later ones load the
+on-disk cache; ``bench/batch.py`` gives the throughputs.
 """
 
 from __future__ import annotations
