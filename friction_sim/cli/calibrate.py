@@ -9,6 +9,7 @@ parameters file, the residual table as CSV and the check picture as PNG.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 from friction_sim.cli.options import Verb, add_flag
@@ -21,10 +22,12 @@ from friction_sim.experiment.calibration import (
     summary,
     write_residuals,
 )
+from friction_sim.experiment.calibration_fit import parse_start
 from friction_sim.experiment.measurements import read_fixed, read_measurements
 
 F_SCALE = spec.Setting("f_scale", 1.0, "-", "where the robust loss starts, in standard deviations", 1e-6, 1e6)
-STARTS = spec.Setting("starts", 4, "-", "starting points: the settings given, then drawn across the bounds", 1, 1000)
+STARTS = spec.Setting("starts", 4, "-", "starting points in all: the --start ones, the settings given, then the best "
+                      "in cost of those drawn where the part moves and does not run away", 1, 1000)
 SEED = spec.Setting("seed", 0, "-", "seed of the starting points drawn", 0, 2**31 - 1)
 SETTLE = spec.Setting("settle_periods", 100, "periods", "whole periods simulated before averaging", 0, 100_000)
 PERIODS = spec.Setting("periods", 100, "periods", "whole periods averaged per point", 1, 100_000)
@@ -41,6 +44,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                                    "vocabulary, or a ROS 2 parameters file")
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                         help="a fixed setting (repeatable; overrides --fixed)")
+    parser.add_argument("--start", action="append", default=[], metavar="NAME=VALUE[,NAME=VALUE]",
+                        help="a starting point of the fit (repeatable; fitted names, the others at their settings), "
+                             "tried before the starts drawn where the part moves and does not run away")
     parser.add_argument("--loss", choices=LOSSES, default="linear",
                         help="residual loss: linear (least squares), or soft_l1 / huber against outliers")
     for setting in (F_SCALE, STARTS, SEED, SETTLE, PERIODS):
@@ -51,9 +57,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """``calibrate``: read, fit, print the estimates and write the outputs."""
-    options = FitOptions(fit=tuple(name.strip() for name in args.fit.split(",") if name.strip()), loss=args.loss,
-                         f_scale=args.f_scale, starts=args.starts, seed=args.seed,
+    fitted = tuple(name.strip() for name in args.fit.split(",") if name.strip())
+    options = FitOptions(fit=fitted, loss=args.loss, f_scale=args.f_scale, starts=args.starts, seed=args.seed,
                          settle_periods=args.settle_periods, periods=args.periods)
+    options = dataclasses.replace(options, start_points=tuple(parse_start(text, fitted) for text in args.start))
     if args.measurements.suffix == ".mcap":
         return _recording(args, options)
     from friction_sim.cli.figures import calibration_figure, save_figure
