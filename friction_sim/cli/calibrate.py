@@ -19,6 +19,7 @@ from friction_sim.experiment.calibration import (
     CalibrationError,
     FitOptions,
     calibrate,
+    quantile,
     summary,
     write_residuals,
 )
@@ -52,7 +53,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     for setting in (F_SCALE, STARTS, SEED, SETTLE, PERIODS):
         add_flag(parser, setting, setting.default)
     parser.add_argument("--output", type=Path, default=Path("out/calibration"),
-                        help="folder of calibrated.yaml, residuals.csv and calibration.png (default out/calibration)")
+                        help="folder of calibrated.yaml, residuals.csv, calibration.png and calibration_profile.png "
+                             "(default out/calibration)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -73,6 +75,12 @@ def run(args: argparse.Namespace) -> int:
     _write_plant(args.output, result.parameters_file())
     print(f"wrote {write_residuals(result, args.output / 'residuals.csv')}")
     print(f"wrote {save_figure(calibration_figure(result), args.output / 'calibration.png')}")
+    if result.profiles:
+        from friction_sim.cli.calibration_figures import profile_figure
+
+        figure = profile_figure(result.estimates, result.profiles,
+                                quantile(result.known_deviations, result.degrees_of_freedom))
+        print(f"wrote {save_figure(figure, args.output / 'calibration_profile.png')}")
     return 0
 
 

@@ -35,6 +35,8 @@ finds the parameters the data determine, with honest uncertainty:
 from __future__ import annotations
 
 import csv
+import dataclasses
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -57,6 +59,7 @@ from friction_sim.experiment.calibration_fit import (
     Floats,
     Outcome,
     Problem,
+    check_correlation,
     chosen,
     linearized,
     outcome,
@@ -64,6 +67,7 @@ from friction_sim.experiment.calibration_fit import (
     starting_points,
 )
 from friction_sim.experiment.calibration_points import PointsModel
+from friction_sim.experiment.calibration_profile import Profile, chord_correlation, profiles
 from friction_sim.experiment.measurements import Measurements
 
 #: Drawn starts screened at once (one population-engine call over that many times the points).
@@ -91,6 +95,7 @@ class Calibration:
     fixed: dict[str, Any] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
     covariance: np.ndarray | None = None
+    profiles: tuple[Profile, ...] = ()
 
     @property
     def residuals(self) -> np.ndarray:
@@ -176,12 +181,29 @@ def calibrate(measurements: Measurements, fixed: dict[str, Any], options: FitOpt
     dof = n - p
     fitted = fit(problem, options, model.reference, visible(known, dof))
     best = fitted.result
-    estimates, correlation, covariance = linearized(best, options.fit, known, dof, quantile(known, dof))
+    estimates, correlation, covariance = linearized(best, options.fit, known, dof, quantile(known, dof),
+                                                    check=not options.profile)
+    profiled: tuple[Profile, ...] = ()
+    if options.profile:
+        profiled, estimates = profile_intervals(problem, best, estimates, covariance, options, known, dof)
+        correlation = chord_correlation(problem, best.x, profiled, quantile(known, dof))
+        check_correlation(correlation, options.fit)
     values = model.values(best.x)
     params = plant_from({name: _scalar(values[name]) for name in spec.PLANT})[0]
     return Calibration(estimates, correlation, measurements, model.speeds(best.x)[0], params, known, dof,
                        float(best.cost), len(fitted.outcomes), time.perf_counter() - started, fitted.evaluations,
-                       dict(fixed), fitted.notes, covariance)
+                       dict(fixed), fitted.notes, covariance, profiled)
+
+
+def profile_intervals(problem: Problem, best: Any, estimates: tuple[Estimate, ...], covariance: Floats,
+                      options: FitOptions, known: bool, dof: int) -> tuple[tuple[Profile, ...], tuple[Estimate, ...]]:
+    """Each parameter's profile and the estimates with their profile intervals
+    (:mod:`~friction_sim.experiment.calibration_profile`)."""
+    variance = 1.0 if known else 2.0 * float(best.cost) / dof
+    profiled = profiles(problem, np.asarray(best.x, dtype=float), float(best.cost), covariance, variance,
+                        quantile(known, dof), options.loss, options.f_scale)
+    return profiled, tuple(dataclasses.replace(e, profile_low=pr.low, profile_high=pr.high, open_low=pr.open_low,
+                                               open_high=pr.open_high) for e, pr in zip(estimates, profiled))
 
 
 def summary(calibration: Calibration) -> list[str]:
@@ -234,9 +256,20 @@ def parameters_file(params: SliderParams, estimates: tuple[Estimate, ...], sourc
 
 
 def estimate_lines(estimates: tuple[Estimate, ...], correlation: np.ndarray) -> list[str]:
-    """The estimates table and the correlation matrix, as lines of text."""
-    lines = [f"{'parameter':<24}{'estimate':>16}{'std error':>14}{'95 % interval':>34}"]
-    lines += [f"{e.name:<24}{e.value:>16.8g}{e.std_error:>14.3g}   [{e.low:.8g}, {e.high:.8g}]" for e in estimates]
+    """The estimates table (the profile interval beside the linearized one, when
+    computed; an end at the parameter's bound marked open) and the correlation
+    matrix, as lines of text."""
+    profiled = any(math.isfinite(e.profile_low) for e in estimates)
+    lines = [f"{'parameter':<24}{'estimate':>16}{'std error':>12}   {'95 % linearized':<32}"
+             + ("  95 % profile likelihood" if profiled else "")]
+    for e in estimates:
+        line = f"{e.name:<24}{e.value:>16.8g}{e.std_error:>12.3g}   {f'[{e.low:.8g}, {e.high:.8g}]':<32}"
+        if profiled:
+            line += (f"  {'(' if e.open_low else '['}{e.profile_low:.8g}, {e.profile_high:.8g}"
+                     f"{')' if e.open_high else ']'}")
+        lines.append(line)
+    if any(e.open_low or e.open_high for e in estimates):
+        lines.append("(an end in round brackets is the parameter's bound: the data do not close the interval there)")
     names = [e.name for e in estimates]
     lines.append("correlation: " + ("  ".join(names) if len(names) > 1 else "(one parameter)"))
     if len(names) > 1:

@@ -1,0 +1,54 @@
+"""Pictures of a calibration beyond the check of :func:`~friction_sim.cli.figures.calibration_figure`.
+
+* :func:`profile_figure` (``calibration_profile.png``): each fitted
+  parameter's profile, the signed root r of the cost's rise with the others
+  re-fitted, against the parameter; the 95 % interval where |r| <= q, beside
+  the linearized interval (where r is taken as the straight line).
+
+Matplotlib is reached through :func:`~friction_sim.cli.figures.pyplot_free_figure`
+only (imported when a figure is drawn), as every figure of the package.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from friction_sim.cli.figures import pyplot_free_figure
+from friction_sim.experiment.calibration_fit import Estimate
+from friction_sim.experiment.calibration_profile import Profile
+
+
+def profile_figure(estimates: tuple[Estimate, ...], profiles: tuple[Profile, ...], q: float) -> Any:
+    """One panel per parameter: the profile's signed root r against the parameter
+    (points where the search evaluated it), the lines r = +-q, the linearized r
+    (the straight line through the estimate of slope 1/standard error), the
+    profile interval as a band and the linearized one's ends."""
+    fig = pyplot_free_figure(figsize=(5.0 * len(profiles), 4.4), layout="constrained")
+    axes_list = np.atleast_1d(fig.subplots(1, len(profiles)))
+    for axes, estimate, profile in zip(axes_list, estimates, profiles):
+        axes.axhspan(-q, q, color="0.93")
+        axes.axvspan(profile.low, profile.high, color="tab:blue", alpha=0.15, label="95 % profile likelihood")
+        for end, label in ((estimate.low, "95 % linearized"), (estimate.high, None)):
+            axes.axvline(end, color="tab:red", linestyle="-.", linewidth=1.0, label=label)
+        axes.plot(profile.values, profile.root, "o-", color="tab:blue", markersize=3.5, linewidth=1.2,
+                  label="profile r")
+        if estimate.std_error > 0.0:
+            span = np.array([min(profile.values.min(), estimate.low), max(profile.values.max(), estimate.high)])
+            axes.plot(span, (span - estimate.value) / estimate.std_error, "--", color="tab:red", linewidth=1.0,
+                      label="linearized r")
+        for level in (-q, q):
+            axes.axhline(level, color="0.4", linestyle=":", linewidth=0.9)
+        axes.axvline(estimate.value, color="black", linewidth=0.8)
+        axes.set_ylim(-2.5 * q, 2.5 * q)
+        axes.set_xlabel(estimate.name)
+        axes.set_ylabel(r"signed root $r$ of the cost's rise")
+        axes.grid(alpha=0.3)
+        axes.set_title(f"{estimate.name} = {estimate.value:.6g}: [{profile.low:.6g}, {profile.high:.6g}]", fontsize=9)
+    axes_list[0].legend(fontsize=7, loc="upper left")
+    fig.suptitle(f"Profiles: each parameter with the others re-fitted; 95 % where |r| <= {q:.4g}", fontsize=10)
+    return fig
+
+
+__all__ = ["profile_figure"]
