@@ -65,10 +65,11 @@ from friction_sim.experiment.calibration_fit import (
     outcome,
     scales,
     starting_points,
+    words,
 )
 from friction_sim.experiment.calibration_points import PointsModel
 from friction_sim.experiment.calibration_profile import Profile, chord_correlation, profiles
-from friction_sim.experiment.measurements import Measurements
+from friction_sim.experiment.measurements import SPEED_STD, Measurements
 
 #: Drawn starts screened at once (one population-engine call over that many times the points).
 SCREEN = 256
@@ -137,9 +138,13 @@ def fit(problem: Problem, options: FitOptions, reference: Floats, threshold: Cal
     low, high = problem.bounds
     outcomes = []
     for number, start in enumerate(starting_points(problem, options, reference), start=1):
-        result = least_squares(evaluator.fun, start, jac=evaluator.jac, bounds=(low, high), loss=options.loss,
-                               f_scale=options.f_scale, x_scale=scales(start, low, high), xtol=1e-14, ftol=1e-14,
-                               gtol=1e-14, max_nfev=400)
+        try:
+            result = least_squares(evaluator.fun, start, jac=evaluator.jac, bounds=(low, high), loss=options.loss,
+                                   f_scale=options.f_scale, x_scale=scales(start, low, high), xtol=1e-14,
+                                   ftol=1e-14, gtol=1e-14, max_nfev=400)
+        except ValueError as error:  # SciPy refuses a residual or a slope that is not finite
+            raise CalibrationError(f"start {number}: the fit met a number beyond floating point ({error}) at "
+                                   f"{words(problem.names, start)}: are the measurements in their units?") from None
         outcomes.append(outcome(problem, number, start, result))
     moved = [float(o.result.cost) for o in outcomes if not o.flat]
     best = chosen(problem, outcomes, threshold(min(moved)) if moved else 0.0)
@@ -190,9 +195,24 @@ def calibrate(measurements: Measurements, fixed: dict[str, Any], options: FitOpt
         check_correlation(correlation, options.fit)
     values = model.values(best.x)
     params = plant_from({name: _scalar(values[name]) for name in spec.PLANT})[0]
-    return Calibration(estimates, correlation, measurements, model.speeds(best.x)[0], params, known, dof,
+    fitted_speed = model.speeds(best.x)[0]
+    _check_finite(estimates, fitted_speed)
+    return Calibration(estimates, correlation, measurements, fitted_speed, params, known, dof,
                        float(best.cost), len(fitted.outcomes), time.perf_counter() - started, fitted.evaluations,
                        dict(fixed), fitted.notes, covariance, profiled)
+
+
+def _check_finite(estimates: tuple[Estimate, ...], fitted_speed: Floats) -> None:
+    """Never a result that is not finite: refused, naming the number."""
+    for e in estimates:
+        numbers = {"estimate": e.value, "standard error": e.std_error, "interval": e.low + e.high}
+        if math.isfinite(e.profile_low) or math.isfinite(e.profile_high):
+            numbers["profile interval"] = e.profile_low + e.profile_high
+        bad = next((what for what, number in numbers.items() if not math.isfinite(number)), None)
+        if bad:
+            raise CalibrationError(f"{e.name}: the fit's {bad} is not finite: the data cannot determine it")
+    if not np.all(np.isfinite(fitted_speed)):
+        raise CalibrationError("a fitted mean speed is not finite: the data cannot determine the parameters")
 
 
 def profile_intervals(problem: Problem, best: Any, estimates: tuple[Estimate, ...], covariance: Floats,
@@ -279,9 +299,11 @@ def estimate_lines(estimates: tuple[Estimate, ...], correlation: np.ndarray) -> 
 
 
 def _rms(speed: np.ndarray) -> float:
-    """The measured speeds' RMS [m/s] (the residuals' unit without deviations; 1 mm/s if all are 0)."""
+    """The measured speeds' RMS [m/s], the residuals' unit without deviations: at
+    least the smallest deviation a std column may give (residuals divided by
+    less overflow), 1 mm/s if all are 0."""
     rms = float(np.sqrt(np.mean(speed**2)))
-    return rms if rms > 0.0 else 1e-3
+    return max(rms, float(SPEED_STD.low or 0.0)) if rms > 0.0 else 1e-3
 
 
 def t95(dof: int) -> float:
