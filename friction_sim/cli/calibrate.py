@@ -24,6 +24,7 @@ from friction_sim.experiment.calibration import (
     write_residuals,
 )
 from friction_sim.experiment.calibration_fit import parse_start
+from friction_sim.experiment.calibration_sweep import calibrate_sweep, is_sweep, read_sweep
 from friction_sim.experiment.measurements import read_fixed, read_measurements
 
 F_SCALE = spec.Setting("f_scale", 1.0, "-", "where the robust loss starts, in standard deviations", 1e-6, 1e6)
@@ -37,8 +38,10 @@ PERIODS = spec.Setting("periods", 100, "periods", "whole periods averaged per po
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The ``calibrate`` options."""
     parser.add_argument("measurements", type=Path, help="CSV of operating points (the varied settings, mean_speed "
-                                                         "[m/s] and optionally std [m/s]), or a recording (.mcap) "
-                                                         "whose trajectory to fit")
+                                                         "[m/s] and optionally std [m/s]); CSV of a frequency sweep "
+                                                         "(excitation_frequency, amplitude [m/s^2], optionally "
+                                                         "drive_level, lag_deg, std), which fits the exciter; or a "
+                                                         "recording (.mcap) whose trajectory to fit")
     parser.add_argument("--fit", required=True, help="the plant parameters to fit, comma-separated (e.g. "
                                                      "mu,static_ratio)")
     parser.add_argument("--fixed", type=Path, help="the settings that do not vary: a YAML mapping in the sweeps' "
@@ -65,6 +68,8 @@ def run(args: argparse.Namespace) -> int:
     options = dataclasses.replace(options, start_points=tuple(parse_start(text, fitted) for text in args.start))
     if args.measurements.suffix == ".mcap":
         return _recording(args, options)
+    if is_sweep(args.measurements):
+        return _sweep(args, options)
     from friction_sim.cli.figures import calibration_figure, save_figure
 
     measurements = read_measurements(args.measurements)
@@ -78,6 +83,23 @@ def run(args: argparse.Namespace) -> int:
     if result.profiles:
         from friction_sim.cli.calibration_figures import profile_figure
 
+        figure = profile_figure(result.estimates, result.profiles,
+                                quantile(result.known_deviations, result.degrees_of_freedom))
+        print(f"wrote {save_figure(figure, args.output / 'calibration_profile.png')}")
+    return 0
+
+
+def _sweep(args: argparse.Namespace, options: FitOptions) -> int:
+    """A frequency sweep: fit the exciter's data to its amplitudes (and lags)."""
+    from friction_sim.cli.calibration_figures import profile_figure, sweep_figure
+    from friction_sim.cli.figures import save_figure
+
+    result = calibrate_sweep(read_sweep(args.measurements), read_fixed(args.fixed, args.set), options)
+    for line in result.summary():
+        print(line)
+    _write_plant(args.output, result.parameters_file())
+    print(f"wrote {save_figure(sweep_figure(result), args.output / 'calibration.png')}")
+    if result.profiles:
         figure = profile_figure(result.estimates, result.profiles,
                                 quantile(result.known_deviations, result.degrees_of_freedom))
         print(f"wrote {save_figure(figure, args.output / 'calibration_profile.png')}")
@@ -108,7 +130,8 @@ def _write_plant(folder: Path, text: str) -> None:
     print(f"wrote {plant} (slider --params, a scenario's or a sweep's plant_params)")
 
 
-VERBS = (Verb("calibrate", "fit mu, static_ratio, restitution, exciter data... to measured mean speeds, with "
-              "standard errors, 95 % intervals and a calibrated parameters file", add_arguments, run),)
+VERBS = (Verb("calibrate", "fit mu, static_ratio, restitution, exciter data... to measured mean speeds (or the "
+              "exciter to a frequency sweep), with standard errors, 95 % linearized and profile-likelihood "
+              "intervals and a calibrated parameters file", add_arguments, run),)
 
 __all__ = ["VERBS", "add_arguments", "run"]

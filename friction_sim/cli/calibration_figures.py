@@ -1,5 +1,8 @@
 """Pictures of a calibration beyond the check of :func:`~friction_sim.cli.figures.calibration_figure`.
 
+* :func:`sweep_figure` (``calibration.png`` of a frequency sweep): the
+  measured amplitude (and lag) against the drive frequency, the fitted curve
+  through them, and the amplitude's residuals.
 * :func:`profile_figure` (``calibration_profile.png``): each fitted
   parameter's profile, the signed root r of the cost's rise with the others
   re-fitted, against the parameter; the 95 % interval where |r| <= q, beside
@@ -18,6 +21,7 @@ import numpy as np
 from friction_sim.cli.figures import pyplot_free_figure
 from friction_sim.experiment.calibration_fit import Estimate
 from friction_sim.experiment.calibration_profile import Profile
+from friction_sim.experiment.calibration_sweep import SweepCalibration
 
 
 def profile_figure(estimates: tuple[Estimate, ...], profiles: tuple[Profile, ...], q: float) -> Any:
@@ -51,4 +55,36 @@ def profile_figure(estimates: tuple[Estimate, ...], profiles: tuple[Profile, ...
     return fig
 
 
-__all__ = ["profile_figure"]
+def sweep_figure(result: SweepCalibration) -> Any:
+    """The sweep's amplitudes (error bars: the std column) and lags against the
+    drive frequency, with the fitted exciter's steady response, and the
+    amplitude's residuals."""
+    s = result.sweep
+    lags = s.lag_deg is not None
+    fig = pyplot_free_figure(figsize=(8.0, 7.0 if lags else 5.6), layout="constrained")
+    panels = fig.subplots(3 if lags else 2, 1, sharex=True, height_ratios=[3, 2, 1] if lags else [3, 1])
+    order = np.argsort(s.frequency)
+    f = s.frequency[order]
+    top = panels[0]
+    top.errorbar(f, s.amplitude[order], yerr=None if s.std is None else s.std[order], fmt="o", color="black",
+                 markersize=3.5, label="measured")
+    top.plot(f, result.fitted_amplitude[order], "-", color="tab:red", linewidth=1.3, label="fitted")
+    top.set_ylabel(r"amplitude [m/s$^2$]")
+    top.legend(fontsize=8)
+    if lags and s.lag_deg is not None:
+        panels[1].plot(f, s.lag_deg[order], "o", color="black", markersize=3.5)
+        panels[1].plot(f, result.fitted_lag[order], "-", color="tab:red", linewidth=1.3)
+        panels[1].axhline(90.0, color="0.5", linestyle=":", linewidth=0.9)
+        panels[1].set_ylabel("lag [deg]")
+    panels[-1].plot(f, (s.amplitude - result.fitted_amplitude)[order], ".", color="tab:blue")
+    panels[-1].axhline(0.0, color="black", linewidth=0.6)
+    panels[-1].set_ylabel(r"residual [m/s$^2$]")
+    panels[-1].set_xlabel("drive frequency f [Hz]")
+    for axes in panels:
+        axes.grid(alpha=0.3)
+    fig.suptitle("Exciter from a frequency sweep\n" + ", ".join(
+        f"{e.name} = {e.value:.6g} ± {e.std_error:.2g}" for e in result.estimates), fontsize=9)
+    return fig
+
+
+__all__ = ["profile_figure", "sweep_figure"]

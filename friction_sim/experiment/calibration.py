@@ -186,23 +186,44 @@ def calibrate(measurements: Measurements, fixed: dict[str, Any], options: FitOpt
     dof = n - p
     fitted = fit(problem, options, model.reference, visible(known, dof))
     best = fitted.result
-    estimates, correlation, covariance = linearized(best, options.fit, known, dof, quantile(known, dof),
-                                                    check=not options.profile)
-    profiled: tuple[Profile, ...] = ()
-    if options.profile:
-        profiled, estimates = profile_intervals(problem, best, estimates, covariance, options, known, dof)
-        correlation = chord_correlation(problem, best.x, profiled, quantile(known, dof))
-        check_correlation(correlation, options.fit)
+    found = uncertainty(problem, best, options, known, dof)
+    estimates, correlation, covariance, profiled = found.estimates, found.correlation, found.covariance, found.profiles
     values = model.values(best.x)
     params = plant_from({name: _scalar(values[name]) for name in spec.PLANT})[0]
     fitted_speed = model.speeds(best.x)[0]
-    _check_finite(estimates, fitted_speed)
+    check_finite(estimates, fitted_speed)
     return Calibration(estimates, correlation, measurements, fitted_speed, params, known, dof,
                        float(best.cost), len(fitted.outcomes), time.perf_counter() - started, fitted.evaluations,
                        dict(fixed), fitted.notes, covariance, profiled)
 
 
-def _check_finite(estimates: tuple[Estimate, ...], fitted_speed: Floats) -> None:
+@dataclass(frozen=True)
+class Uncertainty:
+    """What a fit's uncertainty is: the estimates with their linearized and
+    profile intervals, the correlation (chords across the profile intervals
+    when profiled, else the tangent one), the linearized covariance and the profiles."""
+
+    estimates: tuple[Estimate, ...]
+    correlation: Floats
+    covariance: Floats
+    profiles: tuple[Profile, ...]
+
+
+def uncertainty(problem: Problem, best: Any, options: FitOptions, known: bool, dof: int) -> Uncertainty:
+    """The uncertainty of the fit ``best`` of ``problem`` (residuals in units of
+    their deviations: ``known``, or of an unknown scale then estimated over
+    ``dof``); refused if two parameters correlate beyond the limit."""
+    estimates, correlation, covariance = linearized(best, problem.names, known, dof, quantile(known, dof),
+                                                    check=not options.profile)
+    profiled: tuple[Profile, ...] = ()
+    if options.profile:
+        profiled, estimates = profile_intervals(problem, best, estimates, covariance, options, known, dof)
+        correlation = chord_correlation(problem, best.x, profiled, quantile(known, dof))
+        check_correlation(correlation, problem.names)
+    return Uncertainty(estimates, correlation, covariance, profiled)
+
+
+def check_finite(estimates: tuple[Estimate, ...], fitted: Floats) -> None:
     """Never a result that is not finite: refused, naming the number."""
     for e in estimates:
         numbers = {"estimate": e.value, "standard error": e.std_error, "interval": e.low + e.high}
@@ -211,8 +232,8 @@ def _check_finite(estimates: tuple[Estimate, ...], fitted_speed: Floats) -> None
         bad = next((what for what, number in numbers.items() if not math.isfinite(number)), None)
         if bad:
             raise CalibrationError(f"{e.name}: the fit's {bad} is not finite: the data cannot determine it")
-    if not np.all(np.isfinite(fitted_speed)):
-        raise CalibrationError("a fitted mean speed is not finite: the data cannot determine the parameters")
+    if not np.all(np.isfinite(fitted)):
+        raise CalibrationError("a fitted value is not finite: the data cannot determine the parameters")
 
 
 def profile_intervals(problem: Problem, best: Any, estimates: tuple[Estimate, ...], covariance: Floats,
@@ -293,7 +314,8 @@ def estimate_lines(estimates: tuple[Estimate, ...], correlation: np.ndarray) -> 
     names = [e.name for e in estimates]
     lines.append("correlation: " + ("  ".join(names) if len(names) > 1 else "(one parameter)"))
     if len(names) > 1:
-        lines += [f"  {name:<22}" + " ".join(f"{value:+.4f}" for value in row)
+        width = max(22, *(len(name) + 1 for name in names))
+        lines += [f"  {name:<{width}}" + " ".join(f"{value:+.4f}" for value in row)
                   for name, row in zip(names, correlation)]
     return lines
 
@@ -321,6 +343,5 @@ def _scalar(column: np.ndarray) -> Any:
 
 
 __all__ = ["FITTABLE", "LOSSES", "MAX_CORRELATION", "Z95", "Calibration", "CalibrationError", "Estimate", "FitOptions",
-           "Fitted", "Problem", "calibrate", "estimate_lines", "fit", "parameters_file", "quantile", "summary", "t95",
-           "visible",
-           "write_residuals"]
+           "Fitted", "Problem", "Uncertainty", "calibrate", "check_finite", "estimate_lines", "fit", "parameters_file",
+           "quantile", "summary", "t95", "uncertainty", "visible", "write_residuals"]

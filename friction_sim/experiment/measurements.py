@@ -27,6 +27,7 @@ path, the line and the reason, as scenarios are (:class:`MeasurementsError`).
 from __future__ import annotations
 
 import csv
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -73,31 +74,49 @@ class Measurements:
 def read_measurements(path: Path) -> Measurements:
     """The points of a measurements CSV, each value checked against its setting's range."""
     where = str(path)
-    try:
-        with Path(path).open(newline="", encoding=ENCODING) as stream:
-            lines = list(csv.reader(stream))
-    except (OSError, UnicodeDecodeError, csv.Error) as error:
-        raise MeasurementsError(f"{where}: cannot read: {error}") from None
-    rows = [(number, row) for number, row in enumerate(lines, start=1)
-            if any(cell.strip() for cell in row) and not row[0].lstrip().startswith("#")]
-    if not rows:
-        raise MeasurementsError(f"{where}: empty (expected a header row and one row per operating point)")
-    (header_line, header), body = rows[0], rows[1:]
-    names = [name.strip() for name in header]
-    _check_header(where, header_line, names)
-    columns: dict[str, list[Any]] = {name: [] for name in names}
-    for line, row in body:
-        if len(row) != len(names):
-            raise MeasurementsError(f"{where}: line {line}: {len(row)} values, the header has {len(names)}")
-        for name, cell in zip(names, row):
-            columns[name].append(_value(where, line, name, cell.strip()))
-    if not body:
-        raise MeasurementsError(f"{where}: no operating points (only the header)")
+    columns = read_table(path, "operating point", _check_header, _setting)
     speed = np.asarray(columns.pop(SPEED), dtype=float)
     std = np.asarray(columns.pop(STD), dtype=float) if STD in columns else None
     settings = {name: np.asarray(values) if name in FIELDS and FIELDS[name].kind is str else
                 np.asarray(values, dtype=float) for name, values in columns.items()}
     return Measurements(settings, speed, std, where)
+
+
+def read_csv_rows(path: Path, row: str) -> tuple[int, list[str], list[tuple[int, list[str]]]]:
+    """(the header's line, its names, the body's (line, cells)) of a CSV of one
+    ``row`` per line: blank lines and ``#`` lines skipped, UTF-8 with or without
+    a byte order mark; a file that cannot be read, or has no rows, refused."""
+    where = str(path)
+    try:
+        with Path(path).open(newline="", encoding=ENCODING) as stream:
+            lines = list(csv.reader(stream))
+    except (OSError, UnicodeDecodeError, csv.Error) as error:
+        raise MeasurementsError(f"{where}: cannot read: {error}") from None
+    rows = [(number, cells) for number, cells in enumerate(lines, start=1)
+            if any(cell.strip() for cell in cells) and not cells[0].lstrip().startswith("#")]
+    if not rows:
+        raise MeasurementsError(f"{where}: empty (expected a header row and one row per {row})")
+    (header_line, header), body = rows[0], rows[1:]
+    return header_line, [name.strip() for name in header], body
+
+
+def read_table(path: Path, row: str, check_header: Callable[[str, int, list[str]], None],
+               setting: Callable[[str], spec.Setting]) -> dict[str, list[Any]]:
+    """A CSV's columns by name (see :func:`read_csv_rows`), the header checked by
+    ``check_header`` and every cell by its column's ``setting``; a bad file is
+    refused with its path, the line and the reason."""
+    where = str(path)
+    header_line, names, body = read_csv_rows(path, row)
+    check_header(where, header_line, names)
+    columns: dict[str, list[Any]] = {name: [] for name in names}
+    for line, cells in body:
+        if len(cells) != len(names):
+            raise MeasurementsError(f"{where}: line {line}: {len(cells)} values, the header has {len(names)}")
+        for name, cell in zip(names, cells):
+            columns[name].append(checked_cell(where, line, name, cell.strip(), setting(name)))
+    if not body:
+        raise MeasurementsError(f"{where}: no {row}s (only the header)")
+    return columns
 
 
 def _check_header(where: str, line: int, names: list[str]) -> None:
@@ -117,10 +136,13 @@ def _check_header(where: str, line: int, names: list[str]) -> None:
         raise MeasurementsError(f"{where}: line {line}: {twice} is set by two columns")
 
 
-def _value(where: str, line: int, name: str, cell: str) -> Any:
+def _setting(name: str) -> spec.Setting:
+    return setting_of(name) if name in KEYS else {SPEED: MEAN_SPEED, STD: SPEED_STD}[name]
+
+
+def checked_cell(where: str, line: int, name: str, cell: str, setting: spec.Setting) -> Any:
     """One cell, checked: a finite number in its setting's range (a text setting: one of its choices)."""
-    setting = setting_of(name) if name in KEYS else {SPEED: MEAN_SPEED, STD: SPEED_STD}[name]
-    if setting is not None and setting.kind is str:
+    if setting.kind is str:
         try:
             return setting.check(cell)
         except ParameterError as error:
@@ -177,5 +199,5 @@ def _fixed_file(path: Path) -> dict[str, Any]:
     return document
 
 
-__all__ = ["ENCODING", "MEAN_SPEED", "SPEED", "SPEED_STD", "STD", "Measurements", "MeasurementsError", "read_fixed",
-           "read_measurements"]
+__all__ = ["ENCODING", "MEAN_SPEED", "SPEED", "SPEED_STD", "STD", "Measurements", "MeasurementsError", "checked_cell",
+           "read_csv_rows", "read_fixed", "read_measurements", "read_table"]
