@@ -3,6 +3,8 @@
 * :func:`sweep_figure` (``calibration.png`` of a frequency sweep): the
   measured amplitude (and lag) against the drive frequency, the fitted curve
   through them, and the amplitude's residuals.
+* :func:`band_figure` (``friction-sim predict --sweep ... --png``): the
+  predicted mean speed along a swept setting with its 95 % band.
 * :func:`profile_figure` (``calibration_profile.png``): each fitted
   parameter's profile, the signed root r of the cost's rise with the others
   re-fitted, against the parameter; the 95 % interval where |r| <= q, beside
@@ -20,6 +22,7 @@ import numpy as np
 
 from friction_sim.cli.figures import pyplot_free_figure
 from friction_sim.experiment.calibration_fit import Estimate
+from friction_sim.experiment.calibration_predict import BAND, Prediction
 from friction_sim.experiment.calibration_profile import Profile
 from friction_sim.experiment.calibration_sweep import SweepCalibration
 
@@ -87,4 +90,29 @@ def sweep_figure(result: SweepCalibration) -> Any:
     return fig
 
 
-__all__ = ["profile_figure", "sweep_figure"]
+def band_figure(prediction: Prediction, name: str) -> Any:
+    """The mean speed at the calibrated estimates along the swept setting ``name``,
+    and the band the calibration's uncertainty gives it."""
+    fig = pyplot_free_figure(figsize=(7.5, 4.6), layout="constrained")
+    axes = fig.subplots()
+    x = np.asarray(prediction.settings[name], dtype=float)
+    order = np.argsort(x)
+    axes.fill_between(x[order], prediction.low[order] * 1e3, prediction.high[order] * 1e3, color="tab:blue",
+                      alpha=0.25, label=f"{BAND[1] - BAND[0]:g} % band ({prediction.samples} parameter sets)")
+    axes.plot(x[order], prediction.speed[order] * 1e3, "-", color="tab:blue", linewidth=1.4,
+              label="at the estimates")
+    axes.set_xlabel(name)
+    axes.set_ylabel("mean speed V [mm/s]")
+    axes.grid(alpha=0.3)
+    axes.legend(fontsize=8)
+    others = [f"{n} = {_value(v[0])}" for n, v in prediction.settings.items() if n != name]
+    axes.set_title("Prediction of the calibrated plant" + (f" ({', '.join(others)})" if others else ""),
+                   fontsize=9)
+    return fig
+
+
+def _value(value: Any) -> str:
+    return str(value) if isinstance(value, str) else f"{float(value):g}"
+
+
+__all__ = ["band_figure", "profile_figure", "sweep_figure"]

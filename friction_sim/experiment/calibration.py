@@ -68,6 +68,7 @@ from friction_sim.experiment.calibration_fit import (
     words,
 )
 from friction_sim.experiment.calibration_points import PointsModel
+from friction_sim.experiment.calibration_predict import uncertain_from, uncertainty_section
 from friction_sim.experiment.calibration_profile import Profile, chord_correlation, profiles
 from friction_sim.experiment.measurements import SPEED_STD, Measurements
 
@@ -104,8 +105,9 @@ class Calibration:
         return np.asarray(self.measurements.speed - self.fitted_speed)
 
     def parameters_file(self) -> str:
-        """The calibrated plant as a ROS 2 parameters file (see :func:`parameters_file`)."""
-        return parameters_file(self.params, self.estimates, self.measurements.source)
+        """The calibrated plant as a ROS 2 parameters file, with the fit's uncertainty (see :func:`parameters_file`)."""
+        return parameters_file(self.params, self.estimates, self.measurements.source, self.correlation,
+                               quantile(self.known_deviations, self.degrees_of_freedom))
 
 
 @dataclass(frozen=True)
@@ -283,16 +285,24 @@ def _cell(value: Any) -> str:
     return str(value) if isinstance(value, str) else f"{float(value):.10g}"
 
 
-def parameters_file(params: SliderParams, estimates: tuple[Estimate, ...], source: str) -> str:
+def parameters_file(params: SliderParams, estimates: tuple[Estimate, ...], source: str,
+                    correlation: Floats | None = None, q: float = Z95) -> str:
     """A calibrated plant as a ROS 2 parameters file: ``slider --params``, a
-    scenario's ``plant_params`` and a sweep's ``plant_params`` read it as it is."""
+    scenario's ``plant_params`` and a sweep's ``plant_params`` read it as it is;
+    with the ``correlation``, the fit's uncertainty too, in a section of its own
+    (:func:`~friction_sim.experiment.calibration_predict.uncertainty_section`,
+    what ``friction-sim predict`` reads)."""
     lines = ["# Calibrated by friction-sim calibrate from " + source,
-             "# " + ", ".join(f"{e.name} = {e.value:.10g} +- {e.std_error:.3g} (95 %: {e.low:.6g} .. "
-                              f"{e.high:.6g})" for e in estimates),
+             *(f"# {e.name} = {e.value:.10g} +- {e.std_error:.3g} (95 %: linearized {e.low:.6g} .. {e.high:.6g}"
+               + (f"; profile likelihood {e.profile_low:.6g} .. {e.profile_high:.6g})"
+                  if math.isfinite(e.profile_low) else ")") for e in estimates),
              "/**:", "  ros__parameters:"]
     for name in spec.PLANT:
         value = getattr(params, name)
         lines.append(f"    {name}: {value}" if isinstance(value, str) else f"    {name}: {float(value)!r}")
+    if correlation is not None:
+        plant = {name: getattr(params, name) for name in spec.PLANT}
+        lines += uncertainty_section(uncertain_from(plant, estimates, correlation, q))
     return "\n".join(lines) + "\n"
 
 

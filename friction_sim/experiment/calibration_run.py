@@ -64,7 +64,8 @@ class RunCalibration:
     seconds: float
 
     def parameters_file(self) -> str:
-        return parameters_file(self.params, self.estimates, self.run.path)
+        """The calibrated plant as a ROS 2 parameters file, with the fit's (linearized) uncertainty."""
+        return parameters_file(self.params, self.estimates, self.run.path, self.correlation)
 
     def summary(self) -> list[str]:
         """The estimates, their correlation and how well the trajectory is met, as lines of text."""

@@ -49,6 +49,7 @@ from friction_sim.experiment.calibration import (
     estimate_lines,
     fit,
     parameters_file,
+    quantile,
     uncertainty,
     visible,
 )
@@ -215,7 +216,9 @@ class SweepCalibration:
     notes: tuple[str, ...] = ()
 
     def parameters_file(self) -> str:
-        return parameters_file(self.params, self.estimates, self.sweep.source)
+        """The calibrated (resonant) plant as a ROS 2 parameters file, with the fit's uncertainty."""
+        return parameters_file(self.params, self.estimates, self.sweep.source, self.correlation,
+                               quantile(self.known_deviations, self.degrees_of_freedom))
 
     def summary(self) -> list[str]:
         """The estimates and how well the curve is met, as lines of text."""
