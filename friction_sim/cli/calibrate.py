@@ -16,6 +16,7 @@ from friction_sim.cli.options import Verb, add_flag
 from friction_sim.core.model import spec
 from friction_sim.experiment.calibration import (
     LOSSES,
+    Calibration,
     CalibrationError,
     FitOptions,
     calibrate,
@@ -24,7 +25,7 @@ from friction_sim.experiment.calibration import (
     write_residuals,
 )
 from friction_sim.experiment.calibration_fit import parse_start
-from friction_sim.experiment.calibration_sweep import calibrate_sweep, is_sweep, read_sweep
+from friction_sim.experiment.calibration_sweep import SweepCalibration, calibrate_sweep, is_sweep, read_sweep
 from friction_sim.experiment.measurements import read_fixed, read_measurements
 
 F_SCALE = spec.Setting("f_scale", 1.0, "-", "where the robust loss starts, in standard deviations", 1e-6, 1e6)
@@ -80,18 +81,13 @@ def run(args: argparse.Namespace) -> int:
     _write_plant(args.output, result.parameters_file())
     print(f"wrote {write_residuals(result, args.output / 'residuals.csv')}")
     print(f"wrote {save_figure(calibration_figure(result), args.output / 'calibration.png')}")
-    if result.profiles:
-        from friction_sim.cli.calibration_figures import profile_figure
-
-        figure = profile_figure(result.estimates, result.profiles,
-                                quantile(result.known_deviations, result.degrees_of_freedom))
-        print(f"wrote {save_figure(figure, args.output / 'calibration_profile.png')}")
+    _write_profiles(args.output, result)
     return 0
 
 
 def _sweep(args: argparse.Namespace, options: FitOptions) -> int:
     """A frequency sweep: fit the exciter's data to its amplitudes (and lags)."""
-    from friction_sim.cli.calibration_figures import profile_figure, sweep_figure
+    from friction_sim.cli.calibration_figures import sweep_figure
     from friction_sim.cli.figures import save_figure
 
     result = calibrate_sweep(read_sweep(args.measurements), read_fixed(args.fixed, args.set), options)
@@ -99,11 +95,19 @@ def _sweep(args: argparse.Namespace, options: FitOptions) -> int:
         print(line)
     _write_plant(args.output, result.parameters_file())
     print(f"wrote {save_figure(sweep_figure(result), args.output / 'calibration.png')}")
+    _write_profiles(args.output, result)
+    return 0
+
+
+def _write_profiles(folder: Path, result: Calibration | SweepCalibration) -> None:
+    """calibration_profile.png: each fitted parameter's profile (when computed)."""
     if result.profiles:
+        from friction_sim.cli.calibration_figures import profile_figure
+        from friction_sim.cli.figures import save_figure
+
         figure = profile_figure(result.estimates, result.profiles,
                                 quantile(result.known_deviations, result.degrees_of_freedom))
-        print(f"wrote {save_figure(figure, args.output / 'calibration_profile.png')}")
-    return 0
+        print(f"wrote {save_figure(figure, folder / 'calibration_profile.png')}")
 
 
 def _recording(args: argparse.Namespace, options: FitOptions) -> int:

@@ -367,6 +367,17 @@ def check_correlation(correlation: Floats, names: tuple[str, ...]) -> None:
                     "differently")
 
 
+def scatter(values: Floats) -> float:
+    """The RMS of ``values`` (0 for none): a series' residual scatter."""
+    return float(np.sqrt(np.mean(np.asarray(values) ** 2))) if np.size(values) else 0.0
+
+
+def size(values: Floats) -> float:
+    """A series' own size (its RMS), its unit in a first fit before its scatter is known (1 for all 0)."""
+    rms = scatter(values)
+    return rms if rms > 0.0 else 1.0
+
+
 def scales(start: Floats, low: Floats, high: Floats) -> Floats:
     """The parameters' characteristic sizes for the trust region: their starting
     values (a tenth of the range for one that starts at 0).  Scaling by the
@@ -378,4 +389,5 @@ def scales(start: Floats, low: Floats, high: Floats) -> Floats:
 
 __all__ = ["DIFF_STEP", "FITTABLE", "LOSSES", "MAX_CORRELATION", "Z95", "CalibrationError", "Estimate", "Evaluator",
            "FitOptions", "Outcome", "Problem", "bounds_of", "check_correlation", "chosen", "closest", "draws",
-           "linearized", "outcome", "parse_start", "scales", "starting_points", "step_sizes", "words"]
+           "linearized", "outcome", "parse_start", "scales", "scatter", "size", "starting_points", "step_sizes",
+           "words"]

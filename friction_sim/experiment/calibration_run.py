@@ -42,7 +42,7 @@ from friction_sim.experiment.calibration import (
     parameters_file,
     visible,
 )
-from friction_sim.experiment.calibration_fit import linearized
+from friction_sim.experiment.calibration_fit import linearized, scatter, size
 from friction_sim.io.verify import RecordedRun, resimulate
 
 
@@ -107,7 +107,7 @@ def calibrate_run(run: RecordedRun, options: FitOptions) -> RunCalibration:
     """Fit ``options.fit`` to the recorded trajectory (see the module doc)."""
     started = time.perf_counter()
     replays = _Replays(run, options.fit)
-    scale_x, scale_v = _rms(run.x), _rms(run.v)
+    scale_x, scale_v = size(run.x), size(run.v)
 
     def problem_in(sx: float, sv: float) -> Problem:
         def residuals(xs: np.ndarray) -> np.ndarray:
@@ -127,26 +127,15 @@ def calibrate_run(run: RecordedRun, options: FitOptions) -> RunCalibration:
     first = fit(problem_in(scale_x, scale_v), options, reference, visible(False, dof)).result
     sim_x, sim_v = replays.trajectory(first.x)
     inflation = math.sqrt((run.x.size + run.v.size) / dof)  # the residuals' scatter, for the parameters fitted
-    noise_x = max(_scatter(sim_x - run.x) * inflation, 1e-15 * scale_x)  # (a noise-free run: rounding)
-    noise_v = max(_scatter(sim_v - run.v) * inflation, 1e-15 * scale_v)
+    noise_x = max(scatter(sim_x - run.x) * inflation, 1e-15 * scale_x)  # (a noise-free run: rounding)
+    noise_v = max(scatter(sim_v - run.v) * inflation, 1e-15 * scale_v)
     again = dataclasses.replace(options, starts=1, start_points=(dict(zip(options.fit, map(float, first.x))),))
     second = fit(problem_in(noise_x, noise_v), again, first.x, visible(True, dof)).result
     estimates, correlation, _ = linearized(second, options.fit, True, dof, Z95)
     fitted_x, fitted_v = replays.trajectory(second.x)
     return RunCalibration(run, estimates, correlation, replays.plant(second.x)[0], fitted_x, fitted_v,
-                          _scatter(fitted_x - run.x), _scatter(fitted_v - run.v), replays.evaluations,
+                          scatter(fitted_x - run.x), scatter(fitted_v - run.v), replays.evaluations,
                           time.perf_counter() - started)
-
-
-def _scatter(values: np.ndarray) -> float:
-    """The RMS of ``values`` (0 for none)."""
-    return float(np.sqrt(np.mean(values**2))) if values.size else 0.0
-
-
-def _rms(values: np.ndarray) -> float:
-    """A series' own size, its unit in the first fit (1 for a series that is all 0)."""
-    rms = _scatter(values)
-    return rms if rms > 0.0 else 1.0
 
 
 __all__ = ["RunCalibration", "calibrate_run"]

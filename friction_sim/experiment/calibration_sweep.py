@@ -53,7 +53,7 @@ from friction_sim.experiment.calibration import (
     uncertainty,
     visible,
 )
-from friction_sim.experiment.calibration_fit import CalibrationError, Floats, closest
+from friction_sim.experiment.calibration_fit import CalibrationError, Floats, closest, scatter, size
 from friction_sim.experiment.measurements import MeasurementsError, read_csv_rows, read_table
 
 #: What a sweep determines: the exciter's data.
@@ -223,17 +223,17 @@ class SweepCalibration:
     def summary(self) -> list[str]:
         """The estimates and how well the curve is met, as lines of text."""
         s = self.sweep
-        scatter = (f"the std column and the lags' scatter ({self.lag_noise:.3g} deg, estimated)"
-                   if s.lag_deg is not None and s.std is not None else
-                   f"the amplitudes' and the lags' scatter (lags {self.lag_noise:.3g} deg), estimated"
-                   if s.lag_deg is not None else "the std column (known deviations, z intervals)"
-                   if self.known_deviations else
-                   f"the residuals' scatter ({self.degrees_of_freedom} degrees of freedom, t intervals)")
+        origin = (f"the std column and the lags' scatter ({self.lag_noise:.3g} deg, estimated)"
+                  if s.lag_deg is not None and s.std is not None else
+                  f"the amplitudes' and the lags' scatter (lags {self.lag_noise:.3g} deg), estimated"
+                  if s.lag_deg is not None else "the std column (known deviations, z intervals)"
+                  if self.known_deviations else
+                  f"the residuals' scatter ({self.degrees_of_freedom} degrees of freedom, t intervals)")
         residual = s.amplitude - self.fitted_amplitude
         return [f"exciter calibrated from {s.count} frequencies of {s.source} in {self.seconds:.2f} s "
-                f"({self.evaluations} evaluations); uncertainty from {scatter}", *self.notes,
+                f"({self.evaluations} evaluations); uncertainty from {origin}", *self.notes,
                 *estimate_lines(self.estimates, self.correlation),
-                f"amplitude residual RMS {float(np.sqrt(np.mean(residual**2))):.3g} m/s^2 of a largest "
+                f"amplitude residual RMS {scatter(residual):.3g} m/s^2 of a largest "
                 f"{float(np.max(s.amplitude)):.4g} m/s^2"]
 
 
@@ -247,7 +247,7 @@ def calibrate_sweep(sweep: Sweep, fixed: dict[str, Any], options: FitOptions) ->
     if n < p or (n == p and sweep.std is None):
         raise CalibrationError(f"{sweep.count} frequencies cannot determine {p} parameters ({', '.join(options.fit)})")
     dof = n - p
-    amplitude_scale = sweep.std if sweep.std is not None else np.full(sweep.count, _size(sweep.amplitude))
+    amplitude_scale = sweep.std if sweep.std is not None else np.full(sweep.count, size(sweep.amplitude))
 
     def problem_in(lag_scale: float) -> Problem:
         def residuals(xs: Floats) -> Floats:
@@ -261,16 +261,16 @@ def calibrate_sweep(sweep: Sweep, fixed: dict[str, Any], options: FitOptions) ->
             screen=SCREEN)
 
     lag_noise = 0.0
-    problem = problem_in(_size(sweep.lag_deg) if sweep.lag_deg is not None else 1.0)
+    problem = problem_in(size(sweep.lag_deg) if sweep.lag_deg is not None else 1.0)
     fitted = fit(problem, options, model.reference, visible(sweep.std is not None, dof))
     evaluations = fitted.evaluations
     if sweep.lag_deg is not None:  # the lags' deviation, and the amplitudes' where no column gives it, from pass 1
         amplitude, lag = model.curves(fitted.result.x)
         inflation = math.sqrt(n / dof)
-        lag_noise = max(_rms(lag[0] - sweep.lag_deg) * inflation, 1e-12)
+        lag_noise = max(scatter(lag[0] - sweep.lag_deg) * inflation, 1e-12)
         if sweep.std is None:
-            amplitude_scale = np.full(sweep.count, max(_rms(amplitude[0] - sweep.amplitude) * inflation,
-                                                       1e-15 * _size(sweep.amplitude)))
+            amplitude_scale = np.full(sweep.count, max(scatter(amplitude[0] - sweep.amplitude) * inflation,
+                                                       1e-15 * size(sweep.amplitude)))
         problem = problem_in(lag_noise)
         again = dataclasses.replace(options, starts=1, start_points=(dict(zip(options.fit, map(float,
                                                                                               fitted.result.x))),))
@@ -284,16 +284,6 @@ def calibrate_sweep(sweep: Sweep, fixed: dict[str, Any], options: FitOptions) ->
     params = plant_from({**plant, **exciter, "actuator": "resonant"})[0]
     return SweepCalibration(sweep, found.estimates, found.correlation, found.profiles, amplitude[0], lag[0], params,
                             known, dof, lag_noise, evaluations, time.perf_counter() - started, fitted.notes)
-
-
-def _rms(values: Floats) -> float:
-    return float(np.sqrt(np.mean(np.asarray(values) ** 2))) if np.size(values) else 0.0
-
-
-def _size(values: Floats | None) -> float:
-    """A series' own size, its unit in a first fit (1 for a series that is all 0)."""
-    size = _rms(values) if values is not None else 0.0
-    return size if size > 0.0 else 1.0
 
 
 __all__ = ["COLUMNS", "EXCITER", "SCREEN", "Sweep", "SweepCalibration", "SweepModel", "calibrate_sweep", "is_sweep",
