@@ -20,16 +20,26 @@ finds the parameters the data determine, with honest uncertainty:
   run away (:mod:`~friction_sim.experiment.calibration_fit`,
   :mod:`~friction_sim.experiment.calibration_points`), and keeps the best; a
   start that ends on a flat region is reported, not blamed on the data.
-* **The uncertainty** is the linearized covariance at the optimum,
-  (J^T J)^-1 times the residual variance (1 when the deviations were given:
-  they are then known), standard errors its diagonal's roots, 95 % intervals
-  the estimate +- t(0.975, n - p) (z = 1.96 with known deviations) standard
-  errors, and the correlation matrix.
+* **The uncertainty**: the linearized covariance at the optimum, (J^T J)^-1
+  times the residual variance (1 when the deviations were given: they are
+  then known), standard errors its diagonal's roots, 95 % intervals the
+  estimate +- t(0.975, n - p) (z = 1.96 with known deviations) standard
+  errors; beside them each parameter's profile-likelihood interval
+  (:mod:`~friction_sim.experiment.calibration_profile`), honest where the
+  parameters correlate nonlinearly, and the correlation over those intervals.
+  The fit's uncertainty goes into calibrated.yaml for predictions
+  (:mod:`~friction_sim.experiment.calibration_predict`).
 * **Refusal.** A fit the data cannot determine is refused in one line that
   says why (:class:`CalibrationError`): fewer points than parameters (or no
-  more, without deviations: the scatter cannot be estimated); a parameter that
-  moves no point's speed (every point in the no-motion region, for mu); two
-  parameters correlated above :data:`MAX_CORRELATION`.
+  more, without deviations: the scatter cannot be estimated); every point
+  measured still; a parameter that changes no point's speed at any start that
+  moved; two parameters correlated above :data:`MAX_CORRELATION`; a result
+  that is not finite.
+
+The same machinery fits the exciter to a frequency sweep
+(:mod:`~friction_sim.experiment.calibration_sweep`) and the plant to a
+recording (:mod:`~friction_sim.experiment.calibration_run`, linearized
+intervals only).
 """
 
 from __future__ import annotations

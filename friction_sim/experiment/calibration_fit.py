@@ -72,20 +72,30 @@ def closest(name: str, names: Sequence[str]) -> str:
 
 def parse_start(text: str, names: Sequence[str]) -> dict[str, float]:
     """A ``--start`` value, ``mu=0.2,static_ratio=1.3``: fitted names only, each value in its range."""
-    start: dict[str, float] = {}
+    start: dict[str, Any] = {}
     for part in (piece.strip() for piece in text.split(",") if piece.strip()):
         name, sep, value = (piece.strip() for piece in part.partition("="))
         if not sep:
             raise CalibrationError(f"--start {text!r}: expected name=value[,name=value]")
+        try:
+            start[name] = float(value)
+        except ValueError:
+            start[name] = value
+    return check_start(start, names)
+
+
+def check_start(start: dict[str, Any], names: Sequence[str]) -> dict[str, float]:
+    """A starting point's values by name: fitted names only, each a number in its range."""
+    checked = {}
+    for name, value in start.items():
         if name not in names:
             raise CalibrationError(f"--start {name}: not a fitted parameter (fitted: {', '.join(names)})"
                                    + closest(name, names))
         try:
-            start[name] = float(FITTABLE[name].check(float(value)))
-        except ValueError as error:  # (ParameterError is one)
-            reason = error if isinstance(error, ParameterError) else f"{name} = {value!r} is not a number"
-            raise CalibrationError(f"--start: {reason}") from None
-    return start
+            checked[name] = float(FITTABLE[name].check(value))
+        except ParameterError as error:
+            raise CalibrationError(f"--start: {error}") from None
+    return checked
 
 
 @dataclass(frozen=True)
@@ -121,7 +131,7 @@ class FitOptions:
         if not (self.f_scale > 0.0 and math.isfinite(self.f_scale)) or self.starts < 1:
             raise CalibrationError("--f-scale must be > 0 and --starts >= 1")
         for start in self.start_points:
-            parse_start(",".join(f"{name}={value!r}" for name, value in start.items()), self.fit)
+            check_start({name: float(value) for name, value in start.items()}, self.fit)
 
 
 @dataclass(frozen=True)
@@ -388,6 +398,6 @@ def scales(start: Floats, low: Floats, high: Floats) -> Floats:
 
 
 __all__ = ["DIFF_STEP", "FITTABLE", "LOSSES", "MAX_CORRELATION", "Z95", "CalibrationError", "Estimate", "Evaluator",
-           "FitOptions", "Outcome", "Problem", "bounds_of", "check_correlation", "chosen", "closest", "draws",
-           "linearized", "outcome", "parse_start", "scales", "scatter", "size", "starting_points", "step_sizes",
-           "words"]
+           "FitOptions", "Outcome", "Problem", "bounds_of", "check_correlation", "check_start", "chosen", "closest",
+           "draws", "linearized", "outcome", "parse_start", "scales", "scatter", "size", "starting_points",
+           "step_sizes", "words"]
