@@ -1,12 +1,16 @@
-"""Benchmark of calibration (issue 22): how long ``friction-sim calibrate`` takes
-for 5, 20 and 100 measured points, fitting mu and mu_s/mu together with the
-command's defaults (4 starts, 100 + 100 periods per point).
+"""Benchmark of calibration (issues 22 and 31): how long ``friction-sim calibrate``
+takes for 5, 12, 20 and 100 measured points, fitting mu and mu_s/mu together
+with the command's defaults (4 starts screened from drawn ones, 100 + 100
+periods per point, profile-likelihood intervals included; issue 31's target:
+12 points in under 2 s), and the exciter (f_n, zeta, A) from a 40-point
+frequency sweep with 2 % noise (target: under 1 s).
 
 The points are synthetic (the exact model at mu = 0.12, mu_s/mu = 1.3 over drive
 forces 0.6-1.0 N and amplitudes 4-8 N, plus 1 % seeded noise, given as std).  A
-fit costs a number of model evaluations (one population-engine run over all
-points each); the baseline measured in the same run is one such evaluation, so
-the figures to compare between machines are the ratios.  Timings are medians
+fit costs a number of model evaluations (parameter sets; a Jacobian's are one
+population-engine run with its point, the profile's re-fits one run per step
+for all of them); the baseline measured in the same run is one run over the
+points, so the figures to compare between machines are the ratios.  Timings are medians
 of a few fits.  Prints figures only: a benchmark never passes or fails on timing.
 
 Run: make bench   (or .venv/bin/python bench/calibrate.py [--repeats 3])
@@ -26,7 +30,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from friction_sim.core.engine.population import run_batch
 from friction_sim.core.model import spec
+from friction_sim.core.physics.exciter import steady_response
 from friction_sim.experiment.calibration import FitOptions, calibrate
+from friction_sim.experiment.calibration_points import ONE_THREAD_BELOW
+from friction_sim.experiment.calibration_sweep import Sweep, calibrate_sweep
 from friction_sim.experiment.measurements import Measurements
 
 from _timing import median_time
@@ -53,22 +60,43 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
     options = FitOptions(fit=("mu", "static_ratio"), **WINDOW)
-    print("bench/calibrate.py  fit mu and static_ratio, 4 starts, 100 + 100 periods per point")
+    print("bench/calibrate.py  fit mu and static_ratio, 4 starts, 100 + 100 periods per point, profile intervals")
     print(f"{'points':>6} {'fit [s]':>9} {'evaluations':>12} {'one evaluation [ms]':>20} {'fit / evaluation':>17}"
           f"   estimates")
-    for count in (5, 20, 100):
+    for count in (5, 12, 20, 100):
         measurements = synthetic(count)
         model_values: dict[str, Any] = {name: s.default for name, s in {**spec.PLANT, **spec.INPUTS}.items()}
         model_values.update(TRUTH, **{k: v for k, v in measurements.settings.items()})
-        run_batch(model_values, **WINDOW)  # compiled already: the first call of this size pays nothing more
-        evaluation = median_time(lambda values=model_values: run_batch(values, **WINDOW), 5)
+        threads = 1 if count < ONE_THREAD_BELOW else None  # as the fit runs one evaluation
+        run_batch(model_values, **WINDOW, threads=threads)  # compiled already: the first call of this size pays no more
+        evaluation = median_time(
+            lambda values=model_values, threads=threads: run_batch(values, **WINDOW, threads=threads), 5)
         result = calibrate(measurements, {}, options)
         fit = median_time(lambda points=measurements: calibrate(points, {}, options), args.repeats)
         words = ", ".join(f"{e.name} {e.value:.5g} +- {e.std_error:.2g}" for e in result.estimates)
         print(f"{count:>6} {fit:>9.3f} {result.evaluations:>12} {evaluation * 1e3:>20.2f} "
               f"{fit / evaluation:>17.0f}   {words}")
+    sweep = noisy_sweep(40)
+    calibrate_sweep(sweep, {}, EXCITER_OPTIONS)
+    seconds = median_time(lambda: calibrate_sweep(sweep, {}, EXCITER_OPTIONS), args.repeats)
+    result = calibrate_sweep(sweep, {}, EXCITER_OPTIONS)
+    words = ", ".join(f"{e.name} {e.value:.5g} +- {e.std_error:.2g}" for e in result.estimates)
+    print(f"exciter from a 40-point sweep (f_n, zeta, A; 4 starts, profile intervals): {seconds:.3f} s, "
+          f"{result.evaluations} evaluations   {words}")
     print(f"(measured {time.strftime('%Y-%m-%d %H:%M')}; the machine is shared: compare the ratios)")
     return 0
+
+
+EXCITER_OPTIONS = FitOptions(fit=("natural_frequency", "damping_ratio", "full_drive_acceleration"))
+
+
+def noisy_sweep(count: int) -> Sweep:
+    """A sweep of 44-60 Hz at drive level 0.5 of f_n 52 Hz, zeta 0.03, A 12 m/s^2, 2 % noise, given as std."""
+    frequency = np.linspace(44.0, 60.0, count)
+    amplitude = np.array([steady_response(0.5, 12.0, f, 52.0, 0.03)[0] for f in frequency])
+    sigma = 0.02 * float(np.max(amplitude))
+    noisy = amplitude + np.random.default_rng(count).normal(0.0, sigma, count)
+    return Sweep(frequency, np.full(count, 0.5), noisy, None, np.full(count, sigma), f"{count}-point sweep")
 
 
 if __name__ == "__main__":

@@ -9,22 +9,28 @@ parameters file, the residual table as CSV and the check picture as PNG.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 from friction_sim.cli.options import Verb, add_flag
 from friction_sim.core.model import spec
 from friction_sim.experiment.calibration import (
     LOSSES,
+    Calibration,
     CalibrationError,
     FitOptions,
     calibrate,
+    quantile,
     summary,
     write_residuals,
 )
+from friction_sim.experiment.calibration_fit import parse_start
+from friction_sim.experiment.calibration_sweep import SweepCalibration, calibrate_sweep, is_sweep, read_sweep
 from friction_sim.experiment.measurements import read_fixed, read_measurements
 
 F_SCALE = spec.Setting("f_scale", 1.0, "-", "where the robust loss starts, in standard deviations", 1e-6, 1e6)
-STARTS = spec.Setting("starts", 4, "-", "starting points: the settings given, then drawn across the bounds", 1, 1000)
+STARTS = spec.Setting("starts", 4, "-", "starting points in all: the --start ones, the settings given, then the best "
+                      "in cost of those drawn where the part moves and does not run away", 1, 1000)
 SEED = spec.Setting("seed", 0, "-", "seed of the starting points drawn", 0, 2**31 - 1)
 SETTLE = spec.SETTLE_PERIODS.described("whole periods simulated before averaging, per point",
                                        default=FitOptions.settle_periods)
@@ -34,29 +40,38 @@ PERIODS = spec.PERIODS.described("whole periods averaged per point", default=Fit
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The ``calibrate`` options."""
     parser.add_argument("measurements", type=Path, help="CSV of operating points (the varied settings, mean_speed "
-                                                         "[m/s] and optionally std [m/s]), or a recording (.mcap) "
-                                                         "whose trajectory to fit")
+                                                         "[m/s] and optionally std [m/s]); CSV of a frequency sweep "
+                                                         "(excitation_frequency, amplitude [m/s^2], optionally "
+                                                         "drive_level, lag_deg, std), which fits the exciter; or a "
+                                                         "recording (.mcap) whose trajectory to fit")
     parser.add_argument("--fit", required=True, help="the plant parameters to fit, comma-separated (e.g. "
                                                      "mu,static_ratio)")
     parser.add_argument("--fixed", type=Path, help="the settings that do not vary: a YAML mapping in the sweeps' "
                                                    "vocabulary, or a ROS 2 parameters file")
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                         help="a fixed setting (repeatable; overrides --fixed)")
+    parser.add_argument("--start", action="append", default=[], metavar="NAME=VALUE[,NAME=VALUE]",
+                        help="a starting point of the fit (repeatable; fitted names, the others at their settings), "
+                             "tried before the starts drawn where the part moves and does not run away")
     parser.add_argument("--loss", choices=LOSSES, default="linear",
                         help="residual loss: linear (least squares), or soft_l1 / huber against outliers")
     for setting in (F_SCALE, STARTS, SEED, SETTLE, PERIODS):
         add_flag(parser, setting, setting.default)
     parser.add_argument("--output", type=Path, default=Path("out/calibration"),
-                        help="folder of calibrated.yaml, residuals.csv and calibration.png (default out/calibration)")
+                        help="folder of calibrated.yaml, residuals.csv, calibration.png and calibration_profile.png "
+                             "(default out/calibration)")
 
 
 def run(args: argparse.Namespace) -> int:
     """``calibrate``: read, fit, print the estimates and write the outputs."""
-    options = FitOptions(fit=tuple(name.strip() for name in args.fit.split(",") if name.strip()), loss=args.loss,
-                         f_scale=args.f_scale, starts=args.starts, seed=args.seed,
+    fitted = tuple(name.strip() for name in args.fit.split(",") if name.strip())
+    options = FitOptions(fit=fitted, loss=args.loss, f_scale=args.f_scale, starts=args.starts, seed=args.seed,
                          settle_periods=args.settle_periods, periods=args.periods)
+    options = dataclasses.replace(options, start_points=tuple(parse_start(text, fitted) for text in args.start))
     if args.measurements.suffix == ".mcap":
         return _recording(args, options)
+    if is_sweep(args.measurements):
+        return _sweep(args, options)
     from friction_sim.cli.figures import calibration_figure, save_figure
 
     measurements = read_measurements(args.measurements)
@@ -67,7 +82,33 @@ def run(args: argparse.Namespace) -> int:
     _write_plant(args.output, result.parameters_file())
     print(f"wrote {write_residuals(result, args.output / 'residuals.csv')}")
     print(f"wrote {save_figure(calibration_figure(result), args.output / 'calibration.png')}")
+    _write_profiles(args.output, result)
     return 0
+
+
+def _sweep(args: argparse.Namespace, options: FitOptions) -> int:
+    """A frequency sweep: fit the exciter's data to its amplitudes (and lags)."""
+    from friction_sim.cli.calibration_figures import sweep_figure
+    from friction_sim.cli.figures import save_figure
+
+    result = calibrate_sweep(read_sweep(args.measurements), read_fixed(args.fixed, args.set), options)
+    for line in result.summary():
+        print(line)
+    _write_plant(args.output, result.parameters_file())
+    print(f"wrote {save_figure(sweep_figure(result), args.output / 'calibration.png')}")
+    _write_profiles(args.output, result)
+    return 0
+
+
+def _write_profiles(folder: Path, result: Calibration | SweepCalibration) -> None:
+    """calibration_profile.png: each fitted parameter's profile (when computed)."""
+    if result.profiles:
+        from friction_sim.cli.calibration_figures import profile_figure
+        from friction_sim.cli.figures import save_figure
+
+        figure = profile_figure(result.estimates, result.profiles,
+                                quantile(result.known_deviations, result.degrees_of_freedom))
+        print(f"wrote {save_figure(figure, folder / 'calibration_profile.png')}")
 
 
 def _recording(args: argparse.Namespace, options: FitOptions) -> int:
@@ -94,7 +135,8 @@ def _write_plant(folder: Path, text: str) -> None:
     print(f"wrote {plant} (slider --params, a scenario's or a sweep's plant_params)")
 
 
-VERBS = (Verb("calibrate", "fit mu, static_ratio, restitution, exciter data... to measured mean speeds, with "
-              "standard errors, 95 % intervals and a calibrated parameters file", add_arguments, run),)
+VERBS = (Verb("calibrate", "fit mu, static_ratio, restitution, exciter data... to measured mean speeds (or the "
+              "exciter to a frequency sweep), with standard errors, 95 % linearized and profile-likelihood "
+              "intervals and a calibrated parameters file", add_arguments, run),)
 
 __all__ = ["VERBS", "add_arguments", "run"]

@@ -11,6 +11,7 @@ Subcommands::
     friction-sim resonance --png tuning.png [--from 40 --to 60] [--natural-frequency 52 --drive-level 0.5]
     friction-sim reduction --png reduction.png [--ratios 0.2,0.6 --speeds 0.0005] [--angle 60]
     friction-sim calibrate measurements.csv --fit mu,static_ratio [--fixed plant.yaml] [--set mass=0.02]
+    friction-sim predict calibrated.yaml [--set drive_force=0.9] [--sweep excitation_amplitude=4:8:21 --png band.png]
     friction-sim slider [--params FILE] [--log run.mcap] [--foxglove [PORT]] [--ros-args ...]
     friction-sim controller [--params FILE] [--ros-args ...]
     friction-sim feeder [--slider-params FILE] [--controller-params FILE] [--log run.mcap] [--foxglove [PORT]]
@@ -42,6 +43,7 @@ from friction_sim.cli import (
     experiments,
     motion,
     nodes,
+    predict,
     reduction,
     relation,
     replay,
@@ -84,7 +86,8 @@ class _OneLineParser(argparse.ArgumentParser):
 
 
 #: The modules that declare the verbs (``VERBS``), in the order ``--help`` lists them.
-VERB_MODULES = (relation, motion, conveyor, resonance, reduction, nodes, experiments, replay, sweeps, calibrate)
+VERB_MODULES = (relation, motion, conveyor, resonance, reduction, nodes, experiments, replay, sweeps, calibrate,
+                predict)
 
 
 def verbs() -> tuple[Verb, ...]:

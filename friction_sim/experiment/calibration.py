@@ -14,24 +14,38 @@ finds the parameters the data determine, with honest uncertainty:
   in units of each point's standard deviation when the file gives one (else of
   the measured speeds' RMS, the scatter then estimated from the fit), with an
   optional robust loss (``soft_l1``, ``huber``) against outliers.  The speed is
-  not monotone in restitution or the vibration angle, so it starts from the
-  settings given and from ``starts - 1`` more points drawn (seeded) across the
-  bounds, and keeps the best.
-* **The uncertainty** is the linearized covariance at the optimum,
-  (J^T J)^-1 times the residual variance (1 when the deviations were given:
-  they are then known), standard errors its diagonal's roots, 95 % intervals
-  the estimate +- t(0.975, n - p) (z = 1.96 with known deviations) standard
-  errors, and the correlation matrix.
+  not monotone in restitution or the vibration angle, and flat where nothing
+  moves or everything runs away, so it starts from the user's starts, the
+  settings given and points drawn (seeded) where the part moves and does not
+  run away (:mod:`~friction_sim.experiment.calibration_fit`,
+  :mod:`~friction_sim.experiment.calibration_points`), and keeps the best; a
+  start that ends on a flat region is reported, not blamed on the data.
+* **The uncertainty**: the linearized covariance at the optimum, (J^T J)^-1
+  times the residual variance (1 when the deviations were given: they are
+  then known), standard errors its diagonal's roots, 95 % intervals the
+  estimate +- t(0.975, n - p) (z = 1.96 with known deviations) standard
+  errors; beside them each parameter's profile-likelihood interval
+  (:mod:`~friction_sim.experiment.calibration_profile`), honest where the
+  parameters correlate nonlinearly, and the correlation over those intervals.
+  The fit's uncertainty goes into calibrated.yaml for predictions
+  (:mod:`~friction_sim.experiment.calibration_predict`).
 * **Refusal.** A fit the data cannot determine is refused in one line that
   says why (:class:`CalibrationError`): fewer points than parameters (or no
-  more, without deviations: the scatter cannot be estimated); a parameter that
-  moves no point's speed (every point in the no-motion region, for mu); two
-  parameters correlated above :data:`MAX_CORRELATION`.
+  more, without deviations: the scatter cannot be estimated); every point
+  measured still; a parameter that changes no point's speed at any start that
+  moved; two parameters correlated above :data:`MAX_CORRELATION`; a result
+  that is not finite.
+
+The same machinery fits the exciter to a frequency sweep
+(:mod:`~friction_sim.experiment.calibration_sweep`) and the plant to a
+recording (:mod:`~friction_sim.experiment.calibration_run`, linearized
+intervals only).
 """
 
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import time
 from collections.abc import Callable
@@ -41,72 +55,43 @@ from typing import Any
 
 import numpy as np
 
-from friction_sim.core.engine.population import run_batch
 from friction_sim.core.model import spec
 from friction_sim.core.model.params import SliderParams, plant_from
-from friction_sim.errors import FrictionSimError
-from friction_sim.experiment.measurements import Measurements
-from friction_sim.experiment.sweep import DERIVED, FIELDS, derive_fields
+from friction_sim.experiment.calibration_fit import (
+    FITTABLE,
+    LOSSES,
+    MAX_CORRELATION,
+    Z95,
+    CalibrationError,
+    Estimate,
+    Evaluator,
+    FitOptions,
+    Floats,
+    Outcome,
+    Problem,
+    check_correlation,
+    chosen,
+    linearized,
+    outcome,
+    scales,
+    starting_points,
+    words,
+)
+from friction_sim.experiment.calibration_points import PointsModel
+from friction_sim.experiment.calibration_predict import uncertain_from, uncertainty_section
+from friction_sim.experiment.calibration_profile import Profile, chord_correlation, profiles
+from friction_sim.experiment.measurements import SPEED_STD, Measurements
 
-#: Parameters that may be fitted: the plant's numbers.
-FITTABLE = {name: setting for name, setting in spec.PLANT.items() if setting.kind is float}
-LOSSES = ("linear", "soft_l1", "huber")
-#: Two fitted parameters correlated beyond this cannot be told apart by the data.
-MAX_CORRELATION = 0.99
-#: Two-sided 95 % quantile of the normal distribution (known deviations).
-Z95 = 1.959963984540054
-
-
-class CalibrationError(FrictionSimError):
-    """A calibration the data cannot determine (or cannot be set up), and why."""
-
-
-@dataclass(frozen=True)
-class FitOptions:
-    """What to fit and how: ``fit`` the parameter names; ``loss`` and ``f_scale``
-    (in standard deviations) as SciPy's; ``starts`` starting points (the first
-    the settings given), drawn with ``seed``; the mean speed over ``periods``
-    whole periods after ``settle_periods``."""
-
-    fit: tuple[str, ...]
-    loss: str = "linear"
-    f_scale: float = 1.0
-    starts: int = 4
-    seed: int = 0
-    settle_periods: int = 100
-    periods: int = 100
-
-    def __post_init__(self) -> None:
-        if not self.fit:
-            raise CalibrationError("--fit names no parameter (e.g. --fit mu,static_ratio)")
-        unknown = [name for name in self.fit if name not in FITTABLE]
-        if unknown:
-            raise CalibrationError(f"--fit {unknown[0]!r}: not a plant parameter that can be fitted "
-                                   f"(one of {', '.join(FITTABLE)})")
-        if len(set(self.fit)) != len(self.fit):
-            raise CalibrationError(f"--fit {','.join(self.fit)}: a parameter named twice")
-        if self.loss not in LOSSES:
-            raise CalibrationError(f"--loss {self.loss!r}: one of {', '.join(LOSSES)}")
-        if not (self.f_scale > 0.0 and math.isfinite(self.f_scale)) or self.starts < 1:
-            raise CalibrationError("--f-scale must be > 0 and --starts >= 1")
-
-
-@dataclass(frozen=True)
-class Estimate:
-    """One fitted parameter: its value, standard error and 95 % interval."""
-
-    name: str
-    value: float
-    std_error: float
-    low: float
-    high: float
+#: Drawn starts screened at once (one population-engine call over that many times the points).
+SCREEN = 256
 
 
 @dataclass(frozen=True)
 class Calibration:
     """The result: the estimates, their correlation, the fitted speeds and
     residuals [m/s] point by point, the calibrated plant (fixed settings and
-    estimates), and how the fit went."""
+    estimates), how the fit went, and what became of starts that ended where
+    nothing changes (``notes``)."""
 
     estimates: tuple[Estimate, ...]
     correlation: np.ndarray
@@ -120,6 +105,9 @@ class Calibration:
     seconds: float
     evaluations: int = 0
     fixed: dict[str, Any] = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
+    covariance: np.ndarray | None = None
+    profiles: tuple[Profile, ...] = ()
 
     @property
     def residuals(self) -> np.ndarray:
@@ -127,42 +115,65 @@ class Calibration:
         return np.asarray(self.measurements.speed - self.fitted_speed)
 
     def parameters_file(self) -> str:
-        """The calibrated plant as a ROS 2 parameters file (see :func:`parameters_file`)."""
-        return parameters_file(self.params, self.estimates, self.measurements.source)
+        """The calibrated plant as a ROS 2 parameters file, with the fit's uncertainty (see :func:`parameters_file`)."""
+        return parameters_file(self.params, self.estimates, self.measurements.source, self.correlation,
+                               quantile(self.known_deviations, self.degrees_of_freedom))
 
 
-class _Model:
-    """The mean speed of every point for a vector of fitted values."""
+@dataclass(frozen=True)
+class Fitted:
+    """A finished multi-start fit: the start kept, every start's outcome, the
+    parameter vectors the model was evaluated at, and the notes on flat starts."""
 
-    def __init__(self, measurements: Measurements, fixed: dict[str, Any], options: FitOptions) -> None:
-        clash = [name for name in options.fit if name in measurements.settings or name in fixed]
-        if clash:
-            raise CalibrationError(f"{clash[0]} is both fitted and given (in the measurements or the fixed settings)")
-        self.measurements, self.fixed, self.options = measurements, fixed, options
-        self.evaluations = 0
-        n = measurements.count
-        self.columns: dict[str, np.ndarray] = {
-            name: np.full(n, setting.default) if setting.kind is str else np.full(n, float(setting.default))
-            for name, setting in FIELDS.items()}
-        for name, value in fixed.items():
-            if name in FIELDS:
-                self.columns[name] = np.full(n, value) if isinstance(value, str) else np.full(n, float(value))
-        self.given = {name: np.full(n, float(value)) for name, value in fixed.items() if name in DERIVED}
-        for name, values in measurements.settings.items():
-            (self.given if name in DERIVED else self.columns)[name] = values
+    best: Outcome
+    outcomes: tuple[Outcome, ...]
+    evaluations: int
 
-    def values(self, x: np.ndarray) -> dict[str, np.ndarray]:
-        """Every field of every point, with the fitted parameters at ``x`` (derived keys applied after)."""
-        columns = dict(self.columns)
-        for name, value in zip(self.options.fit, x):
-            columns[name] = np.full(self.measurements.count, float(value))
-        derive_fields(columns, self.given)
-        return columns
+    @property
+    def result(self) -> Any:
+        return self.best.result
 
-    def speed(self, x: np.ndarray) -> np.ndarray:
-        self.evaluations += 1
-        batch = run_batch(self.values(x), settle_periods=self.options.settle_periods, periods=self.options.periods)
-        return np.asarray(batch.mean_velocity, dtype=float)
+    @property
+    def notes(self) -> tuple[str, ...]:
+        return tuple(note for o in self.outcomes if (note := o.note(len(self.outcomes))))
+
+
+def fit(problem: Problem, options: FitOptions, reference: Floats, threshold: Callable[[float], float]) -> Fitted:
+    """SciPy's bounded least squares (trust region reflective) of ``problem``
+    from each of its starting points (:func:`~friction_sim.experiment.calibration_fit.starting_points`),
+    the Jacobian by forward differences in one call of the model per point;
+    the start kept as :func:`~friction_sim.experiment.calibration_fit.chosen`
+    says (``threshold``: the cost difference the data cannot see, given the best cost)."""
+    from scipy.optimize import least_squares
+
+    evaluator = Evaluator(problem)
+    low, high = problem.bounds
+    outcomes = []
+    for number, start in enumerate(starting_points(problem, options, reference), start=1):
+        try:
+            result = least_squares(evaluator.fun, start, jac=evaluator.jac, bounds=(low, high), loss=options.loss,
+                                   f_scale=options.f_scale, x_scale=scales(start, low, high), xtol=1e-14,
+                                   ftol=1e-14, gtol=1e-14, max_nfev=400)
+        except ValueError as error:  # SciPy refuses a residual or a slope that is not finite
+            raise CalibrationError(f"start {number}: the fit met a number beyond floating point ({error}) at "
+                                   f"{words(problem.names, start)}: are the measurements in their units?") from None
+        outcomes.append(outcome(problem, number, start, result))
+    moved = [float(o.result.cost) for o in outcomes if not o.flat]
+    best = chosen(problem, outcomes, threshold(min(moved)) if moved else 0.0)
+    return Fitted(best, tuple(outcomes), evaluator.rows)
+
+
+def quantile(known: bool, dof: int) -> float:
+    """The two-sided 95 % quantile of the intervals: z with known deviations, else t over ``dof``."""
+    return Z95 if known else t95(dof)
+
+
+def visible(known: bool, dof: int) -> Callable[[float], float]:
+    """The rise of the cost (0.5 sum of squared residuals) that 95 % confidence
+    allows for one parameter: chi2_1(0.95)/2 with known deviations, else the F
+    (t^2) form, t^2 times the residual variance over 2 (cost/dof)."""
+    q = quantile(known, dof)
+    return (lambda cost: 0.5 * q * q) if known else (lambda cost: q * q * cost / dof)
 
 
 def calibrate(measurements: Measurements, fixed: dict[str, Any], options: FitOptions) -> Calibration:
@@ -176,22 +187,76 @@ def calibrate(measurements: Measurements, fixed: dict[str, Any], options: FitOpt
         raise CalibrationError(f"{n} points cannot determine {p} parameters ({', '.join(options.fit)})"
                                + ("" if known else "; without a std column the scatter needs more points than "
                                                    "parameters"))
-    model = _Model(measurements, fixed, options)
-    scale = measurements.std if known else np.full(n, _rms(measurements.speed))
-
-    def residuals(x: np.ndarray) -> np.ndarray:
-        return np.asarray((model.speed(x) - measurements.speed) / scale)
-
-    best = fit_least_squares(residuals, options, fixed)
-    if not np.all(np.any(np.asarray(best.jac) != 0.0, axis=0)):
-        _refuse_unidentifiable(np.asarray(best.jac), measurements, options)
+    if not np.any(measurements.speed != 0.0):
+        raise CalibrationError(f"every point lies in the no-motion region (mean speed 0 measured at all "
+                               f"{n} points): {', '.join(options.fit)} not identifiable there; measure where the "
+                               "part moves")
+    model = PointsModel(measurements, fixed, options)
+    scale = measurements.std if measurements.std is not None else np.full(n, _rms(measurements.speed))
+    problem = Problem(options.fit, lambda xs: (model.speeds(xs) - measurements.speed[None, :]) / scale[None, :],
+                      model.flat, model.violations, "point's mean speed", SCREEN)
     dof = n - p
-    estimates, correlation = estimates_from(best, options.fit, known, dof)
+    fitted = fit(problem, options, model.reference, visible(known, dof))
+    best = fitted.result
+    found = uncertainty(problem, best, options, known, dof)
+    estimates, correlation, covariance, profiled = found.estimates, found.correlation, found.covariance, found.profiles
     values = model.values(best.x)
     params = plant_from({name: _scalar(values[name]) for name in spec.PLANT})[0]
-    return Calibration(estimates, correlation, measurements, model.speed(best.x), params, known, dof,
-                       float(best.cost), options.starts, time.perf_counter() - started, model.evaluations,
-                       dict(fixed))
+    fitted_speed = model.speeds(best.x)[0]
+    check_finite(estimates, fitted_speed)
+    return Calibration(estimates, correlation, measurements, fitted_speed, params, known, dof,
+                       float(best.cost), len(fitted.outcomes), time.perf_counter() - started, fitted.evaluations,
+                       dict(fixed), fitted.notes, covariance, profiled)
+
+
+@dataclass(frozen=True)
+class Uncertainty:
+    """What a fit's uncertainty is: the estimates with their linearized and
+    profile intervals, the correlation (chords across the profile intervals
+    when profiled, else the tangent one), the linearized covariance and the profiles."""
+
+    estimates: tuple[Estimate, ...]
+    correlation: Floats
+    covariance: Floats
+    profiles: tuple[Profile, ...]
+
+
+def uncertainty(problem: Problem, best: Any, options: FitOptions, known: bool, dof: int) -> Uncertainty:
+    """The uncertainty of the fit ``best`` of ``problem`` (residuals in units of
+    their deviations: ``known``, or of an unknown scale then estimated over
+    ``dof``); refused if two parameters correlate beyond the limit."""
+    estimates, correlation, covariance = linearized(best, problem.names, known, dof, quantile(known, dof),
+                                                    check=not options.profile)
+    profiled: tuple[Profile, ...] = ()
+    if options.profile:
+        profiled, estimates = profile_intervals(problem, best, estimates, covariance, options, known, dof)
+        correlation = chord_correlation(problem, best.x, profiled, quantile(known, dof))
+        check_correlation(correlation, problem.names)
+    return Uncertainty(estimates, correlation, covariance, profiled)
+
+
+def check_finite(estimates: tuple[Estimate, ...], fitted: Floats) -> None:
+    """Never a result that is not finite: refused, naming the number."""
+    for e in estimates:
+        numbers = {"estimate": e.value, "standard error": e.std_error, "interval": e.low + e.high}
+        if math.isfinite(e.profile_low) or math.isfinite(e.profile_high):
+            numbers["profile interval"] = e.profile_low + e.profile_high
+        bad = next((what for what, number in numbers.items() if not math.isfinite(number)), None)
+        if bad:
+            raise CalibrationError(f"{e.name}: the fit's {bad} is not finite: the data cannot determine it")
+    if not np.all(np.isfinite(fitted)):
+        raise CalibrationError("a fitted value is not finite: the data cannot determine the parameters")
+
+
+def profile_intervals(problem: Problem, best: Any, estimates: tuple[Estimate, ...], covariance: Floats,
+                      options: FitOptions, known: bool, dof: int) -> tuple[tuple[Profile, ...], tuple[Estimate, ...]]:
+    """Each parameter's profile and the estimates with their profile intervals
+    (:mod:`~friction_sim.experiment.calibration_profile`)."""
+    variance = 1.0 if known else 2.0 * float(best.cost) / dof
+    profiled = profiles(problem, np.asarray(best.x, dtype=float), float(best.cost), covariance, variance,
+                        quantile(known, dof), options.loss, options.f_scale)
+    return profiled, tuple(dataclasses.replace(e, profile_low=pr.low, profile_high=pr.high, open_low=pr.open_low,
+                                               open_high=pr.open_high) for e, pr in zip(estimates, profiled))
 
 
 def summary(calibration: Calibration) -> list[str]:
@@ -202,7 +267,7 @@ def summary(calibration: Calibration) -> list[str]:
         f"the residuals' scatter ({c.degrees_of_freedom} degrees of freedom, t intervals)")
     lines = [f"calibrated from {m.count} points of {m.source} in {c.seconds:.2f} s ({c.starts} starts, "
              f"{c.evaluations} evaluations); uncertainty from {scatter}",
-             *estimate_lines(c.estimates, c.correlation)]
+             *c.notes, *estimate_lines(c.estimates, c.correlation)]
     varied = list(m.settings)
     lines.append("point  " + "  ".join(f"{name:>14}" for name in varied)
                  + f"  {'measured m/s':>14}  {'fitted m/s':>14}  {'residual m/s':>14}")
@@ -230,134 +295,61 @@ def _cell(value: Any) -> str:
     return str(value) if isinstance(value, str) else f"{float(value):.10g}"
 
 
-def fit_least_squares(residuals: Callable[[np.ndarray], np.ndarray], options: FitOptions,
-                      given: dict[str, Any], first: np.ndarray | None = None) -> Any:
-    """SciPy's bounded least squares of ``residuals`` over ``options.fit`` from
-    each starting point (``first``, else the settings ``given``, then the ones
-    drawn), the best result kept (scipy.optimize.OptimizeResult)."""
-    from scipy.optimize import least_squares
-
-    low, high = _bounds(options.fit)
-    best = None
-    for start in _starts(options, given, low, high, first):
-        result = least_squares(residuals, start, bounds=(low, high), loss=options.loss, f_scale=options.f_scale,
-                               x_scale=_scales(start, low, high), diff_step=1e-7, xtol=1e-14, ftol=1e-14,
-                               gtol=1e-14, max_nfev=400)
-        if best is None or result.cost < best.cost:
-            best = result
-    assert best is not None
-    return best
-
-
-def estimates_from(best: Any, names: tuple[str, ...], known: bool, dof: int) -> tuple[tuple[Estimate, ...],
-                                                                                    np.ndarray]:
-    """Estimates with standard errors and 95 % intervals, and their correlation,
-    from the linearized covariance at the optimum (residuals in units of their
-    deviations: ``known``, or scaled by the residual variance over ``dof``);
-    refused if two parameters correlate beyond :data:`MAX_CORRELATION`."""
-    jacobian = np.asarray(best.jac, dtype=float)
-    variance = 1.0 if known else float(np.sum(best.fun**2)) / dof
-    covariance = np.linalg.pinv(jacobian.T @ jacobian) * variance
-    errors = np.sqrt(np.diag(covariance))
-    correlation = covariance / np.outer(errors, errors)
-    _check_correlation(correlation, names)
-    quantile = Z95 if known else _t95(dof)
-    estimates = tuple(Estimate(name, float(v), float(e), float(v - quantile * e), float(v + quantile * e))
-                      for name, v, e in zip(names, best.x, errors))
-    return estimates, correlation
-
-
-def parameters_file(params: SliderParams, estimates: tuple[Estimate, ...], source: str) -> str:
+def parameters_file(params: SliderParams, estimates: tuple[Estimate, ...], source: str,
+                    correlation: Floats | None = None, q: float = Z95) -> str:
     """A calibrated plant as a ROS 2 parameters file: ``slider --params``, a
-    scenario's ``plant_params`` and a sweep's ``plant_params`` read it as it is."""
+    scenario's ``plant_params`` and a sweep's ``plant_params`` read it as it is;
+    with the ``correlation``, the fit's uncertainty too, in a section of its own
+    (:func:`~friction_sim.experiment.calibration_predict.uncertainty_section`,
+    what ``friction-sim predict`` reads)."""
     lines = ["# Calibrated by friction-sim calibrate from " + source,
-             "# " + ", ".join(f"{e.name} = {e.value:.10g} +- {e.std_error:.3g} (95 %: {e.low:.6g} .. "
-                              f"{e.high:.6g})" for e in estimates),
+             *(f"# {e.name} = {e.value:.10g} +- {e.std_error:.3g} (95 %: linearized {e.low:.6g} .. {e.high:.6g}"
+               + (f"; profile likelihood {e.profile_low:.6g} .. {e.profile_high:.6g})"
+                  if math.isfinite(e.profile_low) else ")") for e in estimates),
              "/**:", "  ros__parameters:"]
     for name in spec.PLANT:
         value = getattr(params, name)
         lines.append(f"    {name}: {value}" if isinstance(value, str) else f"    {name}: {float(value)!r}")
+    if correlation is not None:
+        plant = {name: getattr(params, name) for name in spec.PLANT}
+        lines += uncertainty_section(uncertain_from(plant, estimates, correlation, q))
     return "\n".join(lines) + "\n"
 
 
 def estimate_lines(estimates: tuple[Estimate, ...], correlation: np.ndarray) -> list[str]:
-    """The estimates table and the correlation matrix, as lines of text."""
-    lines = [f"{'parameter':<24}{'estimate':>16}{'std error':>14}{'95 % interval':>34}"]
-    lines += [f"{e.name:<24}{e.value:>16.8g}{e.std_error:>14.3g}   [{e.low:.8g}, {e.high:.8g}]" for e in estimates]
+    """The estimates table (the profile interval beside the linearized one, when
+    computed; an end at the parameter's bound marked open) and the correlation
+    matrix, as lines of text."""
+    profiled = any(math.isfinite(e.profile_low) for e in estimates)
+    lines = [f"{'parameter':<24}{'estimate':>16}{'std error':>12}   {'95 % linearized':<32}"
+             + ("  95 % profile likelihood" if profiled else "")]
+    for e in estimates:
+        line = f"{e.name:<24}{e.value:>16.8g}{e.std_error:>12.3g}   {f'[{e.low:.8g}, {e.high:.8g}]':<32}"
+        if profiled:
+            line += (f"  {'(' if e.open_low else '['}{e.profile_low:.8g}, {e.profile_high:.8g}"
+                     f"{')' if e.open_high else ']'}")
+        lines.append(line)
+    if any(e.open_low or e.open_high for e in estimates):
+        lines.append("(an end in round brackets is the parameter's bound: the data do not close the interval there)")
     names = [e.name for e in estimates]
     lines.append("correlation: " + ("  ".join(names) if len(names) > 1 else "(one parameter)"))
     if len(names) > 1:
-        lines += [f"  {name:<22}" + " ".join(f"{value:+.4f}" for value in row)
+        width = max(22, *(len(name) + 1 for name in names))
+        lines += [f"  {name:<{width}}" + " ".join(f"{value:+.4f}" for value in row)
                   for name, row in zip(names, correlation)]
     return lines
 
 
 def _rms(speed: np.ndarray) -> float:
-    """The measured speeds' RMS [m/s] (the residuals' unit without deviations; 1 mm/s if all are 0)."""
+    """The measured speeds' RMS [m/s], the residuals' unit without deviations: at
+    least the smallest deviation a std column may give (residuals divided by
+    less overflow), 1 mm/s if all are 0."""
     rms = float(np.sqrt(np.mean(speed**2)))
-    return rms if rms > 0.0 else 1e-3
+    return max(rms, float(SPEED_STD.low or 0.0)) if rms > 0.0 else 1e-3
 
 
-def _bounds(names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
-    low = np.array([-math.inf if (bound := FITTABLE[n].low) is None else float(bound) for n in names])
-    high = np.array([math.inf if (bound := FITTABLE[n].high) is None else float(bound) for n in names])
-    return low, high
-
-
-def _scales(start: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
-    """The parameters' characteristic sizes for the trust region: their starting
-    values (a tenth of the range for one that starts at 0).  Scaling by the
-    Jacobian instead let a weak parameter (mu_s/mu near 1) take a step into the
-    no-motion region, where every slope is 0 and the fit stops."""
-    span = np.where(np.isfinite(high - low), 0.1 * (high - low), 1.0)
-    return np.where(start != 0.0, np.abs(start), span)
-
-
-def _starts(options: FitOptions, given: dict[str, Any], low: np.ndarray, high: np.ndarray,
-            first: np.ndarray | None = None) -> list[np.ndarray]:
-    """``first``, else the settings given (else the defaults), then ``starts - 1``
-    points drawn (seeded) across the bounds: log-uniform within a decade either
-    side for a positive parameter whose range spans decades, uniform otherwise."""
-    if first is None:
-        first = np.array([float(given.get(n, FITTABLE[n].default)) for n in options.fit])
-    first = np.clip(first, low, high)
-    rng = np.random.default_rng(options.seed)
-    starts = [first]
-    for _ in range(options.starts - 1):
-        point = np.empty_like(first)
-        for i, (a, b, x0) in enumerate(zip(low, high, first)):
-            if a > 0.0 and b / a > 100.0:
-                lo, hi = max(a, x0 / 10.0), min(b, x0 * 10.0)
-                point[i] = math.exp(rng.uniform(math.log(lo), math.log(hi)))
-            else:
-                lo, hi = (a if math.isfinite(a) else x0 - 1.0), (b if math.isfinite(b) else x0 + 1.0)
-                point[i] = rng.uniform(lo, hi)
-        starts.append(point)
-    return starts
-
-
-def _refuse_unidentifiable(jacobian: np.ndarray, measurements: Measurements, options: FitOptions) -> None:
-    """Refuse a parameter the speeds do not depend on, at any point."""
-    dead = [name for name, column in zip(options.fit, jacobian.T) if not np.any(column != 0.0)]
-    if not np.any(measurements.speed != 0.0):
-        raise CalibrationError(f"every point lies in the no-motion region (mean speed 0 measured and predicted at "
-                               f"all {measurements.count} points): {', '.join(dead)} not identifiable there; "
-                               "measure where the part moves")
-    raise CalibrationError(f"{', '.join(dead)} changes no point's mean speed (at the fit): not identifiable from "
-                           "these points")
-
-
-def _check_correlation(correlation: np.ndarray, names: tuple[str, ...]) -> None:
-    for i in range(len(names)):
-        for j in range(i + 1, len(names)):
-            if abs(correlation[i, j]) > MAX_CORRELATION:
-                raise CalibrationError(
-                    f"{names[i]} and {names[j]} correlate {correlation[i, j]:+.4f} over these points (limit "
-                    f"{MAX_CORRELATION}): the data cannot tell them apart; fix one, or measure where they act "
-                    "differently")
-
-
-def _t95(dof: int) -> float:
+def t95(dof: int) -> float:
+    """The t distribution's two-sided 95 % quantile over ``dof`` degrees of freedom."""
     from scipy.stats import t
 
     return float(t.ppf(0.975, dof))
@@ -370,6 +362,6 @@ def _scalar(column: np.ndarray) -> Any:
     return value if isinstance(value, str) else float(value)
 
 
-__all__ = ["FITTABLE", "LOSSES", "MAX_CORRELATION", "Calibration", "CalibrationError", "Estimate", "FitOptions",
-           "calibrate", "estimate_lines", "estimates_from", "fit_least_squares", "parameters_file", "summary",
-           "write_residuals"]
+__all__ = ["FITTABLE", "LOSSES", "MAX_CORRELATION", "Z95", "Calibration", "CalibrationError", "Estimate", "FitOptions",
+           "Fitted", "Problem", "Uncertainty", "calibrate", "check_finite", "estimate_lines", "fit", "parameters_file",
+           "quantile", "summary", "t95", "uncertainty", "visible", "write_residuals"]

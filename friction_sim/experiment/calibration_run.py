@@ -23,7 +23,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,14 +31,18 @@ from friction_sim.core.model.commands import PARAMETERS
 from friction_sim.core.model.params import Inputs, SliderParams, plant_from
 from friction_sim.errors import ParameterError
 from friction_sim.experiment.calibration import (
+    FITTABLE,
+    Z95,
     CalibrationError,
     Estimate,
     FitOptions,
+    Problem,
     estimate_lines,
-    estimates_from,
-    fit_least_squares,
+    fit,
     parameters_file,
+    visible,
 )
+from friction_sim.experiment.calibration_fit import linearized, scatter, size
 from friction_sim.experiment.verify import RecordedRun, resimulate
 
 
@@ -61,7 +64,8 @@ class RunCalibration:
     seconds: float
 
     def parameters_file(self) -> str:
-        return parameters_file(self.params, self.estimates, self.run.path)
+        """The calibrated plant as a ROS 2 parameters file, with the fit's (linearized) uncertainty."""
+        return parameters_file(self.params, self.estimates, self.run.path, self.correlation)
 
     def summary(self) -> list[str]:
         """The estimates, their correlation and how well the trajectory is met, as lines of text."""
@@ -103,45 +107,35 @@ def calibrate_run(run: RecordedRun, options: FitOptions) -> RunCalibration:
     """Fit ``options.fit`` to the recorded trajectory (see the module doc)."""
     started = time.perf_counter()
     replays = _Replays(run, options.fit)
-    scale_x, scale_v = _rms(run.x), _rms(run.v)
+    scale_x, scale_v = size(run.x), size(run.v)
 
-    def residuals_in(sx: float, sv: float) -> Callable[[np.ndarray], np.ndarray]:
-        def residuals(x: np.ndarray) -> np.ndarray:
-            sim_x, sim_v = replays.trajectory(x)
-            return np.concatenate([(sim_x - run.x) / sx, (sim_v - run.v) / sv])
-        return residuals
+    def problem_in(sx: float, sv: float) -> Problem:
+        def residuals(xs: np.ndarray) -> np.ndarray:
+            rows = []
+            for x in xs:
+                sim_x, sim_v = replays.trajectory(x)
+                rows.append(np.concatenate([(sim_x - run.x) / sx, (sim_v - run.v) / sv]))
+            return np.array(rows)
+        return Problem(options.fit, residuals, lambda x: "the trajectory does not change at "
+                       + ", ".join(f"{n} = {v:.6g}" for n, v in zip(options.fit, x)),
+                       subject="sample of the recorded trajectory")
 
     # The starts are the settings' defaults, not the file's values: those are what is in question
     # (a recording of the simulator holds the truth).
-    given: dict[str, object] = {}
-    first = fit_least_squares(residuals_in(scale_x, scale_v), options, given)
-    sim_x, sim_v = replays.trajectory(first.x)
+    reference = np.array([float(FITTABLE[name].default) for name in options.fit])
     dof = run.x.size + run.v.size - len(options.fit)
+    first = fit(problem_in(scale_x, scale_v), options, reference, visible(False, dof)).result
+    sim_x, sim_v = replays.trajectory(first.x)
     inflation = math.sqrt((run.x.size + run.v.size) / dof)  # the residuals' scatter, for the parameters fitted
-    noise_x = max(_scatter(sim_x - run.x) * inflation, 1e-15 * scale_x)  # (a noise-free run: rounding)
-    noise_v = max(_scatter(sim_v - run.v) * inflation, 1e-15 * scale_v)
-    second = fit_least_squares(residuals_in(noise_x, noise_v), dataclasses.replace(options, starts=1), given,
-                               first.x)
-    if not np.all(np.any(np.asarray(second.jac) != 0.0, axis=0)):
-        dead = [n for n, column in zip(options.fit, np.asarray(second.jac).T) if not np.any(column != 0.0)]
-        raise CalibrationError(f"{run.path}: {', '.join(dead)} changes nothing of the recorded trajectory: "
-                               "not identifiable from this run")
-    estimates, correlation = estimates_from(second, options.fit, True, dof)
+    noise_x = max(scatter(sim_x - run.x) * inflation, 1e-15 * scale_x)  # (a noise-free run: rounding)
+    noise_v = max(scatter(sim_v - run.v) * inflation, 1e-15 * scale_v)
+    again = dataclasses.replace(options, starts=1, start_points=(dict(zip(options.fit, map(float, first.x))),))
+    second = fit(problem_in(noise_x, noise_v), again, first.x, visible(True, dof)).result
+    estimates, correlation, _ = linearized(second, options.fit, True, dof, Z95)
     fitted_x, fitted_v = replays.trajectory(second.x)
     return RunCalibration(run, estimates, correlation, replays.plant(second.x)[0], fitted_x, fitted_v,
-                          _scatter(fitted_x - run.x), _scatter(fitted_v - run.v), replays.evaluations,
+                          scatter(fitted_x - run.x), scatter(fitted_v - run.v), replays.evaluations,
                           time.perf_counter() - started)
-
-
-def _scatter(values: np.ndarray) -> float:
-    """The RMS of ``values`` (0 for none)."""
-    return float(np.sqrt(np.mean(values**2))) if values.size else 0.0
-
-
-def _rms(values: np.ndarray) -> float:
-    """A series' own size, its unit in the first fit (1 for a series that is all 0)."""
-    rms = _scatter(values)
-    return rms if rms > 0.0 else 1.0
 
 
 __all__ = ["RunCalibration", "calibrate_run"]
