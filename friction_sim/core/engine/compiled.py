@@ -44,6 +44,7 @@ from numba.extending import register_jitable
 
 from friction_sim.core.model import params as _params
 from friction_sim.core.physics import exciter as _exciter
+from friction_sim.core.physics import numerics as _numerics
 from friction_sim.core.physics import plant as _plant
 from friction_sim.core.physics import roots as _roots
 from friction_sim.core.physics import segment as _segment
@@ -77,7 +78,7 @@ COLUMNS = ("mass", "mu", "gravity", "static_ratio", "excitation_angle", "excitat
 DONE, NO_PROGRESS = 0, 1
 
 #: The modules whose plain functions the compiled code calls: the physics, written once.
-PHYSICS = (_roots, _exciter, _plant, _segment)
+PHYSICS = (_numerics, _roots, _exciter, _plant, _segment)
 
 
 def _register() -> None:

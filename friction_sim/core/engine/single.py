@@ -58,8 +58,9 @@ from friction_sim.core.engine.sampling import evaluate_many
 from friction_sim.core.model.events import MODES as _MODES
 from friction_sim.core.model.events import CycleMark, Event, EventKind, Mode, SliderState, Trajectory
 from friction_sim.core.model.params import Inputs, SliderParams, require_finite
+from friction_sim.core.physics.numerics import two_sum
 from friction_sim.core.physics.plant import Plant, plant_of
-from friction_sim.core.physics.roots import NEVER, TWO_PI, reduce_phase, two_sum
+from friction_sim.core.physics.roots import NEVER, TWO_PI, reduce_phase
 from friction_sim.core.physics.segment import (
     FLIGHT,
     LANDING,

@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import math
 
-from friction_sim.core.physics.roots import TWO_PI, remainders, two_sum
+from friction_sim.core.physics.numerics import two_sum
+from friction_sim.core.physics.roots import TWO_PI, remainders
 
 FOUR_PI2 = 4.0 * math.pi**2
 #: The machine epsilon of a double (numpy's finfo(float).eps, sys.float_info.epsilon).

@@ -35,7 +35,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from friction_sim.core.physics.roots import hypot
+from friction_sim.core.physics.numerics import hypot
 
 #: A transient whose force is below this fraction of the plant's force scale
 #: (2**-60: a 256th of the last bit of a double of that size) changes no event time and

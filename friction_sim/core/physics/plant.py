@@ -23,7 +23,8 @@ from typing import Any, NamedTuple
 
 from friction_sim.core.model.params import Inputs, SliderParams, cos_degrees, sin_degrees
 from friction_sim.core.physics.exciter import steady_response
-from friction_sim.core.physics.roots import TWO_PI, hypot
+from friction_sim.core.physics.numerics import hypot
+from friction_sim.core.physics.roots import TWO_PI
 
 #: A rebound slower than this many units of g*cos(alpha)/omega (gravity would
 #: stop it within a millionth of a radian of excitation phase) is a plastic

@@ -14,9 +14,9 @@ Python that Numba compiles: the single slider (:mod:`friction_sim.core.engine.si
 calls them as ordinary Python, the population engine
 (:mod:`friction_sim.core.engine.compiled`) compiles the very same functions,
 so both follow one formulation and agree bit for bit (CPython's ``math`` and
-Numba call the same libm; ``math.hypot``, which CPython computes its own way,
-is not used: see :func:`hypot`).  No objects,
-no ``None``: "never" is ``inf``, "not found" is ``nan``.
+Numba call the same libm; where they would not, :mod:`~friction_sim.core.physics.numerics`
+writes the operation out).  No objects, no ``None``: "never" is ``inf``, "not
+found" is ``nan``.
 """
 
 from __future__ import annotations
@@ -25,6 +25,8 @@ import math
 from typing import Any, NamedTuple
 
 import numpy as np
+
+from friction_sim.core.physics.numerics import ulp
 
 TWO_PI = 2.0 * math.pi
 NEVER = math.inf
@@ -40,69 +42,6 @@ LONGEST_SLIP = 1e12
 LONGEST_FLIGHT_PIECES = 2_000_000
 #: Iterations of a safeguarded Newton polish (it converges in a handful; bisection bounds it).
 POLISH_ITERATIONS = 200
-
-
-def two_sum(a: Any, b: Any) -> tuple[Any, Any]:
-    """(a + b rounded, its exact rounding error) (Knuth's TwoSum); also works elementwise on arrays."""
-    hi = a + b
-    bb = hi - a
-    return hi, (a - (hi - bb)) + (b - bb)
-
-
-def ulp(x: float) -> float:
-    """The unit in the last place of x, as math.ulp (which Numba cannot compile; nor
-    can Numba before 0.60 compile math.nextafter): 2**(e - 53) for |x| = m*2**e,
-    0.5 <= m < 1, and the least subnormal below the least normal number."""
-    magnitude = abs(x)
-    if magnitude == math.inf:
-        return math.inf
-    if magnitude < 2.2250738585072014e-308:
-        return 5e-324
-    return math.ldexp(1.0, math.frexp(magnitude)[1] - 53)
-
-
-def _split(a: float) -> tuple[float, float]:
-    """Veltkamp's split of a (|a| < 2**996) into two halves of 26 bits, exactly."""
-    c = 134217729.0 * a  # 2**27 + 1
-    high = c - (c - a)
-    return high, a - high
-
-
-def _two_product(a: float, b: float) -> tuple[float, float]:
-    """(a*b rounded, its exact rounding error) (Dekker), without an fma."""
-    product = a * b
-    ah, al = _split(a)
-    bh, bl = _split(b)
-    return product, ((ah * bh - product) + ah * bl + al * bh) + al * bl
-
-
-def hypot(a: float, b: float) -> float:
-    """sqrt(a*a + b*b), correctly rounded but in rare hard cases, without overflow or
-    underflow.  Not math.hypot: CPython computes that its own way (its algorithm
-    changes between versions) and Numba calls libm's, which differ in the last bit
-    now and then, and one formulation must give one result everywhere.  The sum
-    of squares is formed exactly as a double-double (Dekker's products, no fma),
-    from operands scaled by a power of two into [0.5, 1), and the square root gets
-    one Newton correction from the exact residual."""
-    a, b = abs(a), abs(b)
-    if a == math.inf or b == math.inf:
-        return math.inf
-    if a != a or b != b:
-        return math.nan
-    big, small = (a, b) if a >= b else (b, a)
-    if big == 0.0 or small == 0.0:
-        return big
-    _, exponent = math.frexp(big)
-    x, y = math.ldexp(big, -exponent), math.ldexp(small, -exponent)  # exact unless y underflows (then negligible)
-    xx, xx_error = _two_product(x, x)
-    yy, yy_error = _two_product(y, y)
-    total = xx + yy
-    bb = total - xx
-    low = ((xx - (total - bb)) + (yy - bb)) + (xx_error + yy_error)  # two_sum's error plus the products'
-    h = math.sqrt(total + low)
-    hh, hh_error = _two_product(h, h)
-    h += ((total - hh) + (low - hh_error)) / (2.0 * h)
-    return math.ldexp(h, exponent)
 
 
 # -- the closed form of a speed and its integral ------------------------------------------
