@@ -11,22 +11,19 @@ bit for bit.  Kostek's model (``Plant.kostek``) has its own onsets and
 outcomes, the paper's case to the last bit; everything else takes the general
 ones.  The engines act on steps: the single slider
 (:mod:`friction_sim.core.engine.single`, interpreted) and the population
-(:mod:`friction_sim.core.engine.compiled`, the same functions compiled).
-
-The period bookkeeping is here too: :func:`offset` times a phase from the
-slider's phase anchor, so event times never inherit one another's rounding,
-and :func:`to_cycle` finds where a period starts within a segment.
+(:mod:`friction_sim.core.engine.compiled`, the same functions compiled), both
+through the one stepper of :mod:`friction_sim.core.physics.stepper`, which
+carries a :class:`Segment` from event to event.
 """
 
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Final, NamedTuple
 
 from friction_sim.core.physics.plant import Form, Plant, form_at, onset_form, slip_form, stays
 from friction_sim.core.physics.roots import (
     NEVER,
-    TWO_PI,
     Harmonic,
     from_rest_b0,
     harmonic,
@@ -41,12 +38,6 @@ from friction_sim.core.physics.roots import (
 BACKWARD, STUCK, FORWARD, FLIGHT = -1, 0, 1, 2
 #: Event kinds, numbered as events.EventKind lists them.
 SLIP_START, STICK, REVERSAL, LIFT_OFF, LANDING = 0, 1, 2, 3, 4
-#: More events than this at one instant means the general model made no
-#: progress (a rounding case its guards missed): a stepper (the single slider,
-#: the compiled population) raises a SimulationFault instead of looping for
-#: ever.  A real instant has at most a handful (a landing, a lift-off at once,
-#: a slip onset).
-MAX_EVENTS_AT_ONE_INSTANT = 1000
 
 
 class Step(NamedTuple):
@@ -78,6 +69,42 @@ class Step(NamedTuple):
 
 
 NO_STEP = Step(NEVER, False, 0.0, 0, 0.0, 0.0, 0.0, STICK, STUCK, 0.0, 0.0, 0, False)
+
+
+class Segment(NamedTuple):
+    """The stepper's state: the motion since the last event and what was booked up to its start.
+
+    Its start: ``mode``, the phase ``phase0`` in [0, 2*pi), the velocities
+    ``v0``, ``vz0``, the height ``z0`` and the progress guards of its next step
+    (``closing``, ``grounded``: see :class:`Step`), the first :data:`START`
+    fields; then the offset ``s0`` from the phase anchor and the time ``t0``
+    (see :mod:`~friction_sim.core.physics.stepper`), the position ``x0 + xl``
+    as a double-double, and the period ``cycles`` that ``phase0`` is in.
+    Booked up to its start: the time spent stuck and in flight, and
+    ``at_instant``, the events in a row that happened at one instant (the
+    no-progress guard)."""
+
+    mode: int
+    phase0: float
+    v0: float
+    vz0: float
+    z0: float
+    closing: int
+    grounded: bool
+    s0: float
+    t0: float
+    x0: float
+    xl: float
+    cycles: int
+    stuck_time: float
+    flight_time: float
+    at_instant: int
+
+
+#: A segment's first fields, ``seg[:START]``, are its start but where and when: all
+#: its next step depends on under one plant (equal starts, equal steps), so they key
+#: an engine's memo of steps (a periodic motion repeats them bit for bit).
+START: Final = 7
 
 
 # -- the closed forms of a segment -------------------------------------------------------------
@@ -135,22 +162,6 @@ def moved_and_velocities(p: Plant, mode: int, v0: float, vz0: float, z0: float, 
         vz, z = harmonic_at(z_axis(p, phase0, vz0, z0), tau)
         return moved, w, vz, z
     return mode * moved, mode * w, 0.0, 0.0
-
-
-def to_cycle(n: int, cycles: int, phase0: float, omega: float) -> float:
-    """tau at which a segment that started at phase ``phase0`` of period ``cycles``
-    reaches the start of period ``n`` (0 if it already had)."""
-    whole = n - cycles
-    return 0.0 if whole <= 0 else (TWO_PI * whole - phase0) / omega
-
-
-def offset(cycles: int, phase: float, origin_cycles: int, origin_phase: float, frequency: float,
-           omega: float) -> float:
-    """When (after the phase anchor: time origin at total phase
-    2*pi*origin_cycles + origin_phase) the total phase reaches 2*pi*cycles + phase.
-    Every event and period start is timed afresh from the anchor, so rounding
-    errors never add up from one event to the next."""
-    return (cycles - origin_cycles) / frequency + (phase - origin_phase) / omega
 
 
 # -- the next event -----------------------------------------------------------------------------

@@ -737,7 +737,7 @@ def test_a_general_model_that_makes_no_progress_fails_loudly(monkeypatch):
     (zero-length events at one instant, for ever), advance_to raises a
     SimulationFault naming the instant instead of hanging, and the slider is
     left at its last good state."""
-    from friction_sim.core.engine import single as slider_module
+    from friction_sim.core.physics import stepper
     from friction_sim.core.physics.segment import FLIGHT, LANDING, Step
     from friction_sim.errors import SimulationFault
 
@@ -748,7 +748,7 @@ def test_a_general_model_that_makes_no_progress_fails_loudly(monkeypatch):
     def stuck_in_place(plant, mode, phase0, v0, vz0, z0, closing, grounded):
         return Step(0.0, False, phase0, 0, 0.0, 0.0, 0.0, LANDING, FLIGHT, 0.0, 0.0, 0, False)
 
-    monkeypatch.setattr(slider_module, "next_step", stuck_in_place)
+    monkeypatch.setattr(stepper, "next_step", stuck_in_place)
     slider.set_inputs(drive_force=0.5)  # a new segment: its step comes from the stand-in
     with pytest.raises(SimulationFault, match=r"no progress: more than 1000 events at t = 0\.01 s"):
         slider.advance_to(0.02)
