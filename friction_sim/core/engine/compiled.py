@@ -12,7 +12,8 @@ step after it), in parallel over cores (``prange``).  There are no rounds: a
 bouncer never holds up the others.  The functions are the same, and Numba
 calls the same libm as CPython (and never fuses a multiply-add), so a
 slider's window is the single slider's bit for bit; only its samples, which
-the single slider evaluates with numpy's sin, may differ in their last bits.
+the single slider evaluates at an array of times with numpy's sin, may differ
+in their last bits.
 
 Like the single slider it keeps a memo of worked-out steps by segment start
 (``seg[:START]``: a periodic motion repeats them bit for bit), held its own
@@ -236,8 +237,7 @@ def _run_one(values: np.ndarray, impulsive: bool, resonant: bool, can_slip: bool
             mark_s = offset(anchor, mark_n, 0.0) if mark_n <= end else NEVER
         # samples before the event
         while k < k_samples and times[k] < next_s:
-            x, v, _, _, _, _, z, vz = evaluate(p, seg.mode, seg.x0, seg.xl, seg.v0, seg.vz0, seg.z0, seg.phase0,
-                                               times[k] - seg.t0)
+            x, v, _, _, _, _, z, vz = evaluate(p, seg, times[k] - seg.t0)
             samples[k, 0], samples[k, 1], samples[k, 2], samples[k, 3] = x, v, z, vz
             sample_modes[k] = seg.mode
             k += 1

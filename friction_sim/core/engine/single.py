@@ -42,8 +42,10 @@ regime is cheap: its steps are kept in a memo.
 The design follows scipy's ``_ivp`` solvers: one object owns the state and
 advances it; detecting the next event (:func:`~friction_sim.core.physics.segment.next_step`)
 is kept apart from acting on it (:func:`~friction_sim.core.physics.stepper.advance`,
-the stepper the compiled population engine runs too); results come back as
-typed records (:class:`SliderState`, :class:`Event`, :class:`Trajectory`).
+the stepper the compiled population engine runs too), and the state within a
+segment comes from its dense output (:func:`~friction_sim.core.physics.segment.evaluate`);
+results come back as typed records (:class:`SliderState`, :class:`Event`,
+:class:`Trajectory`).
 """
 
 from __future__ import annotations
@@ -55,11 +57,10 @@ import numpy as np
 
 from friction_sim.core.engine.actuator import Exciter, ExciterState
 from friction_sim.core.engine.checkpoint import Checkpoint
-from friction_sim.core.engine.sampling import evaluate_many
 from friction_sim.core.model.events import MODES as _MODES
 from friction_sim.core.model.events import CycleMark, Event, EventKind, Mode, SliderState, Trajectory
 from friction_sim.core.model.params import Inputs, SliderParams, require_finite
-from friction_sim.core.physics.numerics import two_sum
+from friction_sim.core.physics.numerics import Floats, two_sum
 from friction_sim.core.physics.plant import Plant, plant_of
 from friction_sim.core.physics.roots import NEVER, TWO_PI, reduce_phase
 from friction_sim.core.physics.segment import (
@@ -240,14 +241,7 @@ class Slider:
     def state(self) -> SliderState:
         """The state at the current time :attr:`t`."""
         seg = self._seg
-        if self._c:
-            assert self._exciter is not None
-            x, v, acc, friction, normal, theta, z, vz = transient_evaluate(
-                self._plant, seg.mode, seg.x0, seg.xl, seg.v0, seg.vz0, seg.z0, seg.phase0, self._c, self._exciter.lam,
-                self._t - seg.t0)
-        else:
-            x, v, acc, friction, normal, theta, z, vz = evaluate(self._plant, seg.mode, seg.x0, seg.xl, seg.v0,
-                                                                 seg.vz0, seg.z0, seg.phase0, self._t - seg.t0)
+        x, v, acc, friction, normal, theta, z, vz = self._evaluate(self._t - seg.t0)
         return SliderState(self._t, x, v, acc, friction, normal, theta % TWO_PI, _MODES[seg.mode], z, vz)
 
     # -- advancing -------------------------------------------------------------
@@ -278,9 +272,9 @@ class Slider:
         """Advance through ascending ``times`` (>= :attr:`t`) and return the exact
         state at each, evaluated segment by segment with numpy: the state
         :meth:`advance_to` and :meth:`state` give at each time, because both cut
-        the time axis where :meth:`_segment_end` says (under the exciter's
-        transient the very same scalar evaluation; on the steady forms numpy's,
-        which may differ in the last bits)."""
+        the time axis where :meth:`_segment_end` says (:meth:`_evaluate`: under
+        the exciter's transient the very same scalar evaluation; on the steady
+        forms numpy's, which may differ in the last bits)."""
         times = np.asarray(times, dtype=float)
         if times.ndim != 1 or times.size == 0:
             raise ParameterError("times", times.shape, "must be a non-empty 1-d array")
@@ -294,7 +288,7 @@ class Slider:
             last = int(np.searchsorted(times, end, side="left"))
             if last > first:
                 seg = self._seg
-                values = self._evaluate_many(seg, times[first:last] - seg.t0)
+                values = self._evaluate(times[first:last] - seg.t0)
                 for column, value in zip(columns, values):
                     column[first:last] = value
                 columns[5][first:last] %= TWO_PI
@@ -461,11 +455,27 @@ class Slider:
                                     tau)
         return moved_and_velocities(plant, seg.mode, seg.v0, seg.vz0, seg.z0, seg.phase0, tau)
 
-    def _evaluate_many(self, seg: Segment, tau: np.ndarray) -> tuple[np.ndarray, ...]:
-        """The state at an array of times into ``seg`` (:func:`~friction_sim.core.engine.sampling.evaluate_many`)."""
-        lam = self._exciter.lam if self._exciter is not None else 0j
-        return evaluate_many(self._plant, seg.mode, seg.x0, seg.xl, seg.v0, seg.vz0, seg.z0, seg.phase0, tau, self._c,
-                             lam)
+    def _evaluate(self, tau: Floats) -> tuple[Floats, Floats, Floats, Floats, Floats, Floats, Floats, Floats]:
+        """The state ``tau`` into the present segment, at a float or an array of times
+        (:func:`~friction_sim.core.physics.segment.evaluate`); under the exciter's
+        transient force Re(c*exp(lam*tau)) the states are
+        :func:`~friction_sim.core.physics.transient.transient_evaluate`'s, one by one
+        (so a sampled state is the scalar one, bit for bit)."""
+        seg, plant, c = self._seg, self._plant, self._c
+        if not c:
+            return evaluate(plant, seg, tau)
+        assert self._exciter is not None
+        lam = self._exciter.lam
+
+        def at(each: float) -> tuple[float, float, float, float, float, float, float, float]:
+            return transient_evaluate(plant, seg.mode, seg.x0, seg.xl, seg.v0, seg.vz0, seg.z0, seg.phase0, c, lam,
+                                      each)
+
+        if isinstance(tau, float):
+            return at(tau)
+        rows = zip(*map(at, tau.tolist()))
+        x, v, acc, friction, normal, theta, z, vz = (np.array(column, dtype=float) for column in rows)
+        return x, v, acc, friction, normal, theta, z, vz
 
     def _segment_end(self) -> tuple[float, bool]:
         """(time, cut): where the present segment's closed form stops holding, and

@@ -6,13 +6,24 @@ same operations in the same order give the same bits.  Where they would not,
 or where Numba cannot compile the standard function, the operation is written
 out here: :func:`hypot` (``math.hypot`` is CPython's own algorithm), :func:`ulp`
 (``math.ulp``), and the exact rounding error of a sum (:func:`two_sum`) or a
-product.
+product.  :func:`sine` takes a float with libm's sin and an array with numpy's,
+so the closed forms of a segment's state evaluate at either (:data:`Floats`).
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+#: A float or an array of floats: what the closed forms of a segment's state take
+#: (:func:`~friction_sim.core.physics.roots.harmonic_at`,
+#: :func:`~friction_sim.core.physics.segment.evaluate`).  A float is computed with
+#: libm's sin (the compiled engine's bits), an array with numpy's, within an ulp or
+#: two of libm's: see :func:`sine`.
+Floats = TypeVar("Floats", float, NDArray[np.float64])
 
 
 def two_sum(a: Any, b: Any) -> tuple[Any, Any]:
@@ -20,6 +31,13 @@ def two_sum(a: Any, b: Any) -> tuple[Any, Any]:
     hi = a + b
     bb = hi - a
     return hi, (a - (hi - bb)) + (b - bb)
+
+
+def sine(x: Floats) -> Floats:
+    """sin of a float with libm (``math.sin``, which Numba calls too: one formulation, one
+    result in both engines), of an array elementwise with numpy (within an ulp or two of
+    libm's, so an array's values may differ from the floats' in their last bits)."""
+    return math.sin(x) if isinstance(x, float) else np.sin(x)
 
 
 def ulp(x: float) -> float:

@@ -16,7 +16,8 @@ calls them as ordinary Python, the population engine
 so both follow one formulation and agree bit for bit (CPython's ``math`` and
 Numba call the same libm; where they would not, :mod:`~friction_sim.core.physics.numerics`
 writes the operation out).  No objects, no ``None``: "never" is ``inf``, "not
-found" is ``nan``.
+found" is ``nan``.  The closed form of a speed and its integral
+(:class:`Harmonic`) evaluates at a float or at an array of times.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from friction_sim.core.physics.numerics import ulp
+from friction_sim.core.physics.numerics import Floats, sine, ulp
 
 TWO_PI = 2.0 * math.pi
 NEVER = math.inf
@@ -114,19 +115,20 @@ def harmonic(w0: float, b0: float, b1: float, phase0: float, omega: float, start
     return Harmonic(w0, b0, b1, phase0, omega, start, b0 + b1 * sin0, k, k / omega, cos0, sin0)
 
 
-def speed_after(h: Harmonic, c1: float, s2: float, tau: float) -> float:
+def speed_after(h: Harmonic, c1: Floats, s2: Floats, tau: Floats) -> Floats:
     """w at ``tau`` from its remainders (arithmetic only: floats or arrays)."""
     return h.w0 + h.g0 * tau + h.k * (h.cos0 * c1 - h.sin0 * s2)
 
 
-def travel_after(h: Harmonic, s2: float, c2: float, tau: float) -> float:
+def travel_after(h: Harmonic, s2: Floats, c2: Floats, tau: Floats) -> Floats:
     """start + the integral of w at ``tau`` from its remainders (floats or arrays)."""
     return h.start + (h.w0 * tau + 0.5 * h.g0 * tau * tau + h.kk * (h.cos0 * s2 - h.sin0 * c2))
 
 
-def harmonic_at(h: Harmonic, tau: float) -> tuple[float, float]:
-    """(w, start + integral of w) at ``tau``."""
-    c1, s2, c2 = remainders(h.omega * tau)
+def harmonic_at(h: Harmonic, tau: Floats) -> tuple[Floats, Floats]:
+    """(w, start + integral of w) at ``tau``, a float or an array (see :data:`Floats`)."""
+    psi = h.omega * tau
+    c1, s2, c2 = remainders(psi) if isinstance(psi, float) else remainders_many(psi)
     return speed_after(h, c1, s2, tau), travel_after(h, s2, c2, tau)
 
 
@@ -142,9 +144,9 @@ def harmonic_height(h: Harmonic, tau: float) -> float:
     return travel_after(h, s2, c2, tau)
 
 
-def harmonic_rate(h: Harmonic, tau: float) -> float:
-    """dw/dt at ``tau``."""
-    return h.b0 + h.b1 * math.sin(h.phase0 + h.omega * tau)
+def harmonic_rate(h: Harmonic, tau: Floats) -> Floats:
+    """dw/dt at ``tau``, a float or an array."""
+    return h.b0 + h.b1 * sine(h.phase0 + h.omega * tau)
 
 
 # -- slip onset ----------------------------------------------------------------------------

@@ -1,16 +1,21 @@
-"""The one stepper (friction_sim.core.physics.stepper), which both engines run: the
-single slider interpreted, the population engine compiled (test_batch.py holds the
-two to the same bits).  Here its rules, each on its own: an event's time from the
-phase anchor, the position as a double-double, the booked times, the no-progress
-guard."""
+"""The one stepper (friction_sim.core.physics.stepper) and the one evaluation of a
+segment's state (segment.evaluate), which both engines run: the single slider
+interpreted, the population engine compiled (test_batch.py holds the two to the
+same bits).  Here their rules, each on its own: an event's time from the phase
+anchor, the position as a double-double, the booked times, the no-progress guard;
+and the evaluation's hook for a force added to the steady forms, which reproduces
+the exciter's transient evaluation bit for bit."""
 
 from __future__ import annotations
 
 import math
 from fractions import Fraction
 
+import numpy as np
 import pytest
+from reference_exciter import random_case
 
+from friction_sim.core.physics.exciter import exp_terms
 from friction_sim.core.physics.roots import NEVER, TWO_PI
 from friction_sim.core.physics.segment import (
     FLIGHT,
@@ -20,10 +25,15 @@ from friction_sim.core.physics.segment import (
     START,
     STICK,
     STUCK,
+    Added,
     Segment,
     Step,
+    evaluate,
 )
 from friction_sim.core.physics.stepper import Anchor, advance, offset, period_start, schedule, spent, to_cycle
+from friction_sim.core.physics.transient import transient_evaluate
+
+from helpers import exciter_states
 
 #: An anchor at t = 2 s, total phase 2*pi*3 + 1 rad, 50 Hz.
 ANCHOR = Anchor(2.0, 3, 1.0, 50.0, TWO_PI * 50.0)
@@ -95,3 +105,35 @@ def test_events_in_a_row_at_one_instant_are_counted_for_the_no_progress_guard() 
 def test_a_segment_start_is_its_first_fields() -> None:
     seg = segment(FORWARD)
     assert seg[:START] == (seg.mode, seg.phase0, seg.v0, seg.vz0, seg.z0, seg.closing, seg.grounded)
+
+
+def test_the_transient_evaluation_is_the_steady_one_plus_the_added_force() -> None:
+    """evaluate(..., Added(force and its integrals)) is transient_evaluate bit for bit,
+    in every mode, on the segments of random resonant runs while their transients last."""
+    rng = np.random.default_rng(30)
+    seen: set[int] = set()
+    compared = 0
+    for _ in range(12):
+        case = random_case(rng)
+        _, slider = exciter_states(case, [0.09])
+        for t in np.linspace(0.09, 0.6, 400):
+            for when, level in case.changes:  # (the case's drive level steps, as exciter_states takes them)
+                if slider.t < when <= t:
+                    slider.advance_to(when)
+                    slider.set_inputs(drive_level=level)
+            slider.advance_to(float(t))
+            c = slider._c  # noqa: SLF001 - the transient's force at the segment's start, for the evaluation's term
+            if not c:
+                continue
+            seg, p = slider._seg, slider._plant  # noqa: SLF001 - the segment and plant that state() evaluates
+            lam = slider._exciter.lam  # noqa: SLF001 - the transient's decay and frequency
+            for tau in (0.0, 0.5 * (slider.t - seg.t0), slider.t - seg.t0):
+                e0, e1, e2 = exp_terms(lam, tau)
+                added = Added((c * e0).real, (c * e1).real, (c * e2).real)
+                got = evaluate(p, seg, tau, added)
+                want = transient_evaluate(p, seg.mode, seg.x0, seg.xl, seg.v0, seg.vz0, seg.z0, seg.phase0, c, lam,
+                                          tau)
+                assert [value.hex() for value in got] == [float(value).hex() for value in want], (seg, tau)
+                compared += 1
+            seen.add(seg.mode)
+    assert compared > 1000 and {STUCK, FLIGHT} <= seen and seen & {FORWARD, -FORWARD}
