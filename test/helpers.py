@@ -1,7 +1,8 @@
 """Helpers shared by the core tests: a time limit that turns a hang into a
 test failure (some inputs once looped forever at the edges of the slip
-window), the mirror image of a command schedule, and the core's run of a
-case of the exciter's reference (test/reference_exciter.py)."""
+window), the mirror image of a command schedule, the paper's slider and the
+comparisons of two sliders' states and events, and the core's run of a case
+of the exciter's reference (test/reference_exciter.py)."""
 
 from __future__ import annotations
 
@@ -67,6 +68,38 @@ def grouped(schedule: list[Command]) -> list[Command]:
     for command in sorted(schedule, key=lambda c: c.t):
         merged.setdefault(command.t, {}).update(command.values)
     return [Command(t, "parameters", values) for t, values in merged.items()]
+
+
+def paper_slider(**kwargs: Any) -> Any:
+    """A slider of the paper's Fig. 2 case (the defaults), with Slider's keyword arguments."""
+    from friction_sim.core.engine.single import Slider
+    from friction_sim.core.model.params import Inputs, SliderParams
+
+    return Slider(SliderParams(), Inputs(), **kwargs)
+
+
+def rel_close(actual: float, expected: float, rel: float) -> bool:
+    """|actual - expected| <= rel*|expected|."""
+    return abs(actual - expected) <= rel * abs(expected)
+
+
+def assert_states_close(a: Any, b: Any, rel: float = 1e-12) -> None:
+    """Two SliderStates: x and v within ``rel`` of the larger, the same mode."""
+    scale_x = max(abs(a.x), abs(b.x), 1e-300)
+    scale_v = max(abs(a.v), abs(b.v), 1e-300)
+    assert abs(a.x - b.x) <= rel * scale_x, (a, b)
+    assert abs(a.v - b.v) <= rel * scale_v, (a, b)
+    assert a.mode == b.mode
+
+
+def assert_events_close(ev_a: Any, ev_b: Any, rel: float = 1e-12) -> None:
+    """Two event lists: the same kinds and modes, times within ``rel``."""
+    import numpy as np
+
+    assert [(e.kind, e.before, e.after) for e in ev_a] == [(e.kind, e.before, e.after) for e in ev_b]
+    ta = np.array([e.t for e in ev_a])
+    tb = np.array([e.t for e in ev_b])
+    assert np.all(np.abs(ta - tb) <= rel * np.maximum(np.abs(tb), 1e-300))
 
 
 #: A drive force the core made to fail by :func:`fail_on_poison` takes half-way, then fails on.

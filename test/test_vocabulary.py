@@ -38,15 +38,8 @@ HOME = "friction_sim/core/model/dimensionless.py"
 HOME_MODULE = "friction_sim.core.model.dimensionless"
 SOURCES = sorted([*(ROOT / "friction_sim").rglob("*.py"), *(ROOT / "bench").rglob("*.py")])
 
-#: Inline copies left in files that another change of issue 30 rewrites (they were not
-#: to be edited here): (file, the line's text, kind).  Remove an entry once its file
-#: calls the vocabulary (an entry whose line is gone fails the test below).
-ALLOWED: set[tuple[str, str, str]] = {
-    # TWO_PI through roots' re-export (roots takes it from the vocabulary)
-    ("friction_sim/core/engine/single.py",
-     "from friction_sim.core.physics.roots import NEVER, TWO_PI, reduce_phase, two_sum", "2*pi"),
-    ("friction_sim/core/physics/segment.py", "from friction_sim.core.physics.roots import (", "2*pi"),
-}
+#: Inline copies allowed: (file, the line's text, kind).  None: the vocabulary is called everywhere.
+ALLOWED: set[tuple[str, str, str]] = set()
 
 MU = {"mu"}
 LOADS = {"weight", "normal_weight", "load"}

@@ -30,10 +30,10 @@ from friction_sim.core.engine.single import Slider
 from friction_sim.core.meanspeed.conveyor import conveyor_sweep
 from friction_sim.core.meanspeed.urelation import u_grid
 from friction_sim.core.model.commands import Command
+from friction_sim.core.model.dimensionless import TWO_PI
 from friction_sim.core.model.events import EventKind
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.physics.exciter import steady_response
-from friction_sim.core.physics.roots import TWO_PI
 from friction_sim.core.runtime.simulation import SimulationResult, simulate
 from friction_sim.experiment.report import RunData
 

@@ -4,21 +4,25 @@ Every function of :mod:`friction_sim.core.physics` (and the exact angle
 helpers of :mod:`friction_sim.core.model.params`) is registered with Numba as
 it is (``register_jitable``: called from Python it stays the plain function
 the single slider runs), and one loop over sliders calls them compiled: each
-slider is advanced event by event to its own end, as
-:meth:`~friction_sim.core.engine.single.Slider.advance_to` advances one
-(period starts before an event at the same phase, then the samples, then the
-event and the step after it), in parallel over cores (``prange``).  There
-are no rounds: a bouncer never holds up the others.  The arithmetic is the
-same operations in the same order, and Numba calls the same libm as CPython
-(and never fuses a multiply-add), so a slider's window is the single
-slider's bit for bit; only its samples, which the single slider evaluates
-with numpy's sin, may differ in their last bits.
+slider is advanced event by event to its own end by the single slider's
+stepper (:mod:`~friction_sim.core.physics.stepper`), in the order
+:meth:`~friction_sim.core.engine.single.Slider.advance_to` takes (period starts
+before an event at the same phase, then the samples, then the event and the
+step after it), in parallel over cores (``prange``).  There are no rounds: a
+bouncer never holds up the others.  The functions are the same, and Numba
+calls the same libm as CPython (and never fuses a multiply-add), so a
+slider's window is the single slider's bit for bit; only its samples, which
+the single slider evaluates at an array of times with numpy's sin, may differ
+in their last bits.
 
-Like the single slider it keeps a memo of worked-out steps (by segment start:
-a periodic motion repeats them bit for bit), and with ``shortcut`` it looks
-for a repeat of the state at a period start, bit for bit, up to ``RING``
-periods back: from there every later period start follows by adding the last
-repeat's increments, and the window is filled in without stepping through it.
+Like the single slider it keeps a memo of worked-out steps by segment start
+(``seg[:START]``: a periodic motion repeats them bit for bit), held its own
+way: the single slider's is a dict, this one a table of ``MEMO`` slots a
+thread reuses slider after slider (a dict in compiled code would cost more
+than the step it saves).  With ``shortcut`` it looks for a repeat of the
+state at a period start, bit for bit, up to ``RING`` periods back: from there
+every later period start follows by adding the last repeat's increments, and
+the window is filled in without stepping through it.
 
 Importing this module imports Numba, which the nodes never do: compiling
 happens on a population's first run (tens of seconds), after that from the
@@ -45,20 +49,24 @@ from numba.extending import register_jitable
 from friction_sim.core.model import dimensionless as _dimensionless
 from friction_sim.core.model import params as _params
 from friction_sim.core.physics import exciter as _exciter
+from friction_sim.core.physics import numerics as _numerics
 from friction_sim.core.physics import plant as _plant
 from friction_sim.core.physics import roots as _roots
 from friction_sim.core.physics import segment as _segment
+from friction_sim.core.physics import stepper as _stepper
 from friction_sim.core.physics import transient as _transient
 from friction_sim.core.physics.plant import excitation, kostek_applies, plant
 from friction_sim.core.physics.roots import NEVER
-from friction_sim.core.physics.segment import (
-    FLIGHT,
+from friction_sim.core.physics.segment import START, STUCK, Segment, evaluate, travel
+from friction_sim.core.physics.stepper import (
     MAX_EVENTS_AT_ONE_INSTANT,
-    STUCK,
-    evaluate,
-    next_step,
+    Anchor,
+    advance,
+    offset,
+    period_start,
+    schedule,
+    step_of,
     to_cycle,
-    travel,
 )
 
 #: Numba's run-time settings (untyped: set and read by name).
@@ -79,7 +87,7 @@ COLUMNS = ("mass", "mu", "gravity", "static_ratio", "excitation_angle", "excitat
 DONE, NO_PROGRESS = 0, 1
 
 #: The modules whose plain functions the compiled code calls: the physics, written once.
-PHYSICS = (_roots, _exciter, _plant, _segment, _transient)
+PHYSICS = (_numerics, _roots, _exciter, _plant, _segment, _stepper, _transient)
 
 
 def _register() -> None:
@@ -137,27 +145,31 @@ _CONFIG.CACHE_DIR = str(CACHE_DIR)
 
 
 @numba.njit(cache=True)
-def _memo_slot(phase0: float, v0: float, vz0: float, mode: int, closing: int) -> int:
-    """The memo slot of a segment start: a hash of its start (equal starts, equal slots)."""
-    bits = np.array([phase0, v0, vz0]).view(np.uint64)
+def _memo_slot(key: tuple[int, float, float, float, float, int, bool]) -> int:
+    """The memo slot of a segment start (``seg[:START]``): a hash of it (equal starts, equal slots)."""
+    bits = np.array([key[1], key[2], key[3]]).view(np.uint64)
     mixed = (bits[0] * np.uint64(0x9E3779B97F4A7C15)) ^ (bits[1] * np.uint64(0xC2B2AE3D27D4EB4F)) ^ bits[2]
-    mixed ^= np.uint64(mode + 4 * closing + 16)
+    mixed ^= np.uint64(key[0] + 4 * key[5] + 16)
     mixed ^= mixed >> np.uint64(29)
     return int(mixed % np.uint64(MEMO))
+
+
+#: The state record of a slider at rest at t = 0, phase 0, x = 0 (the start of every slider).
+_REST = Segment(STUCK, 0.0, 0.0, 0.0, 0.0, 0, False, 0.0, 0.0, 0.0, 0.0, 0, 0.0, 0.0, 0)
 
 
 @numba.njit(cache=True)
 def _run_one(values: np.ndarray, impulsive: bool, resonant: bool, can_slip: bool, settle: int, end: int,
              times: np.ndarray, shortcut: bool, window: np.ndarray, counts: np.ndarray, samples: np.ndarray,
-             sample_modes: np.ndarray, memo_keys: np.ndarray, memo_steps: Any, memo_owner: np.ndarray,
-             owner: int) -> int:
+             sample_modes: np.ndarray, memo_keys: Any, memo_steps: Any, memo_owner: np.ndarray, owner: int) -> int:
     """Advance one slider from rest at t = 0, phase 0, x = 0 to the start of period
-    ``end`` (and past the last sample time), exactly as the single slider does;
-    write x, stuck and flight time at period starts ``settle`` and ``end`` into
-    ``window`` (2, 3), the event counts between them into ``counts`` (5,), and the
-    state (x, v, z, vz) at ``times`` into ``samples`` (K, 4) and ``sample_modes``.
-    The memo of worked-out steps (``memo_*``, as the single slider keeps one) is a
-    thread's, reused slider after slider: a slot is this slider's where
+    ``end`` (and past the last sample time) with the single slider's stepper
+    (:mod:`~friction_sim.core.physics.stepper`); write x, stuck and flight time at
+    period starts ``settle`` and ``end`` into ``window`` (2, 3), the event counts
+    between them into ``counts`` (5,), and the state (x, v, z, vz) at ``times`` into
+    ``samples`` (K, 4) and ``sample_modes``.  The memo of worked-out steps
+    (``memo_*``, by segment start ``seg[:START]``, as the single slider keeps one)
+    is a thread's, reused slider after slider: a slot is this slider's where
     ``memo_owner`` holds ``owner``."""
     mass, mu, gravity, static_ratio, angle = values[0], values[1], values[2], values[3], values[4]
     psi, inclination, restitution, drive, amplitude = values[5], values[6], values[7], values[8], values[9]
@@ -166,41 +178,25 @@ def _run_one(values: np.ndarray, impulsive: bool, resonant: bool, can_slip: bool
     kostek = not resonant and kostek_applies(angle, inclination, static_ratio, amplitude, mass * gravity, force_z)
     p = plant(mass, mu, gravity, static_ratio, angle, psi, inclination, restitution, impulsive, drive, amplitude,
               frequency, force_x, force_z, lag, kostek, kostek and can_slip)
-    omega = p.omega
-    # the segment (its start offset s0 is its time: the anchor is t = 0 at phase 0, period 0)
-    mode, s0, x0, xl, v0, vz0, z0, phase0 = STUCK, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    cycles, closing, grounded = 0, 0, False
-    stuck_time, flight_time = 0.0, 0.0
+    anchor = Anchor(0.0, 0, 0.0, frequency, p.omega)  # (a segment's offset s0 is then its time t0)
+    seg = _REST
     total = np.zeros(KINDS, np.int64)
-    at_instant = 0
-    step = next_step(p, mode, phase0, v0, vz0, z0, closing, grounded)
-    ring_keys = np.zeros((RING, 8))
+    step = step_of(p, seg)
+    ring_keys = [seg[:START]] * RING
+    ring_whole = np.zeros(RING, np.int64)
     ring_values = np.zeros((RING, 3))
     ring_counts = np.zeros((RING, KINDS), np.int64)
     got = np.zeros(2, np.bool_)
     mark_n = settle if not shortcut else 0
-    mark_s = mark_n / frequency + (0.0 - 0.0) / omega
+    mark_s = offset(anchor, mark_n, 0.0)
     k_samples = times.size
     k = 0
     while True:
-        # when the current segment's event happens
-        if step.tied:
-            next_s = (cycles + step.whole - 0) / frequency + (step.phase - 0.0) / omega
-            if next_s < s0:
-                next_s = s0
-        else:
-            next_s = s0 + step.delay
-        t_next = 0.0 + next_s
-        if t_next < s0:
-            t_next = s0
+        next_s, next_t = schedule(anchor, seg, step)
         # period starts that come first (by phase: a mark and an event may round to one t)
         while mark_n <= end and mark_s <= next_s:
-            tau = to_cycle(mark_n, cycles, phase0, omega)
-            if mode == STUCK:
-                x, stuck_at, flight_at = x0, stuck_time + tau, flight_time
-            else:
-                x = x0 + (xl + travel(p, mode, v0, phase0, tau))
-                stuck_at, flight_at = stuck_time, flight_time + (tau if mode == FLIGHT else 0.0)
+            tau = to_cycle(mark_n, seg.cycles, seg.phase0, anchor.omega)
+            x, stuck_at, flight_at = period_start(seg, tau, travel(p, seg.mode, seg.v0, seg.phase0, tau))
             for side in range(2):
                 if mark_n == (settle if side == 0 else end):
                     window[side, 0], window[side, 1], window[side, 2] = x, stuck_at, flight_at
@@ -209,15 +205,12 @@ def _run_one(values: np.ndarray, impulsive: bool, resonant: bool, can_slip: bool
             periodic = False
             if shortcut:
                 slot = mark_n % RING
-                key0, key7 = float(mode), float(mark_n - cycles)
+                key, whole = seg[:START], mark_n - seg.cycles
                 period = 0
                 eligible = next_s != NEVER and k >= k_samples  # (samples are taken event by event)
                 for back in range(RING, 0, -1):  # the smallest repeat wins
                     old = (mark_n - back) % RING
-                    if (eligible and mark_n - back >= 0 and ring_keys[old, 0] == key0 and ring_keys[old, 1] == phase0
-                            and ring_keys[old, 2] == v0 and ring_keys[old, 3] == vz0 and ring_keys[old, 4] == z0
-                            and ring_keys[old, 5] == closing and ring_keys[old, 6] == grounded
-                            and ring_keys[old, 7] == key7):
+                    if eligible and mark_n - back >= 0 and ring_keys[old] == key and ring_whole[old] == whole:
                         period = back
                 if period > 0:
                     base = mark_n - period
@@ -235,9 +228,7 @@ def _run_one(values: np.ndarray, impulsive: bool, resonant: bool, can_slip: bool
                                                                + q * (total[kind] - ring_counts[first, kind]))
                             got[side] = True
                     periodic = True
-                ring_keys[slot, 0], ring_keys[slot, 1], ring_keys[slot, 2], ring_keys[slot, 3] = key0, phase0, v0, vz0
-                ring_keys[slot, 4], ring_keys[slot, 5], ring_keys[slot, 6], ring_keys[slot, 7] = (z0, closing,
-                                                                                                  grounded, key7)
+                ring_keys[slot], ring_whole[slot] = key, whole
                 ring_values[slot, 0], ring_values[slot, 1], ring_values[slot, 2] = x, stuck_at, flight_at
                 ring_counts[slot] = total
             if periodic:
@@ -246,45 +237,30 @@ def _run_one(values: np.ndarray, impulsive: bool, resonant: bool, can_slip: bool
                 mark_n += 1
             else:
                 mark_n = settle if mark_n < settle else (end if mark_n < end else end + 1)
-            mark_s = mark_n / frequency + (0.0 - 0.0) / omega if mark_n <= end else NEVER
+            mark_s = offset(anchor, mark_n, 0.0) if mark_n <= end else NEVER
         # samples before the event
         while k < k_samples and times[k] < next_s:
-            x, v, _, _, _, _, z, vz = evaluate(p, mode, x0, xl, v0, vz0, z0, phase0, times[k] - s0)
+            x, v, _, _, _, _, z, vz = evaluate(p, seg, times[k] - seg.t0)
             samples[k, 0], samples[k, 1], samples[k, 2], samples[k, 3] = x, v, z, vz
-            sample_modes[k] = mode
+            sample_modes[k] = seg.mode
             k += 1
         if mark_n > end and k >= k_samples:
             return DONE
         if next_s == NEVER:  # an endless segment: every later period start is in it
             continue
-        # the event
-        if t_next == s0:
-            at_instant += 1
-            if at_instant > MAX_EVENTS_AT_ONE_INSTANT:
-                return NO_PROGRESS
-        else:
-            at_instant = 0
-        part = xl + step.travel
-        x = x0 + part
-        bb = x - x0
-        xl = (x0 - (x - bb)) + (part - bb)
-        x0 = x
-        if mode == STUCK:
-            stuck_time += next_s - s0
-        elif mode == FLIGHT:
-            flight_time += next_s - s0
+        # the event, and the step of the segment it starts
+        after = advance(seg, step, next_s, next_t)
+        if after.at_instant > MAX_EVENTS_AT_ONE_INSTANT:
+            return NO_PROGRESS
         total[step.kind] += 1
-        mode, s0, v0, vz0, z0 = step.mode, t_next, step.v_after, step.vz_after, 0.0
-        phase0, cycles, closing, grounded = step.phase, cycles + step.whole, step.closing, step.grounded
-        slot = _memo_slot(phase0, v0, vz0, mode, closing)
-        key = memo_keys[slot]
-        if (memo_owner[slot] == owner and key[0] == mode and key[1] == phase0 and key[2] == v0 and key[3] == vz0
-                and key[4] == z0 and key[5] == closing and key[6] == grounded):
+        seg = after
+        key = seg[:START]
+        slot = _memo_slot(key)
+        if memo_owner[slot] == owner and memo_keys[slot] == key:
             step = memo_steps[slot]
         else:
-            step = next_step(p, mode, phase0, v0, vz0, z0, closing, grounded)
-            memo_steps[slot], memo_owner[slot] = step, owner
-            key[0], key[1], key[2], key[3], key[4], key[5], key[6] = mode, phase0, v0, vz0, z0, closing, grounded
+            step = step_of(p, seg)
+            memo_steps[slot], memo_keys[slot], memo_owner[slot] = step, key, owner
 
 
 @numba.njit(parallel=True, cache=True)
@@ -297,10 +273,10 @@ def _run_all(values: np.ndarray, impulsive: np.ndarray, resonant: np.ndarray, ca
     n = values.shape[0]
     for block in numba.prange(blocks):
         first, stop = block * n // blocks, (block + 1) * n // blocks
-        memo_keys = np.zeros((MEMO, 7))
+        memo_keys = [_REST[:START]] * MEMO
         memo_owner = np.full(MEMO, -1, np.int64)
-        memo_steps = [next_step(plant(1.0, 0.1, 10.0, 1.0, 90.0, 0.0, 0.0, 0.0, True, 0.7, 5.0, 50.0, 0.0, 0.0,
-                                      0.0, True, True), STUCK, 0.0, 0.0, 0.0, 0.0, 0, False)] * MEMO
+        memo_steps = [step_of(plant(1.0, 0.1, 10.0, 1.0, 90.0, 0.0, 0.0, 0.0, True, 0.7, 5.0, 50.0, 0.0, 0.0, 0.0,
+                                    True, True), _REST)] * MEMO
         for i in range(first, stop):
             status[i] = _run_one(values[i], impulsive[i], resonant[i], can_slip[i], settle, end, times, shortcut,
                                  window[i], counts[i], samples[i], sample_modes[i], memo_keys, memo_steps, memo_owner,

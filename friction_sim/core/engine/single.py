@@ -41,39 +41,52 @@ regime is cheap: its steps are kept in a memo.
 
 The design follows scipy's ``_ivp`` solvers: one object owns the state and
 advances it; detecting the next event (:func:`~friction_sim.core.physics.segment.next_step`)
-is kept apart from acting on it (:meth:`Slider._apply`); results come back as typed records
-(:class:`SliderState`, :class:`Event`, :class:`Trajectory`).
+is kept apart from acting on it (:func:`~friction_sim.core.physics.stepper.advance`,
+the stepper the compiled population engine runs too), and the state within a
+segment comes from its dense output (:func:`~friction_sim.core.physics.segment.evaluate`);
+results come back as typed records (:class:`SliderState`, :class:`Event`,
+:class:`Trajectory`).
 """
 
 from __future__ import annotations
 
 from collections import deque
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
 from friction_sim.core.engine.actuator import Exciter, ExciterState
 from friction_sim.core.engine.checkpoint import Checkpoint
-from friction_sim.core.engine.sampling import evaluate_many
 from friction_sim.core.engine.transient_kernel import transient_step
+from friction_sim.core.model.dimensionless import TWO_PI
 from friction_sim.core.model.events import MODES as _MODES
 from friction_sim.core.model.events import CycleMark, Event, EventKind, Mode, SliderState, Trajectory
 from friction_sim.core.model.params import Inputs, SliderParams, require_finite
+from friction_sim.core.physics.numerics import Floats, two_sum
 from friction_sim.core.physics.plant import Plant, plant_of
-from friction_sim.core.physics.roots import NEVER, TWO_PI, reduce_phase, two_sum
+from friction_sim.core.physics.roots import NEVER, reduce_phase
 from friction_sim.core.physics.segment import (
     FLIGHT,
     LANDING,
     LIFT_OFF,
-    MAX_EVENTS_AT_ONE_INSTANT,
+    START,
     STUCK,
+    Segment,
     Step,
     evaluate,
     moved_and_velocities,
-    next_step,
-    offset,
-    to_cycle,
     travel,
+)
+from friction_sim.core.physics.stepper import (
+    MAX_EVENTS_AT_ONE_INSTANT,
+    Anchor,
+    advance,
+    offset,
+    period_start,
+    schedule,
+    spent,
+    step_of,
+    to_cycle,
 )
 from friction_sim.core.physics.transient import (
     LOOK_AHEAD_PERIODS,
@@ -93,26 +106,6 @@ MAX_TIME = 2.0**53
 MAX_POSITION = 1e100
 #: Event kinds by the numbers of :mod:`friction_sim.core.physics.segment`.
 _KINDS = tuple(EventKind)
-
-
-class Segment(NamedTuple):
-    """The motion since the last event: its mode, its start (offset ``s0`` from the
-    phase anchor, time ``t0``, position ``x0 + xl`` as a double-double, velocities,
-    height, phase ``phase0`` in period ``cycles``) and the progress guards of its
-    next step (see :class:`~friction_sim.core.physics.segment.Step`)."""
-
-    mode: int
-    s0: float
-    t0: float
-    x0: float
-    xl: float
-    v0: float
-    vz0: float
-    z0: float
-    phase0: float
-    cycles: int
-    closing: int = 0
-    grounded: bool = False
 
 
 # --------------------------------------------------------------------------
@@ -136,14 +129,14 @@ class Slider:
     excitation period (``None``: all of them), for per-period mean speeds.
 
     Event times are anchored to the excitation phase: the slider keeps one
-    anchor (time ``t_a`` at total phase 2*pi*cycles_a + phase_a), set at the
-    start and whenever the frequency changes, and computes the time of every
-    event and period start afresh from it, as
-    t_a + (cycles - cycles_a)/f + (phase - phase_a)/omega (plus the slip's
-    duration for a stop).  Rounding errors therefore do not add up from one
-    event to the next: after a million periods a slip still starts within a
-    few units in the last place of t of its exact time, wherever the run
-    started.
+    anchor (:class:`~friction_sim.core.physics.stepper.Anchor`: time ``t_a`` at
+    total phase 2*pi*cycles_a + phase_a), set at the start and whenever the
+    frequency changes, and computes the time of every event and period start
+    afresh from it, as t_a + (cycles - cycles_a)/f + (phase - phase_a)/omega
+    (plus the slip's duration for a stop).  Rounding errors therefore do not add
+    up from one event to the next: after a million periods a slip still starts
+    within a few units in the last place of t of its exact time, wherever the
+    run started.
     """
 
     def __init__(
@@ -169,9 +162,7 @@ class Slider:
             raise ParameterError("cycle_log_size", cycle_log_size, "must be an integer >= 0 or None")
         self._events: deque[Event] = deque(maxlen=event_log_size)
         self._counts = {kind: 0 for kind in EventKind}
-        self._stuck_time = self._flight_time = 0.0
-        self._at_instant = 0
-        self._steps: dict[tuple[int, float, float, float, float, int, bool], Step] = {}
+        self._steps: dict[tuple[int, float, float, float, float, int, bool], Step] = {}  # (by seg[:START])
         self._marks: deque[CycleMark] | None = None
         self._next_mark_n, self._next_mark_t, self._next_mark_s = 1, NEVER, NEVER
         x0 = require_finite("x0", x0)
@@ -186,7 +177,7 @@ class Slider:
         self._c = 0j  # the exciter's transient force at the segment's start (0: none, or the force actuator)
         self._look_until = -NEVER  # where the segment's search under the transient ends
         self._set_anchor(self._t, 0, phase)
-        self._start(Segment(STUCK, 0.0, self._t, x0, 0.0, 0.0, 0.0, 0.0, phase, 0))
+        self._start(Segment(STUCK, phase, 0.0, 0.0, 0.0, 0, False, 0.0, self._t, x0, 0.0, 0, 0.0, 0.0, 0))
 
     # -- read-only views -------------------------------------------------------
 
@@ -216,14 +207,12 @@ class Slider:
     @property
     def stuck_time(self) -> float:
         """Total time [s] spent stuck since the start, up to :attr:`t`."""
-        seg = self._seg
-        return self._stuck_time + (self._t - seg.t0 if seg.mode == STUCK else 0.0)
+        return spent(self._seg, self._t - self._seg.t0)[0]
 
     @property
     def flight_time(self) -> float:
         """Total time [s] spent off the track since the start, up to :attr:`t`."""
-        seg = self._seg
-        return self._flight_time + (self._t - seg.t0 if seg.mode == FLIGHT else 0.0)
+        return spent(self._seg, self._t - self._seg.t0)[1]
 
     @property
     def cycle_marks(self) -> list[CycleMark]:
@@ -253,14 +242,7 @@ class Slider:
     def state(self) -> SliderState:
         """The state at the current time :attr:`t`."""
         seg = self._seg
-        if self._c:
-            assert self._exciter is not None
-            x, v, acc, friction, normal, theta, z, vz = transient_evaluate(
-                self._plant, seg.mode, seg.x0, seg.xl, seg.v0, seg.vz0, seg.z0, seg.phase0, self._c, self._exciter.lam,
-                self._t - seg.t0)
-        else:
-            x, v, acc, friction, normal, theta, z, vz = evaluate(self._plant, seg.mode, seg.x0, seg.xl, seg.v0,
-                                                                 seg.vz0, seg.z0, seg.phase0, self._t - seg.t0)
+        x, v, acc, friction, normal, theta, z, vz = self._evaluate(self._t - seg.t0)
         return SliderState(self._t, x, v, acc, friction, normal, theta % TWO_PI, _MODES[seg.mode], z, vz)
 
     # -- advancing -------------------------------------------------------------
@@ -291,9 +273,9 @@ class Slider:
         """Advance through ascending ``times`` (>= :attr:`t`) and return the exact
         state at each, evaluated segment by segment with numpy: the state
         :meth:`advance_to` and :meth:`state` give at each time, because both cut
-        the time axis where :meth:`_segment_end` says (under the exciter's
-        transient the very same scalar evaluation; on the steady forms numpy's,
-        which may differ in the last bits)."""
+        the time axis where :meth:`_segment_end` says (:meth:`_evaluate`: under
+        the exciter's transient the very same scalar evaluation; on the steady
+        forms numpy's, which may differ in the last bits)."""
         times = np.asarray(times, dtype=float)
         if times.ndim != 1 or times.size == 0:
             raise ParameterError("times", times.shape, "must be a non-empty 1-d array")
@@ -307,7 +289,7 @@ class Slider:
             last = int(np.searchsorted(times, end, side="left"))
             if last > first:
                 seg = self._seg
-                values = self._evaluate_many(seg, times[first:last] - seg.t0)
+                values = self._evaluate(times[first:last] - seg.t0)
                 for column, value in zip(columns, values):
                     column[first:last] = value
                 columns[5][first:last] %= TWO_PI
@@ -353,16 +335,15 @@ class Slider:
         event counts and logs keep what happened before."""
         seg = self._seg
         tau = self._t - seg.t0
-        self._spend(seg.mode, tau)
+        stuck, flight = spent(seg, tau)
         cycles = reduce_phase(seg.phase0 + self._plant.omega * tau, seg.cycles)[1] + 1
-        self._at_instant = 0
         self._set_plant(self._params, self._inputs, in_flight=False)
         self._next_mark_n = cycles
         if self._marks is not None:
-            self._marks.append(CycleMark(cycles, self._t, 0.0, self._stuck_time, self._flight_time))
+            self._marks.append(CycleMark(cycles, self._t, 0.0, stuck, flight))
             self._next_mark_n = cycles + 1
         self._set_anchor(self._t, cycles, 0.0)
-        self._start(Segment(STUCK, 0.0, self._t, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, cycles))
+        self._start(Segment(STUCK, 0.0, 0.0, 0.0, 0.0, 0, False, 0.0, self._t, 0.0, 0.0, cycles, stuck, flight, 0))
 
     def checkpoint(self) -> Checkpoint:
         """The state as it is now, for :meth:`restore` (about a microsecond)."""
@@ -378,9 +359,7 @@ class Slider:
     def _set_anchor(self, t: float, cycles: int, phase: float) -> None:
         """Tie time ``t`` to total phase 2*pi*cycles + phase under the present
         frequency; every later event time is computed from here."""
-        self._origin, self._origin_cycles, self._origin_phase = t, cycles, phase
-        self._frequency = self._inputs.excitation_frequency
-        self._omega = self._plant.omega
+        self._anchor = Anchor(t, cycles, phase, self._inputs.excitation_frequency, self._plant.omega)
         self._schedule_mark()
 
     def _set_plant(self, params: SliderParams, inputs: Inputs, in_flight: bool) -> None:
@@ -391,13 +370,6 @@ class Slider:
         self._params, self._inputs = params, inputs
         self._plant, self._steps = plant_of(params, inputs, in_flight), {}
 
-    def _spend(self, mode: int, duration: float) -> None:
-        """Book ``duration`` spent in ``mode`` (stuck, in flight)."""
-        if mode == STUCK:
-            self._stuck_time += duration
-        elif mode == FLIGHT:
-            self._flight_time += duration
-
     def _rebase(self, params: SliderParams, inputs: Inputs, boundary: str = "") -> None:
         """Start a new segment at the current time from the current state; at a
         ``boundary`` of the exciter's transient nothing else changes: it has
@@ -405,16 +377,14 @@ class Slider:
         seg, plant, t = self._seg, self._plant, self._t
         tau = t - seg.t0
         phase, cycles = reduce_phase(seg.phase0 + plant.omega * tau, seg.cycles)
+        stuck, flight = spent(seg, tau)
         mode = seg.mode
         if mode == STUCK:  # (the common case: a controller's change between slips)
             x, xl, v, vz, z = seg.x0, seg.xl, 0.0, 0.0, 0.0
-            self._stuck_time += tau
         else:
             moved, v, vz, z = self._motion(plant, seg, tau)
             x, xl = two_sum(seg.x0, seg.xl + moved)
-            if mode == FLIGHT:
-                self._flight_time += tau
-            else:
+            if mode != FLIGHT:
                 mode, vz, z = (STUCK if v == 0.0 else (1 if v > 0.0 else -1)), 0.0, 0.0
         self._set_plant(params, inputs, seg.mode == FLIGHT)
         if boundary:
@@ -427,66 +397,45 @@ class Slider:
             self._exciter = Exciter(params, inputs, t0=t)
         else:
             self._exciter = self._exciter.change(params, inputs, self._plant, t, phase)
-        if inputs.excitation_frequency != self._frequency:
+        if inputs.excitation_frequency != self._anchor.frequency:
             self._set_anchor(t, cycles, phase)
-        self._start(Segment(mode, t - self._origin, t, x, xl, v, vz, max(z, 0.0), phase, cycles))
+        self._start(Segment(mode, phase, v, vz, max(z, 0.0), 0, False, t - self._anchor.t, t, x, xl, cycles, stuck,
+                            flight, seg.at_instant))
 
     def _start(self, seg: Segment) -> None:
-        """Start ``seg`` and schedule its next event (worked out once per distinct
-        start: see :class:`~friction_sim.core.physics.segment.Step`)."""
+        """Start ``seg`` and schedule its next event (on the steady forms worked out
+        once per distinct start and kept in the memo: see
+        :data:`~friction_sim.core.physics.segment.START`)."""
         self._seg = seg
         exciter = self._exciter
         if exciter is not None and exciter.active(seg.t0):  # under the exciter's transient: no memo
             self._c = exciter.force(seg.t0)
-            horizon = min(exciter.settles_at - seg.t0, LOOK_AHEAD_PERIODS / self._frequency)
+            horizon = min(exciter.settles_at - seg.t0, LOOK_AHEAD_PERIODS / self._anchor.frequency)
             self._look_until = seg.t0 + horizon
             step = transient_step(self._plant, self._c, exciter.lam, horizon, seg.mode, seg.phase0, seg.v0, seg.vz0,
                                   seg.z0, seg.closing, seg.grounded)
         else:
             self._c = 0j
-            key = (seg.mode, seg.phase0, seg.v0, seg.vz0, seg.z0, seg.closing, seg.grounded)
+            key = seg[:START]
             cached = self._steps.get(key)
             if cached is None:
                 if len(self._steps) >= _CACHE_LIMIT:
                     self._steps.clear()
-                cached = self._steps[key] = next_step(self._plant, seg.mode, seg.phase0, seg.v0, seg.vz0, seg.z0,
-                                                      seg.closing, seg.grounded)
+                cached = self._steps[key] = step_of(self._plant, seg)
             step = cached
         self._step = step
-        s = seg.s0
-        if step.tied:  # tied to a phase: timed from the anchor (offset, inlined), never before the segment's start
-            next_s = ((seg.cycles + step.whole - self._origin_cycles) / self._frequency
-                      + (step.phase - self._origin_phase) / self._omega)
-            if next_s < s:
-                next_s = s
-        else:
-            next_s = s + step.delay
-        self._next_s = next_s
-        next_t = self._origin + next_s
-        self._next_t = next_t if next_t >= seg.t0 else seg.t0
+        self._next_s, self._next_t = schedule(self._anchor, seg, step)
 
     def _apply(self) -> Event:
         """Carry out the worked-out event of the segment and start the next."""
-        seg, step, t, s = self._seg, self._step, self._next_t, self._next_s
-        if t == seg.t0:
-            self._at_instant += 1
-            if self._at_instant > MAX_EVENTS_AT_ONE_INSTANT:
-                raise SimulationFault(f"the general model made no progress: more than {MAX_EVENTS_AT_ONE_INSTANT} "
-                                      f"events at t = {t!r} s (the last a {_KINDS[step.kind].value} at phase "
-                                      f"{step.phase!r})")
-        else:
-            self._at_instant = 0
-        x0, part = seg.x0, seg.xl + step.travel
-        x = x0 + part  # two_sum, inlined (every event)
-        bb = x - x0
-        xl = (x0 - (x - bb)) + (part - bb)
-        mode = seg.mode
-        if mode == STUCK:
-            self._stuck_time += s - seg.s0
-        elif mode == FLIGHT:
-            self._flight_time += s - seg.s0
-        self._start(Segment(step.mode, s, t, x, xl, step.v_after, step.vz_after, 0.0, step.phase,
-                            seg.cycles + step.whole, step.closing, step.grounded))
+        seg, step = self._seg, self._step
+        after = advance(seg, step, self._next_s, self._next_t)
+        t, x = after.t0, after.x0
+        if after.at_instant > MAX_EVENTS_AT_ONE_INSTANT:
+            raise SimulationFault(f"the general model made no progress: more than {MAX_EVENTS_AT_ONE_INSTANT} "
+                                  f"events at t = {t!r} s (the last a {_KINDS[step.kind].value} at phase "
+                                  f"{step.phase!r})")
+        self._start(after)
         kind = _KINDS[step.kind]
         if step.kind == LANDING or step.kind == LIFT_OFF:
             event = Event(t, kind, x, step.phase, _MODES[seg.mode], _MODES[step.mode], step.v, step.v_after, step.vz,
@@ -507,11 +456,26 @@ class Slider:
                                     tau)
         return moved_and_velocities(plant, seg.mode, seg.v0, seg.vz0, seg.z0, seg.phase0, tau)
 
-    def _evaluate_many(self, seg: Segment, tau: np.ndarray) -> tuple[np.ndarray, ...]:
-        """The state at an array of times into ``seg`` (:func:`~friction_sim.core.engine.sampling.evaluate_many`)."""
-        lam = self._exciter.lam if self._exciter is not None else 0j
-        return evaluate_many(self._plant, seg.mode, seg.x0, seg.xl, seg.v0, seg.vz0, seg.z0, seg.phase0, tau, self._c,
-                             lam)
+    def _evaluate(self, tau: Floats) -> tuple[Floats, Floats, Floats, Floats, Floats, Floats, Floats, Floats]:
+        """The state ``tau`` into the present segment, at a float or an array of times
+        (:func:`~friction_sim.core.physics.segment.evaluate`); under the exciter's
+        transient force Re(c*exp(lam*tau)) the states are
+        :func:`~friction_sim.core.physics.transient.transient_evaluate`'s, one by one
+        (so a sampled state is the scalar one, bit for bit)."""
+        seg, plant, c = self._seg, self._plant, self._c
+        if not c:
+            return evaluate(plant, seg, tau)
+        assert self._exciter is not None
+        lam = self._exciter.lam
+
+        def at(each: float) -> tuple[float, float, float, float, float, float, float, float]:
+            return transient_evaluate(plant, seg, c, lam, each)
+
+        if isinstance(tau, float):
+            return at(tau)
+        rows = zip(*map(at, tau.tolist()))
+        x, v, acc, friction, normal, theta, z, vz = (np.array(column, dtype=float) for column in rows)
+        return x, v, acc, friction, normal, theta, z, vz
 
     def _segment_end(self) -> tuple[float, bool]:
         """(time, cut): where the present segment's closed form stops holding, and
@@ -562,9 +526,8 @@ class Slider:
     def _schedule_mark(self) -> None:
         """Aim at the start of period ``_next_mark_n``, timed from the anchor."""
         if self._marks is not None:
-            self._next_mark_s = offset(self._next_mark_n, 0.0, self._origin_cycles, self._origin_phase,
-                                       self._frequency, self._omega)
-            self._next_mark_t = self._origin + self._next_mark_s
+            self._next_mark_s = offset(self._anchor, self._next_mark_n, 0.0)
+            self._next_mark_t = self._anchor.t + self._next_mark_s
 
     def _mark_cycle(self) -> None:
         """Record the start of period ``_next_mark_n`` and aim at the next."""
@@ -572,19 +535,14 @@ class Slider:
         t = max(self._next_mark_t, seg.t0)  # a start that rounding put before this segment's is at it
         # Where the slider is when the phase passes 2*pi*n exactly (not at the rounded t).
         tau = to_cycle(n, seg.cycles, seg.phase0, self._plant.omega)
-        stuck, flight = self._stuck_time, self._flight_time
-        if seg.mode == STUCK:  # only x is needed: no full state evaluation
-            x, stuck = seg.x0, stuck + tau
-        else:
-            moved = (self._motion(self._plant, seg, tau)[0] if self._c
-                     else travel(self._plant, seg.mode, seg.v0, seg.phase0, tau))
-            x = seg.x0 + (seg.xl + moved)
-            flight += tau if seg.mode == FLIGHT else 0.0
+        moved = (self._motion(self._plant, seg, tau)[0] if self._c
+                 else travel(self._plant, seg.mode, seg.v0, seg.phase0, tau))  # (only x is needed: no full state)
+        x, stuck, flight = period_start(seg, tau, moved)
         assert self._marks is not None
         self._marks.append(CycleMark(n, t, x, stuck, flight))
         self._next_mark_n += 1
         self._schedule_mark()
 
 
-__all__ = ["MAX_POSITION", "MAX_TIME", "CycleMark", "Event", "EventKind", "Mode", "Segment", "Slider", "SliderState",
+__all__ = ["MAX_POSITION", "MAX_TIME", "CycleMark", "Event", "EventKind", "Mode", "Slider", "SliderState",
            "Trajectory"]

@@ -25,7 +25,8 @@ from __future__ import annotations
 import math
 
 from friction_sim.core.model.dimensionless import TWO_PI
-from friction_sim.core.physics.roots import remainders, two_sum
+from friction_sim.core.physics.numerics import two_sum
+from friction_sim.core.physics.roots import remainders
 
 FOUR_PI2 = 4.0 * math.pi**2
 #: The machine epsilon of a double (numpy's finfo(float).eps, sys.float_info.epsilon).

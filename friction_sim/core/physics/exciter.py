@@ -36,7 +36,7 @@ import math
 from typing import NamedTuple, overload
 
 from friction_sim.core.model.dimensionless import TWO_PI, Real
-from friction_sim.core.physics.roots import hypot
+from friction_sim.core.physics.numerics import hypot
 
 #: A transient whose force is below this fraction of the plant's force scale
 #: (2**-60: a 256th of the last bit of a double of that size) changes no event time and

@@ -24,7 +24,7 @@ from typing import Any, NamedTuple
 from friction_sim.core.model.dimensionless import TWO_PI, throw_number
 from friction_sim.core.model.params import Inputs, SliderParams, cos_degrees, sin_degrees
 from friction_sim.core.physics.exciter import steady_response
-from friction_sim.core.physics.roots import hypot
+from friction_sim.core.physics.numerics import Floats, hypot, sine
 
 #: A rebound slower than this many units of g*cos(alpha)/omega (gravity would
 #: stop it within a millionth of a radian of excitation phase) is a plastic
@@ -49,9 +49,10 @@ def form_of(constant: float, sin_part: float, cos_part: float) -> Form:
     return Form(constant, hypot(sin_part, cos_part), math.atan2(cos_part, sin_part))
 
 
-def form_at(form: Form, theta: float) -> float:
-    """The value of ``form`` at phase ``theta``."""
-    return form.b0 + form.b1 * math.sin(theta + form.delta)
+def form_at(form: Form, theta: Floats) -> Floats:
+    """The value of ``form`` at phase ``theta``, a float or an array
+    (:func:`~friction_sim.core.physics.numerics.sine`)."""
+    return form.b0 + form.b1 * sine(theta + form.delta)
 
 
 class Plant(NamedTuple):
@@ -251,6 +252,13 @@ def plant_of(params: SliderParams, inputs: Inputs, in_flight: bool = False) -> P
 def slip_form(p: Plant, direction: int) -> Form:
     """dw/dt of a slip in ``direction`` (+1 forward, -1 backward)."""
     return p.slip_forward if direction > 0 else p.slip_backward
+
+
+def slip_gain(p: Plant, direction: int) -> float:
+    """What a force normal to the track adds to dw/dt (w = s*v) of a slip in ``direction``,
+    per unit of that force (its tangential part cot(beta) times it, as the exciter's
+    transient force: :mod:`~friction_sim.core.physics.transient`)."""
+    return (direction * p.cot_beta + p.mu) / p.mass
 
 
 def onset_form(p: Plant, direction: int) -> Form:

@@ -14,9 +14,10 @@ Python that Numba compiles: the single slider (:mod:`friction_sim.core.engine.si
 calls them as ordinary Python, the population engine
 (:mod:`friction_sim.core.engine.compiled`) compiles the very same functions,
 so both follow one formulation and agree bit for bit (CPython's ``math`` and
-Numba call the same libm; ``math.hypot``, which CPython computes its own way,
-is not used: see :func:`hypot`).  No objects,
-no ``None``: "never" is ``inf``, "not found" is ``nan``.
+Numba call the same libm; where they would not, :mod:`~friction_sim.core.physics.numerics`
+writes the operation out).  No objects, no ``None``: "never" is ``inf``, "not
+found" is ``nan``.  The closed form of a speed and its integral
+(:class:`Harmonic`) evaluates at a float or at an array of times.
 """
 
 from __future__ import annotations
@@ -26,8 +27,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-# (TWO_PI as TWO_PI: re-exported for the modules that still take it from here)
-from friction_sim.core.model.dimensionless import TWO_PI as TWO_PI
+from friction_sim.core.model.dimensionless import TWO_PI
+from friction_sim.core.physics.numerics import Floats, sine, ulp
 
 NEVER = math.inf
 
@@ -42,69 +43,6 @@ LONGEST_SLIP = 1e12
 LONGEST_FLIGHT_PIECES = 2_000_000
 #: Iterations of a safeguarded Newton polish (it converges in a handful; bisection bounds it).
 POLISH_ITERATIONS = 200
-
-
-def two_sum(a: Any, b: Any) -> tuple[Any, Any]:
-    """(a + b rounded, its exact rounding error) (Knuth's TwoSum); also works elementwise on arrays."""
-    hi = a + b
-    bb = hi - a
-    return hi, (a - (hi - bb)) + (b - bb)
-
-
-def ulp(x: float) -> float:
-    """The unit in the last place of x, as math.ulp (which Numba cannot compile; nor
-    can Numba before 0.60 compile math.nextafter): 2**(e - 53) for |x| = m*2**e,
-    0.5 <= m < 1, and the least subnormal below the least normal number."""
-    magnitude = abs(x)
-    if magnitude == math.inf:
-        return math.inf
-    if magnitude < 2.2250738585072014e-308:
-        return 5e-324
-    return math.ldexp(1.0, math.frexp(magnitude)[1] - 53)
-
-
-def _split(a: float) -> tuple[float, float]:
-    """Veltkamp's split of a (|a| < 2**996) into two halves of 26 bits, exactly."""
-    c = 134217729.0 * a  # 2**27 + 1
-    high = c - (c - a)
-    return high, a - high
-
-
-def _two_product(a: float, b: float) -> tuple[float, float]:
-    """(a*b rounded, its exact rounding error) (Dekker), without an fma."""
-    product = a * b
-    ah, al = _split(a)
-    bh, bl = _split(b)
-    return product, ((ah * bh - product) + ah * bl + al * bh) + al * bl
-
-
-def hypot(a: float, b: float) -> float:
-    """sqrt(a*a + b*b), correctly rounded but in rare hard cases, without overflow or
-    underflow.  Not math.hypot: CPython computes that its own way (its algorithm
-    changes between versions) and Numba calls libm's, which differ in the last bit
-    now and then, and one formulation must give one result everywhere.  The sum
-    of squares is formed exactly as a double-double (Dekker's products, no fma),
-    from operands scaled by a power of two into [0.5, 1), and the square root gets
-    one Newton correction from the exact residual."""
-    a, b = abs(a), abs(b)
-    if a == math.inf or b == math.inf:
-        return math.inf
-    if a != a or b != b:
-        return math.nan
-    big, small = (a, b) if a >= b else (b, a)
-    if big == 0.0 or small == 0.0:
-        return big
-    _, exponent = math.frexp(big)
-    x, y = math.ldexp(big, -exponent), math.ldexp(small, -exponent)  # exact unless y underflows (then negligible)
-    xx, xx_error = _two_product(x, x)
-    yy, yy_error = _two_product(y, y)
-    total = xx + yy
-    bb = total - xx
-    low = ((xx - (total - bb)) + (yy - bb)) + (xx_error + yy_error)  # two_sum's error plus the products'
-    h = math.sqrt(total + low)
-    hh, hh_error = _two_product(h, h)
-    h += ((total - hh) + (low - hh_error)) / (2.0 * h)
-    return math.ldexp(h, exponent)
 
 
 # -- the closed form of a speed and its integral ------------------------------------------
@@ -177,19 +115,20 @@ def harmonic(w0: float, b0: float, b1: float, phase0: float, omega: float, start
     return Harmonic(w0, b0, b1, phase0, omega, start, b0 + b1 * sin0, k, k / omega, cos0, sin0)
 
 
-def speed_after(h: Harmonic, c1: float, s2: float, tau: float) -> float:
+def speed_after(h: Harmonic, c1: Floats, s2: Floats, tau: Floats) -> Floats:
     """w at ``tau`` from its remainders (arithmetic only: floats or arrays)."""
     return h.w0 + h.g0 * tau + h.k * (h.cos0 * c1 - h.sin0 * s2)
 
 
-def travel_after(h: Harmonic, s2: float, c2: float, tau: float) -> float:
+def travel_after(h: Harmonic, s2: Floats, c2: Floats, tau: Floats) -> Floats:
     """start + the integral of w at ``tau`` from its remainders (floats or arrays)."""
     return h.start + (h.w0 * tau + 0.5 * h.g0 * tau * tau + h.kk * (h.cos0 * s2 - h.sin0 * c2))
 
 
-def harmonic_at(h: Harmonic, tau: float) -> tuple[float, float]:
-    """(w, start + integral of w) at ``tau``."""
-    c1, s2, c2 = remainders(h.omega * tau)
+def harmonic_at(h: Harmonic, tau: Floats) -> tuple[Floats, Floats]:
+    """(w, start + integral of w) at ``tau``, a float or an array (see :data:`Floats`)."""
+    psi = h.omega * tau
+    c1, s2, c2 = remainders(psi) if isinstance(psi, float) else remainders_many(psi)
     return speed_after(h, c1, s2, tau), travel_after(h, s2, c2, tau)
 
 
@@ -205,9 +144,9 @@ def harmonic_height(h: Harmonic, tau: float) -> float:
     return travel_after(h, s2, c2, tau)
 
 
-def harmonic_rate(h: Harmonic, tau: float) -> float:
-    """dw/dt at ``tau``."""
-    return h.b0 + h.b1 * math.sin(h.phase0 + h.omega * tau)
+def harmonic_rate(h: Harmonic, tau: Floats) -> Floats:
+    """dw/dt at ``tau``, a float or an array."""
+    return h.b0 + h.b1 * sine(h.phase0 + h.omega * tau)
 
 
 # -- slip onset ----------------------------------------------------------------------------

@@ -11,26 +11,28 @@ bit for bit.  Kostek's model (``Plant.kostek``) has its own onsets and
 outcomes, the paper's case to the last bit; everything else takes the general
 ones.  The engines act on steps: the single slider
 (:mod:`friction_sim.core.engine.single`, interpreted) and the population
-(:mod:`friction_sim.core.engine.compiled`, the same functions compiled).
+(:mod:`friction_sim.core.engine.compiled`, the same functions compiled), both
+through the one stepper of :mod:`friction_sim.core.physics.stepper`.
 
-The period bookkeeping is here too: :func:`offset` times a phase from the
-slider's phase anchor, so event times never inherit one another's rounding,
-and :func:`to_cycle` finds where a period starts within a segment.
+A :class:`Segment` is the state record the stepper carries from event to
+event; :func:`evaluate` gives the state at any time within it, at a float or
+at an array of times, as scipy's ``DenseOutput`` does for a solver's step.
 """
 
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Final, NamedTuple
 
-from friction_sim.core.physics.plant import Form, Plant, form_at, onset_form, slip_form, stays
+from friction_sim.core.physics.numerics import Floats, sine
+from friction_sim.core.physics.plant import Form, Plant, form_at, onset_form, slip_form, slip_gain, stays
 from friction_sim.core.physics.roots import (
     NEVER,
-    TWO_PI,
     Harmonic,
     from_rest_b0,
     harmonic,
     harmonic_at,
+    harmonic_rate,
     landing_delay,
     next_slip_start,
     reduce_phase,
@@ -41,12 +43,6 @@ from friction_sim.core.physics.roots import (
 BACKWARD, STUCK, FORWARD, FLIGHT = -1, 0, 1, 2
 #: Event kinds, numbered as events.EventKind lists them.
 SLIP_START, STICK, REVERSAL, LIFT_OFF, LANDING = 0, 1, 2, 3, 4
-#: More events than this at one instant means the general model made no
-#: progress (a rounding case its guards missed): a stepper (the single slider,
-#: the compiled population) raises a SimulationFault instead of looping for
-#: ever.  A real instant has at most a handful (a landing, a lift-off at once,
-#: a slip onset).
-MAX_EVENTS_AT_ONE_INSTANT = 1000
 
 
 class Step(NamedTuple):
@@ -80,6 +76,54 @@ class Step(NamedTuple):
 NO_STEP = Step(NEVER, False, 0.0, 0, 0.0, 0.0, 0.0, STICK, STUCK, 0.0, 0.0, 0, False)
 
 
+class Segment(NamedTuple):
+    """The stepper's state: the motion since the last event and what was booked up to its start.
+
+    Its start: ``mode``, the phase ``phase0`` in [0, 2*pi), the velocities
+    ``v0``, ``vz0``, the height ``z0`` and the progress guards of its next step
+    (``closing``, ``grounded``: see :class:`Step`), the first :data:`START`
+    fields; then the offset ``s0`` from the phase anchor and the time ``t0``
+    (see :mod:`~friction_sim.core.physics.stepper`), the position ``x0 + xl``
+    as a double-double, and the period ``cycles`` that ``phase0`` is in.
+    Booked up to its start: the time spent stuck and in flight, and
+    ``at_instant``, the events in a row that happened at one instant (the
+    no-progress guard)."""
+
+    mode: int
+    phase0: float
+    v0: float
+    vz0: float
+    z0: float
+    closing: int
+    grounded: bool
+    s0: float
+    t0: float
+    x0: float
+    xl: float
+    cycles: int
+    stuck_time: float
+    flight_time: float
+    at_instant: int
+
+
+#: A segment's first fields, ``seg[:START]``, are its start but where and when: all
+#: its next step depends on under one plant (equal starts, equal steps), so they key
+#: an engine's memo of steps (a periodic motion repeats them bit for bit).
+START: Final = 7
+
+
+class Added(NamedTuple):
+    """A force added to the steady forms of a segment's plant, ``tau`` into the segment:
+    normal to the track, with cot(beta) times it along the track, as the resonant
+    exciter's transient force acts (:mod:`~friction_sim.core.physics.transient`).
+    ``force`` [N] at ``tau``, and its first and second integrals from the segment's
+    start [N s, N s^2]."""
+
+    force: float
+    integral: float
+    double_integral: float
+
+
 # -- the closed forms of a segment -------------------------------------------------------------
 
 
@@ -92,18 +136,22 @@ def axis(w0: float, form: Form, theta0: float, omega: float, from_rest: bool, st
     return harmonic(w0, b0, form.b1, phase, omega, start)
 
 
-def x_axis(p: Plant, mode: int, v0: float, phase0: float) -> Harmonic:
-    """The tangential closed form: w = mode*v of a slip, v of a flight (zero when stuck)."""
+def x_axis(p: Plant, mode: int, v0: float, phase0: float, steady: bool = True) -> Harmonic:
+    """The tangential closed form: w = mode*v of a slip, v of a flight (zero when stuck).
+    A slip from rest cannot start decelerating (:func:`axis`), on the ``steady`` forms
+    alone; under an :class:`Added` force they are taken as they are (the search that
+    started the slip saw the sum)."""
     if mode == FLIGHT:
         return axis(v0, p.flight_x, phase0, p.omega, False, 0.0)
     if mode == STUCK:
         return harmonic(0.0, 0.0, 0.0, phase0, p.omega, 0.0)
-    return axis(mode * v0, slip_form(p, mode), phase0, p.omega, v0 == 0.0, 0.0)
+    return axis(mode * v0, slip_form(p, mode), phase0, p.omega, steady and v0 == 0.0, 0.0)
 
 
-def z_axis(p: Plant, phase0: float, vz0: float, z0: float) -> Harmonic:
-    """The normal closed form of a flight (from a lift-off it cannot start falling)."""
-    return axis(vz0, p.flight_z, phase0, p.omega, vz0 == 0.0 and z0 == 0.0, z0)
+def z_axis(p: Plant, phase0: float, vz0: float, z0: float, steady: bool = True) -> Harmonic:
+    """The normal closed form of a flight (from a lift-off it cannot start falling; on
+    the ``steady`` forms alone, as :func:`x_axis`)."""
+    return axis(vz0, p.flight_z, phase0, p.omega, steady and vz0 == 0.0 and z0 == 0.0, z0)
 
 
 def travel(p: Plant, mode: int, v0: float, phase0: float, tau: float) -> float:
@@ -135,22 +183,6 @@ def moved_and_velocities(p: Plant, mode: int, v0: float, vz0: float, z0: float, 
         vz, z = harmonic_at(z_axis(p, phase0, vz0, z0), tau)
         return moved, w, vz, z
     return mode * moved, mode * w, 0.0, 0.0
-
-
-def to_cycle(n: int, cycles: int, phase0: float, omega: float) -> float:
-    """tau at which a segment that started at phase ``phase0`` of period ``cycles``
-    reaches the start of period ``n`` (0 if it already had)."""
-    whole = n - cycles
-    return 0.0 if whole <= 0 else (TWO_PI * whole - phase0) / omega
-
-
-def offset(cycles: int, phase: float, origin_cycles: int, origin_phase: float, frequency: float,
-           omega: float) -> float:
-    """When (after the phase anchor: time origin at total phase
-    2*pi*origin_cycles + origin_phase) the total phase reaches 2*pi*cycles + phase.
-    Every event and period start is timed afresh from the anchor, so rounding
-    errors never add up from one event to the next."""
-    return (cycles - origin_cycles) / frequency + (phase - origin_phase) / omega
 
 
 # -- the next event -----------------------------------------------------------------------------
@@ -278,41 +310,60 @@ def impact(p: Plant, v: float, vz: float) -> tuple[float, float, bool]:
     return v, rebound if bounces else 0.0, bounces
 
 
-def normal_force(p: Plant, theta: float) -> float:
-    """The contact force R at phase ``theta`` (in contact)."""
-    return p.n0 - p.pa * math.sin(theta - p.lag)
+def normal_force(p: Plant, theta: Floats) -> Floats:
+    """The contact force R at phase ``theta`` (in contact; a float or an array)."""
+    return p.n0 - p.pa * sine(theta - p.lag)
 
 
-def tangential_force(p: Plant, theta: float) -> float:
-    """Ft at phase ``theta``."""
-    return form_at(p.tangential, theta)
+def evaluate(p: Plant, seg: Segment, tau: Floats,
+             added: Added | None = None) -> tuple[Floats, Floats, Floats, Floats, Floats, Floats, Floats, Floats]:
+    """(x, v, acceleration, friction force, normal force, phase, z, vz) ``tau`` into
+    ``seg`` (the phase unreduced), at a float or at an array of times, as scipy's
+    ``DenseOutput``: a float with libm's sin (so the compiled engine's samples are
+    the single slider's states bit for bit), an array with numpy's (within an ulp or
+    two of libm's: the values may differ from the floats' in their last bits).
 
-
-def evaluate(p: Plant, mode: int, x0: float, xl: float, v0: float, vz0: float, z0: float, phase0: float,
-             tau: float) -> tuple[float, float, float, float, float, float, float, float]:
-    """(x, v, acceleration, friction force, normal force, phase, z, vz) ``tau`` into a
-    segment (the phase unreduced; x0 + xl its start position as a double-double)."""
-    theta = phase0 + p.omega * tau
+    ``added``: a force added to the steady forms (the resonant exciter's transient:
+    :mod:`~friction_sim.core.physics.transient`).  Its value and its first and second
+    integrals, times each form's gain (:func:`~friction_sim.core.physics.plant.slip_gain`,
+    cot(beta)/m and 1/m in flight), are added to the acceleration, the speed and the
+    position, and it is taken off the contact force.  Under it a start from rest is
+    taken as it is (the search that found the event saw the sum: see :func:`x_axis`),
+    and the acceleration is the steady form at the phase (:func:`form_at`, the
+    transient's own formulation, which may differ from the closed form's rate in
+    its last bit) plus the force's part."""
+    theta = seg.phase0 + p.omega * tau
     zero = tau * 0.0
+    mode = seg.mode
     if mode == FLIGHT:
-        hx, hz = x_axis(p, mode, v0, phase0), z_axis(p, phase0, vz0, z0)
+        hx = x_axis(p, mode, seg.v0, seg.phase0)
+        hz = z_axis(p, seg.phase0, seg.vz0, seg.z0, added is None)
         v, moved = harmonic_at(hx, tau)
         vz, z = harmonic_at(hz, tau)
-        rate = hx.b0 + hx.b1 * math.sin(hx.phase0 + hx.omega * tau)
-        return x0 + (xl + moved), v, rate, zero, zero, theta, z, vz
-    if p.kostek:  # Kostek's segments: the paper's case as it always was, to the sign of a zero
-        sin_theta = math.sin(theta)
-        normal = p.n0 - p.pa * sin_theta
-        if mode == STUCK:
-            return x0 + zero, zero, zero, -p.tangential.b0 + zero, normal, theta, 0.0, 0.0
-        h = x_axis(p, mode, v0, phase0)
-        w, moved = harmonic_at(h, tau)
-        return (x0 + (xl + mode * moved), mode * w, mode * (h.b0 + h.b1 * sin_theta), -mode * p.mu * normal, normal,
-                theta, 0.0, 0.0)
-    normal = p.n0 - p.pa * math.sin(theta - p.lag) if p.pa else p.n0 + zero
+        if added is None:
+            return seg.x0 + (seg.xl + moved), v, harmonic_rate(hx, tau), zero, zero, theta, z, vz
+        along, across = p.cot_beta / p.mass, 1.0 / p.mass
+        return (seg.x0 + (seg.xl + (moved + along * added.double_integral)), v + along * added.integral,
+                form_at(p.flight_x, theta) + along * added.force, zero, zero, theta,
+                z + across * added.double_integral, vz + across * added.integral)
+    normal = normal_force(p, theta) if p.pa else p.n0 + zero
+    if added is not None:
+        normal = normal - added.force
     if mode == STUCK:
-        return x0 + zero, zero, zero, -tangential_force(p, theta), normal, theta, zero, zero
-    h = x_axis(p, mode, v0, phase0)
+        if p.kostek:  # Kostek's segments: the paper's case as it always was, to the sign of a zero
+            friction = -p.tangential.b0 + zero
+        elif added is None:
+            friction = -form_at(p.tangential, theta)
+        else:
+            friction = -(form_at(p.tangential, theta) + p.cot_beta * added.force)
+        return seg.x0 + zero, zero, zero, friction, normal, theta, zero, zero
+    h = x_axis(p, mode, seg.v0, seg.phase0, added is None)
     w, moved = harmonic_at(h, tau)
-    rate = h.b0 + h.b1 * math.sin(h.phase0 + h.omega * tau)
-    return x0 + (xl + mode * moved), mode * w, mode * rate, -mode * p.mu * normal, normal, theta, zero, zero
+    if added is None:
+        rate = harmonic_rate(h, tau)
+    else:
+        gain = slip_gain(p, mode)
+        moved, w = moved + gain * added.double_integral, w + gain * added.integral
+        rate = form_at(slip_form(p, mode), theta) + gain * added.force
+    return (seg.x0 + (seg.xl + mode * moved), mode * w, mode * rate, -mode * p.mu * normal, normal, theta, zero,
+            zero)

@@ -48,8 +48,9 @@ import numpy as np
 
 from friction_sim.core.model.dimensionless import TWO_PI
 from friction_sim.core.physics.exciter import exp_terms
-from friction_sim.core.physics.plant import Form, Plant, form_at, onset_form, slip_form
-from friction_sim.core.physics.roots import NEVER, harmonic, harmonic_at, illinois_update, reduce_phase, ulp
+from friction_sim.core.physics.numerics import ulp
+from friction_sim.core.physics.plant import Form, Plant, form_at, onset_form, slip_form, slip_gain
+from friction_sim.core.physics.roots import NEVER, harmonic, harmonic_at, illinois_update, reduce_phase
 from friction_sim.core.physics.segment import (
     BACKWARD,
     FLIGHT,
@@ -60,7 +61,10 @@ from friction_sim.core.physics.segment import (
     SLIP_START,
     STICK,
     STUCK,
+    Added,
+    Segment,
     Step,
+    evaluate,
     outcome,
 )
 
@@ -320,11 +324,6 @@ def _derivative_slack(s: Signal, k: int) -> float:
 # -- the gains of the transient force on each form ---------------------------------------------
 
 
-def slip_gain(p: Plant, direction: int) -> float:
-    """What a unit transient normal force adds to dw/dt (w = s*v) of a slip in ``direction``."""
-    return (direction * p.cot_beta + p.mu) / p.mass
-
-
 def onset_gain(p: Plant, direction: int) -> float:
     """What it adds to the onset form s*Ft - mu_s*R."""
     return direction * p.cot_beta + p.mu_s
@@ -451,23 +450,15 @@ def slideway_acceleration(p: Plant, phase0: float, c: complex, lam: complex, tau
     return -along / p.mass, -normal / p.mass
 
 
-def transient_evaluate(p: Plant, mode: int, x0: float, xl: float, v0: float, vz0: float, z0: float, phase0: float,
-                       c: complex, lam: complex, tau: float) -> tuple[float, float, float, float, float, float, float,
-                                                                       float]:
+def transient_evaluate(p: Plant, seg: Segment, c: complex, lam: complex,
+                       tau: float) -> tuple[float, float, float, float, float, float, float, float]:
     """(x, v, acceleration, friction force, normal force, phase, z, vz) ``tau`` into
-    a segment under the transient (see :func:`~friction_sim.core.physics.segment.evaluate`)."""
-    theta = phase0 + p.omega * tau
-    force = transient_force(c, lam, tau)
-    moved, v, vz, z = transient_motion(p, mode, c, lam, v0, vz0, z0, phase0, tau)
-    x = x0 + (xl + moved)
-    if mode == FLIGHT:
-        acc = form_at(p.flight_x, theta) + p.cot_beta / p.mass * force
-        return x, v, acc, 0.0, 0.0, theta, z, vz
-    normal = p.n0 - p.pa * math.sin(theta - p.lag) - force
-    if mode == STUCK:
-        return x, 0.0, 0.0, -(form_at(p.tangential, theta) + p.cot_beta * force), normal, theta, 0.0, 0.0
-    acc = mode * (form_at(slip_form(p, mode), theta) + slip_gain(p, mode) * force)
-    return x, v, acc, -mode * p.mu * normal, normal, theta, 0.0, 0.0
+    ``seg`` under the transient: the steady evaluation with the transient force and its
+    integrals added (:func:`~friction_sim.core.physics.segment.evaluate`)."""
+    e0, e1, e2 = exp_terms(lam, tau)
+    x, v, acc, friction, normal, theta, z, vz = evaluate(p, seg, tau, Added((c * e0).real, (c * e1).real,
+                                                                             (c * e2).real))
+    return float(x), float(v), float(acc), float(friction), float(normal), float(theta), float(z), float(vz)
 
 
 __all__ = ["LOOK_AHEAD_PERIODS", "Signal", "first_time", "slideway_acceleration", "transient_evaluate",

@@ -11,7 +11,7 @@ How far the two may differ is derived from the two evaluations:
   ``transient_evaluate`` at ``times - t0``, the very operations of ``state()``:
   every column bit-equal;
 * on the steady forms, sample evaluates with numpy, whose sin may be up to
-  ``SIN_ULPS`` units in the last place off libm's (sampling.py); every other
+  ``SIN_ULPS`` units in the last place off libm's (numerics.sine); every other
   operation is the same IEEE operation on both sides.  A sine ``SIN_ULPS`` ulps
   off puts the remainders built from it at most ``2*SIN_ULPS + 2`` ulps off
   (1 - cos(psi) = 2*sin(psi/2)**2 doubles the error, the squaring rounds), and
@@ -35,15 +35,14 @@ import pytest
 from hypothesis import HealthCheck, Phase, assume, event, given, settings
 from hypothesis import strategies as st
 
-from friction_sim.core.engine import sampling
 from friction_sim.core.engine.single import EventKind, Slider
 from friction_sim.core.model.params import Inputs, SliderParams
-from friction_sim.core.physics import roots
+from friction_sim.core.physics import numerics, roots
 from friction_sim.core.physics.exciter import steady_response
 from friction_sim.core.physics.segment import FLIGHT, STUCK, x_axis, z_axis
 
 EPS = 2.0**-52
-#: numpy's float64 sin against libm's (sampling.py: "within an ulp or two").
+#: numpy's float64 sin against libm's (numerics.sine: "within an ulp or two").
 SIN_ULPS = 2
 #: The most operations after the sines in one steady closed form: x of a slip,
 #: x0 + (xl + mode*(start + (w0*tau + 0.5*g0*tau*tau + kk*(cos0*s2 - sin0*c2)))).
@@ -314,7 +313,7 @@ def test_the_steady_allowance_covers_a_numpy_sin_two_ulps_off(monkeypatch):
             y = np.where(rng.random(np.shape(y)) < 0.5, np.nextafter(y, -np.inf), np.nextafter(y, np.inf))
         return y
 
-    for module in (sampling, roots):
+    for module in (numerics, roots):  # (numerics.sine, roots.remainders_many: every sine sample() takes)
         monkeypatch.setattr(module, "np", types.SimpleNamespace(**{**vars(np), "sin": sin}))
     assert_sample_equals_state(issue_history())
 
