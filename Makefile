@@ -41,7 +41,7 @@ MPLBACKEND := Agg
 export ROS_DOMAIN_ID ROS_AUTOMATIC_DISCOVERY_RANGE MPLBACKEND
 
 .DEFAULT_GOAL := test
-.PHONY: venv .venv lint test suite test-jazzy demo bench margins clean distclean
+.PHONY: venv .venv lint test suite test-jazzy demo docs bench margins clean distclean
 
 venv .venv: $(STAMP)
 
@@ -102,6 +102,13 @@ demo: $(STAMP)
 	$(VENV)/bin/friction-sim conveyor --png out/demo/conveyor.png --csv out/demo/conveyor.csv
 	$(VENV)/bin/friction-sim resonance --png out/demo/resonance.png --natural-frequency 52 --from 40 --to 60
 	$(VENV)/bin/friction-sim experiment config/demo.yaml
+
+# The documentation site (doc/, rosdoc2's layout) with warnings as errors: a broken
+# cross-reference, a --help that cannot be formatted or a docstring that does not parse
+# fails it.  The suite builds it too (test/test_docs.py), so `make test` and CI do.
+docs: $(STAMP)
+	$(VPY) -m sphinx -W --keep-going -q -b html doc build/docs/html
+	@echo "build/docs/html/index.html"
 
 bench: $(STAMP)
 	@set -e; found=0; \

@@ -51,3 +51,15 @@ def test_the_detector_finds_paths_and_leaves_install_paths_and_templates() -> No
 def test_every_path_the_docs_name_exists(doc: Path) -> None:
     missing = sorted(path for path in named_paths(doc.read_text()) if not exists(path))
     assert not missing, f"{doc.name} names paths that do not exist: {missing}"
+
+
+#: A Markdown link to a file of the tree: [text](path) or [text](path#anchor), not a URL.
+LINK = re.compile(r"\]\((?!https?://|mailto:|#)([^)#\s]+)(?:#[^)]*)?\)")
+
+
+@pytest.mark.parametrize("doc", DOCS, ids=lambda doc: str(doc.relative_to(ROOT)))
+def test_every_link_of_the_docs_reaches_a_file(doc: Path) -> None:
+    """The README links into the site (doc/*.md), which GitHub shows as it is; the site's own
+    links Sphinx checks too (-W), this checks them as files for a reader of the repository."""
+    broken = sorted(target for target in LINK.findall(doc.read_text()) if not (doc.parent / target).exists())
+    assert not broken, f"{doc.name} links to what does not exist: {broken}"

@@ -1,16 +1,16 @@
-"""Every command in the README works as written.
+"""Every command in the README and in the documentation's pages works as written.
 
-Blocks fenced as ```sh are run here, line by line, from the repository root
-(with the venv's bin/ first on PATH, as after `make`).  `make test` is the
-command that runs this very test, so it is the one line not run again.  Blocks
-fenced as ```sh ros2 need a ROS 2 install (ros2, colcon); they are checked
-instead against the nodes' real interface: every topic, message type, node
-and parameter they name must exist, and the values must be accepted; a
-`ros2 launch` line must name a launch file of launch/ and only its declared
-arguments, with values the settings behind them accept.  A `ros2 topic pub`
-line is also run (test/ros2_topic_pub.py does what ros2cli does) against the
-README's own setup, its slider recording: each message must reach every
-subscription of the topic, so `-w` must count them all.
+Blocks fenced as ```sh, in README.md and in every page of doc/ (in the order of DOCS: a
+page's commands may use what an earlier command of the same page wrote), are run here,
+line by line, from the repository root (with the venv's bin/ first on PATH, as after
+`make`).  `make test` is the command that runs this very test, so it is the one line not
+run again.  Blocks fenced as ```sh ros2 need a ROS 2 install (ros2, colcon); they are
+checked instead against the nodes' real interface: every topic, message type, node and
+parameter they name must exist, and the values must be accepted; a `ros2 launch` line
+must name a launch file of launch/ and only its declared arguments, with values the
+settings behind them accept.  A `ros2 topic pub` line is also run (test/ros2_topic_pub.py
+does what ros2cli does) against the setup of the page it is on (its slider recording):
+each message must reach every subscription of the topic, so `-w` must count them all.
 """
 
 from __future__ import annotations
@@ -40,18 +40,28 @@ from friction_sim.core.model.commands import COMMANDS, CONTROLS
 from friction_sim.core.model.spec import CONTROLLER_NODE, SLIDER_NODE
 
 ROOT = Path(__file__).resolve().parents[2]
+#: The documents whose commands run: the README, then the site's pages in its reading order
+#: (doc/index.md's contents), then any other page of doc/.
+PAGE_ORDER = ("getting_started", "model", "tutorials/ros", "tutorials/experiments", "tutorials/record_replay",
+              "tutorials/calibrate", "tutorials/resonance", "tutorials/sweeps", "tutorials/foxglove",
+              "tutorials/offline")
+DOCS = [ROOT / "README.md", *(ROOT / "doc" / f"{page}.md" for page in PAGE_ORDER),
+        *sorted(set((ROOT / "doc").rglob("*.md")) - {ROOT / "doc" / f"{page}.md" for page in PAGE_ORDER})]
 README = (ROOT / "README.md").read_text()
+#: The page whose ROS 2 setup (`ros2 run` lines) its `ros2 topic pub` lines are proven with.
+ROS_TUTORIAL = ROOT / "doc" / "tutorials" / "ros.md"
 NOT_RUN_HERE = {"make test", "make demo"}  # this test is part of it; the demo has a test of its own
 
 
-def blocks(kind: str) -> list[str]:
+def blocks(kind: str, text: str = README) -> list[str]:
     pattern = re.compile(r"^```" + re.escape(kind) + r"\n(.*?)^```", re.M | re.S)
-    return pattern.findall(README)
+    return pattern.findall(text)
 
 
-def commands(kind: str) -> list[str]:
+def commands(kind: str, text: str = README) -> list[str]:
+    """The command lines of ``text``'s blocks fenced as ```KIND (comments and blank lines left out)."""
     found = []
-    for block in blocks(kind):
+    for block in blocks(kind, text):
         for line in block.splitlines():
             line = line.strip()
             if line and not line.startswith("#"):
@@ -59,25 +69,49 @@ def commands(kind: str) -> list[str]:
     return found
 
 
+def doc_commands(kind: str) -> list[tuple[str, str]]:
+    """(document, command) of every ```KIND line of DOCS, in their order."""
+    return [(str(doc.relative_to(ROOT)), command) for doc in DOCS for command in commands(kind, doc.read_text())]
+
+
+def _id(value: object) -> str:
+    return str(value) if not isinstance(value, tuple) else f"{value[0]}: {value[1]}"
+
+
 def test_the_readme_has_runnable_and_ros2_blocks() -> None:
     assert "make demo" in commands("sh") and "make test" in commands("sh")
     assert any(c.startswith("ros2 run friction_sim slider") for c in commands("sh ros2"))
     assert any(c.startswith("ros2 run friction_sim controller") for c in commands("sh ros2"))
-    assert any(c.startswith("ros2 launch friction_sim feeder.launch.py") for c in commands("sh ros2"))
+    assert any(c.startswith("ros2 launch friction_sim feeder.launch.py") for _, c in doc_commands("sh ros2"))
+
+
+def test_every_tutorial_page_has_commands_the_suite_runs() -> None:
+    """A tutorial is a page whose commands CI runs: each has ```sh or ```sh ros2 lines."""
+    for page in sorted((ROOT / "doc" / "tutorials").glob("*.md")):
+        if page.name != "index.md":
+            text = page.read_text()
+            assert commands("sh", text) or commands("sh ros2", text), f"{page.name}: no command to run"
 
 
 def on_this_platform(command: str) -> str:
     """``command`` as it runs on the venv running these tests: under `make test-jazzy`
-    (.venv-jazzy) the README's ``.venv/bin/`` is that venv's bin (and `make` builds
-    and uses it, since PLATFORM=jazzy is in the environment)."""
+    (.venv-jazzy) the docs' ``.venv/bin/`` is that venv's bin (and `make` builds
+    and uses it, since PLATFORM=jazzy is in the environment); from a checkout whose
+    tests run on another checkout's venv, that venv's bin."""
     venv = Path(sys.prefix)
-    if venv.parent == ROOT and venv.name != ".venv":
-        return command.replace(".venv/bin/", f"{venv.name}/bin/")
+    if venv != ROOT / ".venv":
+        return command.replace(".venv/bin/", f"{venv.name}/bin/" if venv.parent == ROOT else f"{venv}/bin/")
     return command
 
 
-@pytest.mark.parametrize("command", [c for c in commands("sh") if c not in NOT_RUN_HERE])
-def test_readme_command_runs(command: str) -> None:
+@pytest.mark.parametrize(("doc", "command"), [(d, c) for d, c in doc_commands("sh") if c not in NOT_RUN_HERE],
+                         ids=_id)
+def test_doc_command_runs(doc: str, command: str) -> None:
+    run_doc_command(command)
+
+
+def run_doc_command(command: str) -> None:
+    """Run ``command`` as a reader does, from the repository root; it must exit 0 without a traceback."""
     command = on_this_platform(command)
     env = dict(os.environ)
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env['PATH']}"
@@ -94,7 +128,7 @@ def test_make_demo_runs_and_its_recording_fills_every_panel_of_the_shipped_layou
     from friction_sim.io.reader import read_recording
 
     assert "make demo" in commands("sh")
-    test_readme_command_runs("make demo")
+    run_doc_command("make demo")
     recording = read_recording(ROOT / "out" / "demo" / "demo.mcap")
     layout = load_layout()
     wanted = {resolve(path)[0] for panel, config in layout["configById"].items() for path in panel_paths(panel, config)}
@@ -133,8 +167,8 @@ def _message(type_name: str) -> type:
     return message_class(type_name)
 
 
-@pytest.mark.parametrize("command", commands("sh ros2"))
-def test_ros2_command_matches_the_real_interface(command: str) -> None:
+@pytest.mark.parametrize(("doc", "command"), doc_commands("sh ros2"), ids=_id)
+def test_ros2_command_matches_the_real_interface(doc: str, command: str) -> None:
     words = shlex.split(command)
     if words[:2] == ["ros2", "run"]:
         assert words[2] == "friction_sim" and words[3] in ("slider", "controller")
@@ -224,18 +258,26 @@ def _check_launch(package: str, launch_file: str, arguments: list[str]) -> None:
             assert (ROOT / value).is_file(), f"{argument}: no such file"
 
 
-# -- `ros2 topic pub` against the README's own setup, recording ----------------------
+# -- `ros2 topic pub` against the ROS tutorial's own setup, recording ----------------------
 
-#: The README's `ros2 topic pub` lines.
-TOPIC_PUB_LINES = [c for c in commands("sh ros2") if c.startswith("ros2 topic pub")]
-#: Where the README's `ros2 run` lines read the installed package's files; the repository has them.
+#: The `ros2 topic pub` lines of the docs; each page that has them has the `ros2 run` lines of its setup.
+TOPIC_PUB_LINES = [c for c in commands("sh ros2", ROS_TUTORIAL.read_text()) if c.startswith("ros2 topic pub")]
+
+
+def test_every_topic_pub_line_is_on_the_page_of_its_setup() -> None:
+    """The pub lines are proven with the ROS tutorial's nodes: a page with others would need its own setup."""
+    elsewhere = [c for _, c in doc_commands("sh ros2") if c.startswith("ros2 topic pub") and c not in TOPIC_PUB_LINES]
+    assert TOPIC_PUB_LINES and not elsewhere, elsewhere
+
+
+#: Where the ROS tutorial's `ros2 run` lines read the installed package's files; the repository has them.
 INSTALLED = "install/friction_sim/share/friction_sim/"
-#: Terminals that run one README line at once.  With one, a `-w` one short loses the message to a
+#: Terminals that run one tutorial line at once.  With one, a `-w` one short loses the message to a
 #: subscription that matched late only now and then (issue 28: 6 published, 4 recorded); with
 #: several, some of them publish before the last subscription matched every time, while the
 #: commands stay within the nodes' queues (QOS_DEPTH 10 per topic).
 TERMINALS = 8
-#: ros2cli's --keep-alive the README's lines need at least [s].  ``-w`` counts the matches the
+#: ros2cli's --keep-alive the ROS tutorial's lines need at least [s].  ``-w`` counts the matches the
 #: publisher has seen; the subscriber's side of a match can come later, and the message it dropped
 #: meanwhile is sent again only while the publisher lives: with ros2cli's 0.1 s, two runs of
 #: test_readme_topic_pub_line_is_recorded_once_per_publish_by_the_recording_slider in ten lost
@@ -247,11 +289,11 @@ DELIVERY = 15.0
 
 
 def readme_nodes() -> dict[str, list[str]]:
-    """The README's ROS 2 setup: executable -> the arguments its `ros2 run
+    """The ROS tutorial's ROS 2 setup: executable -> the arguments its `ros2 run
     friction_sim ...` line gives (all after ``--ros-args``), the installed
     files read from the repository."""
     nodes = {}
-    for command in commands("sh ros2"):
+    for command in commands("sh ros2", ROS_TUTORIAL.read_text()):
         words = shlex.split(command)
         if words[:3] == ["ros2", "run", "friction_sim"]:
             arguments = [word.replace(INSTALLED, f"{ROOT}/") for word in words[4:]]
@@ -262,22 +304,22 @@ def readme_nodes() -> dict[str, list[str]]:
 
 
 def readme_log_path() -> str:
-    """The slider's log_path in the README's setup: its pub lines are proven with the slider recording."""
+    """The slider's log_path in the ROS tutorial's setup: its pub lines are proven with the slider recording."""
     words = readme_nodes()["slider"]
     paths = [words[i + 1].split(":=", 1)[1] for i, word in enumerate(words[:-1])
              if word == "-p" and words[i + 1].startswith("log_path:=")]
-    assert paths and paths[-1], "the README's slider records (-p log_path:=...), so that its " \
+    assert paths and paths[-1], "the ROS tutorial's slider records (-p log_path:=...), so that its " \
                                 "`ros2 topic pub` lines are proven with recording on"
     return paths[-1]
 
 
 def fresh_namespace() -> str:
-    """Nodes of different tests never meet (the README's topics are moved into it)."""
+    """Nodes of different tests never meet (the ROS tutorial's topics are moved into it)."""
     return f"/t{uuid.uuid4().hex[:8]}"
 
 
 def readme_subscriptions(topic: str) -> dict[str, int]:
-    """node -> how many subscriptions of ``topic`` it has, for the README's
+    """node -> how many subscriptions of ``topic`` it has, for the ROS tutorial's
     nodes built in this process from their `ros2 run` lines (in a fresh
     namespace; the current directory takes the recording)."""
     from friction_sim.ros.controller import ControllerNode
@@ -300,7 +342,7 @@ def test_readme_topic_pub_waits_for_every_subscription_of_the_readme_setup(
         ros: None, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, command: str) -> None:
     """Issue 28, finding 3: `--once -w N` publishes once N subscriptions have
     matched; any other subscription of the topic misses the message.  N must
-    be the subscriptions the README's setup has: the recording slider's
+    be the subscriptions the ROS tutorial's setup has: the recording slider's
     too (it subscribes to target_speed only to record it).  And the publisher
     stays long enough for a subscriber whose side of the match came after the
     message (KEEP_ALIVE; ros2cli's 0.1 s lost some on a loaded machine)."""
@@ -310,8 +352,8 @@ def test_readme_topic_pub_waits_for_every_subscription_of_the_readme_setup(
     subscriptions = readme_subscriptions(line.topic)
     total = sum(subscriptions.values())
     assert line.wait == total, \
-        f"{command}: the README's setup has {subscriptions} subscriptions of {line.topic}: -w {total}"
-    assert line.keep_alive >= KEEP_ALIVE, f"{command}: --keep-alive {KEEP_ALIVE:g} (see the README)"
+        f"{command}: the ROS tutorial's setup has {subscriptions} subscriptions of {line.topic}: -w {total}"
+    assert line.keep_alive >= KEEP_ALIVE, f"{command}: --keep-alive {KEEP_ALIVE:g} (see the ROS tutorial)"
 
 
 def _controller_received(recording: Any, ns: str) -> int | None:
@@ -327,7 +369,7 @@ def _controller_received(recording: Any, ns: str) -> int | None:
 
 
 def _start_readme_setup(ns: str, cwd: Path) -> dict[str, subprocess.Popen[str]]:
-    """The README's nodes, each in its own process as its `ros2 run` line starts
+    """The ROS tutorial's nodes, each in its own process as its `ros2 run` line starts
     it (the venv's console scripts), moved into ``ns``; returned once both
     report on diagnostics (fully built)."""
     import rclpy
@@ -376,7 +418,7 @@ def _stop(processes: dict[str, subprocess.Popen[str]], cwd: Path) -> None:
 @pytest.mark.parametrize("command", TOPIC_PUB_LINES)
 def test_readme_topic_pub_line_is_recorded_once_per_publish_by_the_recording_slider(
         ros: None, tmp_path: Path, command: str) -> None:
-    """Issue 28, finding 3, run: the README's slider (recording) and controller
+    """Issue 28, finding 3, run: the ROS tutorial's slider (recording) and controller
     in their own processes, the line run from TERMINALS terminals at once
     (each as ros2cli runs it: a new participant that waits for -w matched
     subscriptions, publishes once, stays --keep-alive seconds); then Ctrl-C.

@@ -116,10 +116,9 @@ def test_bad_input_is_one_line_and_exit_code_2(tmp_path: Path, args: list[str], 
     assert re.search(message, lines[0].replace(str(tmp_path / "bad.yaml"), "{bad}")), lines[0]
 
 
-def test_the_readme_shows_the_example_sweep_as_shipped() -> None:
+def test_the_sweeps_tutorial_shows_the_example_sweep_as_shipped() -> None:
     root = Path(__file__).resolve().parents[2]
-    readme = (root / "README.md").read_text()
-    section = readme[readme.index("## Sweeps"):]
+    section = (root / "doc" / "tutorials" / "sweeps.md").read_text()
     block = re.search(r"```yaml\n(.*?)```", section, re.S)
     assert block is not None
     shipped = (root / "config" / "sweep_example.yaml").read_text()

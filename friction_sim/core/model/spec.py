@@ -3,8 +3,8 @@
 Each :class:`Setting` names a value, its default (the paper's Fig. 2 case),
 unit, valid range and meaning.  Everything else derives from these tables:
 the validated core types (:mod:`friction_sim.core.model.params`), the ROS
-parameter descriptors of both nodes, the CLI flags, and the README tables
-and ``config/*.yaml`` files (a test checks those against this module).
+parameter descriptors of both nodes, the CLI flags, the node reference's tables
+(doc/reference/nodes.md) and ``config/*.yaml`` files (a test checks those against this module).
 
 * :data:`PLANT`: mass, mu, gravity; what the plant is.
 * :data:`INPUTS`: what changes while it runs (drive force, excitation
@@ -34,7 +34,7 @@ class Setting:
 
     ``low`` and ``high`` bound a number inclusively (None: unbounded);
     ``rule`` states a cross-field rule in words (checked elsewhere, shown in
-    the README); ``start_only`` marks a node parameter read at start-up only;
+    the node reference); ``start_only`` marks a node parameter read at start-up only;
     ``flag`` is the CLI option where it differs from ``--name-with-dashes``;
     ``choices`` lists the values a string setting may take (empty: any).
     """
@@ -333,9 +333,10 @@ CONTROLLER_NODE = table(
 
 
 def markdown_table(settings: dict[str, Setting]) -> str:
-    """The README table of ``settings``: one row each with default, unit, range
-    (and cross-field rule) and meaning.  The README holds exactly this text; a
-    test checks it, so the documentation cannot drift from the code."""
+    """The Markdown table of ``settings``: one row each with default, unit, range
+    (and cross-field rule) and meaning.  The node reference (doc/reference/nodes.md)
+    holds exactly this text; a test checks it, so the documentation cannot drift from
+    the code."""
     rows = ["| parameter | default | unit | range / rule | meaning |", "|---|---|---|---|---|"]
     for setting in settings.values():
         limits = "; ".join(part for part in (setting.range_text(), setting.rule) if part).replace("|", "\\|") or "–"
