@@ -418,8 +418,8 @@ def reduction_figure(curves: ReductionCurves) -> Figure:
     params = curves.params
     for ratio, speeds, row in zip(curves.ratios, curves.speeds, curves.by_speed):
         left.plot(speeds * 1e3, row, linewidth=1.3, label=f"Pa/Q = {ratio:g}")
-    for speed, row in zip(curves.marked_speeds, curves.by_amplitude):
-        right.plot(curves.amplitudes, row, linewidth=1.3, label=f"V = {speed * 1e3:g} mm/s")
+    for speed, ratios, row in zip(curves.marked_speeds, curves.amplitudes, curves.by_amplitude):
+        right.plot(ratios, row, linewidth=1.3, label=f"V = {speed * 1e3:g} mm/s")
     left.set_xlabel("mean speed V [mm/s]")
     right.set_xlabel("amplitude ratio Pa/Q")
     left.set_ylabel(r"apparent friction $\mu_{app}/\mu$")

@@ -75,7 +75,7 @@ def write_reduction_csv(curves: ReductionCurves, path: Path) -> Path:
             for j, speed in enumerate(curves.speeds[i]):
                 writer.writerow(_reduction_row("speed", ratio, speed, curves.by_speed[i, j], mu))
         for i, speed in enumerate(curves.marked_speeds):
-            for j, ratio in enumerate(curves.amplitudes):
+            for j, ratio in enumerate(curves.amplitudes[i]):
                 writer.writerow(_reduction_row("amplitude", ratio, speed, curves.by_amplitude[i, j], mu))
     return path
 

@@ -61,7 +61,7 @@ class ReductionCurves:
     ``by_speed[i, j]`` at amplitude ratio ``ratios[i]`` (a = Pa/Q, Q = m g) and
     mean speed ``speeds[i, j]`` [m/s] (each curve its own speeds: see
     :func:`reduction_curves`); ``by_amplitude[i, j]`` at mean speed
-    ``marked_speeds[i]`` and amplitude ratio ``amplitudes[j]``.  NaN where no
+    ``marked_speeds[i]`` and amplitude ratio ``amplitudes[i, j]`` (each curve its own ratios).  NaN where no
     steady stick-slip reaches that speed (only a slider that runs away would go
     faster).  ``closed_form``: Kostek's exact inverse (else the general mean speed's)."""
 
@@ -147,8 +147,10 @@ def reduction_curves(params: SliderParams = LOMAKIN, frequency: float = LOMAKIN_
     """Both views of the reduction: against the mean speed at each of ``ratios``,
     from 0 to that ratio's fastest periodic stick-slip on Kostek's model (U = a/(2
     pi), where phi = 1 exactly; beyond his model, to the largest ratio's), the
-    points closer toward 0 (:func:`speed_fractions`); against the amplitude ratio, from 0 to the largest of
-    ``ratios`` (below 1: Kostek's model has no hop), at each of ``marked_speeds``."""
+    points closer toward 0 (:func:`speed_fractions`); against the amplitude ratio at
+    each of ``marked_speeds``, up to the largest of ``ratios`` (below 1: Kostek's
+    model has no hop), from the least ratio that reaches that speed (a = 2 pi U,
+    where phi = 1 exactly; beyond his model, from 0)."""
     ratios_ = np.asarray(ratios, dtype=float)
     marked = np.asarray(marked_speeds, dtype=float)
     if points < 2 or ratios_.size == 0 or marked.size == 0:
@@ -163,8 +165,19 @@ def reduction_curves(params: SliderParams = LOMAKIN, frequency: float = LOMAKIN_
         by_speed = np.asarray(drive_ratio_for(u, ratios_[:, None]), dtype=float)
     else:
         by_speed = apparent_friction_ratio(speeds, ratios_[:, None], params, frequency)
-    by_amplitude = apparent_friction_ratio(marked[:, None], amplitudes[None, :], params, frequency)
-    return ReductionCurves(params, frequency, ratios_, speeds, by_speed, marked, amplitudes, by_amplitude, closed)
+    top = float(np.max(ratios_))
+    if closed:  # each speed's curve from the least ratio that reaches it (a = 2 pi U, where phi = 1 exactly) to the top
+        least = np.minimum(TWO_PI * nondimensional_speed(marked, frequency, params.gravity, params.mu), top)
+        ratios_by_speed = least[:, None] + (top - least)[:, None] * np.linspace(0.0, 1.0, points)[None, :]
+        ratios_by_speed[:, 0] = least
+        by_amplitude = np.asarray(drive_ratio_for(ratios_by_speed[:, :1] / TWO_PI, ratios_by_speed[:, :1]), dtype=float)
+        by_amplitude = np.concatenate([by_amplitude, apparent_friction_ratio(
+            marked[:, None], ratios_by_speed[:, 1:], params, frequency)], axis=1)
+    else:
+        ratios_by_speed = np.broadcast_to(amplitudes, (marked.size, points)).copy()
+        by_amplitude = apparent_friction_ratio(marked[:, None], ratios_by_speed, params, frequency)
+    return ReductionCurves(params, frequency, ratios_, speeds, by_speed, marked, ratios_by_speed, by_amplitude,
+                           closed)
 
 
 __all__ = ["BISECTIONS", "LOMAKIN", "LOMAKIN_FREQUENCY", "ReductionCurves", "apparent_friction_ratio",

@@ -38,9 +38,11 @@ def test_lomakin_s_conditions_give_the_exact_inverse_and_its_ends() -> None:
         assert speeds[0] == 0.0 and speeds[-1] == pytest.approx(ratio * g * mu / (2 * math.pi * f), rel=1e-15)
         forward = np.asarray(u_map(row, ratio)) * g * mu / f
         assert forward == pytest.approx(speeds, rel=1e-11, abs=1e-18)
-    for row in curves.by_amplitude:
-        reached = np.isfinite(row)
-        assert np.all(np.diff(row[reached]) < 0.0), "more vibration, less apparent friction at the same speed"
+    for speed, ratios, row in zip(curves.marked_speeds, curves.amplitudes, curves.by_amplitude):
+        assert np.all(np.isfinite(row)), "each speed's curve starts at the least ratio that reaches it"
+        assert row[0] == 1.0 and ratios[0] == pytest.approx(2 * math.pi * speed * f / (g * mu), rel=1e-15)
+        assert ratios[-1] == np.max(curves.ratios)
+        assert np.all(np.diff(row) < 0.0), "more vibration, less apparent friction at the same speed"
 
 
 def test_the_simulated_path_agrees_with_the_closed_form_on_kostek_s_model() -> None:
