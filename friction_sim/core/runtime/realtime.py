@@ -17,7 +17,8 @@ holds everything that is not message conversion:
   the last ``mean_window_periods`` whole periods and the stick and flight
   fractions of the last period, from the core's exact period marks.
 * It keeps the tick statistics the node publishes as diagnostics, with the
-  lift-offs, landings and time in flight of each diagnostics interval.
+  lift-offs, landings and time in flight of each diagnostics interval
+  (:mod:`~friction_sim.core.runtime.diagnostics`).
 * A change of plant or inputs is taken under a guard: if the core raises
   while taking it, or the state it leaves is not finite, everything is put
   back as it was and the command is refused with the reason.  If advancing
@@ -37,8 +38,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from friction_sim.core.engine.single import Slider
-from friction_sim.core.meanspeed.predict import predict
-from friction_sim.core.meanspeed.urelation import NO_PREDICTION, Prediction
+from friction_sim.core.meanspeed.urelation import Prediction
 from friction_sim.core.model import spec
 from friction_sim.core.model.commands import (
     PARAMETERS,
@@ -51,14 +51,13 @@ from friction_sim.core.model.commands import (
     apply,
     reason,
     take,
-    unused_input,
 )
-from friction_sim.core.model.events import CycleMark, Event, EventKind, SliderState
+from friction_sim.core.model.events import CycleMark, Event, SliderState
 from friction_sim.core.model.params import Inputs, SliderParams, check_load
 from friction_sim.core.model.records import Acceleration, PeriodSummary, Tick, share
 from friction_sim.core.model.spec import NS_PER_S
-from friction_sim.core.physics.plant import steady_excitation, steady_throw_number
 from friction_sim.core.runtime.accelerometer import Accelerometer, grid
+from friction_sim.core.runtime.diagnostics import DiagnosticsInterval
 from friction_sim.core.runtime.simclock import SimClock, TickStats
 from friction_sim.errors import ParameterError, SimulationFault, one_line
 
@@ -114,12 +113,10 @@ class RealtimeSlider:
         self.rejected = 0
         #: Advances cut short by MAX_SAMPLES_PER_ADVANCE (the simulation fell behind real time).
         self.behind = 0
-        self._behind_before_interval = 0
         self.last_rejection = ""
-        self._rejected_before_interval = 0
-        self.stats = TickStats(interval_start_ns=wall_ns)
+        #: The diagnostics interval: its tick statistics, counts and prediction.
+        self.interval = DiagnosticsInterval(wall_ns)
         self.last_period: PeriodSummary | None = None
-        self._prediction: tuple[SliderParams, Inputs, Prediction] | None = None
         self.log_rate = float(spec.LOG_RATE.check(log_rate)) if log_rate is not None else None
         self._next_log_index = 0  # the log grid is k / log_rate in simulation time
         # What advancing produced since the last tick (commands advance too).
@@ -364,7 +361,7 @@ class RealtimeSlider:
         Raises :class:`SimulationFault` if the state there (or at a log sample
         on the way) is not finite.
         """
-        self._count_tick(wall_ns)
+        self.interval.count_tick(wall_ns, self.publish_rate)
         self._advance(wall_ns)
         state = self.slider.state()
         problem = _non_finite(state)
@@ -475,123 +472,26 @@ class RealtimeSlider:
             self.last_period = summaries[-1]
         return summaries
 
-    def _count_tick(self, wall_ns: int) -> None:
-        stats = self.stats
-        if stats.last_wall_ns is not None and (wall_ns - stats.last_wall_ns) > 1.5 * NS_PER_S / self.publish_rate:
-            stats.late_ticks += 1
-            stats.total_late_ticks += 1
-        stats.ticks += 1
-        stats.last_wall_ns = wall_ns
-
     # -- diagnostics ------------------------------------------------------------
+
+    @property
+    def stats(self) -> TickStats:
+        """The tick statistics of the present diagnostics interval."""
+        return self.interval.stats
 
     def prediction(self, params: SliderParams | None = None, inputs: Inputs | None = None) -> Prediction:
         """The mean-speed prediction for ``params`` and ``inputs`` (default: those
         in force), computed once per change; NaN where there is none.
 
-        Outside Kostek's model it is a simulation (:func:`predict` falls back
-        on the general mean speed: a millisecond, up to ~0.4 s for a chattering
+        Outside Kostek's model it is a simulation (:func:`~friction_sim.core.meanspeed.predict.predict`
+        falls back on the general mean speed: a millisecond, up to ~0.4 s for a chattering
         plant), so a node asks for it outside its tick's lock and passes it to
         :meth:`diagnostics`.
         """
-        params = self.slider.params if params is None else params
-        inputs = self.slider.inputs if inputs is None else inputs
-        cached = self._prediction
-        if cached is None or cached[0] is not params or cached[1] is not inputs:
-            try:
-                value = predict(params, inputs)
-            except Exception:  # noqa: BLE001 - diagnostics must answer whatever the inputs: nan = no prediction
-                value = NO_PREDICTION
-            cached = self._prediction = (params, inputs, value)
-        return cached[2]
+        return self.interval.prediction(self.slider.params if params is None else params,
+                                        self.slider.inputs if inputs is None else inputs)
 
     def diagnostics(self, wall_ns: int, prediction: Prediction | None = None) -> dict[str, Any]:
-        """The figures of the last diagnostics interval; starts a new interval.
-        ``prediction`` is :meth:`prediction`'s, if the caller has made it."""
-        stats = self.stats
-        start = stats.interval_start_ns if stats.interval_start_ns is not None else wall_ns
-        wall = (wall_ns - start) / NS_PER_S
-        sim_now = self.now(wall_ns)  # (never before a state already made: the slider may be ahead of its clock)
-        tick_rate = stats.ticks / wall if wall > 0 else 0.0
-        achieved_rtf = (sim_now - stats.interval_sim_start) / wall if wall > 0 else 0.0
-        inputs = self.slider.inputs
-        flight_time, lift_offs, landings = self._flight_record()
-        sim_elapsed = self.slider.t - stats.interval_slider_start
-        if prediction is None:
-            prediction = self.prediction()
-        report = {
-            "sim_time": sim_now,
-            "paused": self.clock.paused,
-            "real_time_factor": self.clock.rate,
-            "achieved_real_time_factor": achieved_rtf,
-            "tick_rate": tick_rate,
-            "publish_rate": self.publish_rate,
-            "late_ticks": stats.late_ticks,
-            "late_ticks_total": stats.total_late_ticks,
-            "commands_accepted": self.accepted,
-            "commands_rejected": self.rejected,
-            "commands_rejected_in_interval": self.rejected - self._rejected_before_interval,
-            "ticks_behind_in_interval": self.behind - self._behind_before_interval,
-            "max_catch_up": self.max_catch_up, "stalls": self.stalls, "time_slipped": self.time_slipped,
-            "last_rejection": self.last_rejection,
-            "drive_force": inputs.drive_force,
-            "excitation_amplitude": self._input_shown("excitation_amplitude"),
-            "excitation_frequency": inputs.excitation_frequency,
-            "external_force_x": inputs.external_force_x,
-            "external_force_z": inputs.external_force_z,
-            "drive_level": self._input_shown("drive_level"),
-            **self._exciter_report(),
-            "throw_number": steady_throw_number(self.slider.params, inputs),
-            # the groups the prediction is made of: with an external force, the effective ones
-            "phi": prediction.effective_phi,
-            "amplitude_ratio": prediction.effective_amplitude_ratio,
-            "predicted_U": prediction.u,
-            "predicted_mean_velocity": prediction.mean_velocity,
-            "stick_fraction": self.last_period.stick_fraction if self.last_period else math.nan,
-            "flight_fraction": self.last_period.flight_fraction if self.last_period else math.nan,
-            "flight_fraction_in_interval": share(flight_time - stats.interval_flight_start, sim_elapsed,
-                                                 empty=math.nan),
-            "lift_offs": lift_offs,
-            "landings": landings,
-            "lift_offs_in_interval": lift_offs - stats.interval_lift_offs_start,
-            "landings_in_interval": landings - stats.interval_landings_start,
-            "measured_mean_velocity": self.last_period.mean_velocity if self.last_period else math.nan,
-        }
-        self._rejected_before_interval = self.rejected
-        self._behind_before_interval = self.behind
-        stats.ticks = 0
-        stats.late_ticks = 0
-        stats.interval_start_ns = wall_ns
-        stats.interval_sim_start = sim_now
-        stats.interval_slider_start = self.slider.t
-        stats.interval_flight_start, stats.interval_lift_offs_start, stats.interval_landings_start = (
-            flight_time, lift_offs, landings)
-        return report
-
-    def _input_shown(self, field: str) -> float | str:
-        """The input ``field`` in force as diagnostics show it: its value, or, for
-        the input the actuator in force does not use (and refuses), the value
-        marked so (``5.0 (unused: actuator resonant)``), never as if it acted."""
-        value: float = getattr(self.slider.inputs, field)
-        actuator = self.slider.params.actuator
-        return f"{value!r} (unused: actuator {actuator})" if field == unused_input(actuator) else value
-
-    def _exciter_report(self) -> dict[str, Any]:
-        """The actuator and the excitation it makes now: the steady Pa of the inputs
-        in force (the resonant actuator's m*u*A*G(f/f_n), the force actuator's Pa as
-        set), the present amplitude of the part's normal excitation (the resonant
-        exciter's state now: steady plus the transient's envelope) and its lag
-        behind the drive (NaN for the force actuator), with the slideway's f_n and
-        zeta in force."""
-        state, params = self.slider.exciter, self.slider.params
-        steady = steady_excitation(params, self.slider.inputs)[0]
-        report = {"actuator": params.actuator, "natural_frequency": params.natural_frequency,
-                  "damping_ratio": params.damping_ratio, "steady_excitation_amplitude": steady}
-        if state is None:
-            return {**report, "excitation_envelope": steady, "exciter_lag_deg": math.nan}
-        return {**report, "excitation_envelope": state.amplitude, "exciter_lag_deg": math.degrees(state.lag)}
-
-    def _flight_record(self) -> tuple[float, int, int]:
-        """(time in flight [s], lift-offs, landings) since the start, up to the slider's time."""
-        counts = self.slider.event_counts
-        return self.slider.flight_time, counts.get(EventKind.LIFT_OFF, 0), counts.get(EventKind.LANDING, 0)
+        """The figures of the last diagnostics interval (:mod:`~friction_sim.core.runtime.diagnostics`);
+        starts a new interval.  ``prediction`` is :meth:`prediction`'s, if the caller has made it."""
+        return self.interval.report(self, wall_ns, self.prediction() if prediction is None else prediction)

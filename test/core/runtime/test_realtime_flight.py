@@ -145,7 +145,7 @@ def test_a_prediction_made_outside_the_lock_is_the_one_reported(monkeypatch: pyt
     """The node computes the prediction (a simulation outside Kostek's model)
     before it takes the tick's lock and hands it to diagnostics, which then
     does not simulate; a prediction that fails is NaN, not an exception."""
-    from friction_sim.core.runtime import realtime
+    from friction_sim.core.runtime import diagnostics
 
     params = SliderParams(excitation_angle=60.0)
     rt = RealtimeSlider(params, HOP, wall_ns=0)
@@ -155,7 +155,7 @@ def test_a_prediction_made_outside_the_lock_is_the_one_reported(monkeypatch: pyt
     def no_simulation(*_: object) -> None:
         raise AssertionError("diagnostics simulated under the lock")
 
-    monkeypatch.setattr(realtime, "predict", no_simulation)
+    monkeypatch.setattr(diagnostics, "predict", no_simulation)
     report = rt.diagnostics(NS_PER_S, made)
     assert report["predicted_U"] == made.u
     rt.slider.set_inputs(drive_force=0.4)  # a change: the cached prediction no longer applies
