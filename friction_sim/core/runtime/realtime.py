@@ -19,7 +19,7 @@ holds everything that is not message conversion:
 * It keeps the tick statistics the node publishes as diagnostics, with the
   lift-offs, landings and time in flight of each diagnostics interval
   (:mod:`~friction_sim.core.runtime.diagnostics`).
-* A change of plant or inputs is taken under a guard: if the core raises
+* A change of plant or inputs is taken under a guard (:mod:`~friction_sim.core.runtime.guard`): if the core raises
   while taking it, or the state it leaves is not finite, everything is put
   back as it was and the command is refused with the reason.  If advancing
   ever fails (or the state stops being finite) under inputs the core had
@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from friction_sim.core.engine.single import Slider
@@ -50,7 +50,6 @@ from friction_sim.core.model.commands import (
     Outcome,
     apply,
     reason,
-    take,
 )
 from friction_sim.core.model.events import CycleMark, Event, SliderState
 from friction_sim.core.model.params import Inputs, SliderParams, check_load
@@ -58,6 +57,7 @@ from friction_sim.core.model.records import Acceleration, PeriodSummary, Tick, s
 from friction_sim.core.model.spec import NS_PER_S
 from friction_sim.core.runtime.accelerometer import Accelerometer, grid
 from friction_sim.core.runtime.diagnostics import DiagnosticsInterval
+from friction_sim.core.runtime.guard import non_finite, take_guarded
 from friction_sim.core.runtime.simclock import SimClock, TickStats
 from friction_sim.errors import ParameterError, SimulationFault, one_line
 
@@ -77,15 +77,6 @@ MAX_STEP_SAMPLES = 100_000
 #: Excitation periods one ``~/step`` may cover at most: it is computed at once,
 #: with the node's tick waiting (about a second of work in the general model).
 MAX_STEP_PERIODS = 100_000
-
-
-def _non_finite(state: SliderState) -> str:
-    """'' if every number of ``state`` is finite, else the first that is not (``x = inf``)."""
-    for name in ("t", "x", "v", "acceleration", "friction_force", "normal_force", "z", "vz"):
-        value = getattr(state, name)
-        if not math.isfinite(value):
-            return f"{name} = {value!r}"
-    return ""
 
 
 class RealtimeSlider:
@@ -178,7 +169,8 @@ class RealtimeSlider:
         return outcomes
 
     def _take_checked(self, command: Command) -> str:
-        """Take ``command`` through the one gate plus the real-time load rule (:meth:`_take`).
+        """Take ``command`` through the one gate plus the real-time load rule
+        (:func:`~friction_sim.core.runtime.guard.take_guarded`).
 
         Each value is first checked against its own range alone: a NaN, inf or
         out-of-range value (what a flood of bad commands is made of) is refused
@@ -186,7 +178,8 @@ class RealtimeSlider:
         """
         for field, value in command.values.items():
             _PHYSICS[field].check(value)
-        return self._take(command, lambda params, inputs: check_load(inputs.excitation_frequency, self.clock.rate))
+        return take_guarded(self.slider, command,
+                            lambda params, inputs: check_load(inputs.excitation_frequency, self.clock.rate))
 
     def configure(self, values: Mapping[str, Any], wall_ns: int) -> Outcome:
         """A set of node parameters, checked and applied as one new state, now: one
@@ -216,7 +209,7 @@ class RealtimeSlider:
                                                                    self.mean_window_periods)))
         except ParameterError as error:
             return self._refuse(command, str(error))
-        problem = self._take(command)  # (the gate again: the plant and inputs checked above)
+        problem = take_guarded(self.slider, command)  # (the gate again: the plant and inputs checked above)
         if problem:
             return self._refuse(command, f"{', '.join(values)}: {problem}")
         self.clock.set_rate(rate, wall_ns)
@@ -236,34 +229,6 @@ class RealtimeSlider:
         self.rejected += 1
         self.last_rejection = why
         return Outcome(command, why)
-
-    def _take(self, command: Command, check: Callable[[SliderParams, Inputs], object] | None = None) -> str:
-        """Make ``command`` one change of the core (:func:`~friction_sim.core.model.commands.take`), guarded.
-
-        Returns '' when the core took it (or it changed nothing), else why
-        not: the core raised, or the state it leaves is not finite; then the
-        core is put back exactly as it was (a checkpoint taken first).  A
-        ParameterError of the gate or of ``check`` is raised, nothing changed.
-        """
-        slider = self.slider
-        checkpoint = slider.checkpoint()
-        try:
-            if not take(slider, command, check):
-                return ""
-            problem = _non_finite(slider.state())
-            if math.isnan(slider.next_event_time):
-                problem = problem or "the next event time is nan"
-        except ParameterError:
-            slider.restore(checkpoint)
-            raise
-        except Exception as error:  # noqa: BLE001 - any failure of the core refuses the change
-            problem = one_line(error, with_type=True)
-        if problem:
-            slider.restore(checkpoint)
-            if command.name == RESET:
-                return f"the simulation cannot restart ({problem})"
-            return f"the simulation cannot take this state ({problem}); last valid state kept"
-        return ""
 
     # -- simulation control (the node's ~/pause, ~/resume, ~/step, ~/reset) ----------
 
@@ -330,7 +295,7 @@ class RealtimeSlider:
         mean-velocity window starts afresh: no mean spans the reset."""
         t = self._advance(wall_ns)
         self._periods.extend(self._new_periods())
-        problem = self._take(Command(t, RESET))  # the one way a command reaches the core (see take)
+        problem = take_guarded(self.slider, Command(t, RESET))  # the one way a command reaches the core (see take)
         if problem:
             return self._refuse(Command(t, RESET), f"reset: {problem}")
         self._window.clear()
@@ -364,11 +329,11 @@ class RealtimeSlider:
         self.interval.count_tick(wall_ns, self.publish_rate)
         self._advance(wall_ns)
         state = self.slider.state()
-        problem = _non_finite(state)
+        problem = non_finite(state)
         for sample in self._samples:
             if problem:
                 break
-            problem = _non_finite(sample)
+            problem = non_finite(sample)
         if problem:
             self._fail(f"the state became non-finite ({problem})")
         events, samples, periods = self._events, tuple(self._samples), self._periods + self._new_periods()
