@@ -38,7 +38,9 @@ class Reported(Protocol):
     time_slipped: float
     last_rejection: str
     max_catch_up: float | None
-    last_period: PeriodSummary | None
+
+    @property
+    def last_period(self) -> PeriodSummary | None: ...
 
     def now(self, wall_ns: int) -> float: ...
 

@@ -15,7 +15,8 @@ holds everything that is not message conversion:
   rejected command leaves the last valid inputs in force.
 * Once per completed excitation period it reports the mean velocity over
   the last ``mean_window_periods`` whole periods and the stick and flight
-  fractions of the last period, from the core's exact period marks.
+  fractions of the last period, from the core's exact period marks
+  (:mod:`~friction_sim.core.runtime.periods`).
 * It keeps the tick statistics the node publishes as diagnostics, with the
   lift-offs, landings and time in flight of each diagnostics interval
   (:mod:`~friction_sim.core.runtime.diagnostics`).
@@ -33,7 +34,6 @@ and a recorder can log exactly what happened and when.
 from __future__ import annotations
 
 import math
-from collections import deque
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -51,13 +51,14 @@ from friction_sim.core.model.commands import (
     apply,
     reason,
 )
-from friction_sim.core.model.events import CycleMark, Event, SliderState
+from friction_sim.core.model.events import Event, SliderState
 from friction_sim.core.model.params import Inputs, SliderParams, check_load
-from friction_sim.core.model.records import Acceleration, PeriodSummary, Tick, share
+from friction_sim.core.model.records import Acceleration, PeriodSummary, Tick
 from friction_sim.core.model.spec import NS_PER_S
 from friction_sim.core.runtime.accelerometer import Accelerometer, grid
 from friction_sim.core.runtime.diagnostics import DiagnosticsInterval
 from friction_sim.core.runtime.guard import non_finite, take_guarded
+from friction_sim.core.runtime.periods import PeriodMeans
 from friction_sim.core.runtime.simclock import SimClock, TickStats
 from friction_sim.errors import ParameterError, SimulationFault, one_line
 
@@ -97,9 +98,8 @@ class RealtimeSlider:
         self._set_catch_up(None if max_catch_up is None else float(spec.MAX_CATCH_UP.check(max_catch_up)))
         #: Stalls of the host whose rest was not simulated, and the simulated seconds given up (see _set_catch_up).
         self.stalls, self.time_slipped = 0, 0.0
-        self._window: deque[CycleMark] = deque(maxlen=2)
-        self.set_mean_window(mean_window_periods)
-        self._last_mark_n = -1
+        #: The per-period summaries made from the core's period marks.
+        self.period_means = PeriodMeans(mean_window_periods)
         self.accepted = 0
         self.rejected = 0
         #: Advances cut short by MAX_SAMPLES_PER_ADVANCE (the simulation fell behind real time).
@@ -107,7 +107,6 @@ class RealtimeSlider:
         self.last_rejection = ""
         #: The diagnostics interval: its tick statistics, counts and prediction.
         self.interval = DiagnosticsInterval(wall_ns)
-        self.last_period: PeriodSummary | None = None
         self.log_rate = float(spec.LOG_RATE.check(log_rate)) if log_rate is not None else None
         self._next_log_index = 0  # the log grid is k / log_rate in simulation time
         # What advancing produced since the last tick (commands advance too).
@@ -294,11 +293,11 @@ class RealtimeSlider:
         under the plant and inputs in force; time goes on, paused or not.  The
         mean-velocity window starts afresh: no mean spans the reset."""
         t = self._advance(wall_ns)
-        self._periods.extend(self._new_periods())
+        self._periods.extend(self.period_means.new(self.slider, self.marks_before))
         problem = take_guarded(self.slider, Command(t, RESET))  # the one way a command reaches the core (see take)
         if problem:
             return self._refuse(Command(t, RESET), f"reset: {problem}")
-        self._window.clear()
+        self.period_means.restart()
         return Outcome(Command(t, RESET))
 
     # -- settings -----------------------------------------------------------
@@ -310,13 +309,16 @@ class RealtimeSlider:
 
     def set_mean_window(self, periods: int) -> None:
         """Average the mean velocity over the last ``periods`` whole periods."""
-        periods = spec.MEAN_WINDOW_PERIODS.check(periods)
-        self._window = deque(self._window, maxlen=periods + 1)
+        self.period_means.set_window(periods)
 
     @property
     def mean_window_periods(self) -> int:
-        assert self._window.maxlen is not None
-        return self._window.maxlen - 1
+        return self.period_means.window_periods
+
+    @property
+    def last_period(self) -> PeriodSummary | None:
+        """The summary of the last period that ended (None before the first)."""
+        return self.period_means.last
 
     # -- the tick -------------------------------------------------------------
 
@@ -336,7 +338,8 @@ class RealtimeSlider:
             problem = non_finite(sample)
         if problem:
             self._fail(f"the state became non-finite ({problem})")
-        events, samples, periods = self._events, tuple(self._samples), self._periods + self._new_periods()
+        periods = self._periods + self.period_means.new(self.slider, self.marks_before)
+        events, samples = self._events, tuple(self._samples)
         accelerations = tuple(self._accelerations)
         self._events, self._samples, self._periods, self._accelerations = [], [], [], []
         return Tick(state, events, periods, samples, paused=self.clock.paused, accelerations=accelerations)
@@ -413,29 +416,6 @@ class RealtimeSlider:
         self.fault = (f"simulation fault at t = {slider.t!r} s: {why}, with inputs {slider.inputs} "
                       f"and plant {slider.params}")
         raise SimulationFault(self.fault)
-
-    def _new_periods(self) -> list[PeriodSummary]:
-        summaries = []
-        for mark in self.slider.cycle_marks_after(self._last_mark_n):
-            if mark.t >= self.marks_before:
-                break
-            self._last_mark_n = mark.n
-            previous = self._window[-1] if self._window else None
-            self._window.append(mark)
-            if previous is None or previous.n != mark.n - 1:
-                continue
-            first = self._window[0]
-            span = mark.t - first.t
-            duration = mark.t - previous.t
-            summaries.append(PeriodSummary(
-                n=mark.n, t=mark.t, mean_velocity=(mark.x - first.x) / span if span > 0 else 0.0,
-                window_periods=mark.n - first.n,
-                stick_fraction=share(mark.stuck_time - previous.stuck_time, duration, empty=1.0),
-                flight_fraction=share(mark.flight_time - previous.flight_time, duration),
-            ))
-        if summaries:
-            self.last_period = summaries[-1]
-        return summaries
 
     # -- diagnostics ------------------------------------------------------------
 

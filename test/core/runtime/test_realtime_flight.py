@@ -72,7 +72,7 @@ def test_fractions_are_clamped_to_0_1_where_rounding_pushes_them_out(monkeypatch
     assert (marks[1].flight_time - marks[0].flight_time) / (t1 - t0) > 1.0  # what the division gave
     rt = RealtimeSlider(SliderParams(), HOP, wall_ns=0)
     monkeypatch.setattr(rt.slider, "cycle_marks_after", lambda n: [m for m in marks if m.n > n])
-    (summary,) = rt._new_periods()  # noqa: SLF001 - the summaries straight from the marks
+    (summary,) = rt.period_means.new(rt.slider, rt.marks_before)  # the summaries straight from the marks
     assert summary.flight_fraction == 1.0 and summary.stick_fraction == 0.0
 
 
