@@ -57,13 +57,14 @@ import numpy as np
 
 from friction_sim.core.engine.actuator import Exciter, ExciterState
 from friction_sim.core.engine.checkpoint import Checkpoint
-from friction_sim.core.engine.transient_kernel import transient_step
+from friction_sim.core.engine.transient_segment import STEADY, cut_by, exciter_after, motion, segment_end, states
+from friction_sim.core.engine.transient_segment import start as start_transient
 from friction_sim.core.model.dimensionless import TWO_PI
 from friction_sim.core.model.events import MODES as _MODES
 from friction_sim.core.model.events import CycleMark, Event, EventKind, Mode, SliderState, Trajectory
 from friction_sim.core.model.params import Inputs, SliderParams, require_finite
-from friction_sim.core.physics.numerics import Floats, two_sum
-from friction_sim.core.physics.plant import Plant, plant_of
+from friction_sim.core.physics.numerics import two_sum
+from friction_sim.core.physics.plant import plant_of
 from friction_sim.core.physics.roots import NEVER, reduce_phase
 from friction_sim.core.physics.segment import (
     FLIGHT,
@@ -73,8 +74,6 @@ from friction_sim.core.physics.segment import (
     STUCK,
     Segment,
     Step,
-    evaluate,
-    moved_and_velocities,
     travel,
 )
 from friction_sim.core.physics.stepper import (
@@ -88,12 +87,7 @@ from friction_sim.core.physics.stepper import (
     step_of,
     to_cycle,
 )
-from friction_sim.core.physics.transient import (
-    LOOK_AHEAD_PERIODS,
-    slideway_acceleration,
-    transient_evaluate,
-    transient_motion,
-)
+from friction_sim.core.physics.transient import slideway_acceleration
 from friction_sim.errors import ParameterError, SimulationFault
 
 #: Steps kept in the memo (one per distinct segment start under the plant in force).
@@ -174,8 +168,7 @@ class Slider:
                 self._marks.append(CycleMark(0, self._t, x0, 0.0))
         self._set_plant(self._params, self._inputs, in_flight=False)
         self._exciter = Exciter(self._params, self._inputs, t0=self._t) if self._params.resonant else None
-        self._c = 0j  # the exciter's transient force at the segment's start (0: none, or the force actuator)
-        self._look_until = -NEVER  # where the segment's search under the transient ends
+        self._transient = STEADY  # the exciter's transient over the segment (see transient_segment)
         self._set_anchor(self._t, 0, phase)
         self._start(Segment(STUCK, phase, 0.0, 0.0, 0.0, 0, False, 0.0, self._t, x0, 0.0, 0, 0.0, 0.0, 0))
 
@@ -242,7 +235,7 @@ class Slider:
     def state(self) -> SliderState:
         """The state at the current time :attr:`t`."""
         seg = self._seg
-        x, v, acc, friction, normal, theta, z, vz = self._evaluate(self._t - seg.t0)
+        x, v, acc, friction, normal, theta, z, vz = states(self._plant, seg, self._transient, self._t - seg.t0)
         return SliderState(self._t, x, v, acc, friction, normal, theta % TWO_PI, _MODES[seg.mode], z, vz)
 
     # -- advancing -------------------------------------------------------------
@@ -256,7 +249,12 @@ class Slider:
                                          f"and <= {MAX_TIME:g} s")
         happened: list[Event] = []
         while True:
-            if self._c and self._transient_boundary(t):
+            if self._transient.c and (boundary := cut_by(self._seg, self._transient, self._next_t, t,
+                                                         self.next_mark_time)) is not None:
+                # the segment's closed form ends here: a new one from the same motion
+                assert self._exciter is not None
+                self._t = boundary
+                self._rebase(self._params, self._inputs, "settled" if boundary >= self._exciter.settles_at else "look")
                 continue
             if self._next_mark_s <= self._next_s:  # by phase: a mark and an event may round to one t
                 if self._next_mark_t > t:
@@ -273,7 +271,8 @@ class Slider:
         """Advance through ascending ``times`` (>= :attr:`t`) and return the exact
         state at each, evaluated segment by segment with numpy: the state
         :meth:`advance_to` and :meth:`state` give at each time, because both cut
-        the time axis where :meth:`_segment_end` says (:meth:`_evaluate`: under
+        the time axis where :func:`~friction_sim.core.engine.transient_segment.segment_end`
+        says (:func:`~friction_sim.core.engine.transient_segment.states`: under
         the exciter's transient the very same scalar evaluation; on the steady
         forms numpy's, which may differ in the last bits)."""
         times = np.asarray(times, dtype=float)
@@ -285,11 +284,11 @@ class Slider:
         happened: list[Event] = []
         first = 0
         while first < times.size:
-            end = self._segment_end()[0]
+            end = segment_end(self._seg, self._transient, self._next_t)[0]
             last = int(np.searchsorted(times, end, side="left"))
             if last > first:
                 seg = self._seg
-                values = self._evaluate(times[first:last] - seg.t0)
+                values = states(self._plant, seg, self._transient, times[first:last] - seg.t0)
                 for column, value in zip(columns, values):
                     column[first:last] = value
                 columns[5][first:last] %= TWO_PI
@@ -382,21 +381,12 @@ class Slider:
         if mode == STUCK:  # (the common case: a controller's change between slips)
             x, xl, v, vz, z = seg.x0, seg.xl, 0.0, 0.0, 0.0
         else:
-            moved, v, vz, z = self._motion(plant, seg, tau)
+            moved, v, vz, z = motion(plant, seg, self._transient, tau)
             x, xl = two_sum(seg.x0, seg.xl + moved)
             if mode != FLIGHT:
                 mode, vz, z = (STUCK if v == 0.0 else (1 if v > 0.0 else -1)), 0.0, 0.0
         self._set_plant(params, inputs, seg.mode == FLIGHT)
-        if boundary:
-            assert self._exciter is not None
-            if boundary == "settled":
-                self._exciter = self._exciter.settled(t)
-        elif not params.resonant:
-            self._exciter = None
-        elif self._exciter is None:
-            self._exciter = Exciter(params, inputs, t0=t)
-        else:
-            self._exciter = self._exciter.change(params, inputs, self._plant, t, phase)
+        self._exciter = exciter_after(self._exciter, params, inputs, self._plant, t, phase, boundary)
         if inputs.excitation_frequency != self._anchor.frequency:
             self._set_anchor(t, cycles, phase)
         self._start(Segment(mode, phase, v, vz, max(z, 0.0), 0, False, t - self._anchor.t, t, x, xl, cycles, stuck,
@@ -407,15 +397,11 @@ class Slider:
         once per distinct start and kept in the memo: see
         :data:`~friction_sim.core.physics.segment.START`)."""
         self._seg = seg
-        exciter = self._exciter
-        if exciter is not None and exciter.active(seg.t0):  # under the exciter's transient: no memo
-            self._c = exciter.force(seg.t0)
-            horizon = min(exciter.settles_at - seg.t0, LOOK_AHEAD_PERIODS / self._anchor.frequency)
-            self._look_until = seg.t0 + horizon
-            step = transient_step(self._plant, self._c, exciter.lam, horizon, seg.mode, seg.phase0, seg.v0, seg.vz0,
-                                  seg.z0, seg.closing, seg.grounded)
+        transient = start_transient(self._exciter, self._plant, seg, self._anchor.frequency)
+        if transient is not None:  # under the exciter's transient: no memo
+            self._transient, step = transient
         else:
-            self._c = 0j
+            self._transient = STEADY
             key = seg[:START]
             cached = self._steps.get(key)
             if cached is None:
@@ -446,73 +432,14 @@ class Slider:
         self._counts[kind] += 1
         return event
 
-    # -- internals: the resonant exciter ------------------------------------------
-
-    def _motion(self, plant: Plant, seg: Segment, tau: float) -> tuple[float, float, float, float]:
-        """(x(tau) - x(0), v, vz, z) ``tau`` into ``seg`` (with the exciter's transient, if it has one)."""
-        if self._c:
-            assert self._exciter is not None
-            return transient_motion(plant, seg.mode, self._c, self._exciter.lam, seg.v0, seg.vz0, seg.z0, seg.phase0,
-                                    tau)
-        return moved_and_velocities(plant, seg.mode, seg.v0, seg.vz0, seg.z0, seg.phase0, tau)
-
-    def _evaluate(self, tau: Floats) -> tuple[Floats, Floats, Floats, Floats, Floats, Floats, Floats, Floats]:
-        """The state ``tau`` into the present segment, at a float or an array of times
-        (:func:`~friction_sim.core.physics.segment.evaluate`); under the exciter's
-        transient force Re(c*exp(lam*tau)) the states are
-        :func:`~friction_sim.core.physics.transient.transient_evaluate`'s, one by one
-        (so a sampled state is the scalar one, bit for bit)."""
-        seg, plant, c = self._seg, self._plant, self._c
-        if not c:
-            return evaluate(plant, seg, tau)
-        assert self._exciter is not None
-        lam = self._exciter.lam
-
-        def at(each: float) -> tuple[float, float, float, float, float, float, float, float]:
-            return transient_evaluate(plant, seg, c, lam, each)
-
-        if isinstance(tau, float):
-            return at(tau)
-        rows = zip(*map(at, tau.tolist()))
-        x, v, acc, friction, normal, theta, z, vz = (np.array(column, dtype=float) for column in rows)
-        return x, v, acc, friction, normal, theta, z, vz
-
-    def _segment_end(self) -> tuple[float, bool]:
-        """(time, cut): where the present segment's closed form stops holding, and
-        whether it is cut there rather than ended by its next event.
-
-        Under the exciter's transient a segment holds only up to its boundary,
-        the end of its look-ahead or the time the transient settles (never
-        before its start): its next event is sought no further (none found:
-        :attr:`_next_t` is inf), and there :meth:`advance_to` starts a new
-        segment from the same motion, whose next event is sought on.  The
-        boundary cuts the segment unless its next event comes before it.
-        :meth:`advance_to` and :meth:`sample` both end the segment here, so they
-        evaluate every time in the same segment."""
-        if self._c:
-            boundary = max(self._look_until, self._seg.t0)
-            if boundary <= self._next_t:
-                return boundary, True
-        return self._next_t, False
-
-    def _transient_boundary(self, t: float) -> bool:
-        """If the segment is cut (:meth:`_segment_end`) before the next period start
-        and by ``t``, start a new segment there: the same motion, its next event
-        sought on."""
-        boundary, cut = self._segment_end()
-        if not cut or boundary > t or (self._marks is not None and boundary > self._next_mark_t):
-            return False
-        assert self._exciter is not None
-        self._t = boundary
-        self._rebase(self._params, self._inputs, "settled" if boundary >= self._exciter.settles_at else "look")
-        return True
+    # -- the resonant exciter (its transient's segments: transient_segment) --------
 
     def slideway_acceleration(self) -> tuple[float, float]:
         """(along, normal) [m/s^2]: the slideway's acceleration now in the track frame
         (:func:`~friction_sim.core.physics.transient.slideway_acceleration`)."""
         seg = self._seg
         lam = self._exciter.lam if self._exciter is not None else 0j
-        return slideway_acceleration(self._plant, seg.phase0, self._c, lam, self._t - seg.t0)
+        return slideway_acceleration(self._plant, seg.phase0, self._transient.c, lam, self._t - seg.t0)
 
     @property
     def exciter(self) -> ExciterState | None:
@@ -535,7 +462,7 @@ class Slider:
         t = max(self._next_mark_t, seg.t0)  # a start that rounding put before this segment's is at it
         # Where the slider is when the phase passes 2*pi*n exactly (not at the rounded t).
         tau = to_cycle(n, seg.cycles, seg.phase0, self._plant.omega)
-        moved = (self._motion(self._plant, seg, tau)[0] if self._c
+        moved = (motion(self._plant, seg, self._transient, tau)[0] if self._transient.c
                  else travel(self._plant, seg.mode, seg.v0, seg.phase0, tau))  # (only x is needed: no full state)
         x, stuck, flight = period_start(seg, tau, moved)
         assert self._marks is not None

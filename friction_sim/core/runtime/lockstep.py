@@ -268,7 +268,7 @@ class LockstepSlider(RealtimeSlider):
         has moved on (its answer then bounds the advance)."""
         gate = self.gate
         self._mark_hold()
-        if any(mark.t < self.marks_before for mark in self.slider.cycle_marks_after(self._last_mark_n)):
+        if any(mark.t < self.marks_before for mark in self.slider.cycle_marks_after(self.period_means.last_mark_n)):
             return self._tick(wall_ns)
         limit = gate.limit_ns()
         if limit <= self.t_ns:

@@ -15,10 +15,12 @@ holds everything that is not message conversion:
   rejected command leaves the last valid inputs in force.
 * Once per completed excitation period it reports the mean velocity over
   the last ``mean_window_periods`` whole periods and the stick and flight
-  fractions of the last period, from the core's exact period marks.
+  fractions of the last period, from the core's exact period marks
+  (:mod:`~friction_sim.core.runtime.periods`).
 * It keeps the tick statistics the node publishes as diagnostics, with the
-  lift-offs, landings and time in flight of each diagnostics interval.
-* A change of plant or inputs is taken under a guard: if the core raises
+  lift-offs, landings and time in flight of each diagnostics interval
+  (:mod:`~friction_sim.core.runtime.diagnostics`).
+* A change of plant or inputs is taken under a guard (:mod:`~friction_sim.core.runtime.guard`): if the core raises
   while taking it, or the state it leaves is not finite, everything is put
   back as it was and the command is refused with the reason.  If advancing
   ever fails (or the state stops being finite) under inputs the core had
@@ -32,13 +34,11 @@ and a recorder can log exactly what happened and when.
 from __future__ import annotations
 
 import math
-from collections import deque
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from friction_sim.core.engine.single import Slider
-from friction_sim.core.meanspeed.predict import predict
-from friction_sim.core.meanspeed.urelation import NO_PREDICTION, Prediction
+from friction_sim.core.meanspeed.urelation import Prediction
 from friction_sim.core.model import spec
 from friction_sim.core.model.commands import (
     PARAMETERS,
@@ -50,15 +50,15 @@ from friction_sim.core.model.commands import (
     Outcome,
     apply,
     reason,
-    take,
-    unused_input,
 )
-from friction_sim.core.model.events import CycleMark, Event, EventKind, SliderState
+from friction_sim.core.model.events import Event, SliderState
 from friction_sim.core.model.params import Inputs, SliderParams, check_load
-from friction_sim.core.model.records import Acceleration, PeriodSummary, Tick, share
+from friction_sim.core.model.records import Acceleration, PeriodSummary, Tick
 from friction_sim.core.model.spec import NS_PER_S
-from friction_sim.core.physics.plant import steady_excitation, steady_throw_number
 from friction_sim.core.runtime.accelerometer import Accelerometer, grid
+from friction_sim.core.runtime.diagnostics import DiagnosticsInterval
+from friction_sim.core.runtime.guard import non_finite, take_guarded
+from friction_sim.core.runtime.periods import PeriodMeans
 from friction_sim.core.runtime.simclock import SimClock, TickStats
 from friction_sim.errors import ParameterError, SimulationFault, one_line
 
@@ -80,15 +80,6 @@ MAX_STEP_SAMPLES = 100_000
 MAX_STEP_PERIODS = 100_000
 
 
-def _non_finite(state: SliderState) -> str:
-    """'' if every number of ``state`` is finite, else the first that is not (``x = inf``)."""
-    for name in ("t", "x", "v", "acceleration", "friction_force", "normal_force", "z", "vz"):
-        value = getattr(state, name)
-        if not math.isfinite(value):
-            return f"{name} = {value!r}"
-    return ""
-
-
 class RealtimeSlider:
     """The exact slider advanced by a wall clock, with commands and statistics."""
 
@@ -107,19 +98,15 @@ class RealtimeSlider:
         self._set_catch_up(None if max_catch_up is None else float(spec.MAX_CATCH_UP.check(max_catch_up)))
         #: Stalls of the host whose rest was not simulated, and the simulated seconds given up (see _set_catch_up).
         self.stalls, self.time_slipped = 0, 0.0
-        self._window: deque[CycleMark] = deque(maxlen=2)
-        self.set_mean_window(mean_window_periods)
-        self._last_mark_n = -1
+        #: The per-period summaries made from the core's period marks.
+        self.period_means = PeriodMeans(mean_window_periods)
         self.accepted = 0
         self.rejected = 0
         #: Advances cut short by MAX_SAMPLES_PER_ADVANCE (the simulation fell behind real time).
         self.behind = 0
-        self._behind_before_interval = 0
         self.last_rejection = ""
-        self._rejected_before_interval = 0
-        self.stats = TickStats(interval_start_ns=wall_ns)
-        self.last_period: PeriodSummary | None = None
-        self._prediction: tuple[SliderParams, Inputs, Prediction] | None = None
+        #: The diagnostics interval: its tick statistics, counts and prediction.
+        self.interval = DiagnosticsInterval(wall_ns)
         self.log_rate = float(spec.LOG_RATE.check(log_rate)) if log_rate is not None else None
         self._next_log_index = 0  # the log grid is k / log_rate in simulation time
         # What advancing produced since the last tick (commands advance too).
@@ -181,7 +168,8 @@ class RealtimeSlider:
         return outcomes
 
     def _take_checked(self, command: Command) -> str:
-        """Take ``command`` through the one gate plus the real-time load rule (:meth:`_take`).
+        """Take ``command`` through the one gate plus the real-time load rule
+        (:func:`~friction_sim.core.runtime.guard.take_guarded`).
 
         Each value is first checked against its own range alone: a NaN, inf or
         out-of-range value (what a flood of bad commands is made of) is refused
@@ -189,7 +177,8 @@ class RealtimeSlider:
         """
         for field, value in command.values.items():
             _PHYSICS[field].check(value)
-        return self._take(command, lambda params, inputs: check_load(inputs.excitation_frequency, self.clock.rate))
+        return take_guarded(self.slider, command,
+                            lambda params, inputs: check_load(inputs.excitation_frequency, self.clock.rate))
 
     def configure(self, values: Mapping[str, Any], wall_ns: int) -> Outcome:
         """A set of node parameters, checked and applied as one new state, now: one
@@ -219,7 +208,7 @@ class RealtimeSlider:
                                                                    self.mean_window_periods)))
         except ParameterError as error:
             return self._refuse(command, str(error))
-        problem = self._take(command)  # (the gate again: the plant and inputs checked above)
+        problem = take_guarded(self.slider, command)  # (the gate again: the plant and inputs checked above)
         if problem:
             return self._refuse(command, f"{', '.join(values)}: {problem}")
         self.clock.set_rate(rate, wall_ns)
@@ -239,34 +228,6 @@ class RealtimeSlider:
         self.rejected += 1
         self.last_rejection = why
         return Outcome(command, why)
-
-    def _take(self, command: Command, check: Callable[[SliderParams, Inputs], object] | None = None) -> str:
-        """Make ``command`` one change of the core (:func:`~friction_sim.core.model.commands.take`), guarded.
-
-        Returns '' when the core took it (or it changed nothing), else why
-        not: the core raised, or the state it leaves is not finite; then the
-        core is put back exactly as it was (a checkpoint taken first).  A
-        ParameterError of the gate or of ``check`` is raised, nothing changed.
-        """
-        slider = self.slider
-        checkpoint = slider.checkpoint()
-        try:
-            if not take(slider, command, check):
-                return ""
-            problem = _non_finite(slider.state())
-            if math.isnan(slider.next_event_time):
-                problem = problem or "the next event time is nan"
-        except ParameterError:
-            slider.restore(checkpoint)
-            raise
-        except Exception as error:  # noqa: BLE001 - any failure of the core refuses the change
-            problem = one_line(error, with_type=True)
-        if problem:
-            slider.restore(checkpoint)
-            if command.name == RESET:
-                return f"the simulation cannot restart ({problem})"
-            return f"the simulation cannot take this state ({problem}); last valid state kept"
-        return ""
 
     # -- simulation control (the node's ~/pause, ~/resume, ~/step, ~/reset) ----------
 
@@ -332,11 +293,11 @@ class RealtimeSlider:
         under the plant and inputs in force; time goes on, paused or not.  The
         mean-velocity window starts afresh: no mean spans the reset."""
         t = self._advance(wall_ns)
-        self._periods.extend(self._new_periods())
-        problem = self._take(Command(t, RESET))  # the one way a command reaches the core (see take)
+        self._periods.extend(self.period_means.new(self.slider, self.marks_before))
+        problem = take_guarded(self.slider, Command(t, RESET))  # the one way a command reaches the core (see take)
         if problem:
             return self._refuse(Command(t, RESET), f"reset: {problem}")
-        self._window.clear()
+        self.period_means.restart()
         return Outcome(Command(t, RESET))
 
     # -- settings -----------------------------------------------------------
@@ -348,13 +309,16 @@ class RealtimeSlider:
 
     def set_mean_window(self, periods: int) -> None:
         """Average the mean velocity over the last ``periods`` whole periods."""
-        periods = spec.MEAN_WINDOW_PERIODS.check(periods)
-        self._window = deque(self._window, maxlen=periods + 1)
+        self.period_means.set_window(periods)
 
     @property
     def mean_window_periods(self) -> int:
-        assert self._window.maxlen is not None
-        return self._window.maxlen - 1
+        return self.period_means.window_periods
+
+    @property
+    def last_period(self) -> PeriodSummary | None:
+        """The summary of the last period that ended (None before the first)."""
+        return self.period_means.last
 
     # -- the tick -------------------------------------------------------------
 
@@ -364,17 +328,18 @@ class RealtimeSlider:
         Raises :class:`SimulationFault` if the state there (or at a log sample
         on the way) is not finite.
         """
-        self._count_tick(wall_ns)
+        self.interval.count_tick(wall_ns, self.publish_rate)
         self._advance(wall_ns)
         state = self.slider.state()
-        problem = _non_finite(state)
+        problem = non_finite(state)
         for sample in self._samples:
             if problem:
                 break
-            problem = _non_finite(sample)
+            problem = non_finite(sample)
         if problem:
             self._fail(f"the state became non-finite ({problem})")
-        events, samples, periods = self._events, tuple(self._samples), self._periods + self._new_periods()
+        periods = self._periods + self.period_means.new(self.slider, self.marks_before)
+        events, samples = self._events, tuple(self._samples)
         accelerations = tuple(self._accelerations)
         self._events, self._samples, self._periods, self._accelerations = [], [], [], []
         return Tick(state, events, periods, samples, paused=self.clock.paused, accelerations=accelerations)
@@ -452,146 +417,26 @@ class RealtimeSlider:
                       f"and plant {slider.params}")
         raise SimulationFault(self.fault)
 
-    def _new_periods(self) -> list[PeriodSummary]:
-        summaries = []
-        for mark in self.slider.cycle_marks_after(self._last_mark_n):
-            if mark.t >= self.marks_before:
-                break
-            self._last_mark_n = mark.n
-            previous = self._window[-1] if self._window else None
-            self._window.append(mark)
-            if previous is None or previous.n != mark.n - 1:
-                continue
-            first = self._window[0]
-            span = mark.t - first.t
-            duration = mark.t - previous.t
-            summaries.append(PeriodSummary(
-                n=mark.n, t=mark.t, mean_velocity=(mark.x - first.x) / span if span > 0 else 0.0,
-                window_periods=mark.n - first.n,
-                stick_fraction=share(mark.stuck_time - previous.stuck_time, duration, empty=1.0),
-                flight_fraction=share(mark.flight_time - previous.flight_time, duration),
-            ))
-        if summaries:
-            self.last_period = summaries[-1]
-        return summaries
-
-    def _count_tick(self, wall_ns: int) -> None:
-        stats = self.stats
-        if stats.last_wall_ns is not None and (wall_ns - stats.last_wall_ns) > 1.5 * NS_PER_S / self.publish_rate:
-            stats.late_ticks += 1
-            stats.total_late_ticks += 1
-        stats.ticks += 1
-        stats.last_wall_ns = wall_ns
-
     # -- diagnostics ------------------------------------------------------------
+
+    @property
+    def stats(self) -> TickStats:
+        """The tick statistics of the present diagnostics interval."""
+        return self.interval.stats
 
     def prediction(self, params: SliderParams | None = None, inputs: Inputs | None = None) -> Prediction:
         """The mean-speed prediction for ``params`` and ``inputs`` (default: those
         in force), computed once per change; NaN where there is none.
 
-        Outside Kostek's model it is a simulation (:func:`predict` falls back
-        on the general mean speed: a millisecond, up to ~0.4 s for a chattering
+        Outside Kostek's model it is a simulation (:func:`~friction_sim.core.meanspeed.predict.predict`
+        falls back on the general mean speed: a millisecond, up to ~0.4 s for a chattering
         plant), so a node asks for it outside its tick's lock and passes it to
         :meth:`diagnostics`.
         """
-        params = self.slider.params if params is None else params
-        inputs = self.slider.inputs if inputs is None else inputs
-        cached = self._prediction
-        if cached is None or cached[0] is not params or cached[1] is not inputs:
-            try:
-                value = predict(params, inputs)
-            except Exception:  # noqa: BLE001 - diagnostics must answer whatever the inputs: nan = no prediction
-                value = NO_PREDICTION
-            cached = self._prediction = (params, inputs, value)
-        return cached[2]
+        return self.interval.prediction(self.slider.params if params is None else params,
+                                        self.slider.inputs if inputs is None else inputs)
 
     def diagnostics(self, wall_ns: int, prediction: Prediction | None = None) -> dict[str, Any]:
-        """The figures of the last diagnostics interval; starts a new interval.
-        ``prediction`` is :meth:`prediction`'s, if the caller has made it."""
-        stats = self.stats
-        start = stats.interval_start_ns if stats.interval_start_ns is not None else wall_ns
-        wall = (wall_ns - start) / NS_PER_S
-        sim_now = self.now(wall_ns)  # (never before a state already made: the slider may be ahead of its clock)
-        tick_rate = stats.ticks / wall if wall > 0 else 0.0
-        achieved_rtf = (sim_now - stats.interval_sim_start) / wall if wall > 0 else 0.0
-        inputs = self.slider.inputs
-        flight_time, lift_offs, landings = self._flight_record()
-        sim_elapsed = self.slider.t - stats.interval_slider_start
-        if prediction is None:
-            prediction = self.prediction()
-        report = {
-            "sim_time": sim_now,
-            "paused": self.clock.paused,
-            "real_time_factor": self.clock.rate,
-            "achieved_real_time_factor": achieved_rtf,
-            "tick_rate": tick_rate,
-            "publish_rate": self.publish_rate,
-            "late_ticks": stats.late_ticks,
-            "late_ticks_total": stats.total_late_ticks,
-            "commands_accepted": self.accepted,
-            "commands_rejected": self.rejected,
-            "commands_rejected_in_interval": self.rejected - self._rejected_before_interval,
-            "ticks_behind_in_interval": self.behind - self._behind_before_interval,
-            "max_catch_up": self.max_catch_up, "stalls": self.stalls, "time_slipped": self.time_slipped,
-            "last_rejection": self.last_rejection,
-            "drive_force": inputs.drive_force,
-            "excitation_amplitude": self._input_shown("excitation_amplitude"),
-            "excitation_frequency": inputs.excitation_frequency,
-            "external_force_x": inputs.external_force_x,
-            "external_force_z": inputs.external_force_z,
-            "drive_level": self._input_shown("drive_level"),
-            **self._exciter_report(),
-            "throw_number": steady_throw_number(self.slider.params, inputs),
-            # the groups the prediction is made of: with an external force, the effective ones
-            "phi": prediction.effective_phi,
-            "amplitude_ratio": prediction.effective_amplitude_ratio,
-            "predicted_U": prediction.u,
-            "predicted_mean_velocity": prediction.mean_velocity,
-            "stick_fraction": self.last_period.stick_fraction if self.last_period else math.nan,
-            "flight_fraction": self.last_period.flight_fraction if self.last_period else math.nan,
-            "flight_fraction_in_interval": share(flight_time - stats.interval_flight_start, sim_elapsed,
-                                                 empty=math.nan),
-            "lift_offs": lift_offs,
-            "landings": landings,
-            "lift_offs_in_interval": lift_offs - stats.interval_lift_offs_start,
-            "landings_in_interval": landings - stats.interval_landings_start,
-            "measured_mean_velocity": self.last_period.mean_velocity if self.last_period else math.nan,
-        }
-        self._rejected_before_interval = self.rejected
-        self._behind_before_interval = self.behind
-        stats.ticks = 0
-        stats.late_ticks = 0
-        stats.interval_start_ns = wall_ns
-        stats.interval_sim_start = sim_now
-        stats.interval_slider_start = self.slider.t
-        stats.interval_flight_start, stats.interval_lift_offs_start, stats.interval_landings_start = (
-            flight_time, lift_offs, landings)
-        return report
-
-    def _input_shown(self, field: str) -> float | str:
-        """The input ``field`` in force as diagnostics show it: its value, or, for
-        the input the actuator in force does not use (and refuses), the value
-        marked so (``5.0 (unused: actuator resonant)``), never as if it acted."""
-        value: float = getattr(self.slider.inputs, field)
-        actuator = self.slider.params.actuator
-        return f"{value!r} (unused: actuator {actuator})" if field == unused_input(actuator) else value
-
-    def _exciter_report(self) -> dict[str, Any]:
-        """The actuator and the excitation it makes now: the steady Pa of the inputs
-        in force (the resonant actuator's m*u*A*G(f/f_n), the force actuator's Pa as
-        set), the present amplitude of the part's normal excitation (the resonant
-        exciter's state now: steady plus the transient's envelope) and its lag
-        behind the drive (NaN for the force actuator), with the slideway's f_n and
-        zeta in force."""
-        state, params = self.slider.exciter, self.slider.params
-        steady = steady_excitation(params, self.slider.inputs)[0]
-        report = {"actuator": params.actuator, "natural_frequency": params.natural_frequency,
-                  "damping_ratio": params.damping_ratio, "steady_excitation_amplitude": steady}
-        if state is None:
-            return {**report, "excitation_envelope": steady, "exciter_lag_deg": math.nan}
-        return {**report, "excitation_envelope": state.amplitude, "exciter_lag_deg": math.degrees(state.lag)}
-
-    def _flight_record(self) -> tuple[float, int, int]:
-        """(time in flight [s], lift-offs, landings) since the start, up to the slider's time."""
-        counts = self.slider.event_counts
-        return self.slider.flight_time, counts.get(EventKind.LIFT_OFF, 0), counts.get(EventKind.LANDING, 0)
+        """The figures of the last diagnostics interval (:mod:`~friction_sim.core.runtime.diagnostics`);
+        starts a new interval.  ``prediction`` is :meth:`prediction`'s, if the caller has made it."""
+        return self.interval.report(self, wall_ns, self.prediction() if prediction is None else prediction)

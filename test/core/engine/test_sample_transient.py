@@ -78,7 +78,7 @@ def allowances(slider):
     ``slider.state()`` (see the module's docstring), read off the segment
     ``slider`` is on at its time: zero under the transient (the same scalar
     code on both sides)."""
-    if slider._c:  # noqa: SLF001 - the transient's force at the segment's start: which evaluation sample takes
+    if slider._transient.c:  # noqa: SLF001 - the transient's force at the segment's start: which evaluation sample takes
         return "transient", dict.fromkeys(COLUMNS, 0.0)
     seg, plant = slider._seg, slider._plant  # noqa: SLF001 - the closed form state() evaluates, for its terms
     tau = slider.t - seg.t0

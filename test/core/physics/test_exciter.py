@@ -188,7 +188,7 @@ def test_the_transient_settles_and_the_motion_is_the_steady_one_again() -> None:
     steady = Slider(params, Inputs(drive_level=0.9), cycle_log_size=None)
     stepped.advance_to(12.0)
     steady.advance_to(12.0)
-    assert stepped._c == 0j  # noqa: SLF001 - dropped below rounding, so the steady memo serves again
+    assert stepped._transient.c == 0j  # noqa: SLF001 - dropped below rounding, so the steady memo serves again
     late = [mark for mark in stepped.cycle_marks if mark.n >= 500]
     reference = [mark for mark in steady.cycle_marks if mark.n >= 500]
     ours = np.diff([mark.x for mark in late])

@@ -72,7 +72,7 @@ def test_fractions_are_clamped_to_0_1_where_rounding_pushes_them_out(monkeypatch
     assert (marks[1].flight_time - marks[0].flight_time) / (t1 - t0) > 1.0  # what the division gave
     rt = RealtimeSlider(SliderParams(), HOP, wall_ns=0)
     monkeypatch.setattr(rt.slider, "cycle_marks_after", lambda n: [m for m in marks if m.n > n])
-    (summary,) = rt._new_periods()  # noqa: SLF001 - the summaries straight from the marks
+    (summary,) = rt.period_means.new(rt.slider, rt.marks_before)  # the summaries straight from the marks
     assert summary.flight_fraction == 1.0 and summary.stick_fraction == 0.0
 
 
@@ -145,7 +145,7 @@ def test_a_prediction_made_outside_the_lock_is_the_one_reported(monkeypatch: pyt
     """The node computes the prediction (a simulation outside Kostek's model)
     before it takes the tick's lock and hands it to diagnostics, which then
     does not simulate; a prediction that fails is NaN, not an exception."""
-    from friction_sim.core.runtime import realtime
+    from friction_sim.core.runtime import diagnostics
 
     params = SliderParams(excitation_angle=60.0)
     rt = RealtimeSlider(params, HOP, wall_ns=0)
@@ -155,7 +155,7 @@ def test_a_prediction_made_outside_the_lock_is_the_one_reported(monkeypatch: pyt
     def no_simulation(*_: object) -> None:
         raise AssertionError("diagnostics simulated under the lock")
 
-    monkeypatch.setattr(realtime, "predict", no_simulation)
+    monkeypatch.setattr(diagnostics, "predict", no_simulation)
     report = rt.diagnostics(NS_PER_S, made)
     assert report["predicted_U"] == made.u
     rt.slider.set_inputs(drive_force=0.4)  # a change: the cached prediction no longer applies
