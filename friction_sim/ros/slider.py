@@ -72,26 +72,20 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 from rclpy.subscription import Subscription
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_srvs.srv import Trigger
 
-from friction_sim.core.model import spec
 from friction_sim.core.model.commands import (
     CONTROLS,
-    PHYSICS_FIELDS,
     RESET,
     SLIDER,
     STEP,
-    Command,
     Outcome,
     consumed_by,
 )
-from friction_sim.core.model.commands import PARAMETERS as PARAMETER_COMMAND
 from friction_sim.core.model.events import SliderState
 from friction_sim.core.model.params import plant_from
 from friction_sim.core.model.records import Tick
@@ -119,7 +113,6 @@ from friction_sim.io.sinks import (
 )
 from friction_sim.ros.graph import NameWatch
 from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, accelerometer_qos, take_all
-from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
 from friction_sim.ros.run import (
     EXIT_FAULT,
     EXIT_RECORDING_FAILED,
@@ -143,12 +136,11 @@ from friction_sim.ros.slider_outputs import (
     recorded,
     watch_namespace,
 )
+from friction_sim.ros.slider_parameters import PARAMETERS, SliderParameters, declare
 
 QOS_DEPTH = 10
 COMMANDS_PER_TICK = QOS_DEPTH
 TICK_SWITCH_INTERVAL = 0.0005
-#: The node's parameters: declared once in the one vocabulary.
-PARAMETERS = spec.SLIDER_NODE
 #: What the node publishes (topic, type, meaning), for --help.
 PUBLICATIONS = (
     ("pose", "geometry_msgs/msg/PoseStamped",
@@ -170,7 +162,7 @@ class SliderNode(QuietNode):
 
     def __init__(self, node_name: str = "slider", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
-        values = declare_settings(self, PARAMETERS)
+        values = declare(self)
         params, inputs = plant_from(values)
         self._rt = runtime_for(values, params, inputs)
         #: The exit code run_node ends with (0, or EXIT_RECORDING_FAILED after a failed recording).
@@ -210,9 +202,9 @@ class SliderNode(QuietNode):
         if not values["lockstep"]:  # in lockstep: every diagnostics_period of simulation time (the loop)
             self.create_timer(values["diagnostics_period"], self._on_diagnostics,
                               clock=Clock(clock_type=ClockType.STEADY_TIME))
-        watch_parameter_refusals(self, PARAMETERS, self._parameter_refused)
-        self.add_on_set_parameters_callback(self._set_parameters)
-        self.add_post_set_parameters_callback(self._parameters_set)
+        #: The parameter sets' callbacks (:mod:`friction_sim.ros.slider_parameters`).
+        self.parameter_sets = SliderParameters(self)
+        self.parameter_sets.watch()
         self._stop = threading.Event()
         #: The lockstep loop (None in real time): it replaces the clock's ticks.
         self.lockstep = LockstepLoop(self) if isinstance(self._rt, LockstepSlider) else None
@@ -411,16 +403,6 @@ class SliderNode(QuietNode):
             kept = "nothing changed" if outcome.command.is_control else "last valid value kept"
             (warn or self._warn)(f"{outcome.reason}; {kept}")
 
-    def _parameter_refused(self, name: str, value: Any, why: str) -> None:
-        """rclpy refused a parameter value before our callbacks (range, type,
-        read-only): counted and recorded like any refusal (common has warned),
-        with the value as it was sent (an integer 2 stays 2: the refusal is
-        about its type)."""
-        values = {name: value} if name in PHYSICS_FIELDS else {}
-        with self._lock:
-            outcome = self._rt.refuse(Command(0.0, PARAMETER_COMMAND, values), why, wall_ns())
-            self.record([outcome])
-
     # -- publishing -------------------------------------------------------------
 
     def _tick_loop(self) -> None:
@@ -541,36 +523,11 @@ class SliderNode(QuietNode):
 
     # -- parameters ---------------------------------------------------------------
 
-    def _set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
-        """The one place for cross-field rules, and atomic: the whole set is
-        checked by the core against the state in force (which topic commands
-        may have changed since the parameters were last set) and reaches the
-        simulation as one new state, under the lock, or it is refused and
-        nothing changes."""
-        values = {p.name: p.value for p in changes}
-        try:
-            with self._lock:
-                outcome = self._rt.configure(values, wall_ns())
-                if outcome.values or not outcome.accepted:
-                    self.record([outcome])
-        except SimulationFault as fault:  # the run cannot go on: say so, answer, stop
-            self.fail(fault)
-            return SetParametersResult(successful=False, reason=str(fault))
-        self.warn_refused(outcome, self.get_logger().warning)  # each refused set is warned
-        if not outcome.accepted:
-            return SetParametersResult(successful=False, reason=outcome.reason)
-        return SetParametersResult(successful=True)
-
-    def _parameters_set(self, changes: list[Parameter]) -> None:
-        """After a successful set: the settings the tick thread reads, and the
-        record of the non-physics ones (physics changes were recorded as commands)."""
-        self.get_logger().info("parameters set: " + ", ".join(f"{p.name} = {p.value!r}" for p in changes))
+    def follow_settings(self) -> None:
+        """After an accepted parameter set: the settings the tick thread reads,
+        from the parameters in force (:class:`SliderParameters` calls it)."""
         self._set_publish_clock(self.get_parameter("publish_clock").value)
         self._frame_id = self.get_parameter("frame_id").value
-        others = {p.name for p in changes} - set(spec.PLANT) - set(spec.INPUTS)
-        if others:
-            t = self._rt.clock.now(wall_ns())
-            deliver(self.sinks, ParametersRecord({n: self.get_parameter(n).value for n in others}, t, True))
 
 
 def _unused(msg: Any) -> None:
