@@ -17,7 +17,8 @@ Subscriptions: ``drive_force``, ``excitation_amplitude``,
 away from the track; held until the next message).  Of ``excitation_amplitude``
 and ``drive_level`` the actuator in force takes one; the other is refused on its
 topic whatever its value, and as a parameter set to any value but the one held
-(a dump loads back), and diagnostics mark it unused.
+(a dump loads back), and diagnostics mark it unused.  What a parameter set does
+is :mod:`friction_sim.ros.slider_parameters`'s.
 Publications: ``pose``, ``velocity``, ``friction_force`` at ``publish_rate``;
 ``mean_velocity`` once per completed excitation period; ``diagnostics`` every
 ``diagnostics_period`` (1 s); ``/clock`` while ``publish_clock`` is true (the publisher exists only
@@ -27,8 +28,9 @@ then).  The states' and mean velocities' header stamps are simulation time
 the same rule the controller follows on the same topic.
 
 Services (std_srvs/Trigger): ``~/pause``, ``~/resume``, ``~/step`` and
-``~/reset`` (see :class:`~friction_sim.core.runtime.realtime.RealtimeSlider`); each
-call is handed to the sinks as a command, so a recording holds it.  While
+``~/reset`` (see :class:`~friction_sim.core.runtime.realtime.RealtimeSlider`), in
+:mod:`friction_sim.ros.slider_control`; each call is handed to the sinks as a
+command, so a recording holds it.  While
 paused a tick publishes only what changed (a step, a reset, a command).
 
 With ``foxglove_port`` set, a :class:`~friction_sim.io.live.LiveView` serves
@@ -63,7 +65,6 @@ diagnostics; a lock keeps it and the tick thread apart.
 from __future__ import annotations
 
 import contextlib
-import functools
 import sys
 import threading
 import time
@@ -73,16 +74,11 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rclpy.clock import Clock, ClockType
-from rclpy.serialization import serialize_message
 from rclpy.subscription import Subscription
 from rosgraph_msgs.msg import Clock as ClockMsg
-from std_srvs.srv import Trigger
 
 from friction_sim.core.model.commands import (
-    CONTROLS,
-    RESET,
     SLIDER,
-    STEP,
     Outcome,
     consumed_by,
 )
@@ -123,12 +119,12 @@ from friction_sim.ros.run import (
     run_node,
     wall_ns,
 )
+from friction_sim.ros.slider_control import SimulationControl
 from friction_sim.ros.slider_lockstep import LockstepLoop, runtime_for
 from friction_sim.ros.slider_outputs import (
     AccelerometerPublisher,
     RecorderHealth,
     consistent_report,
-    control_text,
     finish_recording,
     health,
     open_live_view,
@@ -167,7 +163,8 @@ class SliderNode(QuietNode):
         self._rt = runtime_for(values, params, inputs)
         #: The exit code run_node ends with (0, or EXIT_RECORDING_FAILED after a failed recording).
         self.exit_code = 0
-        self._serving = threading.Event()  # set once the node is whole: the live view may call in before
+        #: The control calls (:mod:`friction_sim.ros.slider_control`), over ROS and the live view.
+        self.control = SimulationControl(self)
         #: Consumers of the run (the recorder, a live view, a test's probe): whatever the node
         #: records or serves reaches them as sink records (:mod:`friction_sim.io.sinks`), and only so.
         self.sinks: list[Sink] = []
@@ -177,7 +174,7 @@ class SliderNode(QuietNode):
             self.sinks.append(self.recorder)
         try:
             self.live = open_live_view(values, self.get_namespace(), self.get_fully_qualified_name(),
-                                       self._live_services())
+                                       self.control.live_services())
         except BaseException:
             if self.recorder is not None:
                 self.recorder.finish()  # a taken port must not leave a recording open
@@ -197,7 +194,6 @@ class SliderNode(QuietNode):
         self._published = threading.Condition()  # the tick thread's count of ticks published, for ~/step
         self._ticks_computed = self._ticks_published = 0
         self._last_published: SliderState | None = None
-        self._make_services()
         self.names = NameWatch(self)
         if not values["lockstep"]:  # in lockstep: every diagnostics_period of simulation time (the loop)
             self.create_timer(values["diagnostics_period"], self._on_diagnostics,
@@ -216,7 +212,7 @@ class SliderNode(QuietNode):
             sys.setswitchinterval(min(sys.getswitchinterval(), TICK_SWITCH_INTERVAL))
         self._ticker = threading.Thread(target=self._tick_loop, name="slider_tick", daemon=True)
         self._ticker.start()
-        self._serving.set()
+        self.control.serve()
 
     def destroy_node(self) -> None:
         """Stop the tick thread before the publishers go away; close the sinks
@@ -329,59 +325,12 @@ class SliderNode(QuietNode):
         for outcome in outcomes:
             self.warn_refused(outcome)
 
-    def _live_services(self) -> list[Any]:
-        """The control services again, for Foxglove clients of the live view
-        (its Call Service panel): same names, type and answers as over ROS."""
-        from friction_sim.io.live import LiveService
+    @property
+    def ticks_computed(self) -> int:
+        """How many ticks the core has computed (lock held): a control call waits for the next."""
+        return self._ticks_computed
 
-        return [LiveService(f"{self.get_fully_qualified_name()}/{name}", "std_srvs/srv/Trigger",
-                            functools.partial(self._on_live_control, name)) for name in CONTROLS]
-
-    def _on_live_control(self, name: str, request: bytes) -> bytes:
-        """A control call from a Foxglove client: answered as the ROS service answers (CDR)."""
-        if not self._serving.is_set():
-            raise RuntimeError("the slider is still starting; call again")
-        return bytes(serialize_message(self._on_control(name, Trigger.Request(), Trigger.Response())))
-
-    def _make_services(self) -> None:
-        """``~/pause``, ``~/resume``, ``~/step`` and ``~/reset`` (std_srvs/Trigger)."""
-        for name in CONTROLS:
-            self.create_service(Trigger, f"~/{name}", functools.partial(self._on_control, name))
-
-    # -- simulation control -----------------------------------------------------
-
-    def _on_control(self, name: str, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-        """A ``~/pause``, ``~/resume``, ``~/step`` or ``~/reset`` call: done on
-        the core under the lock, recorded and counted like any command; a step
-        or reset answers once the tick thread has published the state it left."""
-        try:
-            with self._lock:
-                outcome = self._control(name, wall_ns())
-                state, published = self._rt.slider.state(), self._ticks_computed + 1
-                self.record([outcome])
-        except SimulationFault as fault:  # the run cannot go on: say so, answer, stop
-            self.fail(fault)
-            response.success, response.message = False, str(fault)
-            return response
-        self.warn_refused(outcome, self.get_logger().warning)  # each refused call is warned
-        if outcome.accepted and name in (STEP, RESET):
-            self._wait_published(published)
-        response.success = outcome.accepted
-        response.message = outcome.reason or control_text(outcome, state)
-        if outcome.accepted:
-            self.get_logger().info(response.message)
-        return response
-
-    def _control(self, name: str, now: int) -> Outcome:
-        """Pause, resume, step (by step_time, or step_periods periods) or reset the core (lock held)."""
-        if name == STEP:
-            duration = self._rt.step_length(self.get_parameter("step_periods").value,
-                                            self.get_parameter("step_time").value)
-            return self._rt.step(duration, now)
-        act: Callable[[int], Outcome] = getattr(self._rt, name)
-        return act(now)
-
-    def _wait_published(self, tick: int, timeout: float = 2.0) -> None:
+    def wait_published(self, tick: int, timeout: float = 2.0) -> None:
         """Wait until the tick thread has published tick number ``tick`` (or the node stops)."""
         with self._published:
             self._published.wait_for(lambda: self._ticks_published >= tick or self._stop.is_set(), timeout)
