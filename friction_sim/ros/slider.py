@@ -72,43 +72,30 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rclpy.clock import Clock, ClockType
 from rclpy.subscription import Subscription
-from rosgraph_msgs.msg import Clock as ClockMsg
 
-from friction_sim.core.model.commands import (
-    SLIDER,
-    Outcome,
-    consumed_by,
-)
-from friction_sim.core.model.events import SliderState
+from friction_sim.core.model.commands import SLIDER, Outcome, consumed_by
 from friction_sim.core.model.params import plant_from
 from friction_sim.core.model.records import Tick
 from friction_sim.core.runtime.lockstep import LockstepSlider
 from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import SimulationFault, one_line
 from friction_sim.io.messages import (
-    ACCELEROMETER,
     command_from_message,
-    fill_state_messages,
     key_values,
-    mean_velocity_message,
     message_class,
-    seconds_to_ns,
     time_msg,
 )
 from friction_sim.io.sinks import (
-    ClockRecord,
     CommandRecord,
     MessageRecord,
     ParametersRecord,
     Sink,
     deliver,
-    deliver_tick,
 )
 from friction_sim.ros.graph import NameWatch
-from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, accelerometer_qos, take_all
+from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, take_all
 from friction_sim.ros.run import (
     EXIT_FAULT,
     EXIT_RECORDING_FAILED,
@@ -122,7 +109,6 @@ from friction_sim.ros.run import (
 from friction_sim.ros.slider_control import SimulationControl
 from friction_sim.ros.slider_lockstep import LockstepLoop, runtime_for
 from friction_sim.ros.slider_outputs import (
-    AccelerometerPublisher,
     RecorderHealth,
     consistent_report,
     finish_recording,
@@ -133,8 +119,8 @@ from friction_sim.ros.slider_outputs import (
     watch_namespace,
 )
 from friction_sim.ros.slider_parameters import PARAMETERS, SliderParameters, declare
+from friction_sim.ros.slider_topics import QOS_DEPTH, SliderTopics
 
-QOS_DEPTH = 10
 COMMANDS_PER_TICK = QOS_DEPTH
 TICK_SWITCH_INTERVAL = 0.0005
 #: What the node publishes (topic, type, meaning), for --help.
@@ -184,24 +170,22 @@ class SliderNode(QuietNode):
             self.get_logger().info(f"live view: open {self.live.url} in Foxglove (config/"
                                    "friction_sim.foxglove_layout.json is the layout)")
         deliver(self.sinks, ParametersRecord(recorded(values), 0.0, False))
-        self._frame_id: str = values["frame_id"]
         self._lock = threading.Lock()
+        self._stop = threading.Event()
         self._warn = ThrottledWarning(self.get_logger())
         self._fault = FaultSignal(self)
-        self._make_publishers(values["publish_clock"])
+        #: The publishers and the ticks they have published (:mod:`friction_sim.ros.slider_topics`).
+        self.topics = SliderTopics(self, self.sinks, self._lock, self._stop, self._rt.accelerometer,
+                                   values["frame_id"], values["publish_clock"], self._answered_ns)
         self._make_subscriptions()
         watch_namespace(self, lambda: self._rt.now(wall_ns()), lockstep=bool(values["lockstep"]))
-        self._published = threading.Condition()  # the tick thread's count of ticks published, for ~/step
-        self._ticks_computed = self._ticks_published = 0
-        self._last_published: SliderState | None = None
         self.names = NameWatch(self)
         if not values["lockstep"]:  # in lockstep: every diagnostics_period of simulation time (the loop)
-            self.create_timer(values["diagnostics_period"], self._on_diagnostics,
+            self.create_timer(values["diagnostics_period"], self.publish_diagnostics,
                               clock=Clock(clock_type=ClockType.STEADY_TIME))
         #: The parameter sets' callbacks (:mod:`friction_sim.ros.slider_parameters`).
         self.parameter_sets = SliderParameters(self)
         self.parameter_sets.watch()
-        self._stop = threading.Event()
         #: The lockstep loop (None in real time): it replaces the clock's ticks.
         self.lockstep = LockstepLoop(self) if isinstance(self._rt, LockstepSlider) else None
         if self.lockstep is None:
@@ -248,17 +232,14 @@ class SliderNode(QuietNode):
 
     @property
     def frame_id(self) -> str:
-        return self._frame_id
+        return self.topics.frame_id
 
     def publish_mean_velocity(self, msg: Any) -> None:
-        self._mean_pub.publish(msg)
+        self.topics.publish_mean_velocity(msg)
 
     def flush_readings(self) -> None:
-        """Lockstep, while the loop waits: publish the held accelerometer samples a reader
-        that came since needs (see :class:`AccelerometerPublisher`)."""
-        answered = self._answered_ns()
-        if self._imu_pub is not None and answered is not None:
-            self._imu_pub.flush(answered)
+        """Lockstep, while the loop waits: the held accelerometer samples a reader that came since needs."""
+        self.topics.flush_readings()
 
     def _answered_ns(self) -> int | None:
         """In lockstep the stamp [ns] of the last sample answered (-1: none); None in real time."""
@@ -270,36 +251,7 @@ class SliderNode(QuietNode):
         """Why the node stopped ('' while it runs): see :class:`SimulationFault`."""
         return self._fault.reason
 
-    # -- wiring ---------------------------------------------------------------
-
-    def _make_publishers(self, publish_clock: bool) -> None:
-        self._pose_pub = self._publisher(PoseStamped, "pose")
-        self._velocity_pub = self._publisher(TwistStamped, "velocity")
-        self._friction_pub = self._publisher(WrenchStamped, "friction_force")
-        self._mean_pub = self._publisher(TwistStamped, "mean_velocity")
-        self._diag_pub = self._publisher(DiagnosticArray, "diagnostics")
-        accelerometer = self._rt.accelerometer
-        self._imu_noise = accelerometer.noise if accelerometer else 0.0
-        self._imu_pub = AccelerometerPublisher(self._publisher(
-            message_class("sensor_msgs/msg/Imu"), ACCELEROMETER, accelerometer_qos()), self._frame_id,
-            self._imu_noise) if accelerometer else None
-        self._pose, self._velocity, self._friction = PoseStamped(), TwistStamped(), WrenchStamped()
-        self._clock_msg = ClockMsg()
-        self._clock_pub: Any = None
-        self._set_publish_clock(publish_clock)
-
-    def _publisher(self, kind: type, topic: str, depth: Any = QOS_DEPTH) -> Any:
-        return self.create_publisher(kind, topic, depth)
-
-    def _set_publish_clock(self, on: bool) -> None:
-        """Advertise /clock only while it is published (the tick thread publishes
-        it under the lock, so it never sees a publisher being destroyed)."""
-        with self._lock:
-            if on and self._clock_pub is None:
-                self._clock_pub = self._publisher(ClockMsg, "/clock")
-            elif not on and self._clock_pub is not None:
-                self.destroy_publisher(self._clock_pub)
-                self._clock_pub = None
+    # -- commands ---------------------------------------------------------------
 
     def _make_subscriptions(self) -> None:
         """One polled subscription per command topic the slider consumes (from
@@ -325,25 +277,13 @@ class SliderNode(QuietNode):
         for outcome in outcomes:
             self.warn_refused(outcome)
 
-    @property
-    def ticks_computed(self) -> int:
-        """How many ticks the core has computed (lock held): a control call waits for the next."""
-        return self._ticks_computed
-
-    def wait_published(self, tick: int, timeout: float = 2.0) -> None:
-        """Wait until the tick thread has published tick number ``tick`` (or the node stops)."""
-        with self._published:
-            self._published.wait_for(lambda: self._ticks_published >= tick or self._stop.is_set(), timeout)
-
-    # -- commands ---------------------------------------------------------------
-
     def record(self, outcomes: Sequence[Outcome]) -> None:
         """Hand handled commands to the sinks, with the lock held: the tick thread
         and the executor's (parameters, control calls) take commands in turn, and
         a recording must hold them in the order the core took them (verify
         replays them in that order, each a change of its own)."""
         for outcome in outcomes:
-            deliver(self.sinks, CommandRecord(outcome, self._frame_id))
+            deliver(self.sinks, CommandRecord(outcome, self.topics.frame_id))
 
     def warn_refused(self, outcome: Outcome, warn: Callable[[str], Any] | None = None) -> None:
         """Warn about a refusal (by default on the node's throttle: a flood of bad
@@ -352,7 +292,7 @@ class SliderNode(QuietNode):
             kept = "nothing changed" if outcome.command.is_control else "last valid value kept"
             (warn or self._warn)(f"{outcome.reason}; {kept}")
 
-    # -- publishing -------------------------------------------------------------
+    # -- ticking and diagnostics -----------------------------------------------------
 
     def _tick_loop(self) -> None:
         """Tick until stopped; any failure is reported once and ends the node
@@ -390,53 +330,25 @@ class SliderNode(QuietNode):
             return
         self.get_logger().error(f"{reason}; stopping (exit code {EXIT_FAULT})")
         with contextlib.suppress(Exception):  # the reason is logged already; the node stops anyway
-            self._on_diagnostics()
+            self.publish_diagnostics()
         self._fault.fire()
 
     def _on_tick(self) -> None:
         """Advance, then publish the state (and /clock).  While paused nothing
         is published unless something changed (a step, a reset, a command):
         simulation time, and /clock with it, stands still."""
+        topics = self.topics
         with self._lock:
             tick = self._rt.tick(wall_ns())
-            fresh = not tick.paused or tick.state != self._last_published or bool(tick.events or tick.periods)
-            number = self._clock_of(tick, fresh)
-        self._publish_states(tick, fresh, number)  # outside the lock: a set waits for the computation only
+            fresh = not tick.paused or tick.state != topics.last_published or bool(tick.events or tick.periods)
+            number = topics.clock_of(tick, fresh)
+        topics.publish_states(tick, fresh, number)  # outside the lock: a set waits for the computation only
 
     def publish_tick(self, tick: Tick, fresh: bool = True) -> None:
         """Publish what a tick made (lock held, as the lockstep loop holds it: /clock
         first, then the states, the period means and the accelerometer's samples)
         and hand it to the sinks."""
-        self._publish_states(tick, fresh, self._clock_of(tick, fresh))
-
-    def _clock_of(self, tick: Tick, fresh: bool) -> int:
-        """Count the tick and publish /clock, to the topic and the sinks (lock held: the
-        publisher may go); its number."""
-        self._ticks_computed += 1
-        if fresh and self._clock_pub is not None:
-            t_ns = seconds_to_ns(tick.state.t)
-            time_msg(t_ns, self._clock_msg.clock)
-            self._clock_pub.publish(self._clock_msg)
-            deliver(self.sinks, ClockRecord(t_ns))
-        return self._ticks_computed
-
-    def _publish_states(self, tick: Tick, fresh: bool, number: int) -> None:
-        """The states, period means and accelerometer samples of tick ``number``, to the topics and sinks."""
-        if fresh:
-            state = tick.state
-            fill_state_messages(state, self._frame_id, self._pose, self._velocity, self._friction)
-            self._pose_pub.publish(self._pose)
-            self._velocity_pub.publish(self._velocity)
-            self._friction_pub.publish(self._friction)
-            for period in tick.periods:
-                self._mean_pub.publish(mean_velocity_message(period, self._frame_id))
-            if self._imu_pub is not None:
-                self._imu_pub.publish(tick.accelerations, hold_after_ns=self._answered_ns())
-            self._last_published = state
-            deliver_tick(self.sinks, tick, self._frame_id, self._imu_noise)
-        with self._published:
-            self._ticks_published = number
-            self._published.notify_all()
+        self.topics.publish_tick(tick, fresh)
 
     def _hold_for_recorder(self) -> None:
         """The recorder makes a producer wait rather than drop a message; the
@@ -447,9 +359,6 @@ class SliderNode(QuietNode):
         if waited_ns:
             with self._lock:
                 self._rt.hold(waited_ns, wall_ns())
-
-    def _on_diagnostics(self) -> None:
-        self.publish_diagnostics()
 
     def publish_diagnostics(self, stamp_ns: int | None = None) -> None:
         """The status 'slider' on diagnostics, stamped ``stamp_ns`` (lockstep: the
@@ -468,15 +377,15 @@ class SliderNode(QuietNode):
         else:  # lockstep: recorded here, not when it comes back (the run may end before it does)
             time_msg(stamp_ns, msg.header.stamp)
             deliver(self.sinks, MessageRecord("diagnostics", msg, stamp_ns))
-        self._diag_pub.publish(msg)
+        self.topics.publish_diagnostics(msg)
 
     # -- parameters ---------------------------------------------------------------
 
     def follow_settings(self) -> None:
         """After an accepted parameter set: the settings the tick thread reads,
         from the parameters in force (:class:`SliderParameters` calls it)."""
-        self._set_publish_clock(self.get_parameter("publish_clock").value)
-        self._frame_id = self.get_parameter("frame_id").value
+        self.topics.set_publish_clock(self.get_parameter("publish_clock").value)
+        self.topics.frame_id = self.get_parameter("frame_id").value
 
 
 def _unused(msg: Any) -> None:

@@ -27,6 +27,14 @@ from friction_sim.ros.run import wall_ns
 from friction_sim.ros.slider_outputs import control_text
 
 
+class PublishedTicks(Protocol):
+    """The node's count of ticks (:class:`~friction_sim.ros.slider_topics.SliderTopics`)."""
+
+    @property
+    def ticks_computed(self) -> int: ...
+    def wait_published(self, tick: int, timeout: float = 2.0) -> None: ...
+
+
 class ControlledNode(Protocol):
     """What the control calls need of the slider node (:class:`~friction_sim.ros.slider.SliderNode`)."""
 
@@ -35,7 +43,7 @@ class ControlledNode(Protocol):
     @property
     def lock(self) -> Any: ...
     @property
-    def ticks_computed(self) -> int: ...
+    def topics(self) -> PublishedTicks: ...
     def get_logger(self) -> Any: ...
     def get_parameter(self, name: str) -> Any: ...
     def get_fully_qualified_name(self) -> str: ...
@@ -43,7 +51,6 @@ class ControlledNode(Protocol):
     def record(self, outcomes: Sequence[Outcome]) -> None: ...
     def warn_refused(self, outcome: Outcome, warn: Callable[[str], Any] | None = None) -> None: ...
     def fail(self, error: BaseException) -> None: ...
-    def wait_published(self, tick: int, timeout: float = 2.0) -> None: ...
 
 
 class SimulationControl:
@@ -82,7 +89,7 @@ class SimulationControl:
         try:
             with node.lock:
                 outcome = self._control(name, wall_ns())
-                state, published = node.realtime.slider.state(), node.ticks_computed + 1
+                state, published = node.realtime.slider.state(), node.topics.ticks_computed + 1
                 node.record([outcome])
         except SimulationFault as fault:  # the run cannot go on: say so, answer, stop
             node.fail(fault)
@@ -90,7 +97,7 @@ class SimulationControl:
             return response
         node.warn_refused(outcome, node.get_logger().warning)  # each refused call is warned
         if outcome.accepted and name in (STEP, RESET):
-            node.wait_published(published)
+            node.topics.wait_published(published)
         response.success = outcome.accepted
         response.message = outcome.reason or control_text(outcome, state)
         if outcome.accepted:
