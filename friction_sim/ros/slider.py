@@ -51,7 +51,8 @@ instead of ticks: simulation time advances when the controller has answered each
 on ``stamped_command`` (sensor_msgs/JointState, :mod:`friction_sim.io.stamped`), as fast
 as they compute (:mod:`friction_sim.core.runtime.lockstep`).
 
-Ticks run in a dedicated thread rather than an executor timer: rclpy's
+Ticks run in a dedicated thread (:class:`~friction_sim.ros.slider_realtime.RealtimeLoop`)
+rather than an executor timer: rclpy's
 executor rebuilds its wait set in Python on every wake-up (about 0.4 ms for a
 node with parameter services), which at 1 kHz would cost most of a core and
 make the tick rate depend on how many commands arrive.  Each tick first takes
@@ -67,7 +68,6 @@ from __future__ import annotations
 import contextlib
 import sys
 import threading
-import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -119,6 +119,7 @@ from friction_sim.ros.slider_outputs import (
     watch_namespace,
 )
 from friction_sim.ros.slider_parameters import PARAMETERS, SliderParameters, declare
+from friction_sim.ros.slider_realtime import RealtimeLoop
 from friction_sim.ros.slider_topics import QOS_DEPTH, SliderTopics
 
 COMMANDS_PER_TICK = QOS_DEPTH
@@ -188,6 +189,9 @@ class SliderNode(QuietNode):
         self.parameter_sets.watch()
         #: The lockstep loop (None in real time): it replaces the clock's ticks.
         self.lockstep = LockstepLoop(self) if isinstance(self._rt, LockstepSlider) else None
+        #: The loop the tick thread runs: the lockstep loop, or ticks at publish_rate.
+        self._loop: LockstepLoop | RealtimeLoop = self.lockstep if self.lockstep is not None \
+            else RealtimeLoop(self, self._stop, self._recorder_health)
         if self.lockstep is None:
             # In real time, let the tick thread take the GIL within 0.5 ms even while the executor
             # thread is busy with a flood of commands (default: 5 ms).  Not in lockstep, which keeps
@@ -296,30 +300,12 @@ class SliderNode(QuietNode):
 
     def _tick_loop(self) -> None:
         """Tick until stopped; any failure is reported once and ends the node
-        (:meth:`_fail`), never a thread that dies in silence."""
+        (:meth:`fail`), never a thread that dies in silence."""
         try:
-            self.lockstep.run() if self.lockstep is not None else self._ticks()
+            self._loop.run()
         except Exception as error:  # noqa: BLE001 - reported, and the node stops
             if not self._stop.is_set() and self.context.ok():
                 self.fail(error)
-
-    def _ticks(self) -> None:
-        """Tick at publish_rate on absolute deadlines; after a stall, go on from
-        now rather than bursting to catch up (the physics follows the clock)."""
-        deadline = time.monotonic()
-        while not self._stop.is_set():
-            period = 1.0 / self._rt.publish_rate
-            deadline += period
-            delay = deadline - time.monotonic()
-            if delay > 0.0:
-                time.sleep(delay)
-            elif delay < -period:
-                deadline = time.monotonic()
-            if self._stop.is_set() or not self.context.ok():
-                return
-            self.take_commands()
-            self._on_tick()
-            self._hold_for_recorder()
 
     def fail(self, error: BaseException) -> None:
         """The run cannot go on: log why and report ERROR on diagnostics (once),
@@ -333,32 +319,11 @@ class SliderNode(QuietNode):
             self.publish_diagnostics()
         self._fault.fire()
 
-    def _on_tick(self) -> None:
-        """Advance, then publish the state (and /clock).  While paused nothing
-        is published unless something changed (a step, a reset, a command):
-        simulation time, and /clock with it, stands still."""
-        topics = self.topics
-        with self._lock:
-            tick = self._rt.tick(wall_ns())
-            fresh = not tick.paused or tick.state != topics.last_published or bool(tick.events or tick.periods)
-            number = topics.clock_of(tick, fresh)
-        topics.publish_states(tick, fresh, number)  # outside the lock: a set waits for the computation only
-
     def publish_tick(self, tick: Tick, fresh: bool = True) -> None:
         """Publish what a tick made (lock held, as the lockstep loop holds it: /clock
         first, then the states, the period means and the accelerometer's samples)
         and hand it to the sinks."""
         self.topics.publish_tick(tick, fresh)
-
-    def _hold_for_recorder(self) -> None:
-        """The recorder makes a producer wait rather than drop a message; the
-        wall time the tick waited passes without simulation time (no jump;
-        the achieved real-time factor in diagnostics shows it, and the next
-        tick counts as late)."""
-        waited_ns = self._recorder_health.newly_waited_ns()
-        if waited_ns:
-            with self._lock:
-                self._rt.hold(waited_ns, wall_ns())
 
     def publish_diagnostics(self, stamp_ns: int | None = None) -> None:
         """The status 'slider' on diagnostics, stamped ``stamp_ns`` (lockstep: the
