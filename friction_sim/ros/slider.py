@@ -17,7 +17,8 @@ Subscriptions: ``drive_force``, ``excitation_amplitude``,
 away from the track; held until the next message).  Of ``excitation_amplitude``
 and ``drive_level`` the actuator in force takes one; the other is refused on its
 topic whatever its value, and as a parameter set to any value but the one held
-(a dump loads back), and diagnostics mark it unused.
+(a dump loads back), and diagnostics mark it unused.  What a parameter set does
+is :mod:`friction_sim.ros.slider_parameters`'s.
 Publications: ``pose``, ``velocity``, ``friction_force`` at ``publish_rate``;
 ``mean_velocity`` once per completed excitation period; ``diagnostics`` every
 ``diagnostics_period`` (1 s); ``/clock`` while ``publish_clock`` is true (the publisher exists only
@@ -27,8 +28,9 @@ then).  The states' and mean velocities' header stamps are simulation time
 the same rule the controller follows on the same topic.
 
 Services (std_srvs/Trigger): ``~/pause``, ``~/resume``, ``~/step`` and
-``~/reset`` (see :class:`~friction_sim.core.runtime.realtime.RealtimeSlider`); each
-call is handed to the sinks as a command, so a recording holds it.  While
+``~/reset`` (see :class:`~friction_sim.core.runtime.realtime.RealtimeSlider`), in
+:mod:`friction_sim.ros.slider_control`; each call is handed to the sinks as a
+command, so a recording holds it.  While
 paused a tick publishes only what changed (a step, a reset, a command).
 
 With ``foxglove_port`` set, a :class:`~friction_sim.io.live.LiveView` serves
@@ -49,7 +51,8 @@ instead of ticks: simulation time advances when the controller has answered each
 on ``stamped_command`` (sensor_msgs/JointState, :mod:`friction_sim.io.stamped`), as fast
 as they compute (:mod:`friction_sim.core.runtime.lockstep`).
 
-Ticks run in a dedicated thread rather than an executor timer: rclpy's
+Ticks run in a dedicated thread (:class:`~friction_sim.ros.slider_realtime.RealtimeLoop`)
+rather than an executor timer: rclpy's
 executor rebuilds its wait set in Python on every wake-up (about 0.4 ms for a
 node with parameter services), which at 1 kHz would cost most of a core and
 make the tick rate depend on how many commands arrive.  Each tick first takes
@@ -63,63 +66,36 @@ diagnostics; a lock keeps it and the tick thread apart.
 from __future__ import annotations
 
 import contextlib
-import functools
 import sys
 import threading
-import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.parameter import Parameter
-from rclpy.serialization import serialize_message
 from rclpy.subscription import Subscription
-from rosgraph_msgs.msg import Clock as ClockMsg
-from std_srvs.srv import Trigger
 
-from friction_sim.core.model import spec
-from friction_sim.core.model.commands import (
-    CONTROLS,
-    PHYSICS_FIELDS,
-    RESET,
-    SLIDER,
-    STEP,
-    Command,
-    Outcome,
-    consumed_by,
-)
-from friction_sim.core.model.commands import PARAMETERS as PARAMETER_COMMAND
-from friction_sim.core.model.events import SliderState
+from friction_sim.core.model.commands import SLIDER, Outcome, consumed_by
 from friction_sim.core.model.params import plant_from
 from friction_sim.core.model.records import Tick
 from friction_sim.core.runtime.lockstep import LockstepSlider
 from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import SimulationFault, one_line
 from friction_sim.io.messages import (
-    ACCELEROMETER,
     command_from_message,
-    fill_state_messages,
     key_values,
-    mean_velocity_message,
     message_class,
-    seconds_to_ns,
     time_msg,
 )
 from friction_sim.io.sinks import (
-    ClockRecord,
     CommandRecord,
     MessageRecord,
     ParametersRecord,
     Sink,
     deliver,
-    deliver_tick,
 )
 from friction_sim.ros.graph import NameWatch
-from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, accelerometer_qos, take_all
-from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
+from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, take_all
 from friction_sim.ros.run import (
     EXIT_FAULT,
     EXIT_RECORDING_FAILED,
@@ -130,12 +106,11 @@ from friction_sim.ros.run import (
     run_node,
     wall_ns,
 )
+from friction_sim.ros.slider_control import SimulationControl
 from friction_sim.ros.slider_lockstep import LockstepLoop, runtime_for
 from friction_sim.ros.slider_outputs import (
-    AccelerometerPublisher,
     RecorderHealth,
     consistent_report,
-    control_text,
     finish_recording,
     health,
     open_live_view,
@@ -143,12 +118,12 @@ from friction_sim.ros.slider_outputs import (
     recorded,
     watch_namespace,
 )
+from friction_sim.ros.slider_parameters import PARAMETERS, SliderParameters, declare
+from friction_sim.ros.slider_realtime import RealtimeLoop
+from friction_sim.ros.slider_topics import QOS_DEPTH, SliderTopics
 
-QOS_DEPTH = 10
 COMMANDS_PER_TICK = QOS_DEPTH
 TICK_SWITCH_INTERVAL = 0.0005
-#: The node's parameters: declared once in the one vocabulary.
-PARAMETERS = spec.SLIDER_NODE
 #: What the node publishes (topic, type, meaning), for --help.
 PUBLICATIONS = (
     ("pose", "geometry_msgs/msg/PoseStamped",
@@ -170,12 +145,13 @@ class SliderNode(QuietNode):
 
     def __init__(self, node_name: str = "slider", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
-        values = declare_settings(self, PARAMETERS)
+        values = declare(self)
         params, inputs = plant_from(values)
         self._rt = runtime_for(values, params, inputs)
         #: The exit code run_node ends with (0, or EXIT_RECORDING_FAILED after a failed recording).
         self.exit_code = 0
-        self._serving = threading.Event()  # set once the node is whole: the live view may call in before
+        #: The control calls (:mod:`friction_sim.ros.slider_control`), over ROS and the live view.
+        self.control = SimulationControl(self)
         #: Consumers of the run (the recorder, a live view, a test's probe): whatever the node
         #: records or serves reaches them as sink records (:mod:`friction_sim.io.sinks`), and only so.
         self.sinks: list[Sink] = []
@@ -185,7 +161,7 @@ class SliderNode(QuietNode):
             self.sinks.append(self.recorder)
         try:
             self.live = open_live_view(values, self.get_namespace(), self.get_fully_qualified_name(),
-                                       self._live_services())
+                                       self.control.live_services())
         except BaseException:
             if self.recorder is not None:
                 self.recorder.finish()  # a taken port must not leave a recording open
@@ -195,27 +171,27 @@ class SliderNode(QuietNode):
             self.get_logger().info(f"live view: open {self.live.url} in Foxglove (config/"
                                    "friction_sim.foxglove_layout.json is the layout)")
         deliver(self.sinks, ParametersRecord(recorded(values), 0.0, False))
-        self._frame_id: str = values["frame_id"]
         self._lock = threading.Lock()
+        self._stop = threading.Event()
         self._warn = ThrottledWarning(self.get_logger())
         self._fault = FaultSignal(self)
-        self._make_publishers(values["publish_clock"])
+        #: The publishers and the ticks they have published (:mod:`friction_sim.ros.slider_topics`).
+        self.topics = SliderTopics(self, self.sinks, self._lock, self._stop, self._rt.accelerometer,
+                                   values["frame_id"], values["publish_clock"], self._answered_ns)
         self._make_subscriptions()
         watch_namespace(self, lambda: self._rt.now(wall_ns()), lockstep=bool(values["lockstep"]))
-        self._published = threading.Condition()  # the tick thread's count of ticks published, for ~/step
-        self._ticks_computed = self._ticks_published = 0
-        self._last_published: SliderState | None = None
-        self._make_services()
         self.names = NameWatch(self)
         if not values["lockstep"]:  # in lockstep: every diagnostics_period of simulation time (the loop)
-            self.create_timer(values["diagnostics_period"], self._on_diagnostics,
+            self.create_timer(values["diagnostics_period"], self.publish_diagnostics,
                               clock=Clock(clock_type=ClockType.STEADY_TIME))
-        watch_parameter_refusals(self, PARAMETERS, self._parameter_refused)
-        self.add_on_set_parameters_callback(self._set_parameters)
-        self.add_post_set_parameters_callback(self._parameters_set)
-        self._stop = threading.Event()
+        #: The parameter sets' callbacks (:mod:`friction_sim.ros.slider_parameters`).
+        self.parameter_sets = SliderParameters(self)
+        self.parameter_sets.watch()
         #: The lockstep loop (None in real time): it replaces the clock's ticks.
         self.lockstep = LockstepLoop(self) if isinstance(self._rt, LockstepSlider) else None
+        #: The loop the tick thread runs: the lockstep loop, or ticks at publish_rate.
+        self._loop: LockstepLoop | RealtimeLoop = self.lockstep if self.lockstep is not None \
+            else RealtimeLoop(self, self._stop, self._recorder_health)
         if self.lockstep is None:
             # In real time, let the tick thread take the GIL within 0.5 ms even while the executor
             # thread is busy with a flood of commands (default: 5 ms).  Not in lockstep, which keeps
@@ -224,7 +200,7 @@ class SliderNode(QuietNode):
             sys.setswitchinterval(min(sys.getswitchinterval(), TICK_SWITCH_INTERVAL))
         self._ticker = threading.Thread(target=self._tick_loop, name="slider_tick", daemon=True)
         self._ticker.start()
-        self._serving.set()
+        self.control.serve()
 
     def destroy_node(self) -> None:
         """Stop the tick thread before the publishers go away; close the sinks
@@ -260,17 +236,14 @@ class SliderNode(QuietNode):
 
     @property
     def frame_id(self) -> str:
-        return self._frame_id
+        return self.topics.frame_id
 
     def publish_mean_velocity(self, msg: Any) -> None:
-        self._mean_pub.publish(msg)
+        self.topics.publish_mean_velocity(msg)
 
     def flush_readings(self) -> None:
-        """Lockstep, while the loop waits: publish the held accelerometer samples a reader
-        that came since needs (see :class:`AccelerometerPublisher`)."""
-        answered = self._answered_ns()
-        if self._imu_pub is not None and answered is not None:
-            self._imu_pub.flush(answered)
+        """Lockstep, while the loop waits: the held accelerometer samples a reader that came since needs."""
+        self.topics.flush_readings()
 
     def _answered_ns(self) -> int | None:
         """In lockstep the stamp [ns] of the last sample answered (-1: none); None in real time."""
@@ -282,36 +255,7 @@ class SliderNode(QuietNode):
         """Why the node stopped ('' while it runs): see :class:`SimulationFault`."""
         return self._fault.reason
 
-    # -- wiring ---------------------------------------------------------------
-
-    def _make_publishers(self, publish_clock: bool) -> None:
-        self._pose_pub = self._publisher(PoseStamped, "pose")
-        self._velocity_pub = self._publisher(TwistStamped, "velocity")
-        self._friction_pub = self._publisher(WrenchStamped, "friction_force")
-        self._mean_pub = self._publisher(TwistStamped, "mean_velocity")
-        self._diag_pub = self._publisher(DiagnosticArray, "diagnostics")
-        accelerometer = self._rt.accelerometer
-        self._imu_noise = accelerometer.noise if accelerometer else 0.0
-        self._imu_pub = AccelerometerPublisher(self._publisher(
-            message_class("sensor_msgs/msg/Imu"), ACCELEROMETER, accelerometer_qos()), self._frame_id,
-            self._imu_noise) if accelerometer else None
-        self._pose, self._velocity, self._friction = PoseStamped(), TwistStamped(), WrenchStamped()
-        self._clock_msg = ClockMsg()
-        self._clock_pub: Any = None
-        self._set_publish_clock(publish_clock)
-
-    def _publisher(self, kind: type, topic: str, depth: Any = QOS_DEPTH) -> Any:
-        return self.create_publisher(kind, topic, depth)
-
-    def _set_publish_clock(self, on: bool) -> None:
-        """Advertise /clock only while it is published (the tick thread publishes
-        it under the lock, so it never sees a publisher being destroyed)."""
-        with self._lock:
-            if on and self._clock_pub is None:
-                self._clock_pub = self._publisher(ClockMsg, "/clock")
-            elif not on and self._clock_pub is not None:
-                self.destroy_publisher(self._clock_pub)
-                self._clock_pub = None
+    # -- commands ---------------------------------------------------------------
 
     def _make_subscriptions(self) -> None:
         """One polled subscription per command topic the slider consumes (from
@@ -337,72 +281,13 @@ class SliderNode(QuietNode):
         for outcome in outcomes:
             self.warn_refused(outcome)
 
-    def _live_services(self) -> list[Any]:
-        """The control services again, for Foxglove clients of the live view
-        (its Call Service panel): same names, type and answers as over ROS."""
-        from friction_sim.io.live import LiveService
-
-        return [LiveService(f"{self.get_fully_qualified_name()}/{name}", "std_srvs/srv/Trigger",
-                            functools.partial(self._on_live_control, name)) for name in CONTROLS]
-
-    def _on_live_control(self, name: str, request: bytes) -> bytes:
-        """A control call from a Foxglove client: answered as the ROS service answers (CDR)."""
-        if not self._serving.is_set():
-            raise RuntimeError("the slider is still starting; call again")
-        return bytes(serialize_message(self._on_control(name, Trigger.Request(), Trigger.Response())))
-
-    def _make_services(self) -> None:
-        """``~/pause``, ``~/resume``, ``~/step`` and ``~/reset`` (std_srvs/Trigger)."""
-        for name in CONTROLS:
-            self.create_service(Trigger, f"~/{name}", functools.partial(self._on_control, name))
-
-    # -- simulation control -----------------------------------------------------
-
-    def _on_control(self, name: str, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-        """A ``~/pause``, ``~/resume``, ``~/step`` or ``~/reset`` call: done on
-        the core under the lock, recorded and counted like any command; a step
-        or reset answers once the tick thread has published the state it left."""
-        try:
-            with self._lock:
-                outcome = self._control(name, wall_ns())
-                state, published = self._rt.slider.state(), self._ticks_computed + 1
-                self.record([outcome])
-        except SimulationFault as fault:  # the run cannot go on: say so, answer, stop
-            self.fail(fault)
-            response.success, response.message = False, str(fault)
-            return response
-        self.warn_refused(outcome, self.get_logger().warning)  # each refused call is warned
-        if outcome.accepted and name in (STEP, RESET):
-            self._wait_published(published)
-        response.success = outcome.accepted
-        response.message = outcome.reason or control_text(outcome, state)
-        if outcome.accepted:
-            self.get_logger().info(response.message)
-        return response
-
-    def _control(self, name: str, now: int) -> Outcome:
-        """Pause, resume, step (by step_time, or step_periods periods) or reset the core (lock held)."""
-        if name == STEP:
-            duration = self._rt.step_length(self.get_parameter("step_periods").value,
-                                            self.get_parameter("step_time").value)
-            return self._rt.step(duration, now)
-        act: Callable[[int], Outcome] = getattr(self._rt, name)
-        return act(now)
-
-    def _wait_published(self, tick: int, timeout: float = 2.0) -> None:
-        """Wait until the tick thread has published tick number ``tick`` (or the node stops)."""
-        with self._published:
-            self._published.wait_for(lambda: self._ticks_published >= tick or self._stop.is_set(), timeout)
-
-    # -- commands ---------------------------------------------------------------
-
     def record(self, outcomes: Sequence[Outcome]) -> None:
         """Hand handled commands to the sinks, with the lock held: the tick thread
         and the executor's (parameters, control calls) take commands in turn, and
         a recording must hold them in the order the core took them (verify
         replays them in that order, each a change of its own)."""
         for outcome in outcomes:
-            deliver(self.sinks, CommandRecord(outcome, self._frame_id))
+            deliver(self.sinks, CommandRecord(outcome, self.topics.frame_id))
 
     def warn_refused(self, outcome: Outcome, warn: Callable[[str], Any] | None = None) -> None:
         """Warn about a refusal (by default on the node's throttle: a flood of bad
@@ -411,44 +296,16 @@ class SliderNode(QuietNode):
             kept = "nothing changed" if outcome.command.is_control else "last valid value kept"
             (warn or self._warn)(f"{outcome.reason}; {kept}")
 
-    def _parameter_refused(self, name: str, value: Any, why: str) -> None:
-        """rclpy refused a parameter value before our callbacks (range, type,
-        read-only): counted and recorded like any refusal (common has warned),
-        with the value as it was sent (an integer 2 stays 2: the refusal is
-        about its type)."""
-        values = {name: value} if name in PHYSICS_FIELDS else {}
-        with self._lock:
-            outcome = self._rt.refuse(Command(0.0, PARAMETER_COMMAND, values), why, wall_ns())
-            self.record([outcome])
-
-    # -- publishing -------------------------------------------------------------
+    # -- ticking and diagnostics -----------------------------------------------------
 
     def _tick_loop(self) -> None:
         """Tick until stopped; any failure is reported once and ends the node
-        (:meth:`_fail`), never a thread that dies in silence."""
+        (:meth:`fail`), never a thread that dies in silence."""
         try:
-            self.lockstep.run() if self.lockstep is not None else self._ticks()
+            self._loop.run()
         except Exception as error:  # noqa: BLE001 - reported, and the node stops
             if not self._stop.is_set() and self.context.ok():
                 self.fail(error)
-
-    def _ticks(self) -> None:
-        """Tick at publish_rate on absolute deadlines; after a stall, go on from
-        now rather than bursting to catch up (the physics follows the clock)."""
-        deadline = time.monotonic()
-        while not self._stop.is_set():
-            period = 1.0 / self._rt.publish_rate
-            deadline += period
-            delay = deadline - time.monotonic()
-            if delay > 0.0:
-                time.sleep(delay)
-            elif delay < -period:
-                deadline = time.monotonic()
-            if self._stop.is_set() or not self.context.ok():
-                return
-            self.take_commands()
-            self._on_tick()
-            self._hold_for_recorder()
 
     def fail(self, error: BaseException) -> None:
         """The run cannot go on: log why and report ERROR on diagnostics (once),
@@ -459,66 +316,14 @@ class SliderNode(QuietNode):
             return
         self.get_logger().error(f"{reason}; stopping (exit code {EXIT_FAULT})")
         with contextlib.suppress(Exception):  # the reason is logged already; the node stops anyway
-            self._on_diagnostics()
+            self.publish_diagnostics()
         self._fault.fire()
-
-    def _on_tick(self) -> None:
-        """Advance, then publish the state (and /clock).  While paused nothing
-        is published unless something changed (a step, a reset, a command):
-        simulation time, and /clock with it, stands still."""
-        with self._lock:
-            tick = self._rt.tick(wall_ns())
-            fresh = not tick.paused or tick.state != self._last_published or bool(tick.events or tick.periods)
-            number = self._clock_of(tick, fresh)
-        self._publish_states(tick, fresh, number)  # outside the lock: a set waits for the computation only
 
     def publish_tick(self, tick: Tick, fresh: bool = True) -> None:
         """Publish what a tick made (lock held, as the lockstep loop holds it: /clock
         first, then the states, the period means and the accelerometer's samples)
         and hand it to the sinks."""
-        self._publish_states(tick, fresh, self._clock_of(tick, fresh))
-
-    def _clock_of(self, tick: Tick, fresh: bool) -> int:
-        """Count the tick and publish /clock, to the topic and the sinks (lock held: the
-        publisher may go); its number."""
-        self._ticks_computed += 1
-        if fresh and self._clock_pub is not None:
-            t_ns = seconds_to_ns(tick.state.t)
-            time_msg(t_ns, self._clock_msg.clock)
-            self._clock_pub.publish(self._clock_msg)
-            deliver(self.sinks, ClockRecord(t_ns))
-        return self._ticks_computed
-
-    def _publish_states(self, tick: Tick, fresh: bool, number: int) -> None:
-        """The states, period means and accelerometer samples of tick ``number``, to the topics and sinks."""
-        if fresh:
-            state = tick.state
-            fill_state_messages(state, self._frame_id, self._pose, self._velocity, self._friction)
-            self._pose_pub.publish(self._pose)
-            self._velocity_pub.publish(self._velocity)
-            self._friction_pub.publish(self._friction)
-            for period in tick.periods:
-                self._mean_pub.publish(mean_velocity_message(period, self._frame_id))
-            if self._imu_pub is not None:
-                self._imu_pub.publish(tick.accelerations, hold_after_ns=self._answered_ns())
-            self._last_published = state
-            deliver_tick(self.sinks, tick, self._frame_id, self._imu_noise)
-        with self._published:
-            self._ticks_published = number
-            self._published.notify_all()
-
-    def _hold_for_recorder(self) -> None:
-        """The recorder makes a producer wait rather than drop a message; the
-        wall time the tick waited passes without simulation time (no jump;
-        the achieved real-time factor in diagnostics shows it, and the next
-        tick counts as late)."""
-        waited_ns = self._recorder_health.newly_waited_ns()
-        if waited_ns:
-            with self._lock:
-                self._rt.hold(waited_ns, wall_ns())
-
-    def _on_diagnostics(self) -> None:
-        self.publish_diagnostics()
+        self.topics.publish_tick(tick, fresh)
 
     def publish_diagnostics(self, stamp_ns: int | None = None) -> None:
         """The status 'slider' on diagnostics, stamped ``stamp_ns`` (lockstep: the
@@ -537,40 +342,15 @@ class SliderNode(QuietNode):
         else:  # lockstep: recorded here, not when it comes back (the run may end before it does)
             time_msg(stamp_ns, msg.header.stamp)
             deliver(self.sinks, MessageRecord("diagnostics", msg, stamp_ns))
-        self._diag_pub.publish(msg)
+        self.topics.publish_diagnostics(msg)
 
     # -- parameters ---------------------------------------------------------------
 
-    def _set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
-        """The one place for cross-field rules, and atomic: the whole set is
-        checked by the core against the state in force (which topic commands
-        may have changed since the parameters were last set) and reaches the
-        simulation as one new state, under the lock, or it is refused and
-        nothing changes."""
-        values = {p.name: p.value for p in changes}
-        try:
-            with self._lock:
-                outcome = self._rt.configure(values, wall_ns())
-                if outcome.values or not outcome.accepted:
-                    self.record([outcome])
-        except SimulationFault as fault:  # the run cannot go on: say so, answer, stop
-            self.fail(fault)
-            return SetParametersResult(successful=False, reason=str(fault))
-        self.warn_refused(outcome, self.get_logger().warning)  # each refused set is warned
-        if not outcome.accepted:
-            return SetParametersResult(successful=False, reason=outcome.reason)
-        return SetParametersResult(successful=True)
-
-    def _parameters_set(self, changes: list[Parameter]) -> None:
-        """After a successful set: the settings the tick thread reads, and the
-        record of the non-physics ones (physics changes were recorded as commands)."""
-        self.get_logger().info("parameters set: " + ", ".join(f"{p.name} = {p.value!r}" for p in changes))
-        self._set_publish_clock(self.get_parameter("publish_clock").value)
-        self._frame_id = self.get_parameter("frame_id").value
-        others = {p.name for p in changes} - set(spec.PLANT) - set(spec.INPUTS)
-        if others:
-            t = self._rt.clock.now(wall_ns())
-            deliver(self.sinks, ParametersRecord({n: self.get_parameter(n).value for n in others}, t, True))
+    def follow_settings(self) -> None:
+        """After an accepted parameter set: the settings the tick thread reads,
+        from the parameters in force (:class:`SliderParameters` calls it)."""
+        self.topics.set_publish_clock(self.get_parameter("publish_clock").value)
+        self.topics.frame_id = self.get_parameter("frame_id").value
 
 
 def _unused(msg: Any) -> None:

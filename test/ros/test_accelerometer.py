@@ -10,6 +10,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseStamped
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu
 
@@ -33,7 +34,7 @@ def _node(ns: str, **extra: object) -> SliderNode:
 def test_the_accelerometer_reads_the_slideway_on_its_grid(ros: None) -> None:
     ns = namespace()
     node = _node(ns)
-    probe = Probe(ns, node, outputs={"accelerometer": Imu, "pose": type(node._pose)})  # noqa: SLF001
+    probe = Probe(ns, node, outputs={"accelerometer": Imu, "pose": PoseStamped})
     try:
         assert probe.spin_until(lambda: len(probe.received["accelerometer"]) >= 300, 30.0)
     finally:
@@ -87,7 +88,7 @@ def test_resonant_diagnostics_show_the_drive_level_its_steady_pa_and_the_envelop
     envelope now), and excitation_amplitude, which it ignores, marked unused."""
     ns = namespace()
     node = _node(ns, accelerometer_rate=0.0)
-    probe = Probe(ns, node, outputs={"diagnostics": DiagnosticArray, "pose": type(node._pose)})  # noqa: SLF001
+    probe = Probe(ns, node, outputs={"diagnostics": DiagnosticArray, "pose": PoseStamped})
     wait = _waiter(probe)
     gain = response(50.0, 52.0, PLANT.damping_ratio).gain
     try:
@@ -118,7 +119,7 @@ def test_drive_level_steers_and_excitation_amplitude_is_refused_naming_it(ros: N
     is taken and changes nothing."""
     ns = namespace()
     node = _node(ns, accelerometer_rate=0.0)
-    probe = Probe(ns, node, outputs={"diagnostics": DiagnosticArray, "pose": type(node._pose)})  # noqa: SLF001
+    probe = Probe(ns, node, outputs={"diagnostics": DiagnosticArray, "pose": PoseStamped})
     wait = _waiter(probe)
     why = "excitation_amplitude = 5.0 rejected: is not used by actuator resonant: set drive_level (0 … 1) instead"
     try:

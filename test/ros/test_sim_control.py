@@ -82,8 +82,8 @@ def test_pause_stops_time_exactly_and_resume_goes_on_without_a_jump(ros: None) -
         poses, clocks = len(rig.probe.received["pose"]), len(rig.probe.received["/clock"])
         # Paused for 500 of the node's own ticks (about 0.5 s at 1 kHz; counted, not timed): each of
         # them would have published a state and /clock had it not been paused.
-        ticks = rig.node._ticks_published  # noqa: SLF001 - the node's tick count
-        assert rig.probe.spin_until(lambda: rig.node._ticks_published >= ticks + 500, 30.0)  # noqa: SLF001
+        ticks = rig.node.topics.ticks_published  # the node's tick count
+        assert rig.probe.spin_until(lambda: rig.node.topics.ticks_published >= ticks + 500, 30.0)
         assert rig.node.realtime.now(0) == t_pause == _t(rig), "simulation time moved while paused"
         assert rig.probe.spin_until(lambda: any(
             diagnostics_values(m).get("paused") == "True" for m in rig.probe.received["diagnostics"]), 3.0)
@@ -254,8 +254,8 @@ def test_any_sequence_of_calls_keeps_time_exact_and_the_recording_verifies(
                 periods, step_time = (value, step_time) if name == "step_periods" else (periods, value)
                 continue
             if call == "wait":  # 50 of the node's ticks (counted, not timed): paused, none moves time
-                ticks = rig.node._ticks_published  # noqa: SLF001 - the node's tick count
-                assert rig.probe.spin_until(lambda n=ticks: rig.node._ticks_published >= n + 50, 10.0)  # noqa: SLF001
+                ticks = rig.node.topics.ticks_published  # the node's tick count
+                assert rig.probe.spin_until(lambda n=ticks: rig.node.topics.ticks_published >= n + 50, 10.0)
                 assert (_t(rig) == before) if paused else True
                 continue
             was_paused = paused
