@@ -103,7 +103,8 @@ from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import qos_profile_parameter_events
 from std_msgs.msg import Float64
 
-from friction_sim.core.control.law import ControlOutput, MeanSpeedController
+from friction_sim.core.control.law import MeanSpeedController
+from friction_sim.core.control.reach import ControlOutput
 from friction_sim.core.model import spec
 from friction_sim.core.model.commands import CONTROLLER
 from friction_sim.core.runtime.controller import RealtimeController, plant_words, taken_words

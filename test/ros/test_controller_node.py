@@ -19,7 +19,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy
 
-from friction_sim.core.control.law import speed_limit
+from friction_sim.core.control.speedlimit import speed_limit
 from friction_sim.core.model.params import SliderParams
 from friction_sim.ros.controller import ControllerNode
 from friction_sim.ros.controller_lockstep import LOCKSTEP_READ

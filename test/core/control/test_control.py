@@ -307,7 +307,7 @@ def test_at_phi_one_the_excitation_still_sets_the_speed_and_only_beyond_it_runs_
 
 def test_the_runaway_rule_is_strict() -> None:
     """beats_friction, the one runaway rule: beyond mu times the load, in either direction, not at it."""
-    from friction_sim.core.control.law import runs_away
+    from friction_sim.core.control.relation import runs_away
     from friction_sim.core.model.dimensionless import beats_friction
 
     assert not beats_friction(1.0, 10.0, 0.1) and not beats_friction(-1.0, 10.0, 0.1)
