@@ -96,9 +96,8 @@ from typing import Any, TypeVar
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TwistStamped
-from rcl_interfaces.msg import ParameterEvent, SetParametersResult
+from rcl_interfaces.msg import ParameterEvent
 from rclpy.clock import Clock, ClockType, ROSClock
-from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import qos_profile_parameter_events
 from std_msgs.msg import Float64
@@ -107,7 +106,7 @@ from friction_sim.core.control.law import MeanSpeedController
 from friction_sim.core.control.reach import ControlOutput
 from friction_sim.core.model import spec
 from friction_sim.core.model.commands import CONTROLLER
-from friction_sim.core.runtime.controller import RealtimeController, plant_words, taken_words
+from friction_sim.core.runtime.controller import RealtimeController
 from friction_sim.core.runtime.drive import DriveCommand
 from friction_sim.errors import ParameterError, one_line
 from friction_sim.io.messages import (
@@ -116,13 +115,13 @@ from friction_sim.io.messages import (
     key_values,
     message_class,
     ns_to_seconds,
-    parameter_event_values,
     stamp_ns,
     time_msg,
 )
 from friction_sim.ros.controller_commands import CommandBatches
-from friction_sim.ros.controller_lockstep import LOCKSTEP_READ, LockstepAnswers
-from friction_sim.ros.controller_plant import ADOPTED, FOLLOWED, named, own_parameters, qualified
+from friction_sim.ros.controller_lockstep import LockstepAnswers
+from friction_sim.ros.controller_parameters import PLANT_TIMEOUT, OwnParameters, PlantParameters
+from friction_sim.ros.controller_plant import qualified
 from friction_sim.ros.graph import NameWatch
 from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, accelerometer_qos, take_all
 from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
@@ -131,7 +130,6 @@ from friction_sim.ros.run import CONTROLLER_EXIT_CODES, QuietNode, node_help, ru
 _T = TypeVar("_T")
 QOS_DEPTH = 10
 
-PLANT_TIMEOUT = 5.0
 DISCOVERY_SETTLE = 0.5
 #: The node's parameters: declared once in the one vocabulary.
 PARAMETERS = spec.CONTROLLER_NODE
@@ -188,21 +186,23 @@ class ControllerNode(QuietNode):
         self.names = NameWatch(self)
         self.create_timer(values["diagnostics_period"], self.guarded("diagnostics", self._publish_diagnostics_timed),
                           clock=steady)
-        watch_parameter_refusals(self, PARAMETERS, self._parameter_refused)
-        self.add_on_set_parameters_callback(self._set_parameters_guarded)
-        self.add_post_set_parameters_callback(self.guarded("parameter update", self._parameters_set))
+        #: The handlers of a set of this node's parameters (controller_parameters.py).
+        self.parameters = OwnParameters(self)
+        watch_parameter_refusals(self, PARAMETERS, self.parameters.refused)
+        self.add_on_set_parameters_callback(self.parameters.on_set)
+        self.add_post_set_parameters_callback(self.guarded("parameter update", self.parameters.after_set))
         self.ready = False
-        self._plant_settled = not values["plant_node"]
         self._deadline = time.monotonic() + PLANT_TIMEOUT
-        if not self._plant_settled:
-            self._plant = AsyncParameterClient(self, values["plant_node"])
-            self._plant_future: Any = None
+        #: The plant node's parameters, taken at start-up and followed (controller_parameters.py).
+        self.plant = PlantParameters(self, AsyncParameterClient(self, values["plant_node"])
+                                     if values["plant_node"] else None)
+        if not self.plant.settled:
             self.runtime.plant_node = qualified(values["plant_node"], self.get_namespace())
             self.create_subscription(ParameterEvent, "/parameter_events",
-                                     self.guarded("plant parameter event", self._on_plant_event),
+                                     self.guarded("plant parameter event", self.plant.on_event),
                                      qos_profile_parameter_events)
         elif values["lockstep"]:  # no plant node to say so: this node's own word
-            self.lockstep = LockstepAnswers(self, values["actuation_delay"], values["accelerometer_rate"])
+            self.start_lockstep(values["actuation_delay"], values["accelerometer_rate"])
         else:
             self.accelerometer_group.open = True
         self._matched_at: float | None = None
@@ -232,6 +232,15 @@ class ControllerNode(QuietNode):
         return self.runtime.control
 
     @property
+    def in_lockstep(self) -> bool:
+        """True when the plant runs in lockstep (the node answers samples on ``control_answer``)."""
+        return self.lockstep is not None
+
+    def start_lockstep(self, delay: float, accelerometer_rate: float) -> None:
+        """Answer each sample on ``control_answer`` from now on (:mod:`friction_sim.ros.controller_lockstep`)."""
+        self.lockstep = LockstepAnswers(self, delay, accelerometer_rate)
+
+    @property
     def polling(self) -> bool:
         """True while the command topics are polled every hold-off (after a
         batch); False while the node is quiet and a command wakes it at once."""
@@ -241,8 +250,8 @@ class ControllerNode(QuietNode):
 
     def _start_up(self) -> None:
         """Settle the model, then wait for a listener to the output; then go."""
-        if not self._plant_settled:
-            self._poll_plant()
+        if not self.plant.settled:
+            self.plant.poll()
             return
         now = time.monotonic()
         if self.lockstep is not None:  # answers are stamped: no discovery to wait for
@@ -263,75 +272,11 @@ class ControllerNode(QuietNode):
         self.ready = True
         self._publish(self.runtime.control.output)
 
-    def _poll_plant(self) -> None:
-        if self._plant_future is None and self._plant.services_are_ready():
-            self._plant_future = self._plant.get_parameters([*ADOPTED, *LOCKSTEP_READ])
-        if self._plant_future is not None and self._plant_future.done():
-            self._adopt_plant(self._plant_future.result())
-        elif time.monotonic() > self._deadline:
-            self._settle(f"plant node '{self.get_parameter('plant_node').value}' did not answer within "
-                         f"{PLANT_TIMEOUT:g} s: using this node's own mass, mu and gravity", warn=True)
-
-    def _adopt_plant(self, response: Any) -> None:
-        """Take the plant's whole model, window, drive force and frequency as this
-        node's own parameters (validated and applied like any parameter change),
-        and its drive level as where the inner loop starts.  A parameter the
-        plant node does not declare (an older slider) keeps this node's value."""
-        try:
-            read = [*ADOPTED, *LOCKSTEP_READ]
-            values = dict(zip(read, [Parameter.from_parameter_msg(named(name, value)).value
-                                     for name, value in zip(read, response.values, strict=True)]))
-            lockstep = {name: values.pop(name) for name in LOCKSTEP_READ}
-            level = values.pop("drive_level")  # the resonant plant's level in force: the inner loop starts there
-            # Checked here, where it comes in: the inner loop starts from it as from a level in range.
-            self.runtime.plant_drive_level = None if level is None else float(spec.DRIVE_LEVEL.check(level))
-            update = own_parameters(values)
-        except (TypeError, ValueError) as error:
-            self._settle(f"plant parameters unusable ({error}): using this node's own", warn=True)
-            return
-        result = self.set_parameters_atomically(update)
-        if not result.successful:
-            self._settle(f"plant parameters unusable ({result.reason}): using this node's own", warn=True)
-            return
-        if lockstep["lockstep"]:
-            self.lockstep = LockstepAnswers(self, lockstep["actuation_delay"], lockstep["accelerometer_rate"] or 0.0)
-        self.runtime.model_source = f"plant node {self.runtime.plant_node}"
-        self.runtime.taken_from_plant = taken_words(
-            {parameter.name: parameter.value for parameter in update}, level)
-        self._settle(f"took from {self.runtime.model_source}: {self.runtime.taken_from_plant}")
-
-    def _on_plant_event(self, msg: ParameterEvent) -> None:
-        """The plant node's parameters changed (``ros2 param set /slider
-        excitation_frequency 100.0``): the model follows, through this node's
-        own parameters (validated like any set), so the law inverts the plant
-        in force; what this node cannot take is warned about, and it keeps the
-        model it has."""
-        if msg.node != self.runtime.plant_node or not self._plant_settled or self.lockstep is not None:
-            return  # (in lockstep an event is not ordered with the samples: who changes the plant sets this node)
-        new, changed = parameter_event_values(msg)
-        event = {**new, **changed}
-        values = {name: value for name, value in event.items() if name in FOLLOWED}
-        if not values:
-            return
-        words = ", ".join(f"{name} = {value!r}" for name, value in values.items())
-        try:
-            result = self.set_parameters_atomically(own_parameters(values))
-            reason = "" if result.successful else result.reason
-        except (TypeError, ValueError) as error:
-            reason = str(error)
-        if reason:
-            self.runtime.refuse(f"plant change {words}: {reason}")
-            self.get_logger().warning(f"plant {self.runtime.plant_node} changed {words}, which this controller "
-                                      f"cannot take ({reason}); it keeps inverting {plant_words(self.control)}")
-        else:
-            self.runtime.plant_changes += 1
-            self.get_logger().info(f"plant {self.runtime.plant_node} changed {words}: the model follows "
-                                   f"({plant_words(self.control)})")
-        self._publish_diagnostics()
-
-    def _settle(self, message: str, warn: bool = False) -> None:
+    def settle(self, message: str, warn: bool = False) -> None:
+        """The model is settled (taken from the plant, or this node's own): say ``message``,
+        take the accelerometer's readings from now on and judge a waiting target."""
         (self.get_logger().warning if warn else self.get_logger().info)(message)
-        self._plant_settled = True
+        self.plant.settled = True
         self._deadline = time.monotonic() + PLANT_TIMEOUT
         if self.lockstep is None:  # readings of before: of a loop that adopting the plant replaced
             take_all(self.accelerometer, ACCELEROMETER_DEPTH)
@@ -355,12 +300,6 @@ class ControllerNode(QuietNode):
             self._warn(f"{reason}; last valid value kept")
         if len(refusals) < len(changes):
             self._publish(self.runtime.control.output)
-
-    def _parameter_refused(self, name: str, value: Any, why: str) -> None:
-        """rclpy refused a parameter value before our callbacks (range, type,
-        read-only, undeclared): counted like any refusal (the watch has warned)."""
-        with self.callback_lock:
-            self.runtime.refuse(f"parameter {why}")
 
     def _on_mean_velocity(self, msg: TwistStamped) -> None:
         if self.lockstep is not None:
@@ -464,6 +403,10 @@ class ControllerNode(QuietNode):
     def publish_diagnostics(self) -> None:
         self._publish_diagnostics()
 
+    def publish_output(self) -> None:
+        """Carry out the law's decision in force (after a parameter set)."""
+        self._publish(self.runtime.control.output)
+
     def _drive_values(self, boundary: float | None, acts_at: float | None) -> dict[str, float]:
         """The drive level (after a frequency tracking moved).  The inner loop
         decides at boundaries only (its model starts from the plant's level in
@@ -525,35 +468,6 @@ class ControllerNode(QuietNode):
         else:
             time_msg(self.lockstep.stamp_ns, msg.header.stamp)
         self._diag_pub.publish(msg)
-
-    # -- parameters ---------------------------------------------------------------
-
-    def _set_parameters_guarded(self, changes: list[Parameter]) -> SetParametersResult:
-        """:meth:`_set_parameters`; an unexpected error in it refuses the set."""
-        with self.callback_lock:
-            try:
-                return self._set_parameters(changes)
-            except Exception as error:  # noqa: BLE001 - answer the caller, report, go on
-                self.internal_error("parameter set", error)
-                return SetParametersResult(successful=False,
-                                           reason=f"internal error: {self.runtime.last_internal_error}")
-
-    def _set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
-        """Cross-field rules, checked on a copy of the controller as it is now
-        (drive force and frequency follow the topics): the change takes effect
-        whole, or it is refused and nothing changes."""
-        values = {p.name: p.value for p in changes}
-        current = {name: self.get_parameter(name).value for name in PARAMETERS}
-        try:
-            candidate = self.runtime.with_parameters(values, current)
-        except ParameterError as error:
-            self.get_logger().warning(f"parameter {error}; value kept")  # one per set: a service call each
-            return SetParametersResult(successful=False, reason=str(error))
-        self.runtime.adopt(candidate, values, current)
-        return SetParametersResult(successful=True)
-
-    def _parameters_set(self, changes: list[Parameter]) -> None:
-        self._publish(self.runtime.control.output)
 
 
 def help_text() -> str:
