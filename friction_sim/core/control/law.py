@@ -56,9 +56,10 @@ naming the value and the limit: :mod:`friction_sim.core.control.speedlimit`),
 and the state never holds a non-finite value, whatever the (finite, in
 range) inputs:
 
-* the state r is kept within :data:`~friction_sim.core.control.reach.RATIO_LIMITS` and moves by a factor in
-  [1/4, 4]; a target whose U* is zero in floating point (1e-321 m/s at
-  1 mHz) asks for standing still (Pa = 0), and nothing is integrated for it;
+* the state r is kept within :data:`~friction_sim.core.control.integral.RATIO_LIMITS`
+  and moves by a factor in [1/4, 4] (:mod:`friction_sim.core.control.integral`); a
+  target whose U* is zero in floating point (1e-321 m/s at 1 mHz) asks for
+  standing still (Pa = 0), and nothing is integrated for it;
 * every input change is a transaction: if anything raises, the controller
   is left exactly as it was.
 """
@@ -72,7 +73,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
-from friction_sim.core.control.reach import RATIO_LIMITS, ControlOutput, clamp, decide
+from friction_sim.core.control.integral import LastClean, integral_step
+from friction_sim.core.control.reach import ControlOutput, decide
 from friction_sim.core.control.sampleclock import SampleClock
 from friction_sim.core.control.speedlimit import SampleLimit, speed_limit, speed_limit_formula
 from friction_sim.core.model import spec
@@ -120,13 +122,13 @@ class MeanSpeedController:
         self._frequency = float(spec.EXCITATION_FREQUENCY.check(frequency))
         self._target = 0.0
         self._ratio = 1.0  # U_cmd / U*
-        self._last_clean: tuple[float, float] | None = None  # (U_cmd, shortfall) for the secant
+        self._last_clean: LastClean = None  # (U_cmd, shortfall) for the secant
         self.clock = SampleClock()
         self.measured_speed = math.nan
         self._actuator_limit: float | None = None  # the largest Pa [N] the actuator gives (None: no limit)
         self._limits = SampleLimit.of(speed_limit(self._drive_force, config.model, self._frequency,
                                                   config.max_amplitude_ratio))
-        self.output = self._decide()
+        self._update()
         self.set_target(target_speed)
 
     @contextmanager
@@ -217,7 +219,12 @@ class MeanSpeedController:
             out = self.output
             if (clean and self._target != 0.0 and out.u_target != 0.0 and not out.unreachable
                     and not out.runaway and self._limits.within(speed)):
-                self._integrate(speed, out)
+                # The shortfall in the target's direction, in units of U (finite: |speed| is within the limit).
+                error = nondimensional_speed(math.copysign(1.0, self._target) * (self._target - speed),
+                                             self._frequency, config.model.gravity, config.model.mu)
+                self._ratio, self._last_clean = integral_step(
+                    self._ratio, self._last_clean, out.u_target, error, saturated=out.saturated,
+                    gain=config.integral_gain, secant=config.secant)
             return self._update()
 
     def _plausible(self, speed: float) -> float:
@@ -242,30 +249,6 @@ class MeanSpeedController:
         limit = speed_limit(self._drive_force, self._config.model, self._frequency,
                             self._config.max_amplitude_ratio)
         self._limits = self._limits.changed(limit, self._config.mean_window_periods)
-
-    def _integrate(self, speed: float, out: ControlOutput) -> None:
-        """Move the state r on a clean sample (see the module doc)."""
-        config = self.config
-        # The shortfall in the target's direction, in units of U (finite: |speed| is within the limit).
-        error = nondimensional_speed(math.copysign(1.0, self._target) * (self._target - speed), self._frequency,
-                                     config.model.gravity, config.model.mu)
-        if out.saturated and error > 0.0:
-            return  # anti-windup: never further in the direction of a saturated output
-        command = abs(out.u_target) * self._ratio
-        if not (0.0 < command < math.inf):
-            return  # U_cmd underflows: nothing to scale
-        step = config.integral_gain * error
-        if config.secant and self._last_clean is not None:
-            previous_command, previous_error = self._last_clean
-            moved = command - previous_command
-            slope = (previous_error - error) / moved if moved != 0.0 else 0.0
-            if slope > 0.0:
-                step = error / slope
-        new_command = min(max(command + step, 0.25 * command), 4.0 * command)
-        ratio = clamp(self._ratio * (new_command / command), *RATIO_LIMITS)
-        if math.isfinite(ratio):
-            self._last_clean = (command, error)
-            self._ratio = ratio
 
     def limit_actuator(self, amplitude: float | None) -> ControlOutput:
         """The largest Pa [N] the actuator can give now (the resonant exciter at
@@ -303,19 +286,15 @@ class MeanSpeedController:
                     force == 0.0 or math.copysign(1.0, target) != math.copysign(1.0, force)):
                 self._target = 0.0
             self._plant_changed()
-            self.output = self._decide()
+            self._update()
 
     def _update(self) -> ControlOutput:
-        self.output = self._decide()
-        return self.output
-
-    def _decide(self) -> ControlOutput:
-        """The output for the state in force (:func:`~friction_sim.core.control.reach.decide`);
-        anti-windup may cut the ratio."""
+        """Decide for the state in force (:func:`~friction_sim.core.control.reach.decide`;
+        anti-windup may cut the ratio), and keep the output."""
         config = self.config
-        output, self._ratio = decide(config.model, config.max_amplitude_ratio, self._actuator_limit,
-                                     self._drive_force, self._frequency, self._target, self._ratio)
-        return output
+        self.output, self._ratio = decide(config.model, config.max_amplitude_ratio, self._actuator_limit,
+                                          self._drive_force, self._frequency, self._target, self._ratio)
+        return self.output
 
     def beyond_limit(self, speed: float) -> bool:
         """Whether a finite ``speed`` [m/s] is faster than any plant in force

@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from friction_sim.core.control.integral import RATIO_LIMITS, clamp
 from friction_sim.core.control.relation import (
     branch,
     branch_end,
@@ -40,11 +41,6 @@ from friction_sim.core.model.dimensionless import (
 )
 from friction_sim.core.model.params import SliderParams
 
-#: The state r = U_cmd/U* stays within these bounds: a model may be off by a
-#: factor of a million in scale, and r can neither overflow nor reach 0 (from
-#: which a multiplicative step would never bring it back).
-RATIO_LIMITS = (1e-6, 1e6)
-
 
 @dataclass(frozen=True)
 class ControlOutput:
@@ -62,11 +58,6 @@ class ControlOutput:
     runaway: bool  # |phi| > 1 (|Fd - m g sin(alpha)| > mu m g cos(alpha)): it accelerates whatever Pa is
     #: The fastest mean speed [m/s] toward the target within the ceiling of a (NaN: no target, or no branch).
     reachable_speed: float = math.nan
-
-
-def clamp(value: float, low: float, high: float) -> float:
-    """``value`` within [low, high]."""
-    return min(max(value, low), high)
 
 
 def ceiling(max_ratio: float, actuator_limit: float | None, weight: float) -> float:

@@ -19,8 +19,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from friction_sim.core.control import reach
+from friction_sim.core.control.integral import RATIO_LIMITS
 from friction_sim.core.control.law import ControllerConfig, MeanSpeedController
-from friction_sim.core.control.reach import RATIO_LIMITS, ControlOutput
+from friction_sim.core.control.reach import ControlOutput
 from friction_sim.core.control.speedlimit import LIMIT_SLACK_SAMPLES, speed_limit
 from friction_sim.core.model import spec
 from friction_sim.core.model.commands import Command
