@@ -84,6 +84,11 @@ counted (:mod:`friction_sim.core.runtime.drive`), never held for later.
 When its plant runs in lockstep (read from plant_node at start-up) the node answers
 each mean_velocity sample on ``control_answer`` instead of publishing on the command
 topics (:mod:`friction_sim.ros.controller_lockstep`).
+
+The node wires its parts together: the command batches
+(:mod:`friction_sim.ros.controller_commands`), its own and its plant's
+parameters (:mod:`friction_sim.ros.controller_parameters`) and what it
+publishes (:mod:`friction_sim.ros.controller_outputs`).
 """
 
 from __future__ import annotations
@@ -94,13 +99,11 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TwistStamped
 from rcl_interfaces.msg import ParameterEvent
-from rclpy.clock import Clock, ClockType, ROSClock
+from rclpy.clock import Clock, ClockType
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import qos_profile_parameter_events
-from std_msgs.msg import Float64
 
 from friction_sim.core.control.law import MeanSpeedController
 from friction_sim.core.control.reach import ControlOutput
@@ -112,23 +115,21 @@ from friction_sim.errors import ParameterError, one_line
 from friction_sim.io.messages import (
     ACCELEROMETER_DEPTH,
     command_from_message,
-    key_values,
     message_class,
     ns_to_seconds,
     stamp_ns,
-    time_msg,
 )
 from friction_sim.ros.controller_commands import CommandBatches
 from friction_sim.ros.controller_lockstep import LockstepAnswers
+from friction_sim.ros.controller_outputs import QOS_DEPTH, ControllerOutputs
 from friction_sim.ros.controller_parameters import PLANT_TIMEOUT, OwnParameters, PlantParameters
 from friction_sim.ros.controller_plant import qualified
 from friction_sim.ros.graph import NameWatch
-from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, accelerometer_qos, take_all
+from friction_sim.ros.intake import PolledGroup, ThrottledWarning, accelerometer_qos, take_all
 from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
 from friction_sim.ros.run import CONTROLLER_EXIT_CODES, QuietNode, node_help, run_node, wall_ns
 
 _T = TypeVar("_T")
-QOS_DEPTH = 10
 
 DISCOVERY_SETTLE = 0.5
 #: The node's parameters: declared once in the one vocabulary.
@@ -158,17 +159,12 @@ class ControllerNode(QuietNode):
         self.runtime = RealtimeController(values)
         #: The first of each kind of unexpected error is logged.
         self._reported_errors: set[str] = set()
-        self._last_published: float | None = None
-        self.output_listeners: list[Callable[[ControlOutput], None]] = []
-        #: Called with each drive command published (resonant actuator).
-        self.drive_listeners: list[Callable[[DriveCommand], None]] = []
         self._warn = ThrottledWarning(self.get_logger())
-        self._amplitude_pub = self.create_publisher(Float64, "excitation_amplitude", QOS_DEPTH)
-        self._diag_pub = self.create_publisher(DiagnosticArray, "diagnostics", QOS_DEPTH)
-        self._level_pub = self.create_publisher(Float64, "drive_level", QOS_DEPTH)
-        self._frequency_pub = self.create_publisher(Float64, "excitation_frequency", QOS_DEPTH)
-        self._outputs = {"excitation_amplitude": self._amplitude_pub, "drive_level": self._level_pub,
-                         "excitation_frequency": self._frequency_pub}
+        #: The command topics and diagnostics (controller_outputs.py).
+        self.outputs = ControllerOutputs(self)
+        #: Called with each decision carried out, and with each drive command published (resonant actuator).
+        self.output_listeners: list[Callable[[ControlOutput], None]] = self.outputs.output_listeners
+        self.drive_listeners: list[Callable[[DriveCommand], None]] = self.outputs.drive_listeners
         #: The answers to the slider's samples while it runs in lockstep (None in real time).
         self.lockstep: LockstepAnswers | None = None
         steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -184,8 +180,8 @@ class ControllerNode(QuietNode):
         self.accelerometer: Any = None
         self.subscribe_accelerometer(lockstep=False)
         self.names = NameWatch(self)
-        self.create_timer(values["diagnostics_period"], self.guarded("diagnostics", self._publish_diagnostics_timed),
-                          clock=steady)
+        self.create_timer(values["diagnostics_period"],
+                          self.guarded("diagnostics", self.outputs.publish_diagnostics_timed), clock=steady)
         #: The handlers of a set of this node's parameters (controller_parameters.py).
         self.parameters = OwnParameters(self)
         watch_parameter_refusals(self, PARAMETERS, self.parameters.refused)
@@ -259,7 +255,7 @@ class ControllerNode(QuietNode):
             self.ready = True
             self.lockstep.answer_waiting()
             return
-        output_pub = self._amplitude_pub if self.runtime.drive is None else self._level_pub
+        output_pub = self.outputs.amplitude if self.runtime.drive is None else self.outputs.level
         if output_pub.get_subscription_count() == 0:
             self._matched_at = None
             if now < self._deadline:
@@ -270,7 +266,7 @@ class ControllerNode(QuietNode):
             return  # both ends of a new connection need a moment to match
         self.destroy_timer(self._startup_timer)
         self.ready = True
-        self._publish(self.runtime.control.output)
+        self.outputs.publish(self.runtime.control.output)
 
     def settle(self, message: str, warn: bool = False) -> None:
         """The model is settled (taken from the plant, or this node's own): say ``message``,
@@ -299,7 +295,7 @@ class ControllerNode(QuietNode):
         for reason in refusals:
             self._warn(f"{reason}; last valid value kept")
         if len(refusals) < len(changes):
-            self._publish(self.runtime.control.output)
+            self.outputs.publish(self.runtime.control.output)
 
     def _on_mean_velocity(self, msg: TwistStamped) -> None:
         if self.lockstep is not None:
@@ -312,7 +308,7 @@ class ControllerNode(QuietNode):
             self._warn(f"{error}; sample ignored")
             return
         if output is not None:
-            self._publish(output, boundary=t)
+            self.outputs.publish(output, boundary=t)
 
     def _on_acceleration(self, msg: Any) -> None:
         """An accelerometer sample for the inner loop (its normal specific force; in lockstep the
@@ -359,115 +355,25 @@ class ControllerNode(QuietNode):
                                 "with its last valid state (diagnostics ERROR)")
         if where != "diagnostics":
             with contextlib.suppress(Exception):  # it is logged already
-                self._publish_diagnostics()
+                self.outputs.publish_diagnostics()
 
     # -- publishing ---------------------------------------------------------------
 
-    def _publish(self, output: ControlOutput, boundary: float | None = None) -> dict[str, float]:
-        """Carry out the law's decision and return it as the values it sets: Pa
-        (force actuator), or the drive level (resonant: the inner loop's at a
-        window's end ``boundary``, the steady gain's otherwise) and a frequency
-        tracking moved.  In real time they are published on their topics; in
-        lockstep only a sample's answer carries them (the caller sends it), so
-        a decision between samples waits for the next one."""
-        lockstep = self.lockstep is not None
-        if not (self.ready and self.runtime.active):
-            return {}
-        if self.lockstep is not None and boundary is None:  # it acts with the next answer: not clean
-            self.lockstep.changed = self.lockstep.changed or output.amplitude != self._last_published
-            return {}
-        control = self.runtime.control
-        acts_at = self.lockstep.acts_at(boundary) if self.lockstep is not None and boundary is not None \
-            else self._sim_time()
-        if output.amplitude != self._last_published:  # the plant's answer to the old Pa is no sample of the new
-            control.clock.note_change(wall_ns(), 1.0 / control.frequency, acts_at)
-            self._last_published = output.amplitude
-        values = self._drive_values(boundary, acts_at) if self.runtime.drive is not None \
-            else {"excitation_amplitude": output.amplitude}
-        if not lockstep:
-            for name, value in values.items():
-                self._outputs[name].publish(Float64(data=value))
-        self._warn_on_conditions(output)
-        for listener in self.output_listeners:
-            listener(output)
-        return values
-
     def decide(self, output: ControlOutput, boundary: float) -> dict[str, float]:
         """The law's decision at the window's end ``boundary`` (lockstep: the answer's values)."""
-        return self._publish(output, boundary)
+        return self.outputs.publish(output, boundary)
 
     def warn(self, text: str) -> None:
         """Warn about refused input (at most once a second)."""
         self._warn(text)
 
     def publish_diagnostics(self) -> None:
-        self._publish_diagnostics()
+        """The controller's status on ``diagnostics`` now."""
+        self.outputs.publish_diagnostics()
 
     def publish_output(self) -> None:
         """Carry out the law's decision in force (after a parameter set)."""
-        self._publish(self.runtime.control.output)
-
-    def _drive_values(self, boundary: float | None, acts_at: float | None) -> dict[str, float]:
-        """The drive level (after a frequency tracking moved).  The inner loop
-        decides at boundaries only (its model starts from the plant's level in
-        force, and plans from there); without it each new Pa is answered at once.
-        A window judged by the law must lie after the slideway settled: the
-        change is noted while the loop still moves the amplitude."""
-        drive, control = self.runtime.drive, self.runtime.control
-        assert drive is not None
-        if boundary is not None:
-            command = self.runtime.drive_boundary(boundary)
-        elif not drive.inner_loop:
-            command = self.runtime.steady_drive()
-        else:
-            return {}
-        assert command is not None
-        if drive.inner_loop and not drive.settled:
-            control.clock.note_change(wall_ns(), 1.0 / control.frequency,
-                                      boundary if self.lockstep is None else acts_at)
-        for listener in self.drive_listeners:
-            listener(command)
-        if command.frequency_changed:
-            return {"excitation_frequency": command.frequency, "drive_level": command.level}
-        return {"drive_level": command.level}
-
-    def _sim_time(self) -> float | None:
-        """The simulation time [s] of the node's clock under ``use_sim_time``
-        once /clock has come (a paused slider's /clock stands still), else None."""
-        clock = self.get_clock()
-        if not (isinstance(clock, ROSClock) and clock.ros_time_is_active):
-            return None
-        now = clock.now().nanoseconds
-        return now / 1e9 if now > 0 else None
-
-    def _warn_on_conditions(self, output: ControlOutput) -> None:
-        """Warn once each time the target becomes unreachable or the drive runs away."""
-        warnings, publish = self.runtime.news(output)
-        for text in warnings:
-            self.get_logger().warning(text)
-        if publish:
-            self._publish_diagnostics()
-
-    def _publish_diagnostics_timed(self) -> None:
-        """Every diagnostics_period of wall time (in lockstep: of simulation time, with the answers)."""
-        if self.lockstep is None or self.lockstep.stamp_ns == 0:  # (lockstep: until the first answer, stamped 0)
-            self._publish_diagnostics()
-
-    def _publish_diagnostics(self) -> None:
-        """The controller's status on ``diagnostics``, stamped by the node's
-        clock (wall time, or /clock under use_sim_time) as the slider's is; in
-        lockstep with the simulation time of the sample last answered."""
-        report = self.runtime.status(namesake=self.names.problem, ready=self.ready)
-        lockstep = self.lockstep.values() if self.lockstep is not None else {}
-        status = DiagnosticStatus(name="controller", hardware_id=self.get_fully_qualified_name(),
-                                  level=bytes([report.level]), message=report.message,
-                                  values=key_values({**report.values, **lockstep, "messages_lost": LostMessages.count}))
-        msg = DiagnosticArray(status=[status])
-        if self.lockstep is None:
-            msg.header.stamp = self.get_clock().now().to_msg()
-        else:
-            time_msg(self.lockstep.stamp_ns, msg.header.stamp)
-        self._diag_pub.publish(msg)
+        self.outputs.publish(self.runtime.control.output)
 
 
 def help_text() -> str:
