@@ -84,6 +84,11 @@ counted (:mod:`friction_sim.core.runtime.drive`), never held for later.
 When its plant runs in lockstep (read from plant_node at start-up) the node answers
 each mean_velocity sample on ``control_answer`` instead of publishing on the command
 topics (:mod:`friction_sim.ros.controller_lockstep`).
+
+The node wires its parts together: the command batches
+(:mod:`friction_sim.ros.controller_commands`), its own and its plant's
+parameters (:mod:`friction_sim.ros.controller_parameters`) and what it
+publishes (:mod:`friction_sim.ros.controller_outputs`).
 """
 
 from __future__ import annotations
@@ -94,43 +99,38 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TwistStamped
-from rcl_interfaces.msg import ParameterEvent, SetParametersResult
-from rclpy.clock import Clock, ClockType, ROSClock
-from rclpy.parameter import Parameter
+from rcl_interfaces.msg import ParameterEvent
+from rclpy.clock import Clock, ClockType
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import qos_profile_parameter_events
-from std_msgs.msg import Float64
 
-from friction_sim.core.control.law import ControlOutput, MeanSpeedController
+from friction_sim.core.control.law import MeanSpeedController
+from friction_sim.core.control.reach import ControlOutput
 from friction_sim.core.model import spec
 from friction_sim.core.model.commands import CONTROLLER
-from friction_sim.core.runtime.controller import RealtimeController, plant_words, taken_words
+from friction_sim.core.runtime.controller import RealtimeController
 from friction_sim.core.runtime.drive import DriveCommand
 from friction_sim.errors import ParameterError, one_line
 from friction_sim.io.messages import (
     ACCELEROMETER_DEPTH,
     command_from_message,
-    key_values,
     message_class,
     ns_to_seconds,
-    parameter_event_values,
     stamp_ns,
-    time_msg,
 )
 from friction_sim.ros.controller_commands import CommandBatches
-from friction_sim.ros.controller_lockstep import LOCKSTEP_READ, LockstepAnswers
-from friction_sim.ros.controller_plant import ADOPTED, FOLLOWED, named, own_parameters, qualified
+from friction_sim.ros.controller_lockstep import LockstepAnswers
+from friction_sim.ros.controller_outputs import QOS_DEPTH, ControllerOutputs
+from friction_sim.ros.controller_parameters import PLANT_TIMEOUT, OwnParameters, PlantParameters
+from friction_sim.ros.controller_plant import qualified
 from friction_sim.ros.graph import NameWatch
-from friction_sim.ros.intake import LostMessages, PolledGroup, ThrottledWarning, accelerometer_qos, take_all
+from friction_sim.ros.intake import PolledGroup, ThrottledWarning, accelerometer_qos, take_all
 from friction_sim.ros.parameters import declare_settings, watch_parameter_refusals
 from friction_sim.ros.run import CONTROLLER_EXIT_CODES, QuietNode, node_help, run_node, wall_ns
 
 _T = TypeVar("_T")
-QOS_DEPTH = 10
 
-PLANT_TIMEOUT = 5.0
 DISCOVERY_SETTLE = 0.5
 #: The node's parameters: declared once in the one vocabulary.
 PARAMETERS = spec.CONTROLLER_NODE
@@ -159,17 +159,12 @@ class ControllerNode(QuietNode):
         self.runtime = RealtimeController(values)
         #: The first of each kind of unexpected error is logged.
         self._reported_errors: set[str] = set()
-        self._last_published: float | None = None
-        self.output_listeners: list[Callable[[ControlOutput], None]] = []
-        #: Called with each drive command published (resonant actuator).
-        self.drive_listeners: list[Callable[[DriveCommand], None]] = []
         self._warn = ThrottledWarning(self.get_logger())
-        self._amplitude_pub = self.create_publisher(Float64, "excitation_amplitude", QOS_DEPTH)
-        self._diag_pub = self.create_publisher(DiagnosticArray, "diagnostics", QOS_DEPTH)
-        self._level_pub = self.create_publisher(Float64, "drive_level", QOS_DEPTH)
-        self._frequency_pub = self.create_publisher(Float64, "excitation_frequency", QOS_DEPTH)
-        self._outputs = {"excitation_amplitude": self._amplitude_pub, "drive_level": self._level_pub,
-                         "excitation_frequency": self._frequency_pub}
+        #: The command topics and diagnostics (controller_outputs.py).
+        self.outputs = ControllerOutputs(self)
+        #: Called with each decision carried out, and with each drive command published (resonant actuator).
+        self.output_listeners: list[Callable[[ControlOutput], None]] = self.outputs.output_listeners
+        self.drive_listeners: list[Callable[[DriveCommand], None]] = self.outputs.drive_listeners
         #: The answers to the slider's samples while it runs in lockstep (None in real time).
         self.lockstep: LockstepAnswers | None = None
         steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -185,23 +180,25 @@ class ControllerNode(QuietNode):
         self.accelerometer: Any = None
         self.subscribe_accelerometer(lockstep=False)
         self.names = NameWatch(self)
-        self.create_timer(values["diagnostics_period"], self.guarded("diagnostics", self._publish_diagnostics_timed),
-                          clock=steady)
-        watch_parameter_refusals(self, PARAMETERS, self._parameter_refused)
-        self.add_on_set_parameters_callback(self._set_parameters_guarded)
-        self.add_post_set_parameters_callback(self.guarded("parameter update", self._parameters_set))
+        self.create_timer(values["diagnostics_period"],
+                          self.guarded("diagnostics", self.outputs.publish_diagnostics_timed), clock=steady)
+        #: The handlers of a set of this node's parameters (controller_parameters.py).
+        self.parameters = OwnParameters(self)
+        watch_parameter_refusals(self, PARAMETERS, self.parameters.refused)
+        self.add_on_set_parameters_callback(self.parameters.on_set)
+        self.add_post_set_parameters_callback(self.guarded("parameter update", self.parameters.after_set))
         self.ready = False
-        self._plant_settled = not values["plant_node"]
         self._deadline = time.monotonic() + PLANT_TIMEOUT
-        if not self._plant_settled:
-            self._plant = AsyncParameterClient(self, values["plant_node"])
-            self._plant_future: Any = None
+        #: The plant node's parameters, taken at start-up and followed (controller_parameters.py).
+        self.plant = PlantParameters(self, AsyncParameterClient(self, values["plant_node"])
+                                     if values["plant_node"] else None)
+        if not self.plant.settled:
             self.runtime.plant_node = qualified(values["plant_node"], self.get_namespace())
             self.create_subscription(ParameterEvent, "/parameter_events",
-                                     self.guarded("plant parameter event", self._on_plant_event),
+                                     self.guarded("plant parameter event", self.plant.on_event),
                                      qos_profile_parameter_events)
         elif values["lockstep"]:  # no plant node to say so: this node's own word
-            self.lockstep = LockstepAnswers(self, values["actuation_delay"], values["accelerometer_rate"])
+            self.start_lockstep(values["actuation_delay"], values["accelerometer_rate"])
         else:
             self.accelerometer_group.open = True
         self._matched_at: float | None = None
@@ -231,6 +228,15 @@ class ControllerNode(QuietNode):
         return self.runtime.control
 
     @property
+    def in_lockstep(self) -> bool:
+        """True when the plant runs in lockstep (the node answers samples on ``control_answer``)."""
+        return self.lockstep is not None
+
+    def start_lockstep(self, delay: float, accelerometer_rate: float) -> None:
+        """Answer each sample on ``control_answer`` from now on (:mod:`friction_sim.ros.controller_lockstep`)."""
+        self.lockstep = LockstepAnswers(self, delay, accelerometer_rate)
+
+    @property
     def polling(self) -> bool:
         """True while the command topics are polled every hold-off (after a
         batch); False while the node is quiet and a command wakes it at once."""
@@ -240,8 +246,8 @@ class ControllerNode(QuietNode):
 
     def _start_up(self) -> None:
         """Settle the model, then wait for a listener to the output; then go."""
-        if not self._plant_settled:
-            self._poll_plant()
+        if not self.plant.settled:
+            self.plant.poll()
             return
         now = time.monotonic()
         if self.lockstep is not None:  # answers are stamped: no discovery to wait for
@@ -249,7 +255,7 @@ class ControllerNode(QuietNode):
             self.ready = True
             self.lockstep.answer_waiting()
             return
-        output_pub = self._amplitude_pub if self.runtime.drive is None else self._level_pub
+        output_pub = self.outputs.amplitude if self.runtime.drive is None else self.outputs.level
         if output_pub.get_subscription_count() == 0:
             self._matched_at = None
             if now < self._deadline:
@@ -260,77 +266,13 @@ class ControllerNode(QuietNode):
             return  # both ends of a new connection need a moment to match
         self.destroy_timer(self._startup_timer)
         self.ready = True
-        self._publish(self.runtime.control.output)
+        self.outputs.publish(self.runtime.control.output)
 
-    def _poll_plant(self) -> None:
-        if self._plant_future is None and self._plant.services_are_ready():
-            self._plant_future = self._plant.get_parameters([*ADOPTED, *LOCKSTEP_READ])
-        if self._plant_future is not None and self._plant_future.done():
-            self._adopt_plant(self._plant_future.result())
-        elif time.monotonic() > self._deadline:
-            self._settle(f"plant node '{self.get_parameter('plant_node').value}' did not answer within "
-                         f"{PLANT_TIMEOUT:g} s: using this node's own mass, mu and gravity", warn=True)
-
-    def _adopt_plant(self, response: Any) -> None:
-        """Take the plant's whole model, window, drive force and frequency as this
-        node's own parameters (validated and applied like any parameter change),
-        and its drive level as where the inner loop starts.  A parameter the
-        plant node does not declare (an older slider) keeps this node's value."""
-        try:
-            read = [*ADOPTED, *LOCKSTEP_READ]
-            values = dict(zip(read, [Parameter.from_parameter_msg(named(name, value)).value
-                                     for name, value in zip(read, response.values, strict=True)]))
-            lockstep = {name: values.pop(name) for name in LOCKSTEP_READ}
-            level = values.pop("drive_level")  # the resonant plant's level in force: the inner loop starts there
-            # Checked here, where it comes in: the inner loop starts from it as from a level in range.
-            self.runtime.plant_drive_level = None if level is None else float(spec.DRIVE_LEVEL.check(level))
-            update = own_parameters(values)
-        except (TypeError, ValueError) as error:
-            self._settle(f"plant parameters unusable ({error}): using this node's own", warn=True)
-            return
-        result = self.set_parameters_atomically(update)
-        if not result.successful:
-            self._settle(f"plant parameters unusable ({result.reason}): using this node's own", warn=True)
-            return
-        if lockstep["lockstep"]:
-            self.lockstep = LockstepAnswers(self, lockstep["actuation_delay"], lockstep["accelerometer_rate"] or 0.0)
-        self.runtime.model_source = f"plant node {self.runtime.plant_node}"
-        self.runtime.taken_from_plant = taken_words(
-            {parameter.name: parameter.value for parameter in update}, level)
-        self._settle(f"took from {self.runtime.model_source}: {self.runtime.taken_from_plant}")
-
-    def _on_plant_event(self, msg: ParameterEvent) -> None:
-        """The plant node's parameters changed (``ros2 param set /slider
-        excitation_frequency 100.0``): the model follows, through this node's
-        own parameters (validated like any set), so the law inverts the plant
-        in force; what this node cannot take is warned about, and it keeps the
-        model it has."""
-        if msg.node != self.runtime.plant_node or not self._plant_settled or self.lockstep is not None:
-            return  # (in lockstep an event is not ordered with the samples: who changes the plant sets this node)
-        new, changed = parameter_event_values(msg)
-        event = {**new, **changed}
-        values = {name: value for name, value in event.items() if name in FOLLOWED}
-        if not values:
-            return
-        words = ", ".join(f"{name} = {value!r}" for name, value in values.items())
-        try:
-            result = self.set_parameters_atomically(own_parameters(values))
-            reason = "" if result.successful else result.reason
-        except (TypeError, ValueError) as error:
-            reason = str(error)
-        if reason:
-            self.runtime.refuse(f"plant change {words}: {reason}")
-            self.get_logger().warning(f"plant {self.runtime.plant_node} changed {words}, which this controller "
-                                      f"cannot take ({reason}); it keeps inverting {plant_words(self.control)}")
-        else:
-            self.runtime.plant_changes += 1
-            self.get_logger().info(f"plant {self.runtime.plant_node} changed {words}: the model follows "
-                                   f"({plant_words(self.control)})")
-        self._publish_diagnostics()
-
-    def _settle(self, message: str, warn: bool = False) -> None:
+    def settle(self, message: str, warn: bool = False) -> None:
+        """The model is settled (taken from the plant, or this node's own): say ``message``,
+        take the accelerometer's readings from now on and judge a waiting target."""
         (self.get_logger().warning if warn else self.get_logger().info)(message)
-        self._plant_settled = True
+        self.plant.settled = True
         self._deadline = time.monotonic() + PLANT_TIMEOUT
         if self.lockstep is None:  # readings of before: of a loop that adopting the plant replaced
             take_all(self.accelerometer, ACCELEROMETER_DEPTH)
@@ -353,13 +295,7 @@ class ControllerNode(QuietNode):
         for reason in refusals:
             self._warn(f"{reason}; last valid value kept")
         if len(refusals) < len(changes):
-            self._publish(self.runtime.control.output)
-
-    def _parameter_refused(self, name: str, value: Any, why: str) -> None:
-        """rclpy refused a parameter value before our callbacks (range, type,
-        read-only, undeclared): counted like any refusal (the watch has warned)."""
-        with self.callback_lock:
-            self.runtime.refuse(f"parameter {why}")
+            self.outputs.publish(self.runtime.control.output)
 
     def _on_mean_velocity(self, msg: TwistStamped) -> None:
         if self.lockstep is not None:
@@ -372,7 +308,7 @@ class ControllerNode(QuietNode):
             self._warn(f"{error}; sample ignored")
             return
         if output is not None:
-            self._publish(output, boundary=t)
+            self.outputs.publish(output, boundary=t)
 
     def _on_acceleration(self, msg: Any) -> None:
         """An accelerometer sample for the inner loop (its normal specific force; in lockstep the
@@ -419,140 +355,25 @@ class ControllerNode(QuietNode):
                                 "with its last valid state (diagnostics ERROR)")
         if where != "diagnostics":
             with contextlib.suppress(Exception):  # it is logged already
-                self._publish_diagnostics()
+                self.outputs.publish_diagnostics()
 
     # -- publishing ---------------------------------------------------------------
 
-    def _publish(self, output: ControlOutput, boundary: float | None = None) -> dict[str, float]:
-        """Carry out the law's decision and return it as the values it sets: Pa
-        (force actuator), or the drive level (resonant: the inner loop's at a
-        window's end ``boundary``, the steady gain's otherwise) and a frequency
-        tracking moved.  In real time they are published on their topics; in
-        lockstep only a sample's answer carries them (the caller sends it), so
-        a decision between samples waits for the next one."""
-        lockstep = self.lockstep is not None
-        if not (self.ready and self.runtime.active):
-            return {}
-        if self.lockstep is not None and boundary is None:  # it acts with the next answer: not clean
-            self.lockstep.changed = self.lockstep.changed or output.amplitude != self._last_published
-            return {}
-        control = self.runtime.control
-        acts_at = self.lockstep.acts_at(boundary) if self.lockstep is not None and boundary is not None \
-            else self._sim_time()
-        if output.amplitude != self._last_published:  # the plant's answer to the old Pa is no sample of the new
-            control.clock.note_change(wall_ns(), 1.0 / control.frequency, acts_at)
-            self._last_published = output.amplitude
-        values = self._drive_values(boundary, acts_at) if self.runtime.drive is not None \
-            else {"excitation_amplitude": output.amplitude}
-        if not lockstep:
-            for name, value in values.items():
-                self._outputs[name].publish(Float64(data=value))
-        self._warn_on_conditions(output)
-        for listener in self.output_listeners:
-            listener(output)
-        return values
-
     def decide(self, output: ControlOutput, boundary: float) -> dict[str, float]:
         """The law's decision at the window's end ``boundary`` (lockstep: the answer's values)."""
-        return self._publish(output, boundary)
+        return self.outputs.publish(output, boundary)
 
     def warn(self, text: str) -> None:
         """Warn about refused input (at most once a second)."""
         self._warn(text)
 
     def publish_diagnostics(self) -> None:
-        self._publish_diagnostics()
+        """The controller's status on ``diagnostics`` now."""
+        self.outputs.publish_diagnostics()
 
-    def _drive_values(self, boundary: float | None, acts_at: float | None) -> dict[str, float]:
-        """The drive level (after a frequency tracking moved).  The inner loop
-        decides at boundaries only (its model starts from the plant's level in
-        force, and plans from there); without it each new Pa is answered at once.
-        A window judged by the law must lie after the slideway settled: the
-        change is noted while the loop still moves the amplitude."""
-        drive, control = self.runtime.drive, self.runtime.control
-        assert drive is not None
-        if boundary is not None:
-            command = self.runtime.drive_boundary(boundary)
-        elif not drive.inner_loop:
-            command = self.runtime.steady_drive()
-        else:
-            return {}
-        assert command is not None
-        if drive.inner_loop and not drive.settled:
-            control.clock.note_change(wall_ns(), 1.0 / control.frequency,
-                                      boundary if self.lockstep is None else acts_at)
-        for listener in self.drive_listeners:
-            listener(command)
-        if command.frequency_changed:
-            return {"excitation_frequency": command.frequency, "drive_level": command.level}
-        return {"drive_level": command.level}
-
-    def _sim_time(self) -> float | None:
-        """The simulation time [s] of the node's clock under ``use_sim_time``
-        once /clock has come (a paused slider's /clock stands still), else None."""
-        clock = self.get_clock()
-        if not (isinstance(clock, ROSClock) and clock.ros_time_is_active):
-            return None
-        now = clock.now().nanoseconds
-        return now / 1e9 if now > 0 else None
-
-    def _warn_on_conditions(self, output: ControlOutput) -> None:
-        """Warn once each time the target becomes unreachable or the drive runs away."""
-        warnings, publish = self.runtime.news(output)
-        for text in warnings:
-            self.get_logger().warning(text)
-        if publish:
-            self._publish_diagnostics()
-
-    def _publish_diagnostics_timed(self) -> None:
-        """Every diagnostics_period of wall time (in lockstep: of simulation time, with the answers)."""
-        if self.lockstep is None or self.lockstep.stamp_ns == 0:  # (lockstep: until the first answer, stamped 0)
-            self._publish_diagnostics()
-
-    def _publish_diagnostics(self) -> None:
-        """The controller's status on ``diagnostics``, stamped by the node's
-        clock (wall time, or /clock under use_sim_time) as the slider's is; in
-        lockstep with the simulation time of the sample last answered."""
-        report = self.runtime.status(namesake=self.names.problem, ready=self.ready)
-        lockstep = self.lockstep.values() if self.lockstep is not None else {}
-        status = DiagnosticStatus(name="controller", hardware_id=self.get_fully_qualified_name(),
-                                  level=bytes([report.level]), message=report.message,
-                                  values=key_values({**report.values, **lockstep, "messages_lost": LostMessages.count}))
-        msg = DiagnosticArray(status=[status])
-        if self.lockstep is None:
-            msg.header.stamp = self.get_clock().now().to_msg()
-        else:
-            time_msg(self.lockstep.stamp_ns, msg.header.stamp)
-        self._diag_pub.publish(msg)
-
-    # -- parameters ---------------------------------------------------------------
-
-    def _set_parameters_guarded(self, changes: list[Parameter]) -> SetParametersResult:
-        """:meth:`_set_parameters`; an unexpected error in it refuses the set."""
-        with self.callback_lock:
-            try:
-                return self._set_parameters(changes)
-            except Exception as error:  # noqa: BLE001 - answer the caller, report, go on
-                self.internal_error("parameter set", error)
-                return SetParametersResult(successful=False,
-                                           reason=f"internal error: {self.runtime.last_internal_error}")
-
-    def _set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
-        """Cross-field rules, checked on a copy of the controller as it is now
-        (drive force and frequency follow the topics): the change takes effect
-        whole, or it is refused and nothing changes."""
-        values = {p.name: p.value for p in changes}
-        current = {name: self.get_parameter(name).value for name in PARAMETERS}
-        try:
-            candidate = self.runtime.with_parameters(values, current)
-        except ParameterError as error:
-            self.get_logger().warning(f"parameter {error}; value kept")  # one per set: a service call each
-            return SetParametersResult(successful=False, reason=str(error))
-        self.runtime.adopt(candidate, values, current)
-        return SetParametersResult(successful=True)
-
-    def _parameters_set(self, changes: list[Parameter]) -> None:
-        self._publish(self.runtime.control.output)
+    def publish_output(self) -> None:
+        """Carry out the law's decision in force (after a parameter set)."""
+        self.outputs.publish(self.runtime.control.output)
 
 
 def help_text() -> str:

@@ -25,7 +25,7 @@ from __future__ import annotations
 import threading
 from typing import Any, Protocol, cast
 
-from friction_sim.core.control.law import ControlOutput
+from friction_sim.core.control.reach import ControlOutput
 from friction_sim.core.model.spec import NS_PER_S
 from friction_sim.core.runtime.answers import AnswerQueue
 from friction_sim.core.runtime.controller import RealtimeController

@@ -19,7 +19,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy
 
-from friction_sim.core.control.law import speed_limit
+from friction_sim.core.control.speedlimit import speed_limit
 from friction_sim.core.model.params import SliderParams
 from friction_sim.ros.controller import ControllerNode
 from friction_sim.ros.controller_lockstep import LOCKSTEP_READ
@@ -220,7 +220,7 @@ def test_a_plant_without_the_general_parameters_leaves_them_as_they_are(ros: Non
         answer = [double(2.0), double(0.2), double(9.81), *[ParameterValue() for _ in range(10)],
                   ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=2), double(0.75), double(60.0),
                   ParameterValue(), *[ParameterValue() for _ in LOCKSTEP_READ]]
-        controller._adopt_plant(SimpleNamespace(values=answer))  # noqa: SLF001 - the reply of an older plant
+        controller.plant.adopt(SimpleNamespace(values=answer))  # the reply of an older plant
         assert controller.control.config.model == SliderParams(mass=2.0, mu=0.2, gravity=9.81, excitation_angle=45.0)
         assert controller.control.config.mean_window_periods == 2
         assert controller.control.drive_force == 0.75 and controller.control.frequency == 60.0

@@ -18,7 +18,7 @@ from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import Float64
 
-from friction_sim.core.control import law as control
+from friction_sim.core.control import reach
 from friction_sim.ros.controller import ControllerNode
 
 from ros_harness import Probe
@@ -126,7 +126,7 @@ def test_an_unexpected_error_is_reported_once_and_the_node_goes_on(running: Any,
     def broken(u: float, phi: float, top: float) -> float:
         raise ZeroDivisionError("float division by zero")
 
-    monkeypatch.setattr(control, "_inverse", broken)
+    monkeypatch.setattr(reach, "inverse", broken)
     target = controller.control.target_speed
     for n, value in enumerate((3e-4, 3.5e-4)):
         probe.send("target_speed", value)

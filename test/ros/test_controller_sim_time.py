@@ -16,7 +16,7 @@ import pytest
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
 
-from friction_sim.core.control.law import ControlOutput
+from friction_sim.core.control.reach import ControlOutput
 from friction_sim.ros.controller import ControllerNode
 from friction_sim.ros.slider import SliderNode
 

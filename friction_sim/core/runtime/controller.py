@@ -38,13 +38,10 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from friction_sim.core.control.law import (
-    LIMIT_SLACK_SAMPLES,
-    ControllerConfig,
-    ControlOutput,
-    MeanSpeedController,
-    uses_closed_form,
-)
+from friction_sim.core.control.law import ControllerConfig, MeanSpeedController
+from friction_sim.core.control.reach import ControlOutput
+from friction_sim.core.control.relation import uses_closed_form
+from friction_sim.core.control.speedlimit import LIMIT_SLACK_SAMPLES
 from friction_sim.core.model import spec
 from friction_sim.core.model.dimensionless import amplitude_for
 from friction_sim.core.model.params import SliderParams, plant_from

@@ -18,15 +18,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from friction_sim.core.control import law as control
-from friction_sim.core.control.law import (
-    LIMIT_SLACK_SAMPLES,
-    RATIO_LIMITS,
-    ControllerConfig,
-    ControlOutput,
-    MeanSpeedController,
-    speed_limit,
-)
+from friction_sim.core.control import reach
+from friction_sim.core.control.integral import RATIO_LIMITS
+from friction_sim.core.control.law import ControllerConfig, MeanSpeedController
+from friction_sim.core.control.reach import ControlOutput
+from friction_sim.core.control.speedlimit import LIMIT_SLACK_SAMPLES, speed_limit
 from friction_sim.core.model import spec
 from friction_sim.core.model.commands import Command
 from friction_sim.core.model.params import Inputs, SliderParams
@@ -167,7 +163,7 @@ def test_a_fault_in_the_relation_leaves_the_controller_as_it_was(monkeypatch: py
     def broken(u: float, phi: float, top: float) -> float:
         raise ZeroDivisionError("a bug")
 
-    monkeypatch.setattr(control, "_inverse", broken)
+    monkeypatch.setattr(reach, "inverse", broken)
     for change in (lambda: controller.set_target(3e-4), lambda: controller.set_drive_force(0.75),
                    lambda: controller.set_frequency(60.0)):
         with pytest.raises(ZeroDivisionError):

@@ -18,7 +18,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from friction_sim.core.control.law import ControllerConfig, ControlOutput, MeanSpeedController
+from friction_sim.core.control.law import ControllerConfig, MeanSpeedController
+from friction_sim.core.control.reach import ControlOutput
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.meanspeed.urelation import u_map
 from friction_sim.core.model.params import Inputs, SliderParams
