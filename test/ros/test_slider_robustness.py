@@ -93,7 +93,10 @@ def test_a_simulation_fault_stops_the_node_in_process_and_parameter_sets_still_a
     with pytest.raises(NodeFault, match="math domain error"):
         probe.spin_until(lambda: False, 15.0)
     assert "math domain error" in node.fault and "t = " in node.fault
-    assert not node._ticker.is_alive()  # noqa: SLF001 - it stopped, and said so
+    # It stopped, and said so: the fault is signalled from the tick thread just before it
+    # returns, so wait for that thread to end (the timeout only guards a hang)
+    node._ticker.join(timeout=10.0)  # noqa: SLF001
+    assert not node._ticker.is_alive()  # noqa: SLF001
     assert probe.spin_until(lambda: any(level(m) == 2 for m in probe.received["diagnostics"]), 5.0)
     errors = [m for m in probe.received["diagnostics"] if level(m) == 2]
     assert errors and "math domain error" in errors[-1].status[0].message
