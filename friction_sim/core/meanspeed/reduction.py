@@ -141,6 +141,35 @@ def speed_fractions(points: int) -> Floats:
     return fractions
 
 
+def _against_speed(params: SliderParams, frequency: float, ratios: Floats, points: int,
+                   closed: bool) -> tuple[Floats, Floats]:
+    """(speeds[i, j], phi[i, j]) of each ratio's curve, up to U = a/(2 pi), where phi = 1
+    (Kostek's model: its own ratio's; beyond it, the largest's).  On Kostek's model phi
+    comes from U itself, so the end is exact (a round trip through V may overshoot it)."""
+    top_u = (ratios if closed else np.full(ratios.shape, np.max(ratios))) / TWO_PI
+    u = top_u[:, None] * speed_fractions(points)[None, :]
+    speeds = dimensional_speed(u, frequency, params.gravity, params.mu)
+    if closed:
+        return speeds, np.asarray(drive_ratio_for(u, ratios[:, None]), dtype=float)
+    return speeds, apparent_friction_ratio(speeds, ratios[:, None], params, frequency)
+
+
+def _against_ratio(params: SliderParams, frequency: float, marked: Floats, amplitudes: Floats,
+                   closed: bool) -> tuple[Floats, Floats]:
+    """(ratios[i, j], phi[i, j]) of each marked speed's curve, up to the largest ratio.
+    On Kostek's model from the least ratio that reaches the speed, a = 2 pi U, where
+    phi = 1 exactly (taken from a itself, as above); beyond it over ``amplitudes``."""
+    if not closed:
+        ratios = np.broadcast_to(amplitudes, (marked.size, amplitudes.size)).copy()
+        return ratios, apparent_friction_ratio(marked[:, None], ratios, params, frequency)
+    top = float(amplitudes[-1])
+    least = np.minimum(TWO_PI * nondimensional_speed(marked, frequency, params.gravity, params.mu), top)
+    ratios = least[:, None] + (top - least)[:, None] * np.linspace(0.0, 1.0, amplitudes.size)[None, :]
+    first = np.asarray(drive_ratio_for(least[:, None] / TWO_PI, least[:, None]), dtype=float)
+    rest = apparent_friction_ratio(marked[:, None], ratios[:, 1:], params, frequency)
+    return ratios, np.concatenate([first, rest], axis=1)
+
+
 def reduction_curves(params: SliderParams = LOMAKIN, frequency: float = LOMAKIN_FREQUENCY, *,
                      ratios: ArrayLike = (0.2, 0.4, 0.6, 0.8), marked_speeds: ArrayLike = (2e-4, 5e-4, 1e-3),
                      points: int = 101) -> ReductionCurves:
@@ -157,25 +186,8 @@ def reduction_curves(params: SliderParams = LOMAKIN, frequency: float = LOMAKIN_
         raise ParameterError("points", points, "need at least 2 points, one ratio and one speed")
     amplitudes = np.linspace(0.0, float(np.max(ratios_)), points)
     closed = _closed_form(params, np.concatenate([ratios_, amplitudes]))
-    # each curve's end: U = a/(2 pi), phi = 1 (Kostek's model: its own ratio's; beyond it, the largest's)
-    top_u = (ratios_ if closed else np.full(ratios_.shape, np.max(ratios_))) / TWO_PI
-    u = top_u[:, None] * speed_fractions(points)[None, :]
-    speeds = dimensional_speed(u, frequency, params.gravity, params.mu)
-    if closed:  # from U itself: its end is a/(2 pi) exactly, where phi = 1 (a round trip through V may overshoot)
-        by_speed = np.asarray(drive_ratio_for(u, ratios_[:, None]), dtype=float)
-    else:
-        by_speed = apparent_friction_ratio(speeds, ratios_[:, None], params, frequency)
-    top = float(np.max(ratios_))
-    if closed:  # each speed's curve from the least ratio that reaches it (a = 2 pi U, where phi = 1 exactly) to the top
-        least = np.minimum(TWO_PI * nondimensional_speed(marked, frequency, params.gravity, params.mu), top)
-        ratios_by_speed = least[:, None] + (top - least)[:, None] * np.linspace(0.0, 1.0, points)[None, :]
-        ratios_by_speed[:, 0] = least
-        by_amplitude = np.asarray(drive_ratio_for(ratios_by_speed[:, :1] / TWO_PI, ratios_by_speed[:, :1]), dtype=float)
-        by_amplitude = np.concatenate([by_amplitude, apparent_friction_ratio(
-            marked[:, None], ratios_by_speed[:, 1:], params, frequency)], axis=1)
-    else:
-        ratios_by_speed = np.broadcast_to(amplitudes, (marked.size, points)).copy()
-        by_amplitude = apparent_friction_ratio(marked[:, None], ratios_by_speed, params, frequency)
+    speeds, by_speed = _against_speed(params, frequency, ratios_, points, closed)
+    ratios_by_speed, by_amplitude = _against_ratio(params, frequency, marked, amplitudes, closed)
     return ReductionCurves(params, frequency, ratios_, speeds, by_speed, marked, ratios_by_speed, by_amplitude,
                            closed)
 
