@@ -273,8 +273,8 @@ def run_data_from_recording(path: Path, tolerance: float = TOLERANCE) -> RunData
     recorded = [c for c in every if c.inputs]
     params, inputs = in_force([c for c in recorded if c.t < 0.0], params, inputs, 0.0)
     commands = [c for c in recorded if c.t >= 0.0]
-    scenario = _scenario_record(meta)
     source = _recorded_scenario(meta)
+    scenario = _scenario_record(meta, source)
     bands = {e.t: e.within for e in source.expect if e.quantity == "mean_speed"} if source else {}
     if scenario is not None:
         schedule, duration, name = list(scenario.schedule), scenario.duration, scenario.name
@@ -410,19 +410,20 @@ def _landing_kind(recording: Any, raw: Any) -> str:
     return LANDING_STUCK if message.endswith("-> stuck") else "landing"
 
 
-def _scenario_record(meta: dict[str, str]) -> ScenarioRecord | None:
+def _scenario_record(meta: dict[str, str], source: Scenario | None) -> ScenarioRecord | None:
     """The experiment's description: the record itself, or, for a recording
-    that holds only the scenario's text, that text parsed again."""
+    that holds only the scenario's text, that text as parsed (``source``; parsed
+    again here only to raise its error, when it could not be)."""
     record = read_scenario_metadata(meta)
     if record is not None or "scenario" not in meta:
         return record
-    scenario = parse_scenario(meta["scenario"], meta.get("file", "<recorded scenario>"))
+    scenario = source or parse_scenario(meta["scenario"], meta.get("file", "<recorded scenario>"))
     return ScenarioRecord(scenario.name, scenario.duration, scenario.initial_target, scenario.schedule, None)
 
 
 def _recorded_scenario(meta: dict[str, str]) -> Scenario | None:
     """The scenario whose text the recording holds (None: a plain slider recording, or a
-    text this version cannot read: then nothing is judged, and the report says so)."""
+    text this version cannot read: then nothing is judged)."""
     if "scenario" not in meta:
         return None
     try:
