@@ -34,7 +34,7 @@ import numpy as np
 from friction_sim.core.meanspeed.urelation import UMap
 from friction_sim.core.model.events import EventKind, Mode
 from friction_sim.core.model.params import Inputs
-from friction_sim.core.physics.plant import steady_excitation
+from friction_sim.core.physics.plant import slideway_amplitude
 from friction_sim.core.runtime.simulation import SimulationResult
 from friction_sim.experiment.report import RunData, SegmentRow, inputs_at
 
@@ -503,7 +503,7 @@ def input_panels(data: RunData) -> list[tuple[str, list[float], list[float]]]:
         ("Pa [N]", lambda i: i.excitation_amplitude)]
     if params.resonant:
         quantities = [("drive level u", lambda i: i.drive_level),
-                      ("slideway [m/s$^2$]", lambda i: steady_excitation(params, i)[0] / params.mass)]
+                      ("slideway [m/s$^2$]", lambda i: slideway_amplitude(params, i)[0])]
     quantities += [("Fd [N]", lambda i: i.drive_force), ("f [Hz]", lambda i: i.excitation_frequency)]
     panels = []
     for label, of in quantities:

@@ -36,7 +36,7 @@ from friction_sim.core.model.commands import (
     consumed_by,
 )
 from friction_sim.core.model.params import Inputs
-from friction_sim.core.physics.plant import steady_excitation
+from friction_sim.core.physics.plant import slideway_amplitude
 from friction_sim.core.runtime.lockstep import to_ns
 from friction_sim.experiment.job import (
     SCENARIO_METADATA,
@@ -228,7 +228,7 @@ def _status(spec: ExperimentSpec, now: float, target: float | None, inputs: Inpu
     slideway's steady amplitude, the force actuator by its Pa."""
     speed = result.mean_velocity[-1][1] if result.mean_velocity else math.nan
     if spec.plant.resonant:
-        slideway = steady_excitation(spec.plant, inputs)[0] / spec.plant.mass
+        slideway = slideway_amplitude(spec.plant, inputs)[0]
         return Status(now, spec.duration, target, speed, slideway, inputs.drive_force, inputs.excitation_frequency,
                       inputs.drive_level)
     return Status(now, spec.duration, target, speed, inputs.excitation_amplitude, inputs.drive_force,

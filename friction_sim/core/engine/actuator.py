@@ -23,10 +23,9 @@ from friction_sim.core.physics.exciter import (
     force_transient,
     settle_delay,
     slideway_state,
-    steady_response,
     steady_slideway,
 )
-from friction_sim.core.physics.plant import Plant
+from friction_sim.core.physics.plant import Plant, slideway_amplitude
 from friction_sim.core.physics.roots import NEVER
 
 
@@ -105,8 +104,7 @@ class Exciter:
 
 def _steady(params: SliderParams, inputs: Inputs) -> tuple[float, float, float]:
     """(a_s, lag, omega): the steady response to the drive in force."""
-    acceleration, lag = steady_response(inputs.drive_level, params.full_drive_acceleration,
-                                        inputs.excitation_frequency, params.natural_frequency, params.damping_ratio)
+    acceleration, lag = slideway_amplitude(params, inputs)
     return acceleration, lag, TWO_PI * inputs.excitation_frequency
 
 

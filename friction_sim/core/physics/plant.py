@@ -228,6 +228,14 @@ def steady_excitation(params: SliderParams, inputs: Inputs) -> tuple[float, floa
                       inputs.drive_level)
 
 
+def slideway_amplitude(params: SliderParams, inputs: Inputs) -> tuple[float, float]:
+    """(u*A*G(f/f_n) [m/s^2], lag) of the resonant actuator's inputs in force: the
+    slideway's steady normal acceleration amplitude and its lag behind the drive
+    (:func:`~friction_sim.core.physics.exciter.steady_response`)."""
+    return steady_response(inputs.drive_level, params.full_drive_acceleration, inputs.excitation_frequency,
+                           params.natural_frequency, params.damping_ratio)
+
+
 def steady_throw_number(params: SliderParams, inputs: Inputs) -> float:
     """Gamma = Pa/(m*g*cos(alpha)) of the steady excitation (the resonant actuator's
     steady Pa, the force actuator's as set)."""
