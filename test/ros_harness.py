@@ -230,7 +230,7 @@ def flood(namespace: str, rate: int, seconds: float, kind: str = "valid", last: 
     publisher = node.create_publisher(Float64, "drive_force", 10)
     deadline = time.monotonic() + 15.0
     while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
-        time.sleep(0.01)
+        time.sleep(0.01)  # poll interval: waiting for the subscription to match
     if confirm:
         publisher.publish(Float64(data=MARK))  # reliable, and alone in the history: it arrives once matched
         print("matched", flush=True)
@@ -247,7 +247,7 @@ def flood(namespace: str, rate: int, seconds: float, kind: str = "valid", last: 
             msg.data = flood_value(kind, sent)
             publisher.publish(msg)
             sent += 1
-        time.sleep(0.001)
+        time.sleep(0.001)  # pacing of the flood at `rate` (what is sent is counted, not timed)
     if last:
         msg.data = LAST
         publisher.publish(msg)

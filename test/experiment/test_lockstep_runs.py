@@ -182,14 +182,14 @@ def test_step_moves_a_paused_lockstep_slider_by_exactly_its_length(ros: None) ->
     try:
         wall = time.monotonic()
         while slider.realtime.slider.t < 0.1 and time.monotonic() - wall < 10.0:  # nobody to wait for: it runs
-            time.sleep(0.001)
+            time.sleep(0.001)  # poll interval: waiting for t to pass 0.1
         assert call("pause").success
         t0 = slider.realtime.slider.t
         assert call("step").success
         assert call("step").success  # a second call extends the first
         deadline = time.monotonic() + 10.0
         while slider.realtime.gate.stepping and time.monotonic() < deadline:
-            time.sleep(0.001)
+            time.sleep(0.001)  # poll interval: waiting for the step to end
         assert slider.realtime.t_ns == round(t0 * 1e9) + 40_000_000
         assert slider.realtime.paused
     finally:

@@ -66,7 +66,7 @@ def scheduler_address(scheduler_file: Path, scheduler: subprocess.Popen[bytes], 
         try:
             return str(json.loads(scheduler_file.read_text())["address"])
         except (FileNotFoundError, json.JSONDecodeError, KeyError):
-            time.sleep(0.05)
+            time.sleep(0.05)  # poll interval: waiting for the scheduler file
     raise AssertionError(f"dask scheduler wrote no {scheduler_file.name} in {timeout} s:\n{log.read_text()}")
 
 
@@ -107,7 +107,7 @@ def wait_for_workers(executor: DaskExecutor, count: int, timeout: float = 30.0) 
         workers = executor.client.scheduler_info(n_workers=-1)["workers"]
         if len(workers) >= count:
             return {info["name"]: address for address, info in workers.items()}
-        time.sleep(0.1)
+        time.sleep(0.1)  # poll interval: waiting for the workers to join
     raise AssertionError(f"fewer than {count} workers joined in {timeout} s")
 
 
@@ -130,7 +130,7 @@ def test_a_worker_killed_mid_sweep_loses_no_chunk_and_writes_none_twice(
                 deadline = time.monotonic() + 30.0
                 while not (held := list(executor.client.processing().get(names["w2"], ()))) \
                         and time.monotonic() < deadline:
-                    time.sleep(0.01)
+                    time.sleep(0.01)  # poll interval: waiting for w2 to hold a chunk
                 seen["held"] = held
                 processes["w2"].send_signal(signal.SIGKILL)
                 processes["w2"].wait(timeout=10)

@@ -84,7 +84,7 @@ def wait_until(condition: Callable[[], object], timeout: float = 5.0) -> bool:
     while not condition():
         if time.monotonic() > deadline:
             return False
-        time.sleep(0.005)
+        time.sleep(0.005)  # poll interval: waiting for the condition
     return True
 
 

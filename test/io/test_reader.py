@@ -110,7 +110,7 @@ try:
                 announced = True
                 if mode == "kill":
                     os.kill(os.getpid(), signal.SIGKILL)
-            time.sleep(0.001)
+            time.sleep(0.001)  # the child's pace until the signal comes
 except KeyboardInterrupt:
     print("finished", flush=True)
 """

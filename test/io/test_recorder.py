@@ -224,7 +224,7 @@ def test_written_data_is_readable_within_the_flush_interval_while_recording(tmp_
             live = read_recording(path, require_friction_sim=False)
             if live.messages:
                 break
-            time.sleep(0.02)
+            time.sleep(0.02)  # poll interval: waiting for the first chunk
         # Without the periodic flush nothing reaches the disk before finish(): the
         # writer's own count shows that its flush (not a buffer filling) put it there.
         assert recorder.stats.chunks_flushed >= 1 and recorder.stats.last_flush >= written

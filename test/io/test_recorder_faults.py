@@ -276,7 +276,7 @@ class GoneRecorder(Recorder):
 def test_a_producer_never_waits_for_a_writer_thread_that_is_gone(tmp_path: Path) -> None:
     recorder = GoneRecorder(tmp_path / "gone.mcap", metadata={"mass": 1.0}, queue_size=9)
     while recorder.writer_alive:
-        time.sleep(0.01)
+        time.sleep(0.01)  # poll interval: waiting for the writer to go
     for state in states(0, 10):  # a wait on a full queue nobody empties would never end
         recorder.write(StatesRecord((state,), "slideway"))
     assert recorder.dropped == 3 * 7, "3 states fit in the queue; the rest is counted"

@@ -30,7 +30,7 @@ def _pair(node: Any) -> tuple[Any, Any]:
     deadline = time.monotonic() + 10.0
     while publisher.get_subscription_count() < 1:  # discovery: the thing itself, not a fixed time
         assert time.monotonic() < deadline, "the subscription was never matched"
-        time.sleep(0.001)
+        time.sleep(0.001)  # poll interval
     return subscription, publisher
 
 

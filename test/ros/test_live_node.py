@@ -224,7 +224,7 @@ def _serving(process: subprocess.Popen[str], log: Path, timeout: float = 60.0) -
     while not (found := SERVING.search(log.read_text())):
         if process.poll() is not None or time.monotonic() > deadline:
             raise AssertionError(f"the server never opened (exit {process.poll()}): {log.read_text()[-2000:]}")
-        time.sleep(0.05)
+        time.sleep(0.05)  # poll interval: waiting for the log line
     return found[1], int(found[2])
 
 

@@ -104,7 +104,7 @@ def test_published_trajectory_equals_the_exact_core_whatever_the_jitter(rig) -> 
         probe.executor.spin_once(timeout_sec=0.001)
         if rng.random() < 0.01:
             with node._lock:  # noqa: SLF001 - hold the tick thread back: jitter, late ticks
-                time.sleep(rng.choice([0.0005, 0.003, 0.012]))
+                time.sleep(rng.choice([0.0005, 0.003, 0.012]))  # the jitter under test
     # The tick thread takes each command at its next tick; give a loaded machine time to get there.
     assert probe.spin_until(lambda: sum(o.accepted for o in outcomes) >= 7, 10.0)
     probe.spin_until(lambda: len(probe.received["pose"]) - start >= 1500, 10.0)
@@ -299,7 +299,7 @@ def test_a_stalled_timer_does_not_change_the_physics(rig, max_catch_up: float) -
         before_ns = round(rt.slider.t * 1e9)  # the last tick before the stall
         wall1, slipped1, stalls1 = time.monotonic_ns(), rt.time_slipped, rt.stalls
         lag1 = wall1 - clock.now_ns(wall1)
-        time.sleep(0.25)
+        time.sleep(0.25)  # the stall under test (time itself is what is tested)
 
     def after() -> list[int]:
         return [stamp for stamp in map(stamp_ns, probe.received["pose"]) if stamp > before_ns + 1000]

@@ -43,7 +43,7 @@ def test_the_simulation_waits_for_a_slow_recorder_without_a_jump_in_time(ros: No
     write = recorder._writer.write  # noqa: SLF001
 
     def slow(batch: Any) -> None:
-        time.sleep(0.6)
+        time.sleep(0.6)  # a slow writer is what is tested
         write(batch)
 
     recorder._writer.write = slow  # noqa: SLF001
