@@ -57,7 +57,9 @@ class Kernel:
         self.failure: str | None = None
         self.thread: threading.Thread | None = None
         self.lock = threading.Lock()
-        self.plant: Plant | None = None  # the last plant found to have the compiled types
+        #: The last plant checked against the compiled types, and whether it has them (one
+        #: tuple, replaced whole: a slider on another thread never reads a half-written pair).
+        self.checked: tuple[Plant | None, bool] = (None, False)
 
     def start(self, args: tuple[Any, ...]) -> threading.Thread | None:
         """Start compiling for the types of ``args`` (once); the thread, if one runs."""
@@ -82,11 +84,10 @@ class Kernel:
         compiled = self.compiled
         if compiled is None or self.mode == PLAIN:
             return None
-        if p is not self.plant:
-            if not compiled.fits(p):
-                return None
-            self.plant = p
-        return compiled.entry
+        checked = self.checked
+        if checked[0] is not p:  # (typing a plant costs more than a step: once per plant, either way)
+            checked = self.checked = (p, compiled.fits(p))
+        return compiled.entry if checked[1] else None
 
 
 class CompiledStep:
