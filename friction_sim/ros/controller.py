@@ -235,6 +235,7 @@ class ControllerNode(QuietNode):
     def start_lockstep(self, delay: float, accelerometer_rate: float) -> None:
         """Answer each sample on ``control_answer`` from now on (:mod:`friction_sim.ros.controller_lockstep`)."""
         self.lockstep = LockstepAnswers(self, delay, accelerometer_rate)
+        self.lockstep.start()
 
     @property
     def polling(self) -> bool:

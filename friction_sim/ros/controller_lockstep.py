@@ -17,12 +17,16 @@ until a sample (or, while an answer waits for them, a reading) waits on its
 subscription, takes them and answers, holding the node's callback lock as every
 callback does.  Through the executor each sample cost a wake-up and a rebuild of
 its wait set over every entity of the node (parameter services, timers, ...):
-more than the answer itself, fifty times a simulated second.
+more than the answer itself, fifty times a simulated second.  With the slider
+in this process (an experiment, the feeder) there is no such thread: the two are
+linked (:mod:`friction_sim.ros.lockstep_link`) and the slider's loop hands the
+samples and readings over in its own thread, which answers at once.
 """
 
 from __future__ import annotations
 
 import threading
+from collections.abc import Sequence
 from typing import Any, Protocol, cast
 
 from friction_sim.core.control.reach import ControlOutput
@@ -30,9 +34,10 @@ from friction_sim.core.model.spec import NS_PER_S
 from friction_sim.core.runtime.answers import AnswerQueue
 from friction_sim.core.runtime.controller import RealtimeController
 from friction_sim.errors import ParameterError
-from friction_sim.io.messages import message_class, stamp_ns
+from friction_sim.io.messages import ACCELEROMETER, message_class, stamp_ns
 from friction_sim.io.series import imu_normals
 from friction_sim.io.stamped import CONTROL_ANSWER, STAMPED_DEPTH, STAMPED_TYPE, stamped_message
+from friction_sim.ros import lockstep_link
 from friction_sim.ros.intake import Arrivals, PolledGroup, take_all
 
 
@@ -56,6 +61,7 @@ class AnsweringNode(Protocol):
     @property
     def ready(self) -> bool: ...
     def get_parameter(self, name: str) -> Any: ...
+    def resolve_topic_name(self, topic: str, *, only_expand: bool = False) -> str: ...
     def create_publisher(self, *args: Any, **kwargs: Any) -> Any: ...
 
     def subscribe_accelerometer(self, *, lockstep: bool, reading: bool = True) -> Any: ...
@@ -93,7 +99,13 @@ class LockstepAnswers:
         #: Whether an answer waits for readings (the thread then wakes for one too).
         self._awaiting_readings = False
         node.subscribe_accelerometer(lockstep=True, reading=False)
-        self._reads_accelerometer()
+        #: The slider of this process that hands this node its samples (None: they come on the topics;
+        #: linked last, once this object is whole: the slider's thread may hand it samples at once).
+        self._link: lockstep_link.Link | None = None
+        self._deliver = node.guarded("lockstep answers (linked)", self._take_delivered)
+        self._topics = lockstep_link.TurnTopics(node.mean_velocity.topic_name, self._publisher.topic_name,
+                                                node.resolve_topic_name(ACCELEROMETER))
+        self._reads_accelerometer(lockstep_link.linkable(node.context, self._topics))
         #: The simulation time [ns] of the sample being (or last) answered: the diagnostics' stamp.
         self.stamp_ns = 0
         #: The law decided between samples (a target, a parameter): the change acts with the next
@@ -103,7 +115,13 @@ class LockstepAnswers:
         self._stop = threading.Event()
         self._take = node.guarded("lockstep answers", self._take_waiting)
         self._thread = threading.Thread(target=self._run, name="controller_answers", daemon=True)
-        self._thread.start()
+
+    def start(self) -> None:
+        """Begin to answer (once the node holds this object): linked to the slider of this
+        process if there is one, else from the topics, in a thread of their own."""
+        self._link = lockstep_link.attach(self.node.context, self._topics, self)
+        if self._link is None:  # (linked, the slider's thread brings every sample)
+            self._thread.start()
 
     def _run(self) -> None:
         """Until stopped: sleep until a sample (or an awaited reading) waits, then answer.  An
@@ -124,9 +142,12 @@ class LockstepAnswers:
     def stop(self) -> None:
         """End the answers' thread (the node is being destroyed), at once: its wait is woken."""
         self._stop.set()
+        if self._link is not None:
+            lockstep_link.detach(self._link, self)
         self._arrivals.wake()
         if self._thread is not threading.current_thread():
-            self._thread.join(timeout=2.0)
+            if self._thread.ident is not None:
+                self._thread.join(timeout=2.0)
             if not self._thread.is_alive():
                 self._arrivals.destroy()
 
@@ -139,6 +160,19 @@ class LockstepAnswers:
             self._drain()
             self.answer_waiting()
 
+    def deliver(self, samples: Sequence[tuple[int, float]], readings: Sequence[tuple[int, float]]) -> None:
+        """From a linked slider, in its thread: readings and samples (see :mod:`~friction_sim.ros.lockstep_link`)."""
+        self._deliver(samples, readings)
+
+    def _take_delivered(self, samples: Sequence[tuple[int, float]], readings: Sequence[tuple[int, float]]) -> None:
+        """Queue the readings, then take the samples in order (callback lock held)."""
+        for stamp, normal in readings:
+            self.queue.acceleration(stamp, normal)
+        for stamp, speed in samples:
+            self.sample(stamp, speed)
+        if not samples:
+            self.answer_waiting()
+
     def acts_at(self, boundary: float) -> float:
         """When the answer to the sample stamped ``boundary`` [s] acts on the plant [s]."""
         return boundary + self.queue.delay_ns / NS_PER_S
@@ -148,18 +182,18 @@ class LockstepAnswers:
         seen = self.queue.sample(stamp_ns, speed)
         if seen == "repeat":
             self._send(stamp_ns, self.queue.last_answer)
-        if self._reads_accelerometer():
+        if self._reads_accelerometer() and self._link is None:
             self._drain()
         self.answer_waiting()
 
-    def _reads_accelerometer(self) -> bool:
+    def _reads_accelerometer(self, linked: bool = False) -> bool:
         """Whether the answers need the accelerometer (the inner loop of a resonant plant);
         subscribed the first time they do.  Until then the node has no reader on the topic:
         a reader as deep as a lockstep window needs costs the slider ~0.1 ms a reading (a
         thousand a second); joining later costs nothing, the topic is transient local."""
         drive = self.runtime.drive
         reads = drive is not None and drive.inner_loop
-        if reads and not self._reading:
+        if reads and not self._reading and not linked and self._link is None:
             self.node.subscribe_accelerometer(lockstep=True, reading=True)
             self._reading = True
         return reads
@@ -210,7 +244,13 @@ class LockstepAnswers:
             self.node.publish_diagnostics()
 
     def _send(self, stamp_ns: int, values: dict[str, float]) -> None:
-        self._publisher.publish(stamped_message(stamp_ns, values))
+        """The answer: to a linked slider directly, and on the topic whenever another listens."""
+        msg = stamped_message(stamp_ns, values)
+        if self._link is not None:
+            self._link.answer(msg)
+            if self._publisher.get_subscription_count() <= 1:  # (the slider's own: it has the answer)
+                return
+        self._publisher.publish(msg)
 
     def values(self) -> dict[str, Any]:
         """The answers' figures for diagnostics."""

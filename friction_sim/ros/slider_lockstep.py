@@ -12,12 +12,17 @@ missed it), and after ``lockstep_timeout`` of wall time it names the
 participant it waited for and stops the run (a fault: the node exits with
 code 3) rather than hang.  Diagnostics come every ``diagnostics_period`` of
 simulation time, stamped with it, so a recording of a lockstep run holds the
-same messages every time.
+same messages every time.  A controller in the same process takes its turns
+through a link instead of the topics (:mod:`friction_sim.ros.lockstep_link`):
+the loop hands it each sample and reading as it publishes them, and takes its
+answer as if it had come on ``control_answer``.
 """
 
 from __future__ import annotations
 
+import threading
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
@@ -29,8 +34,9 @@ from friction_sim.core.runtime.accelerometer import Accelerometer
 from friction_sim.core.runtime.lockstep import LockstepGate, LockstepSlider, participants, to_ns
 from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import ParameterError, SimulationFault
-from friction_sim.io.messages import mean_velocity_message, message_class
+from friction_sim.io.messages import ACCELEROMETER, mean_velocity_message, message_class, seconds_to_ns
 from friction_sim.io.stamped import CONTROL_ANSWER, STAMPED_COMMAND, STAMPED_DEPTH, STAMPED_TYPE, stamped_commands
+from friction_sim.ros import lockstep_link
 from friction_sim.ros.intake import Arrivals, PolledGroup, take_all
 from friction_sim.ros.run import wall_ns
 
@@ -50,6 +56,7 @@ class SteppedNode(Protocol):
     def context(self) -> Any: ...
     def get_parameter(self, name: str) -> Any: ...
     def get_logger(self) -> Any: ...
+    def resolve_topic_name(self, topic: str, *, only_expand: bool = False) -> str: ...
     def create_subscription(self, *args: Any, **kwargs: Any) -> Any: ...
 
     def take_commands(self) -> None: ...
@@ -109,13 +116,26 @@ class LockstepLoop:
         self._next_diagnostics_ns = self._period_ns
         #: The recent samples published, by stamp [ns], to publish again while awaited.
         self._recent: dict[int, PeriodSummary] = {}
+        #: A controller in this process takes its turns through this link, not DDS
+        #: (:mod:`~friction_sim.ros.lockstep_link`).
+        self._link = lockstep_link.offer(node.context, lockstep_link.TurnTopics(
+            *(node.resolve_topic_name(topic) for topic in ("mean_velocity", CONTROL_ANSWER, ACCELEROMETER))),
+            self._arrivals.wake)
+        #: The readings (stamp [ns], normal [m/s^2]) of samples not yet answered: what a linked controller needs.
+        self._readings: deque[tuple[int, float]] = deque()
+        #: The link's controller handed to last (its generation), and the last sample and reading handed to it [ns].
+        self._handed = (0, -1, -1)
 
     def run(self) -> None:
         """Apply, advance and publish until stopped; wait (at most ``lockstep_timeout``
         for a participant) only when the gate allows no step."""
+        if self._link is not None:
+            self._link.slider_thread = threading.current_thread()
         try:
             self._run()
         finally:
+            if self._link is not None:
+                lockstep_link.withdraw(self._link)
             self._arrivals.destroy()
 
     def _run(self) -> None:
@@ -136,13 +156,15 @@ class LockstepLoop:
                     node.publish_tick(tick)
                     self._recent = {to_ns(p.t): p for p in (*self._recent.values(), *tick.periods)
                                     if to_ns(p.t) in rt.gate.awaited}
+                    self._keep_readings(tick)
+            self._hand_over()
             for outcome in outcomes:
                 node.warn_refused(outcome)
             if tick is not None:
                 blocked_since = None
                 self._diagnostics_due()
                 continue
-            if outcomes:
+            if outcomes or (self._link is not None and self._link.answers):
                 continue
             node.flush_readings()  # (a controller that began to read the accelerometer gets what it needs)
             blocker, joined = rt.gate.blocker(rt.t_ns)
@@ -169,8 +191,10 @@ class LockstepLoop:
         """Hand the queued stamped messages to the gate (lock held); the outcomes of
         the refused ones (a malformed message, a stamp in the past)."""
         rt, refused = self.rt, []
-        waiting = [(topic, msg) for topic, subscription in self._stamped
-                   for msg in take_all(subscription, STAMPED_DEPTH)]
+        linked: deque[Any] = self._link.answers if self._link is not None else deque()
+        waiting = [(CONTROL_ANSWER, linked.popleft()) for _ in range(len(linked))]
+        waiting += [(topic, msg) for topic, subscription in self._stamped
+                    for msg in take_all(subscription, STAMPED_DEPTH)]
         for topic, msg in waiting:
             t = rt.slider.t
             try:
@@ -185,6 +209,32 @@ class LockstepLoop:
             if why:
                 refused.append(self._refused(why))
         return refused
+
+    def _keep_readings(self, tick: Tick) -> None:
+        """Keep the tick's accelerometer readings until their window is answered (lock held)."""
+        readings = self._readings
+        readings.extend((seconds_to_ns(sample.t), sample.z) for sample in tick.accelerations)
+        answered = self.rt.gate.answered_ns
+        while readings and readings[0][0] <= answered:
+            readings.popleft()
+
+    def _hand_over(self) -> None:
+        """Hand a linked controller the samples and readings it has not had (all that await an
+        answer, to a controller linked since the last call); it may answer at once, in this thread."""
+        link = self._link
+        controller = link.controller if link is not None else None
+        if link is None or controller is None:
+            return
+        generation, sample_ns, reading_ns = self._handed
+        if generation != link.generation:
+            sample_ns = reading_ns = -1
+        samples = [(stamp, self._recent[stamp].mean_velocity) for stamp in sorted(self._recent) if stamp > sample_ns]
+        readings = [reading for reading in self._readings if reading[0] > reading_ns]
+        if not (samples or readings) and generation == link.generation:
+            return
+        self._handed = (link.generation, samples[-1][0] if samples else sample_ns,
+                        readings[-1][0] if readings else reading_ns)
+        controller.deliver(samples, readings)
 
     def _refused(self, why: str) -> Outcome:
         """Count input refused before it became a command (a malformed stamped message; lock held)."""
