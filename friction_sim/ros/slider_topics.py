@@ -5,7 +5,9 @@
 it is on), ``diagnostics`` (the message the node builds) and ``/clock`` (only
 while ``publish_clock`` is true: the publisher exists only then).  Whatever goes
 out on a topic is handed to the node's sinks as it goes (a recording, a live
-view), in the same order.
+view), in the same order.  The states and /clock go out on a topic only while
+someone reads it (they are volatile: a reader gets what comes after it
+matched, either way); the sinks get them always.
 
 :class:`SliderTopics` also counts the ticks computed and published, so a
 ``~/step`` or ``~/reset`` answers once the state it left is out
@@ -70,6 +72,11 @@ class SliderTopics:
             message_class("sensor_msgs/msg/Imu"), ACCELEROMETER, accelerometer_qos()), self.frame_id,
             self._imu_noise) if accelerometer else None
         self._pose, self._velocity, self._friction = PoseStamped(), TwistStamped(), WrenchStamped()
+        #: The state's publishers, each with its message (filled in place).  A state goes out on those
+        #: that someone reads: rclpy converts a message even for no reader, ~10 us each, three a tick.
+        self._state_msgs = {self._pose_pub: self._pose, self._velocity_pub: self._velocity,
+                            self._friction_pub: self._friction}
+        self._state_pubs = list(self._state_msgs)
         self._clock_msg = ClockMsg()
         self._clock_pub: Any = None
         self.set_publish_clock(publish_clock)
@@ -103,8 +110,9 @@ class SliderTopics:
         self.ticks_computed += 1
         if fresh and self._clock_pub is not None:
             t_ns = seconds_to_ns(tick.state.t)
-            time_msg(t_ns, self._clock_msg.clock)
-            self._clock_pub.publish(self._clock_msg)
+            if self._clock_pub.get_subscription_count():
+                time_msg(t_ns, self._clock_msg.clock)
+                self._clock_pub.publish(self._clock_msg)
             deliver(self.sinks, ClockRecord(t_ns))
         return self.ticks_computed
 
@@ -112,10 +120,11 @@ class SliderTopics:
         """The states, period means and accelerometer samples of tick ``number``, to the topics and sinks."""
         if fresh:
             state = tick.state
-            fill_state_messages(state, self.frame_id, self._pose, self._velocity, self._friction)
-            self._pose_pub.publish(self._pose)
-            self._velocity_pub.publish(self._velocity)
-            self._friction_pub.publish(self._friction)
+            readers = [publisher for publisher in self._state_pubs if publisher.get_subscription_count()]
+            if readers:
+                fill_state_messages(state, self.frame_id, self._pose, self._velocity, self._friction)
+                for publisher in readers:
+                    publisher.publish(self._state_msgs[publisher])
             for period in tick.periods:
                 self._mean_pub.publish(mean_velocity_message(period, self.frame_id))
             if self._imu_pub is not None:
