@@ -28,6 +28,9 @@ $(error PLATFORM = $(PLATFORM): must be pinned or jazzy)
 endif
 VPY    := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
+# The docs' headless browser, one per checkout, on either platform (see `browser:` below).
+BROWSER_DIR := tools/docs-browser
+BROWSER := $(BROWSER_DIR)/node_modules/.chromium/chromium
 export PLATFORM
 
 # Keep all DDS traffic on this machine, and give each `make` invocation its own
@@ -41,7 +44,7 @@ MPLBACKEND := Agg
 export ROS_DOMAIN_ID ROS_AUTOMATIC_DISCOVERY_RANGE MPLBACKEND
 
 .DEFAULT_GOAL := test
-.PHONY: venv .venv lint test suite test-jazzy demo docs bench margins clean distclean
+.PHONY: venv .venv lint test suite test-jazzy demo docs browser docs-shot bench margins clean distclean
 
 venv .venv: $(STAMP)
 
@@ -82,7 +85,7 @@ test: lint
 # PYTEST_WORKERS processes (pytest-xdist; a test file stays on one worker, each worker
 # has a ROS domain of its own: test/conftest.py).
 PYTEST_WORKERS ?= 2
-suite: $(STAMP)
+suite: $(STAMP) $(BROWSER)
 	$(VPY) -m pytest -q -n $(PYTEST_WORKERS) --dist loadfile test $(PYTEST_ARGS)
 
 # The whole suite on the Jazzy platform (.venv-jazzy; see the top of this file).
@@ -110,6 +113,22 @@ docs: $(STAMP)
 	$(VPY) -m sphinx -W --keep-going -q -b html doc build/docs/html
 	@echo "build/docs/html/index.html"
 
+# A headless browser for the site (tools/docs-browser): the Chromium that the npm package
+# @sparticuz/chromium ships inside its tarball, driven by puppeteer-core, both pinned by
+# package-lock.json; `npm ci` unpacks it into that folder's node_modules (extract.mjs).
+# From the npm registry alone, with the machine's Node.js; the suite opens the site in it
+# (test/test_docs_browser.py), so `make suite` installs it.  (BROWSER is set at the top.)
+browser: $(BROWSER)
+$(BROWSER): $(BROWSER_DIR)/package.json $(BROWSER_DIR)/package-lock.json $(BROWSER_DIR)/extract.mjs
+	cd $(BROWSER_DIR) && npm ci --no-audit --no-fund
+	touch $@
+
+# The site's front page as a reader's browser shows it: a screenshot in
+# build/docs/front.png, and what the page shows (title, headings, links, images, console
+# errors) printed; fails on a console error, a broken image or a link to a missing file.
+docs-shot: docs $(BROWSER)
+	node $(BROWSER_DIR)/shot.mjs build/docs/html/index.html build/docs/front.png
+
 bench: $(STAMP)
 	@set -e; found=0; \
 	for f in bench/[!_]*.py; do \
@@ -125,4 +144,4 @@ clean:
 	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
 
 distclean: clean
-	rm -rf .venv .venv-jazzy
+	rm -rf .venv .venv-jazzy $(BROWSER_DIR)/node_modules
