@@ -19,11 +19,12 @@ from collections import defaultdict
 from collections.abc import Iterator
 
 #: The diagnostics values that tell the wall clock's story (how fast, how long something waited, how
-#: often a sample went out again while the slider waited), or name the file: blanked in a digest.
+#: often a sample went out again while the slider waited, how far ahead of the slider the scheduler's
+#: promises had come), or name the file: blanked in a digest.
 WALL_CLOCK_KEYS = frozenset({
     "achieved_real_time_factor", "tick_rate", "late_ticks", "late_ticks_total", "ticks_behind_in_interval",
     "stalls", "time_slipped", "recording_waited_s", "recording_waited_in_interval_s", "lockstep_waited_s",
-    "lockstep_stale_answers", "lockstep_join_waits", "messages_lost", "live_view_clients", "live_view_sent",
+    "lockstep_stale_answers", "lockstep_join_waits", "lockstep_promise", "messages_lost", "live_view_clients", "live_view_sent",
     "live_view_dropped", "recording",
 })
 #: Metadata written from the wall clock or the file system (left out).

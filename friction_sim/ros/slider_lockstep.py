@@ -251,9 +251,10 @@ class LockstepLoop:
             self.node.publish_mean_velocity(mean_velocity_message(period, self.node.frame_id))
 
     def _diagnostics_due(self) -> None:
-        """Diagnostics once per diagnostics_period of simulation time, stamped with the time reached."""
+        """Diagnostics once per diagnostics_period of simulation time, stamped with the time reached,
+        once every period that ended by then is reported (they then say the same every run)."""
         t_ns = self.rt.t_ns
-        if t_ns < self._next_diagnostics_ns:
+        if t_ns < self._next_diagnostics_ns or not self.rt.reported_through(t_ns):
             return
         while self._next_diagnostics_ns <= t_ns:
             self._next_diagnostics_ns += self._period_ns

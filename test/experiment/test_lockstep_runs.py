@@ -67,10 +67,25 @@ def test_acceptance_7_with_noise_gives_the_same_recording_with_and_without_a_sta
 
 def test_the_demo_gives_the_same_recording_twice(ros: None, tmp_path: Path) -> None:
     """The demo: open-loop steps, a lift, closed loop with target, drive-force and
-    frequency steps, a refused command, pause, two steps and a resume."""
+    frequency steps, a refused command, pause, two steps and a resume.  The driver sends
+    the promises of the open-loop steps back to back; in the second run each of its
+    promises after the first comes 0.1 s of wall time late (the slider then waits at the
+    one before), so the slider's diagnostics are made with other promises come: the same
+    recording all the same (each report counts the messages stamped by its time)."""
     namespace = f"/lockstep_{uuid.uuid4().hex[:8]}"
     first = _run("config/demo.yaml", tmp_path / "a.mcap", namespace)
-    second = _run("config/demo.yaml", tmp_path / "b.mcap", namespace)
+    publish, sent = runner.ScheduleParticipant.promise, []
+
+    def late(self, t_ns, commands=()):  # type: ignore[no-untyped-def]
+        if sent:
+            time.sleep(0.1)  # the delay under test: the scheduler's message comes late
+        sent.append(t_ns)
+        publish(self, t_ns, commands)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(runner.ScheduleParticipant, "promise", late)
+        second = _run("config/demo.yaml", tmp_path / "b.mcap", namespace)
+    assert len(sent) > 6
     assert differences(first, second) == []
     assert f"{namespace}/sim_control" in first and f"{namespace}/rejected_commands" in first
 

@@ -96,6 +96,12 @@ class LockstepGate:
         self._seq = itertools.count()
         #: Answers taken, answers that answered no awaited sample (a repeat), stamped commands taken.
         self.answers = self.stale_answers = self.scheduled = 0
+        #: The stamps [ns] of the stamped messages taken, oldest first, until a report counts them
+        #: (:meth:`values`): a report at simulation time t counts those stamped before t, which have
+        #: all come by then whenever they were sent (the scheduler sends its stamps in order, and one
+        #: at t or later let the slider get to t); those stamped at t or later may have come or not.
+        self._stamps: deque[int] = deque()
+        self._scheduled_by = 0
         #: The stamp [ns] of the last sample answered (-1: none yet).
         self.answered_ns = -1
         #: Wall time [s] spent waiting for participants; lockstep_timeouts spent waiting for one to join.
@@ -157,6 +163,7 @@ class LockstepGate:
         if self.scheduler:
             self.promise_ns = stamp_ns
         self.scheduled += 1
+        self._stamps.append(stamp_ns)
         self._queue(stamp_ns, _SCHEDULED, commands)
         return ""
 
@@ -201,11 +208,16 @@ class LockstepGate:
             return "the scheduler: no stamped_command yet", False
         return "", False
 
-    def values(self) -> dict[str, Any]:
-        """The gate's figures for diagnostics."""
+    def values(self, t_ns: int = UNBOUNDED) -> dict[str, Any]:
+        """The gate's figures for diagnostics at simulation time ``t_ns``: the stamped messages
+        are those stamped before then (the same every run; how far the scheduler has promised,
+        ``lockstep_promise``, depends on when its messages came)."""
+        while self._stamps and self._stamps[0] < t_ns:
+            self._stamps.popleft()
+            self._scheduled_by += 1
         return {"lockstep": True, "actuation_delay": self.delay_ns / NS_PER_S,
                 "lockstep_answers": self.answers, "lockstep_stale_answers": self.stale_answers,
-                "lockstep_scheduled": self.scheduled, "lockstep_waited_s": self.waited,
+                "lockstep_scheduled": self._scheduled_by, "lockstep_waited_s": self.waited,
                 "lockstep_join_waits": self.join_waits,
                 "lockstep_promise": math.inf if self.promise_ns == UNBOUNDED else self.promise_ns / NS_PER_S}
 
@@ -257,7 +269,13 @@ class LockstepSlider(RealtimeSlider):
         return Outcome(command)
 
     def due_commands(self, wall_ns: int) -> list[Outcome]:
-        """Take the stamped commands due now, each a change of its own (as any command)."""
+        """Take the stamped commands due now, each a change of its own (as any command).  Not
+        while a window that ended by now waits to be reported (the slider stands where a hold
+        or promise stopped it, at a period's end): commands at a period's end act after its
+        window is reported, whether or not a promise held the slider there, so its diagnostics
+        say the same every run (the slider does not move meanwhile: they act at their time)."""
+        if not self.reported_through(self.t_ns):
+            return []
         due = self.gate.due(self.t_ns)
         return self.commands(due, wall_ns) if due else []
 
@@ -279,6 +297,13 @@ class LockstepSlider(RealtimeSlider):
         self._mark_hold()
         return self._tick(wall_ns)
 
+    def reported_through(self, t_ns: int) -> bool:
+        """Whether every period that ended by ``t_ns`` has been reported.  A window ending where
+        a hold or a promise stops the slider is reported once it moves on: the diagnostics of
+        that time wait for it, so they say the same whether or not the scheduler's next promise
+        had come when the slider got there."""
+        return not any(to_ns(mark.t) <= t_ns for mark in self.slider.cycle_marks_after(self.period_means.last_mark_n))
+
     def _mark_hold(self) -> None:
         """Report no window ending at or after where a hold or promise stops the slider."""
         held = self.gate.held_ns()
@@ -294,7 +319,7 @@ class LockstepSlider(RealtimeSlider):
     def diagnostics(self, wall_ns: int, prediction: Any = None) -> dict[str, Any]:
         report = super().diagnostics(wall_ns, prediction)
         report["paused"] = self.gate.paused
-        return {**report, **self.gate.values()}
+        return {**report, **self.gate.values(self.t_ns)}
 
 
 __all__ = ["CONTROLLER", "SCHEDULER", "UNBOUNDED", "LockstepGate", "LockstepSlider", "participants", "to_ns"]

@@ -528,3 +528,21 @@ def test_the_gate_reports_its_figures() -> None:
     scheduler = _gate(0.0, SCHEDULER)
     assert scheduler.promise(30 * MS, [], 0) == ""
     assert scheduler.values()["lockstep_promise"] == 0.03
+
+
+def test_a_report_counts_the_stamped_messages_stamped_by_its_time_whenever_they_came() -> None:
+    """Two runs, one whose scheduler's messages all came at once, one whose came one by one
+    (each only once the slider stood at the one before): the reports at the same simulation
+    times count the same, those stamped before their time."""
+    stamps = [10 * MS, 20 * MS, 20 * MS, 40 * MS]
+    early = _gate(0.0, SCHEDULER)
+    for stamp in stamps:
+        assert early.promise(stamp, [], 0) == ""
+    late = _gate(0.0, SCHEDULER)
+    counts = {}
+    for t_ns in (5 * MS, 10 * MS, 25 * MS, 40 * MS):
+        for stamp in stamps[:sum(stamp < t_ns for stamp in stamps) + 1][late.scheduled:]:
+            assert late.promise(stamp, [], 0) == ""  # what has come before t_ns, and the one that let it get there
+        counts[t_ns] = (early.values(t_ns)["lockstep_scheduled"], late.values(t_ns)["lockstep_scheduled"])
+    assert counts == {5 * MS: (0, 0), 10 * MS: (0, 0), 25 * MS: (3, 3), 40 * MS: (3, 3)}
+    assert early.scheduled == late.scheduled == 4
