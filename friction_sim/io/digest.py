@@ -24,8 +24,8 @@ from collections.abc import Iterator
 WALL_CLOCK_KEYS = frozenset({
     "achieved_real_time_factor", "tick_rate", "late_ticks", "late_ticks_total", "ticks_behind_in_interval",
     "stalls", "time_slipped", "recording_waited_s", "recording_waited_in_interval_s", "lockstep_waited_s",
-    "lockstep_stale_answers", "lockstep_join_waits", "lockstep_promise", "messages_lost", "live_view_clients", "live_view_sent",
-    "live_view_dropped", "recording",
+    "lockstep_stale_answers", "lockstep_join_waits", "lockstep_promise", "messages_lost", "live_view_clients",
+    "live_view_sent", "live_view_dropped", "recording",
 })
 #: Metadata written from the wall clock or the file system (left out).
 _WALL_METADATA = frozenset({"log_path", "recorded_at", "started_at", "wall_time"})
