@@ -72,3 +72,49 @@ def test_the_command_draws_the_band(calibrated: Path, tmp_path: Path) -> None:
                               "11", "--params", str(calibrated), "--set", "mu=0.2"], capture_output=True, text=True,
                              timeout=300)
     assert refused.returncode == 2 and refused.stderr.count("\n") == 1 and "mu is calibrated" in refused.stderr
+
+
+SWEEP = """\
+name: calibrated
+settle_periods: 30
+periods: 30
+plant_params: {params}
+fixed: {{drive_force: 0.9}}
+grid:
+  excitation_amplitude: [5.0, 6.5, 8.0]
+  excitation_frequency: [40.0, 50.0]
+"""
+
+
+def test_a_sweep_of_a_calibrated_plant_reports_its_band(calibrated: Path, tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    """``sweep-report`` of a sweep whose plant_params is a calibrated.yaml: each cell's
+    band is predict's at the cell's settings (over the sweep's periods), holds the
+    sweep's own speed at the estimates, and its width is the figure's extra map."""
+    from friction_sim.cli.main import main
+    from friction_sim.cli.sweep_figure import sweep_figure
+    from friction_sim.experiment.calibration_bands import sweep_bands
+    from friction_sim.experiment.calibration_predict import predict
+    from friction_sim.experiment.sweep_report import build_maps
+
+    (tmp_path / "s.yaml").write_text(SWEEP.format(params=calibrated))
+    output = tmp_path / "s.parquet"
+    assert main(["sweep", str(tmp_path / "s.yaml"), "--output", str(output), "--workers", "0"]) == 0
+    maps = build_maps(output, "excitation_amplitude", "excitation_frequency")
+    bands, said = sweep_bands(maps, samples=60)
+    assert bands is not None and "calibrated in" in said and bands.names == ("mu", "static_ratio")
+    (low,), (high,), (mean,) = bands.low, bands.high, (maps.slices[0].mean,)
+    assert low.shape == high.shape == mean.shape == (2, 3)
+    assert np.all(low <= mean) and np.all(mean <= high) and np.all(high > low)
+    at = predict(read_calibrated(calibrated), {"drive_force": 0.9, "excitation_amplitude": 6.5,
+                                               "excitation_frequency": 40.0}, samples=60, settle_periods=30,
+                 periods=30)
+    assert (low[0, 1], high[0, 1]) == (at.low[0], at.high[0])
+    figure = sweep_figure(maps, bands)
+    (widths,) = [mesh for axes in figure.axes for mesh in axes.collections
+                 if "band" in axes.get_title() and hasattr(mesh, "get_array") and mesh.get_array() is not None
+                 and np.size(mesh.get_array()) == 6]
+    assert np.allclose(np.asarray(widths.get_array()).reshape(2, 3), (high - low) * 1e3)
+    code = main(["sweep-report", str(output), "--x", "excitation_amplitude", "--y", "excitation_frequency",
+                 "--output", str(tmp_path / "report")])
+    assert code == 0 and "the 95 % band of the plant calibrated in" in capsys.readouterr().out
