@@ -26,6 +26,7 @@ from friction_sim.experiment.calibration import (
 )
 from friction_sim.experiment.calibration_accel import ReadingsCalibration, fits_exciter
 from friction_sim.experiment.calibration_fit import parse_start
+from friction_sim.experiment.calibration_run import RunCalibration
 from friction_sim.experiment.calibration_sweep import SweepCalibration, calibrate_sweep, is_sweep, read_sweep
 from friction_sim.experiment.measurements import read_fixed, read_measurements
 
@@ -102,7 +103,8 @@ def _sweep(args: argparse.Namespace, options: FitOptions) -> int:
     return 0
 
 
-def _write_profiles(folder: Path, result: Calibration | SweepCalibration | ReadingsCalibration) -> None:
+def _write_profiles(folder: Path,
+                    result: Calibration | SweepCalibration | ReadingsCalibration | RunCalibration) -> None:
     """calibration_profile.png: each fitted parameter's profile (when computed)."""
     if result.profiles:
         from friction_sim.cli.calibration_figures import profile_figure
@@ -129,6 +131,7 @@ def _recording(args: argparse.Namespace, options: FitOptions) -> int:
         print(line)
     _write_plant(args.output, result.parameters_file())
     print(f"wrote {save_figure(run_calibration_figure(result), args.output / 'calibration.png')}")
+    _write_profiles(args.output, result)
     return 0
 
 
