@@ -133,3 +133,23 @@ def test_the_command_fits_the_exciter_to_a_recording(recordings: dict[str, Path]
                              timeout=120)
     assert refused.returncode == 2 and refused.stderr.count("\n") == 1, refused.stderr
     assert "no accelerometer readings" in refused.stderr
+
+
+def test_the_intervals_cover_the_truth_90_to_99_percent(recordings: dict[str, Path]) -> None:
+    """Coverage, derandomized: the noise-free recording's readings plus white noise of
+    0.2 m/s^2 (stated), seeds 0-399; the profile 95 % interval of each of f_n, zeta and A
+    holds the truth in 90-99 % of them (400 seeds: the binomial spread of a count is
+    about 1 %, so an honest interval lands in that range; 100 seeds would put one in
+    twenty within 2 % of its edge).  Measured: 95.5 / 93.25 / 94 %."""
+    recording = read_recording(recordings["exact"])
+    run = recorded_run(recording)
+    exact = accelerometer_readings(recording, run.initial)
+    options = dataclasses.replace(EXCITER, starts=1)
+    truth = np.array(list(TRUTH.values()))
+    inside = np.zeros(3)
+    seeds = 400
+    for seed in range(seeds):
+        noise = np.random.default_rng(seed).normal(0.0, 0.2, exact.count)
+        result = calibrate_readings(run, dataclasses.replace(exact, normal=exact.normal + noise, noise=0.2), options)
+        inside += [e.profile_low <= t <= e.profile_high for e, t in zip(result.estimates, truth)]
+    assert np.all((0.90 * seeds <= inside) & (inside <= 0.99 * seeds)), inside / seeds
