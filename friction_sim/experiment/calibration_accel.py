@@ -71,13 +71,12 @@ from friction_sim.experiment.calibration import (
     uncertainty,
     visible,
 )
-from friction_sim.experiment.calibration_fit import CalibrationError, Floats, scatter, size
+from friction_sim.experiment.calibration_fit import CalibrationError, Floats, scatter, size, words
+from friction_sim.experiment.calibration_sweep import EXCITER
 from friction_sim.experiment.verify import RecordedRun
 from friction_sim.io.messages import ACCELEROMETER, NS_PER_S
 from friction_sim.io.reader import Recording
 
-#: What the readings determine: the exciter's data.
-EXCITER = tuple(spec.EXCITER)
 #: Damping ratios of the starts read off the data (log grid over zeta's range), screened at once.
 START_GRID = 48
 
@@ -312,8 +311,7 @@ def calibrate_readings(run: RecordedRun, readings: Readings, options: FitOptions
     dof = n - p
     scale = readings.noise if known else size(readings.normal)
     problem = Problem(options.fit, lambda xs: (model.rows(xs) - readings.normal[None, :]) / scale,
-                      lambda x: "the readings do not change at " + ", ".join(
-                          f"{name} = {value:.6g}" for name, value in zip(options.fit, x)),
+                      lambda x: "the readings do not change at " + words(options.fit, x),
                       subject="accelerometer reading")
     candidates = model.read_off()
     reference = np.array([float(spec.EXCITER[name].default) for name in options.fit])
@@ -341,5 +339,5 @@ def fits_exciter(names: tuple[str, ...]) -> bool:
     return all(name in EXCITER for name in names)
 
 
-__all__ = ["EXCITER", "START_GRID", "Plateau", "Readings", "ReadingsCalibration", "ReadingsModel",
+__all__ = ["START_GRID", "Plateau", "Readings", "ReadingsCalibration", "ReadingsModel",
            "accelerometer_readings", "calibrate_readings", "fits_exciter", "plateaus"]
