@@ -24,7 +24,9 @@ from friction_sim.experiment.calibration import (
     summary,
     write_residuals,
 )
+from friction_sim.experiment.calibration_accel import ReadingsCalibration, fits_exciter
 from friction_sim.experiment.calibration_fit import parse_start
+from friction_sim.experiment.calibration_run import RunCalibration
 from friction_sim.experiment.calibration_sweep import SweepCalibration, calibrate_sweep, is_sweep, read_sweep
 from friction_sim.experiment.measurements import read_fixed, read_measurements
 
@@ -43,7 +45,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                                          "[m/s] and optionally std [m/s]); CSV of a frequency sweep "
                                                          "(excitation_frequency, amplitude [m/s^2], optionally "
                                                          "drive_level, lag_deg, std), which fits the exciter; or a "
-                                                         "recording (.mcap) whose trajectory to fit")
+                                                         "recording (.mcap) whose trajectory to fit (or, fitting "
+                                                         "the exciter's data, whose accelerometer readings)")
     parser.add_argument("--fit", required=True, help="the plant parameters to fit, comma-separated (e.g. "
                                                      "mu,static_ratio)")
     parser.add_argument("--fixed", type=Path, help="the settings that do not vary: a YAML mapping in the sweeps' "
@@ -100,7 +103,8 @@ def _sweep(args: argparse.Namespace, options: FitOptions) -> int:
     return 0
 
 
-def _write_profiles(folder: Path, result: Calibration | SweepCalibration) -> None:
+def _write_profiles(folder: Path,
+                    result: Calibration | SweepCalibration | ReadingsCalibration | RunCalibration) -> None:
     """calibration_profile.png: each fitted parameter's profile (when computed)."""
     if result.profiles:
         from friction_sim.cli.calibration_figures import profile_figure
@@ -120,11 +124,33 @@ def _recording(args: argparse.Namespace, options: FitOptions) -> int:
 
     if args.fixed is not None or args.set:
         raise CalibrationError("--fixed and --set do not apply to a recording: its settings are the file's")
+    if fits_exciter(options.fit):
+        return _readings(args, options)
     result = calibrate_run(recorded_run(read_recording(args.measurements)), options)
     for line in result.summary():
         print(line)
     _write_plant(args.output, result.parameters_file())
     print(f"wrote {save_figure(run_calibration_figure(result), args.output / 'calibration.png')}")
+    _write_profiles(args.output, result)
+    return 0
+
+
+def _readings(args: argparse.Namespace, options: FitOptions) -> int:
+    """A recording with the accelerometer on: fit the exciter's data to its readings."""
+    from friction_sim.cli.calibration_figures import readings_figure
+    from friction_sim.cli.figures import save_figure
+    from friction_sim.experiment.calibration_accel import accelerometer_readings, calibrate_readings
+    from friction_sim.experiment.verify import recorded_run
+    from friction_sim.io.reader import read_recording
+
+    recording = read_recording(args.measurements)
+    run = recorded_run(recording)
+    result = calibrate_readings(run, accelerometer_readings(recording, run.initial), options)
+    for line in result.summary():
+        print(line)
+    _write_plant(args.output, result.parameters_file())
+    print(f"wrote {save_figure(readings_figure(result), args.output / 'calibration.png')}")
+    _write_profiles(args.output, result)
     return 0
 
 

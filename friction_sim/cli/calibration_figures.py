@@ -3,6 +3,9 @@
 * :func:`sweep_figure` (``calibration.png`` of a frequency sweep): the
   measured amplitude (and lag) against the drive frequency, the fitted curve
   through them, and the amplitude's residuals.
+* :func:`readings_figure` (``calibration.png`` of the exciter fitted to a
+  recording's accelerometer): the readings and the fitted normal acceleration
+  against time, and the residuals.
 * :func:`band_figure` (``friction-sim predict --sweep ... --png``): the
   predicted mean speed along a swept setting with its 95 % band.
 * :func:`profile_figure` (``calibration_profile.png``): each fitted
@@ -21,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from friction_sim.cli.figures import pyplot_free_figure
+from friction_sim.experiment.calibration_accel import ReadingsCalibration
 from friction_sim.experiment.calibration_fit import Estimate
 from friction_sim.experiment.calibration_predict import BAND, Prediction
 from friction_sim.experiment.calibration_profile import Profile
@@ -90,6 +94,28 @@ def sweep_figure(result: SweepCalibration) -> Any:
     return fig
 
 
+def readings_figure(result: ReadingsCalibration) -> Any:
+    """The accelerometer's normal readings (gravity's share and the bias taken
+    off) and the fitted exciter's acceleration against time, each drive change
+    marked, and the residuals."""
+    r = result.readings
+    fig = pyplot_free_figure(figsize=(9.0, 5.6), layout="constrained")
+    top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[3, 1])
+    top.plot(r.t, r.normal, ".", color="black", markersize=1.5, label="readings")
+    top.plot(r.t, result.fitted, "-", color="tab:red", linewidth=0.8, label="fitted")
+    top.set_ylabel(r"normal acceleration $q''$ [m/s$^2$]")
+    top.legend(fontsize=8, loc="upper right")
+    bottom.plot(r.t, r.normal - result.fitted, ".", color="tab:blue", markersize=1.5)
+    bottom.axhline(0.0, color="black", linewidth=0.6)
+    bottom.set_ylabel(r"residual [m/s$^2$]")
+    bottom.set_xlabel("t [s]")
+    for axes in (top, bottom):
+        axes.grid(alpha=0.3)
+    fig.suptitle(f"Exciter from {result.plateau_count} drive plateaus of a recording's accelerometer\n" + ", ".join(
+        f"{e.name} = {e.value:.6g} ± {e.std_error:.2g}" for e in result.estimates), fontsize=9)
+    return fig
+
+
 def band_figure(prediction: Prediction, name: str) -> Any:
     """The mean speed at the calibrated estimates along the swept setting ``name``,
     and the band the calibration's uncertainty gives it."""
@@ -115,4 +141,4 @@ def _value(value: Any) -> str:
     return str(value) if isinstance(value, str) else f"{float(value):g}"
 
 
-__all__ = ["band_figure", "profile_figure", "sweep_figure"]
+__all__ = ["band_figure", "profile_figure", "readings_figure", "sweep_figure"]

@@ -45,6 +45,10 @@ def add_simulate_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--csv", type=Path, help="write the sampled trajectory and the events")
     add_flag(parser, SAMPLE_RATE, SAMPLE_RATE.default)
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--params", type=Path, help="a calibrated plant (friction-sim calibrate's calibrated.yaml): "
+                                                    "print the mean speed with its 95 %% band, as friction-sim "
+                                                    "predict does, the flags that differ from their defaults "
+                                                    "setting the prediction's settings")
 
 
 def trace(args: argparse.Namespace) -> int:
@@ -63,6 +67,16 @@ def simulate(args: argparse.Namespace) -> int:
     """``simulate``: simulate exactly; print the mean velocity and U (or JSON), optionally write a CSV."""
     from friction_sim.core.runtime.simulation import simulate as run
 
+    if args.params is not None:  # a calibrated plant: the prediction with its band
+        from friction_sim.cli.predict import from_simulate
+
+        for setting, given in ((DURATION, args.duration), (SETTLE, args.settle)):
+            if given != setting.default:
+                raise ParameterError(setting.name, given, "does not apply with --params: the prediction averages "
+                                                          "100 whole periods after 100")
+        if args.csv is not None:
+            raise ParameterError("csv", str(args.csv), "does not apply with --params: a prediction has no trajectory")
+        return from_simulate(args)
     params, inputs = plant(args)
     f = inputs.excitation_frequency
     if args.duration * f > MAX_PERIODS:

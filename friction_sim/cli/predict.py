@@ -4,6 +4,8 @@ The prediction is :func:`friction_sim.experiment.calibration_predict.predict`
 (the calibration's uncertainty carried through the model by sampling on the
 population engine); this module holds the command's options, prints the
 table and writes the CSV and, over a swept setting, the picture of the band.
+``friction-sim simulate --params calibrated.yaml`` is the same prediction
+(:func:`from_simulate`), at the settings simulate's flags give.
 """
 
 from __future__ import annotations
@@ -15,9 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from friction_sim.cli.options import Verb, add_flag
+from friction_sim.cli.options import Verb, add_flag, print_json
 from friction_sim.core.model import spec
-from friction_sim.experiment.calibration_predict import SAMPLES, Prediction, predict, read_calibrated
+from friction_sim.experiment.calibration_predict import BAND, SAMPLES, Prediction, predict, read_calibrated
 from friction_sim.experiment.measurements import MeasurementsError, read_fixed
 from friction_sim.experiment.sweep import KEYS
 
@@ -117,7 +119,49 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def from_simulate(args: argparse.Namespace) -> int:
+    """``simulate --params calibrated.yaml``: :func:`run`'s prediction at the
+    settings simulate's flags give.  The plant is the file's; a flag at a value
+    other than its default sets that setting (a fitted parameter is refused: it
+    is calibrated, with its uncertainty), a flag at its default leaves the
+    file's value (the inputs default to the paper's, as simulate's do).  The
+    mean is over the prediction's whole periods (100 after 100), not simulate's
+    --duration and --settle (which the caller refuses, with --csv)."""
+    from friction_sim.cli.options import PLANT_OPTIONS, flag_of
+
+    uncertain = read_calibrated(args.params)
+    settings = {s.name: getattr(args, s.name) for s in PLANT_OPTIONS if getattr(args, s.name) != s.default}
+    clash = next((name for name in settings if name in uncertain.names), None)
+    if clash:
+        raise MeasurementsError(f"{flag_of(args, clash) or clash}: {clash} is calibrated in {args.params} (with its "
+                                "uncertainty): it is not set when predicting")
+    prediction = predict(uncertain, settings, samples=int(COUNT.default), seed=int(SEED.default),
+                         settle_periods=int(SETTLE.default), periods=int(PERIODS.default))
+    if args.json:
+        print_json({"calibrated": str(args.params), "fitted": list(uncertain.names),
+                    "settings": {name: _plain(values[0]) for name, values in prediction.settings.items()},
+                    "mean_velocity": float(prediction.speed[0]), "band_low": float(prediction.low[0]),
+                    "band_high": float(prediction.high[0]), "band_percent": BAND[1] - BAND[0],
+                    "samples": prediction.samples})
+        return 0
+    print(f"predicted from {args.params}: {', '.join(uncertain.names)} with their uncertainty, "
+          f"{prediction.samples} parameter sets on the population engine (friction-sim predict)")
+    for line in lines(prediction) if settings else _one(prediction):
+        print(line)
+    return 0
+
+
+def _one(prediction: Prediction) -> list[str]:
+    """The table of a prediction at the file's settings (no column varies)."""
+    return [f"{'mean speed m/s':>16}  {'95 % band m/s':>30}",
+            f"{prediction.speed[0]:>16.6g}  [{prediction.low[0]:.6g}, {prediction.high[0]:.6g}]"]
+
+
+def _plain(value: Any) -> Any:
+    return value if isinstance(value, str) else float(value)
+
+
 VERBS = (Verb("predict", "the mean speed of a calibrated plant at given settings with its 95 % band, the "
               "calibration's uncertainty carried through the model", add_arguments, run),)
 
-__all__ = ["VERBS", "add_arguments", "lines", "run", "swept", "write_csv"]
+__all__ = ["VERBS", "add_arguments", "from_simulate", "lines", "run", "swept", "write_csv"]

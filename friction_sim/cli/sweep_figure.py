@@ -4,6 +4,10 @@ value over (x, y) and, when cells hold several parts, its spread beside it.
 The no-motion boundary (half the parts of a cell at U = 0; with one part per
 cell, the edge of the cells that do not move) is a red line with the region
 hatched; the flight boundary (half the parts flying) a black dashed line.
+When the sweep ran a calibrated plant (``plant_params: calibrated.yaml``),
+a column more draws the width of each cell's 95 % band, the calibration's
+uncertainty carried through the model
+(:mod:`~friction_sim.experiment.calibration_bands`), with the same boundaries.
 The figure comes from :mod:`friction_sim.cli.figures` (no pyplot state) and is
 saved with its :func:`~friction_sim.cli.figures.save_figure`, at the same dpi
 as every other figure; matplotlib is only imported there, when one is drawn.
@@ -16,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from friction_sim.cli.figures import pyplot_free_figure as new_figure
+from friction_sim.experiment.calibration_bands import SweepBands
 from friction_sim.experiment.sweep_report import SweepMaps, finite_range
 
 LABELS = {"mean_velocity": "mean speed V [m/s]", "U": "U = V f/(g mu)", "flight_fraction": "flight fraction",
@@ -33,10 +38,11 @@ def _edges(centres: np.ndarray) -> np.ndarray:
     return np.concatenate([[2 * centres[0] - middle[0]], middle, [2 * centres[-1] - middle[-1]]])
 
 
-def sweep_figure(maps: SweepMaps) -> Any:
-    """The maps as a Figure (see the module docstring)."""
+def sweep_figure(maps: SweepMaps, bands: SweepBands | None = None) -> Any:
+    """The maps as a Figure (see the module docstring); ``bands``: the calibrated
+    plant's band in a column of its own (its width, mm/s)."""
     numeric = maps.x_values.dtype.kind in "fiu" and maps.y_values.dtype.kind in "fiu"
-    columns = 2 if maps.parts > 1 else 1
+    columns = (2 if maps.parts > 1 else 1) + (1 if bands is not None else 0)
     rows = max(len(maps.slices), 1)
     fig = new_figure(figsize=(6.4 * columns, 4.2 * rows), layout="constrained")
     axes = fig.subplots(rows, columns, squeeze=False)
@@ -55,7 +61,15 @@ def sweep_figure(maps: SweepMaps) -> Any:
         fig.colorbar(cells, ax=ax, label=LABELS.get(maps.value, maps.value))
         _boundaries(ax, x, y, piece.still, piece.flying)
         _axes(ax, maps, piece.label or "all points", numeric)
-        if columns == 2:
+        if bands is not None:
+            ax = axes[row][columns - 1]
+            width = ax.pcolormesh(x_edges, y_edges, bands.width[row] * 1e3, shading="flat", cmap="cividis",
+                                  rasterized=True)
+            fig.colorbar(width, ax=ax, label="95 % band width [mm/s]")
+            _boundaries(ax, x, y, piece.still, piece.flying)
+            _axes(ax, maps, f"{piece.label or 'all points'}: band of the calibration ({', '.join(bands.names)}; "
+                            f"{bands.samples} sets)", numeric)
+        if maps.parts > 1:
             spread = axes[row][1].pcolormesh(x_edges, y_edges, piece.spread, shading="flat", cmap="magma",
                                              rasterized=True)
             fig.colorbar(spread, ax=axes[row][1], label=f"spread (std over parts) of {maps.value}")

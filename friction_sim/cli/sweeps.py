@@ -109,17 +109,21 @@ def sweep_report(args: argparse.Namespace) -> int:
     """``sweep-report``: the maps (PNG) and the optimum per slice (Markdown)."""
     from friction_sim.cli.figures import save_figure
     from friction_sim.cli.sweep_figure import sweep_figure
+    from friction_sim.experiment.calibration_bands import sweep_bands
     from friction_sim.experiment.sweep_report import build_maps, report_text
 
     if not args.results.is_file():
         raise ParameterError("results", str(args.results), "no such file")
     maps = build_maps(args.results, args.x, args.y, value=args.value, slices=args.slices, bins=args.bins)
+    bands, said = sweep_bands(maps)  # a calibrated plant's 95 % band, or why there is none
     folder = args.output or args.results.parent
     stem = f"{args.results.stem}_{args.value}_{args.x}_{args.y}"
-    picture = save_figure(sweep_figure(maps), folder / f"{stem}.png")
+    picture = save_figure(sweep_figure(maps, bands), folder / f"{stem}.png")
     report = folder / f"{stem}.md"
     report.write_text(report_text(maps, picture))
     print(report.read_text().split("## Optimum per slice", 1)[1].strip())
+    if bands is not None or "calibrates" in said:
+        print(said)
     print(f"wrote {picture} and {report}")
     return 0
 

@@ -37,9 +37,10 @@ finds the parameters the data determine, with honest uncertainty:
   that is not finite.
 
 The same machinery fits the exciter to a frequency sweep
-(:mod:`~friction_sim.experiment.calibration_sweep`) and the plant to a
-recording (:mod:`~friction_sim.experiment.calibration_run`, linearized
-intervals only).
+(:mod:`~friction_sim.experiment.calibration_sweep`) or to a recording's
+accelerometer (:mod:`~friction_sim.experiment.calibration_accel`), and the
+plant to a recording's trajectory (:mod:`~friction_sim.experiment.calibration_run`),
+each with both intervals.
 """
 
 from __future__ import annotations

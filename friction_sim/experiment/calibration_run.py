@@ -12,8 +12,12 @@ each with its own noise, which the file does not state.  So the fit runs twice
 (the method of weighted least squares with estimated variances): first with
 each series in units of its own RMS, then with each in units of the scatter of
 its residuals from the first fit, starting from the first fit's answer; the
-intervals come from the second (:func:`~friction_sim.experiment.calibration.estimates_from`),
-the deviations then taken as known.  A fitted parameter that the recording
+intervals come from the second, the deviations then taken as known: the
+linearized ones and, beside them, profile likelihood's (the cost with the
+other parameters re-fitted rising by chi2_1(0.95)/2,
+:func:`~friction_sim.experiment.calibration.uncertainty`), honest where the
+trajectory depends on the parameters nonlinearly (a hop's restitution, a
+stick-slip's mu).  A fitted parameter that the recording
 itself changes mid-run (a ``ros2 param set`` on it) is refused: the run does
 not have one value of it to find.
 """
@@ -37,20 +41,25 @@ from friction_sim.experiment.calibration import (
     Estimate,
     FitOptions,
     Problem,
+    Profile,
+    check_finite,
     estimate_lines,
     fit,
     parameters_file,
+    uncertainty,
     visible,
 )
-from friction_sim.experiment.calibration_fit import linearized, scatter, size
+from friction_sim.experiment.calibration_fit import scatter, size
 from friction_sim.experiment.verify import RecordedRun, resimulate
 
 
 @dataclass(frozen=True)
 class RunCalibration:
-    """The result of a fit to a recording: the estimates and their correlation,
-    the calibrated plant, the fitted trajectory at the recorded samples, and the
-    noise of each series the fit estimated [m, m/s]."""
+    """The result of a fit to a recording: the estimates (linearized and profile
+    intervals) and their correlation, the calibrated plant, the fitted trajectory
+    at the recorded samples, the noise of each series the fit estimated [m, m/s],
+    and the profiles (the deviations are then known: z quantiles over
+    ``degrees_of_freedom``)."""
 
     run: RecordedRun
     estimates: tuple[Estimate, ...]
@@ -62,10 +71,13 @@ class RunCalibration:
     noise_v: float
     evaluations: int
     seconds: float
+    profiles: tuple[Profile, ...] = ()
+    degrees_of_freedom: int = 0
+    known_deviations: bool = True  # (from the second pass on, the noise of each series is taken as known)
 
     def parameters_file(self) -> str:
-        """The calibrated plant as a ROS 2 parameters file, with the fit's (linearized) uncertainty."""
-        return parameters_file(self.params, self.estimates, self.run.path, self.correlation)
+        """The calibrated plant as a ROS 2 parameters file, with the fit's uncertainty."""
+        return parameters_file(self.params, self.estimates, self.run.path, self.correlation, Z95)
 
     def summary(self) -> list[str]:
         """The estimates, their correlation and how well the trajectory is met, as lines of text."""
@@ -130,12 +142,14 @@ def calibrate_run(run: RecordedRun, options: FitOptions) -> RunCalibration:
     noise_x = max(scatter(sim_x - run.x) * inflation, 1e-15 * scale_x)  # (a noise-free run: rounding)
     noise_v = max(scatter(sim_v - run.v) * inflation, 1e-15 * scale_v)
     again = dataclasses.replace(options, starts=1, start_points=(dict(zip(options.fit, map(float, first.x))),))
-    second = fit(problem_in(noise_x, noise_v), again, first.x, visible(True, dof)).result
-    estimates, correlation, _ = linearized(second, options.fit, True, dof, Z95)
+    problem = problem_in(noise_x, noise_v)
+    second = fit(problem, again, first.x, visible(True, dof)).result
+    found = uncertainty(problem, second, options, True, dof)
     fitted_x, fitted_v = replays.trajectory(second.x)
-    return RunCalibration(run, estimates, correlation, replays.plant(second.x)[0], fitted_x, fitted_v,
+    check_finite(found.estimates, np.concatenate([fitted_x, fitted_v]))
+    return RunCalibration(run, found.estimates, found.correlation, replays.plant(second.x)[0], fitted_x, fitted_v,
                           scatter(fitted_x - run.x), scatter(fitted_v - run.v), replays.evaluations,
-                          time.perf_counter() - started)
+                          time.perf_counter() - started, found.profiles, dof)
 
 
 __all__ = ["RunCalibration", "calibrate_run"]

@@ -180,8 +180,9 @@ def _recorded(tmp_path: Path, **changes: Any) -> Any:
 def test_a_recording_gives_back_its_parameters_with_intervals_that_hold_them(tmp_path: Path) -> None:
     """From the settings' defaults (mu 0.1, e 0), the commands in force read from
     the file: without noise the truth to 1e-6; with white noise on the recorded
-    pose (1 um) and velocity (0.1 mm/s) the truth inside the 95 % intervals of
-    each of 3 seeds, and the noise of each series estimated within 10 %."""
+    pose (1 um) and velocity (0.1 mm/s) the truth inside the 95 % intervals,
+    linearized and profile likelihood, of each of 3 seeds, and the noise of each
+    series estimated within 10 %."""
     import dataclasses
 
     from friction_sim.experiment.calibration_run import calibrate_run
@@ -197,6 +198,8 @@ def test_a_recording_gives_back_its_parameters_with_intervals_that_hold_them(tmp
         result = calibrate_run(noisy, options)
         for estimate, truth in zip(result.estimates, (0.12, 0.3)):
             assert estimate.low <= truth <= estimate.high, (seed, estimate)
+            assert estimate.profile_low <= truth <= estimate.profile_high, (seed, estimate)  # profiled too
+        assert [profile.name for profile in result.profiles] == ["mu", "restitution"]
         assert result.noise_x == pytest.approx(1e-6, rel=0.1) and result.noise_v == pytest.approx(1e-4, rel=0.1)
 
 
@@ -219,6 +222,7 @@ def test_the_command_fits_a_recording(tmp_path: Path) -> None:
     values = read_params_file(tmp_path / "out" / "calibrated.yaml", "slider")
     assert values["mu"] == pytest.approx(0.12, rel=1e-6) and values["restitution"] == 0.3
     assert (tmp_path / "out" / "calibration.png").stat().st_size > 10_000
+    assert "95 % profile likelihood" in done.stdout and (tmp_path / "out" / "calibration_profile.png").is_file()
     refused = subprocess.run([str(BIN / "friction-sim"), "calibrate", str(tmp_path / "run.mcap"), "--fit", "mu",
                               "--set", "mass=2", "--output", str(tmp_path / "o2")], capture_output=True, text=True,
                              timeout=120)

@@ -74,3 +74,29 @@ def test_the_command_predicts_along_a_sweep_with_its_band(calibrated: tuple[Path
     refused = subprocess.run([str(BIN / "friction-sim"), "predict", str(bare)], capture_output=True, text=True,
                              timeout=120)
     assert refused.returncode == 2 and refused.stderr.count("\n") == 1 and "no usable 'calibration'" in refused.stderr
+
+
+def test_simulate_with_params_is_the_prediction(calibrated: tuple[Path, Calibration]) -> None:
+    """``simulate --params calibrated.yaml --drive-force 0.9``: predict's answer at
+    drive_force 0.9 (the flags that differ from their defaults are the settings),
+    the same numbers as ``predict --set drive_force=0.9``; a fitted parameter's
+    flag, --duration and --csv are refused in one line, exit 2."""
+    import json
+
+    def cli(*words: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run([str(BIN / "friction-sim"), *words], capture_output=True, text=True, timeout=300)
+
+    done = cli("simulate", "--params", str(calibrated[0]), "--drive-force", "0.9", "--json")
+    assert done.returncode == 0, done.stderr
+    answer = json.loads(done.stdout)
+    expected = predict(read_calibrated(calibrated[0]), {"drive_force": 0.9})  # predict's defaults: 400 sets, 100 + 100
+    assert answer["settings"] == {"drive_force": 0.9} and answer["fitted"] == ["mu", "static_ratio"]
+    assert (answer["mean_velocity"], answer["band_low"], answer["band_high"]) == (
+        float(expected.speed[0]), float(expected.low[0]), float(expected.high[0]))
+    assert answer["band_low"] < answer["mean_velocity"] < answer["band_high"]
+    table = cli("simulate", "--params", str(calibrated[0]), "--drive-force", "0.9")
+    assert table.returncode == 0 and "95 % band" in table.stdout and f"{answer['mean_velocity']:.6g}" in table.stdout
+    for words, said in ((("--mu", "0.2"), "mu is calibrated"), (("--duration", "3"), "does not apply with --params"),
+                        (("--csv", "x.csv"), "does not apply with --params")):
+        refused = cli("simulate", "--params", str(calibrated[0]), *words)
+        assert refused.returncode == 2 and refused.stderr.count("\n") == 1 and said in refused.stderr, refused.stderr
