@@ -11,7 +11,7 @@ Measures, in one run on this machine:
       started at t0 in {0, 1e6, 2e9} s, the largest error of a slip start
       against its exact time t0 + (n + theta_A/(2 pi))/f, in units in the last
       place of t, and of the displacement per period against the exact D
-      (both exact values from mpmath, see test/reference.py);
+      (both exact values from mpmath, see test/reference_exact.py);
   (e) a flight case of issue 11 (Gamma = 2, vibration angle 30 degrees, mu = 0.5,
       plastic landings with a Coulomb impulse: one lift-off and one landing
       every period): the core's periods per wall-clock second against the
@@ -51,7 +51,8 @@ from friction_sim.core.runtime.simulation import random_schedule, run_schedule, 
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "test"))  # the test-only reference
 from _timing import median_time
-from reference import ReferenceInputs, paper_case_slip, reference_solution, ulps_from_exact
+from reference import ReferenceInputs, reference_solution
+from reference_exact import paper_case_slip, ulps_from_exact
 
 PARAMS = SliderParams()
 FREQUENCY = 50.0

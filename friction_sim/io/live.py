@@ -57,6 +57,12 @@ or documented, none slowing the simulation:
   the SDK disconnects the client.  These drops are the SDK's and not counted
   here.
 
+Where each part lives: this module is the sink (the caller's side, the
+queue, the background thread, the counts and what a node reads of them);
+the Foxglove channels, who subscribes to them and the building and encoding
+of a record's messages are :mod:`friction_sim.io.livechannels`'s; the server
+and its services :mod:`friction_sim.io.liveserver`'s.
+
 A background thread that fails does not fail silently: :attr:`LiveView.error`
 holds one line, it is logged once and sent to the clients as an error status,
 and later records are refused (counted in :attr:`LiveView.dropped`).
@@ -73,16 +79,9 @@ from collections.abc import Sequence
 from typing import Any
 
 import foxglove
-from foxglove.websocket import (
-    ChannelView,
-    Client,
-    ServerListener,
-)
 
-from friction_sim.core.model.events import Mode, SliderState
 from friction_sim.errors import LiveViewError, one_line
-from friction_sim.io import cdr
-from friction_sim.io.bagfile import MAX_STAMP_NS
+from friction_sim.io.livechannels import LiveChannels, Subscriptions
 from friction_sim.io.liveserver import (
     LiveService,
     check_address,
@@ -91,25 +90,8 @@ from friction_sim.io.liveserver import (
     start_server,
     wait_until_free,
 )
-from friction_sim.io.messages import (
-    STATE_TOPICS,
-    TOPIC_TYPES,
-    fill_state_messages,
-    node_name,
-    seconds_to_ns,
-    state_messages,
-)
-from friction_sim.io.recordwriter import (
-    STATE_VALUES,
-    qualified_topic,
-    record_kind,
-    record_messages,
-    record_topics,
-    state_row,
-    state_row_builder,
-)
-from friction_sim.io.sinks import CommandRecord, EventRecord, ParametersRecord, Record, StatesRecord, record_size
-from friction_sim.io.typesupport import message_definition, message_type_name
+from friction_sim.io.messages import STATE_TOPICS, TOPIC_TYPES, node_name
+from friction_sim.io.sinks import CommandRecord, EventRecord, ParametersRecord, Record, record_size
 
 _log = logging.getLogger("friction_sim.io.live")
 
@@ -179,22 +161,15 @@ class LiveView:
         self._error: str | None = None
         self._counts = {"skipped": 0, "dropped": 0, "bad": 0, "encoded": 0, "sent": 0, "thinned": 0}
         self._command_windows: dict[str, tuple[float, int]] = {}  # topic -> (window start, commands served)
-        self._topics: dict[str, str] = {}
-        self._state_topics = tuple(self._topic(topic) for topic in STATE_TOPICS)
-        self._advertised: frozenset[str] = frozenset()  # topics with a channel (replaced whole: read lock-free)
-        self._live: frozenset[str] = frozenset()  # topics some client subscribes to (likewise)
-        self._subscriptions: dict[int, set[str]] = {}  # client id -> topics
-        self._channels: dict[str, tuple[foxglove.Channel, str]] = {}  # topic -> (channel, type name)
-        self._layouts: dict[str, tuple[cdr.FixedLayout, ...] | None] = {}  # frame_id -> state layouts
-        self._templates = state_messages(SliderState(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, Mode.STUCK))  # refilled
-        self._warned: set[str] = set()
-        self._context = foxglove.Context()
-        self._server = start_server(self._context, name, address, port, backlog, _Listener(self),
-                                     [sdk_service(service) for service in services])
+        self._subscriptions = Subscriptions()
+        context = foxglove.Context()
+        self._server = start_server(context, name, address, port, backlog, self._subscriptions,
+                                    [sdk_service(service) for service in services])
         self._port = self._server.port
         try:
+            self._channels = LiveChannels(context, namespace, self.node, self._lock, self._counts, self.url)
             for topic, type_name in ((e, TOPIC_TYPES[e]) if isinstance(e, str) else e for e in advertise):
-                self._channel(self._topic(topic), type_name)
+                self._channels.channel(self._channels.topic(topic), type_name)
         except BaseException:
             self._server.stop()  # leave nothing running
             raise
@@ -217,7 +192,7 @@ class LiveView:
         size = record_size(record)
         if not size:
             return True
-        topics = self._qualified(record)
+        topics = self._channels.qualified(record)
         if not self._wanted(topics, size):
             return True
         kind = type(record)
@@ -241,8 +216,7 @@ class LiveView:
                 self._counts["dropped"] += self._pending
                 self._items.clear()
                 self._pending = 0
-            for channel, _ in list(self._channels.values()):
-                channel.close()
+            self._channels.close()
             self._server.stop()
             wait_until_free(self.address, self._port)
             self._closed = True
@@ -271,8 +245,7 @@ class LiveView:
         """Clients subscribed to at least one channel (the SDK tells of
         subscriptions, not of connections: a client that subscribes to
         nothing is not counted)."""
-        with self._lock:
-            return sum(1 for topics in self._subscriptions.values() if topics)
+        return self._subscriptions.clients
 
     @property
     def sent(self) -> int:
@@ -314,24 +287,11 @@ class LiveView:
 
     # -- the caller's side: queueing ---------------------------------------------------
 
-    def _topic(self, topic: str) -> str:
-        """The fully qualified name of ``topic`` (cached)."""
-        name = self._topics.get(topic)
-        if name is None:
-            name = self._topics[topic] = qualified_topic(self.namespace, topic)
-        return name
-
-    def _qualified(self, record: Record) -> tuple[str, ...]:
-        """The fully qualified names of ``record``'s topics."""
-        if isinstance(record, StatesRecord):
-            return self._state_topics
-        return tuple(self._topic(topic) for topic in record_topics(record))
-
     def _wanted(self, topics: tuple[str, ...], size: int) -> bool:
         """Whether a record for ``topics`` must be queued: some client
         subscribes to one of them, or one is not advertised yet (its first
         record makes the channel).  Otherwise count it as skipped."""
-        if self._live.isdisjoint(topics) and self._advertised.issuperset(topics):
+        if self._subscriptions.live.isdisjoint(topics) and self._channels.advertised.issuperset(topics):
             with self._lock:
                 self._counts["skipped"] += size
             return False
@@ -367,20 +327,6 @@ class LiveView:
                 self._wake.notify()  # the first of a batch, or half full: not every call (a futex wake costs)
             return True
 
-    # -- the SDK's side: subscriptions ---------------------------------------------------
-
-    def _subscribed(self, client: int, topic: str, subscribed: bool) -> None:
-        """Note a client's (un)subscription (called on the SDK's threads)."""
-        with self._lock:
-            topics = self._subscriptions.setdefault(client, set())
-            if subscribed:
-                topics.add(topic)
-            else:
-                topics.discard(topic)
-                if not topics:
-                    del self._subscriptions[client]
-            self._live = frozenset().union(*self._subscriptions.values())
-
     # -- the background thread -------------------------------------------------------------
 
     def _run(self) -> None:
@@ -401,7 +347,7 @@ class LiveView:
                     self._items.clear()
                     self._pending = 0
                 for item, size in batch:
-                    self._serve(item, size)
+                    self._channels.serve(item, size)
                     served += 1
         except BaseException as error:  # noqa: BLE001 - a dying thread must say why (then it ends)
             self._fail(error, sum(size for _, size in batch[served:]))
@@ -418,116 +364,6 @@ class LiveView:
         _log.error("%s (%s)", text, self.url)
         with contextlib.suppress(Exception):  # a courtesy to the clients; the error is already recorded
             self._server.publish_status(text, foxglove.StatusLevel.Error)
-
-    def _serve(self, record: Record, size: int) -> None:
-        """Build, encode and log the messages of one record."""
-        if isinstance(record, StatesRecord):
-            self._serve_states(record.states, record.frame_id)
-            return
-        try:
-            messages = record_messages(record, self.node)
-        except Exception as error:  # noqa: BLE001 - one bad record must not end the live view
-            self._count_bad(size, record_kind(record), one_line(error, with_type=True))
-            return
-        for topic, msg, log_time_ns in messages:
-            self._log_message(self._topic(topic), msg, log_time_ns)
-
-    def _serve_states(self, states: Sequence[SliderState], frame_id: str) -> None:
-        """Log states as pose, velocity and friction_force, encoding only the
-        watched topics: written into the fixed layout of each message (the
-        bytes rosbags serializes, as the recording writes them: 2 us a state
-        rather than 15), or serialized one by one if there is none."""
-        channels = [self._channel(topic, TOPIC_TYPES[name]) for topic, name in zip(self._state_topics, STATE_TOPICS)]
-        watched = [index for index, channel in enumerate(channels) if channel.has_sinks()]
-        with self._lock:
-            self._counts["skipped"] += (3 - len(watched)) * len(states)
-        if not watched:
-            return
-        layouts = self._state_layouts(frame_id)
-        for state in states:
-            try:
-                ns = seconds_to_ns(state.t)
-                if not 0 <= ns <= MAX_STAMP_NS:
-                    raise ValueError(f"time {state.t!r} s is outside ROS time")
-                if layouts is not None:
-                    values = state_row(state)
-                    payloads = [layouts[index].encode_one(ns, values) for index in watched]
-                else:
-                    fill_state_messages(state, frame_id, *self._templates)
-                    payloads = [cdr.serialize(self._templates[index]) for index in watched]
-            except Exception as error:  # noqa: BLE001 - one bad record must not end the live view
-                self._count_bad(len(watched), "state", one_line(error, with_type=True))
-                continue
-            for index, data in zip(watched, payloads):
-                self._counts["encoded"] += 1
-                channels[index].log(data, log_time=ns)  # an SDK failure here ends the thread (_run)
-                self._counts["sent"] += 1
-
-    def _state_layouts(self, frame_id: str) -> tuple[cdr.FixedLayout, ...] | None:
-        """The fixed layouts of the three state messages in ``frame_id`` (cached;
-        None: none, serialize one at a time), as the recording's writer finds them."""
-        if frame_id not in self._layouts:
-            try:
-                layouts = cdr.fixed_layouts(state_row_builder(frame_id), len(STATE_VALUES))
-            except Exception:  # noqa: BLE001 - no layout: the slower path serializes each message
-                layouts = None
-            self._layouts[frame_id] = layouts if layouts is not None and len(layouts) == 3 else None
-        return self._layouts[frame_id]
-
-    def _log_message(self, topic: str, msg: Any, log_time_ns: int) -> None:
-        """Encode ``msg`` and log it on ``topic``'s channel if a client
-        subscribes to it (made on first use); a record no message can hold is
-        counted bad, a failure of the server ends the thread."""
-        try:
-            channel = self._channel(topic, message_type_name(type(msg)))
-            if not 0 <= log_time_ns <= MAX_STAMP_NS:
-                raise ValueError(f"log time {log_time_ns} ns is outside ROS time")
-            if not channel.has_sinks():
-                with self._lock:
-                    self._counts["skipped"] += 1
-                return
-            data = cdr.serialize(msg)
-        except Exception as error:  # noqa: BLE001 - one bad record must not end the live view
-            self._count_bad(1, topic, one_line(error, with_type=True))
-            return
-        self._counts["encoded"] += 1
-        channel.log(data, log_time=log_time_ns)  # an SDK failure here ends the thread (_run)
-        self._counts["sent"] += 1
-
-    def _channel(self, topic: str, type_name: str) -> foxglove.Channel:
-        """The channel of ``topic``, advertised on first use with ``type_name``'s schema."""
-        entry = self._channels.get(topic)
-        if entry is None:
-            schema = foxglove.Schema(name=type_name, encoding="ros2msg",
-                                     data=message_definition(type_name).encode("utf-8"))
-            channel = foxglove.Channel(topic, schema=schema, message_encoding="cdr", context=self._context)
-            entry = self._channels[topic] = (channel, type_name)
-            with self._lock:
-                self._advertised = self._advertised | {topic}
-        elif entry[1] != type_name:
-            raise ValueError(f"topic {topic} carries {entry[1]}, not {type_name}")
-        return entry[0]
-
-    def _count_bad(self, messages: int, what: str, why: str) -> None:
-        """Count messages no message could hold (warned once per kind)."""
-        with self._lock:
-            self._counts["bad"] += messages
-        if what not in self._warned:
-            self._warned.add(what)
-            _log.warning("live view %s: dropped a %s record: %s", self.url, what, why)
-
-
-class _Listener(ServerListener):
-    """Tells a :class:`LiveView` which client subscribes to which topic."""
-
-    def __init__(self, view: LiveView) -> None:
-        self._view = view
-
-    def on_subscribe(self, client: Client, channel: ChannelView) -> None:
-        self._view._subscribed(client.id, channel.topic, True)  # noqa: SLF001 - the view's own listener
-
-    def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
-        self._view._subscribed(client.id, channel.topic, False)  # noqa: SLF001 - the view's own listener
 
 
 __all__ = ["ADVERTISED", "COMMANDS_PER_SECOND", "URGENT_HEADROOM", "LiveService", "LiveView"]

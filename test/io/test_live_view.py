@@ -91,7 +91,8 @@ def wait_until(condition: Callable[[], object], timeout: float = 5.0) -> bool:
 def subscribed(client: FoxgloveClient, view: LiveView, *topics: str) -> None:
     """Subscribe and wait until the server has taken the subscriptions."""
     client.subscribe(*topics)
-    assert wait_until(lambda: set(topics) <= view._live), view._live  # noqa: SLF001 - the listener's record
+    live = view._subscriptions  # noqa: SLF001 - the listener's record
+    assert wait_until(lambda: set(topics) <= live.live), live.live
 
 
 def advertised(view: LiveView, *topics: str) -> None:
@@ -100,7 +101,8 @@ def advertised(view: LiveView, *topics: str) -> None:
     A client that connects while a channel is being made may be told of it
     and yet be refused when it subscribes ("attempted to subscribe to unknown
     channel": foxglove-sdk 0.30.3), so the tests connect after that."""
-    assert wait_until(lambda: set(topics) <= view._advertised), view._advertised  # noqa: SLF001 - its own record
+    channels = view._channels  # noqa: SLF001 - its own record
+    assert wait_until(lambda: set(topics) <= channels.advertised), channels.advertised
 
 
 def by_topic(received: list[Received]) -> dict[str, list[Received]]:
@@ -258,14 +260,15 @@ def test_a_burst_beyond_what_the_thread_encodes_is_dropped_and_counted_never_wai
     view = LiveView(0, namespace=NS, queue_size=3000)
     states = [state(i) for i in range(1, 100_001)]
     held, release = threading.Event(), threading.Event()
-    serve = view._serve  # noqa: SLF001 - hold the real serving step
+    channels = view._channels  # noqa: SLF001 - hold the real serving step
+    serve = channels.serve
 
     def held_serve(item: object, size: int) -> None:
         held.set()
         release.wait(120.0)
         serve(item, size)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(view, "_serve", held_serve)
+    monkeypatch.setattr(channels, "serve", held_serve)
     try:
         with FoxgloveClient(view.url) as client:
             subscribed(client, view, f"{NS}/pose")
@@ -419,7 +422,7 @@ def test_a_thread_that_dies_says_why_and_the_view_refuses_records(
     def broken(item: object, size: int) -> None:
         raise RuntimeError("encoder exploded\nsecond line")
 
-    monkeypatch.setattr(view, "_serve", broken)
+    monkeypatch.setattr(view._channels, "serve", broken)  # noqa: SLF001 - break the real serving step
     with caplog.at_level(logging.ERROR, logger="friction_sim.io.live"), FoxgloveClient(view.url) as client:
         subscribed(client, view, f"{NS}/pose")
         view.write(StatesRecord((state(1),), "slideway"))

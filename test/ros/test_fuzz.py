@@ -1,8 +1,9 @@
 """Fuzzing the real nodes over real ROS: the slider and the controller console
 scripts each run in their own process, and this test process is the hostile
-client (test/ros/fuzz_rigs.py).  Hypothesis draws the inputs from the one
-vocabulary (test/ros/fuzz_strategies.py): every command topic with every field
-of its message, every parameter, single and atomic parameter sets, bursts;
+client (test/ros/fuzz_rigs.py, fuzz_slider_rig.py, fuzz_controller_rig.py).
+Hypothesis draws the inputs from the one vocabulary
+(test/ros/fuzz_strategies.py): every command topic with every field of its
+message, every parameter, single and atomic parameter sets, bursts;
 values inside the ranges, at the edges, just outside, absurd finite,
 nan/inf, and of the wrong type.
 
@@ -36,7 +37,9 @@ from friction_sim.core.model import spec
 from friction_sim.core.model.commands import CONTROLLER, SLIDER
 from friction_sim.io.reader import read_recording
 
-from fuzz_rigs import ControllerRig, SliderRig, stop_cleanly
+from fuzz_controller_rig import ControllerRig
+from fuzz_rigs import stop_cleanly
+from fuzz_slider_rig import SliderRig
 from fuzz_strategies import (
     Burst,
     Params,

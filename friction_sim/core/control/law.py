@@ -28,7 +28,8 @@ excitation amplitude Pa.  Its model is the exact relation U(phi, a):
   there.  Every output names the fastest mean speed within the ceiling
   (``reachable_speed``), the number to quote with an unreachable target.
   The output, its ceiling and saturation are :mod:`friction_sim.core.control.reach`'s;
-  this module keeps the state and its inputs.
+  the inputs and their checks are :mod:`friction_sim.core.control.inputs`'s;
+  this module keeps the state and decides.
 
 Beyond Kostek's model (an inclined vibration, a slope, mu_s > mu) or with
 ``max_amplitude_ratio`` >= 1 (a hopping slider) there is no closed form: the
@@ -52,7 +53,8 @@ on a loaded machine the margin grows by the delivery jitter it observes, since
 the Pa on its way to the plant is delayed as much as the samples coming back.
 
 Samples no plant in force could produce are refused (:class:`ParameterError`
-naming the value and the limit: :mod:`friction_sim.core.control.speedlimit`),
+naming the value and the limit: :func:`~friction_sim.core.control.inputs.admit_sample`,
+:mod:`friction_sim.core.control.speedlimit`),
 and the state never holds a non-finite value, whatever the (finite, in
 range) inputs:
 
@@ -67,24 +69,20 @@ range) inputs:
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
+from friction_sim.core.control.inputs import LawInputs, admit_sample
 from friction_sim.core.control.integral import LastClean, integral_step
 from friction_sim.core.control.reach import ControlOutput, decide
 from friction_sim.core.control.sampleclock import SampleClock
-from friction_sim.core.control.speedlimit import SampleLimit, speed_limit, speed_limit_formula
+from friction_sim.core.control.speedlimit import SampleLimit, speed_limit
 from friction_sim.core.model import spec
 from friction_sim.core.model.dimensionless import nondimensional_speed
 from friction_sim.core.model.params import SliderParams
-from friction_sim.core.physics.plant import is_kostek
 from friction_sim.errors import ParameterError
-
-#: The inputs the law follows, by name.
-_INPUTS = {setting.name: setting for setting in (spec.TARGET_SPEED, spec.DRIVE_FORCE, spec.EXCITATION_FREQUENCY)}
 
 
 @dataclass(frozen=True)
@@ -118,15 +116,13 @@ class MeanSpeedController:
     def __init__(self, config: ControllerConfig, *, drive_force: float, frequency: float,
                  target_speed: float = 0.0) -> None:
         self._config = config
-        self._drive_force = float(spec.DRIVE_FORCE.check(drive_force))
-        self._frequency = float(spec.EXCITATION_FREQUENCY.check(frequency))
-        self._target = 0.0
+        self._inputs = LawInputs.of(drive_force, frequency)
         self._ratio = 1.0  # U_cmd / U*
         self._last_clean: LastClean = None  # (U_cmd, shortfall) for the secant
         self.clock = SampleClock()
         self.measured_speed = math.nan
         self._actuator_limit: float | None = None  # the largest Pa [N] the actuator gives (None: no limit)
-        self._limits = SampleLimit.of(speed_limit(self._drive_force, config.model, self._frequency,
+        self._limits = SampleLimit.of(speed_limit(self._inputs.drive_force, config.model, self._inputs.frequency,
                                                   config.max_amplitude_ratio))
         self._update()
         self.set_target(target_speed)
@@ -162,13 +158,14 @@ class MeanSpeedController:
         """Several input changes at one instant (``target_speed``,
         ``drive_force``, ``excitation_frequency``), in order: each is judged
         against the state the ones before it left and taken or refused on its
-        own; the law then decides once.  Returns, per change, None or the
-        refusal (naming field, value and limit)."""
+        own (:meth:`~friction_sim.core.control.inputs.LawInputs.changed`); the
+        law then decides once.  Returns, per change, None or the refusal
+        (naming field, value and limit)."""
         verdicts: list[ParameterError | None] = []
         with self._transaction():
             for name, value in changes:
                 try:
-                    self._set_input(name, value)
+                    self._inputs = self._inputs.changed(name, value, self._config.model)
                 except ParameterError as error:
                     verdicts.append(error)
                     continue
@@ -185,68 +182,36 @@ class MeanSpeedController:
             raise verdict
         return self.output
 
-    def _set_input(self, name: str, value: Any) -> None:
-        """One input change, checked against the state in force (no decision yet)."""
-        if name not in _INPUTS:
-            raise ParameterError(name, value, f"unknown input; known: {', '.join(_INPUTS)}")
-        number = float(_INPUTS[name].check(value))
-        kostek = is_kostek(self._config.model)  # elsewhere the vibration conveys too: any direction may be reachable
-        if name == "target_speed":
-            force = self._drive_force
-            if kostek and number != 0.0 and (force == 0.0 or math.copysign(1.0, number) != math.copysign(1.0, force)):
-                raise ParameterError(
-                    "target_speed", number,
-                    f"must have the sign of drive_force = {force!r} N (the slider only creeps that way)")
-            self._target = number
-        elif name == "drive_force":
-            self._drive_force = number
-            if kostek and self._target != 0.0 and math.copysign(1.0, self._target) != math.copysign(1.0, number):
-                self._target = 0.0  # the old target now points the wrong way
-        else:
-            self._frequency = number
-
     def on_mean_velocity(self, speed: float, stamp: float, wall_ns: int) -> ControlOutput:
         """A measured mean speed [m/s] over the plant's last window, stamped with
         the simulation time at its end and received at ``wall_ns``.  Refused
         (:class:`ParameterError`, nothing changes) if it is not finite or no
-        plant in force could produce it."""
+        plant in force could produce it
+        (:func:`~friction_sim.core.control.inputs.admit_sample`)."""
         with self._transaction():
-            speed = self._plausible(speed)
-            self.measured_speed = speed
             config = self.config
-            clean = self.clock.add(stamp, wall_ns, 1.0 / self._frequency, config.mean_window_periods,
+            inputs = self._inputs
+            speed, self._limits = admit_sample(speed, self._limits, inputs, config.model,
+                                               config.max_amplitude_ratio)
+            self.measured_speed = speed
+            clean = self.clock.add(stamp, wall_ns, 1.0 / inputs.frequency, config.mean_window_periods,
                                    config.settle_margin)
             out = self.output
-            if (clean and self._target != 0.0 and out.u_target != 0.0 and not out.unreachable
+            target = inputs.target_speed
+            if (clean and target != 0.0 and out.u_target != 0.0 and not out.unreachable
                     and not out.runaway and self._limits.within(speed)):
                 # The shortfall in the target's direction, in units of U (finite: |speed| is within the limit).
-                error = nondimensional_speed(math.copysign(1.0, self._target) * (self._target - speed),
-                                             self._frequency, config.model.gravity, config.model.mu)
+                error = nondimensional_speed(math.copysign(1.0, target) * (target - speed),
+                                             inputs.frequency, config.model.gravity, config.model.mu)
                 self._ratio, self._last_clean = integral_step(
                     self._ratio, self._last_clean, out.u_target, error, saturated=out.saturated,
                     gain=config.integral_gain, secant=config.secant)
             return self._update()
 
-    def _plausible(self, speed: float) -> float:
-        """``speed`` as a float, or a refusal: not finite, or beyond the limit
-        of the plants in force.  Shrinks the envelope once the samples show
-        the plant before the last change is gone."""
-        if isinstance(speed, bool) or not isinstance(speed, numbers.Real):
-            raise ParameterError("mean_velocity", speed, "must be a finite number [m/s]")
-        speed = float(speed)
-        if not math.isfinite(speed):
-            raise ParameterError("mean_velocity", speed, "must be finite [m/s]")
-        if self._limits.beyond(speed):
-            now = speed_limit_formula(self._drive_force, self.config.model, self._frequency,
-                                      self.config.max_amplitude_ratio)[1]
-            raise ParameterError("mean_velocity", speed, self._limits.words(now))
-        self._limits = self._limits.after(speed)
-        return speed
-
     def _plant_changed(self) -> None:
         """Drive force, frequency or the model's mass changed: a new speed
         limit, and the old one still holds for the windows on their way."""
-        limit = speed_limit(self._drive_force, self._config.model, self._frequency,
+        limit = speed_limit(self._inputs.drive_force, self._config.model, self._inputs.frequency,
                             self._config.max_amplitude_ratio)
         self._limits = self._limits.changed(limit, self._config.mean_window_periods)
 
@@ -278,22 +243,20 @@ class MeanSpeedController:
     def config(self, config: ControllerConfig) -> None:
         """A new model or tuning takes effect at once.  On Kostek's model the
         slider creeps only along the drive force: a target of the other sign
-        (taken under a model whose vibration conveys by itself) becomes 0."""
+        (taken under a model whose vibration conveys by itself) becomes 0
+        (:meth:`~friction_sim.core.control.inputs.LawInputs.for_model`)."""
         with self._transaction():
             self._config = config
-            target, force = self._target, self._drive_force
-            if is_kostek(config.model) and target != 0.0 and (
-                    force == 0.0 or math.copysign(1.0, target) != math.copysign(1.0, force)):
-                self._target = 0.0
+            self._inputs = self._inputs.for_model(config.model)
             self._plant_changed()
             self._update()
 
     def _update(self) -> ControlOutput:
         """Decide for the state in force (:func:`~friction_sim.core.control.reach.decide`;
         anti-windup may cut the ratio), and keep the output."""
-        config = self.config
+        config, inputs = self.config, self._inputs
         self.output, self._ratio = decide(config.model, config.max_amplitude_ratio, self._actuator_limit,
-                                          self._drive_force, self._frequency, self._target, self._ratio)
+                                          inputs.drive_force, inputs.frequency, inputs.target_speed, self._ratio)
         return self.output
 
     def beyond_limit(self, speed: float) -> bool:
@@ -308,12 +271,12 @@ class MeanSpeedController:
 
     @property
     def drive_force(self) -> float:
-        return self._drive_force
+        return self._inputs.drive_force
 
     @property
     def frequency(self) -> float:
-        return self._frequency
+        return self._inputs.frequency
 
     @property
     def target_speed(self) -> float:
-        return self._target
+        return self._inputs.target_speed

@@ -38,7 +38,7 @@ import pytest
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.model.params import Inputs, SliderParams
 
-import reference
+import reference_exact
 import reference_general as rg
 from helpers import time_limit
 
@@ -133,7 +133,7 @@ def test_reference_reproduces_kostek_closed_form() -> None:
     Tolerances: a slip start is a brentq root of a closed-form function of time (xtol
     4 eps), so its time is good to a few ulp of t (1e-12 relative is far outside that);
     x is integrated, so it is good to the reference's own error bound."""
-    (fraction_hi, fraction_lo), _, travel = reference.paper_case_slip(1.0, 0.1, 10.0, 0.7, 5.0, 50.0)
+    (fraction_hi, fraction_lo), _, travel = reference_exact.paper_case_slip(1.0, 0.1, 10.0, 0.7, 5.0, 50.0)
     ref = rg.solve(rg.GeneralModel(), 12 / 50.0)
     starts = [e for e in ref.events if e.kind == "slip_start"]
     assert len(starts) == 12

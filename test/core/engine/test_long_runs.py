@@ -9,10 +9,10 @@ exactly the periodic displacement per period.
 The expectations are independent of the core: the slip of period n starts at
 t0 + (n + theta_A/(2*pi))/f with theta_A = asin((mu*m*g - Fd)/(mu*Pa)), and
 the displacement per period D comes from the textbook closed form evaluated
-in mpmath (test/reference.py).  The error of a float time t against that
+in mpmath (test/reference_exact.py).  The error of a float time t against that
 exact value is computed without rounding (t - t0 is exact by Sterbenz's
 lemma, f*(t - t0) is split exactly with Dekker's product; see
-reference.ulps_from_exact), so an error of a fraction of an ulp is measured
+reference_exact.ulps_from_exact), so an error of a fraction of an ulp is measured
 as such.
 """
 
@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.model.events import EventKind
 
-from reference import paper_case_slip, ulps_from_exact
+from reference_exact import paper_case_slip, ulps_from_exact
 
 #: (t0, periods, with period marks): the requirement's run length at the
 #: requirement's latest start; shorter runs from the other starts and with the

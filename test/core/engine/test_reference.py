@@ -27,6 +27,8 @@ PAPER = ReferenceInputs(drive_force=0.7, excitation_amplitude=5.0, excitation_fr
 # Paper case: |Fd| - mu*R = -0.3 + 0.5*sin(theta) > 0  <=>  sin(theta) > 0.6.
 PAPER_SLIP_PHASE = math.asin(0.6)
 MODULE = Path(__file__).resolve().parents[2] / 'reference.py'
+#: The reference and its parts (none of them may use the core, nor import scipy at import).
+MODULES = [MODULE.with_name(name) for name in ('reference.py', 'reference_schedule.py', 'reference_exact.py')]
 
 
 def _paper_slip_velocity(t: float, t_s: float) -> float:
@@ -293,16 +295,17 @@ def test_invalid_input_raises_value_error_naming_the_field(kwargs, field):
 
 
 def test_reference_is_independent_of_the_core_and_imports_scipy_lazily():
-    tree = ast.parse(MODULE.read_text())
     imported = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            imported.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom):
-            imported.add('.' * node.level + (node.module or ''))
-            imported.update(alias.name for alias in node.names)
+    for module in MODULES:
+        for node in ast.walk(ast.parse(module.read_text())):
+            if isinstance(node, ast.Import):
+                imported.update(alias.name for alias in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                imported.add('.' * node.level + (node.module or ''))
+                imported.update(alias.name for alias in node.names)
     assert not any('core' in name or 'urelation' in name for name in imported), imported
-    code = ('import sys, reference; '
+    names = ', '.join(module.stem for module in MODULES)
+    code = (f'import sys, {names}; '
             "sys.exit(int(any(m == 'scipy' or m.startswith('scipy.') for m in sys.modules)))")
     proc = subprocess.run([sys.executable, '-c', code], cwd=MODULE.parent, check=False)
     assert proc.returncode == 0, 'importing the reference must not import scipy'

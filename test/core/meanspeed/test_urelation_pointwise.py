@@ -30,7 +30,7 @@ from friction_sim.core.meanspeed.urelation import (
     u_map,
 )
 
-from reference import high_precision_slip, high_precision_u
+from reference_exact import high_precision_slip, high_precision_u
 
 EPS = float(np.finfo(float).eps)
 

@@ -5,7 +5,7 @@ The textbook closed form cancels there: the slip is tiny, its terms are not
 +2.8e-19).  The map is now never negative and within 1e-12 (relative) of a
 high-precision value down to phi - (1 - a) = 1e-12*a, and a value does not
 depend on whether it was asked for alone or in an array.  The expectations
-come from mpmath at 80 digits (test/reference.py), independent of the core.
+come from mpmath at 80 digits (test/reference_exact.py), independent of the core.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 
 from friction_sim.core.meanspeed.urelation import amplitude_ratio_for, stop_phase_advance, u_grid, u_map
 
-from reference import high_precision_slip, high_precision_u
+from reference_exact import high_precision_slip, high_precision_u
 
 #: The accuracy the map promises (issue 10, item 15), not a figure one machine gave: its
 #: worst relative error over every check here is 1.0e-13 (`make margins`, any CPU setting;

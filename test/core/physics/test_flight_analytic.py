@@ -30,7 +30,7 @@ from friction_sim.core.model.events import EventKind
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.physics.plant import is_kostek
 
-import reference
+import reference_exact
 
 GAMMA_ONE_PERIOD = math.sqrt(1.0 + math.pi**2)
 
@@ -203,12 +203,12 @@ def test_work_over_each_flight_is_the_kinetic_energy_change() -> None:
 @pytest.mark.parametrize(("phi", "a"), [(0.7, 0.5), (0.35, 0.9), (0.95, 0.1), (0.5, 0.75), (0.82, 0.3)])
 def test_defaults_reduce_to_kostek_exactly(phi: float, a: float) -> None:
     """Slip starts at t_n = (n + theta_A/(2 pi))/f and x(t_n) = n*D, theta_A and D
-    from the textbook closed form in mpmath (test/reference.py), to 1e-12."""
+    from the textbook closed form in mpmath (test/reference_exact.py), to 1e-12."""
     params = SliderParams(mass=1.0, mu=0.1, gravity=10.0)
     assert is_kostek(params) and params.restitution == 0.0 and params.landing_friction == "impulsive"
     inputs = Inputs(drive_force=phi * params.mu * params.weight, excitation_amplitude=a * params.weight,
                     excitation_frequency=50.0)
-    (fraction_hi, fraction_lo), _, travel = reference.paper_case_slip(
+    (fraction_hi, fraction_lo), _, travel = reference_exact.paper_case_slip(
         params.mass, params.mu, params.gravity, inputs.drive_force, inputs.excitation_amplitude,
         inputs.excitation_frequency)
     slider = Slider(params, inputs, event_log_size=None)
