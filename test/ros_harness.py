@@ -75,13 +75,17 @@ class Probe:
     """Subscribes to every output of a slider in ``namespace`` and publishes
     to every input; spins the given nodes together with itself."""
 
-    def __init__(self, namespace: str, *nodes: Node, outputs: dict[str, type] | None = None) -> None:
+    def __init__(self, namespace: str, *nodes: Node, outputs: dict[str, type] | None = None,
+                 depth: int = 1000) -> None:
+        """``depth``: each subscription's queue (a message that finds it full pushes out the
+        oldest one not yet taken: a test that counts every message of a fast topic needs the
+        queue to hold what comes while the machine does not run this process)."""
         self.node = rclpy.create_node("probe", namespace=namespace)
         self.namespace = namespace
         self._services: dict[str, Any] = {}
         self.received: dict[str, list[Any]] = defaultdict(list)
         for topic, kind in (outputs or OUTPUTS).items():
-            self.node.create_subscription(kind, topic, self._keeper(topic), 100)
+            self.node.create_subscription(kind, topic, self._keeper(topic), depth)
         self.publishers = {topic: self.node.create_publisher(kind, topic, 10) for topic, kind in INPUTS.items()}
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(self.node)

@@ -34,7 +34,9 @@ def _node(ns: str, **extra: object) -> SliderNode:
 def test_the_accelerometer_reads_the_slideway_on_its_grid(ros: None) -> None:
     ns = namespace()
     node = _node(ns)
-    probe = Probe(ns, node, outputs={"accelerometer": Imu, "pose": PoseStamped})
+    # (the queue holds 10 s of readings: on a loaded machine this process may not run for
+    # 0.1 s, and a queue of 100 then lost readings before the probe took them)
+    probe = Probe(ns, node, outputs={"accelerometer": Imu, "pose": PoseStamped}, depth=10 * int(RATE))
     try:
         assert probe.spin_until(lambda: len(probe.received["accelerometer"]) >= 300, 30.0)
     finally:
