@@ -229,13 +229,13 @@ class YamlParser:
         try:
             return setting.check(value)
         except ParameterError as error:
-            raise self.fail(node, str(error)) from None
+            raise self.fail(node, str(error) + _text_number_hint(value)) from None
 
     def number(self, entry: Entry, key: str, *, positive: bool = False) -> float:
         """A finite number (> 0 with ``positive``)."""
         node, value = entry
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise self.fail(node, f"{key} = {value!r} rejected: must be a finite number")
+            raise self.fail(node, f"{key} = {value!r} rejected: must be a finite number{_text_number_hint(value)}")
         if positive and value <= 0:
             raise self.fail(node, f"{key} = {value!r} rejected: must be > 0")
         return float(value)
@@ -525,6 +525,22 @@ class _Operator:
             raise self.parser.fail(node, f"calls {names!r}: end with resume (the run must go on)")
         return tuple(names)
 
+
+
+def _text_number_hint(value: Any) -> str:
+    """For a number YAML read as text (YAML 1.1 wants a dot in a float: ``1e-12`` is a
+    string, ``1.0e-12`` a number), how to write it; else ''."""
+    if not isinstance(value, str):
+        return ""
+    try:
+        number = float(value)
+    except ValueError:
+        return ""
+    if not math.isfinite(number):
+        return ""
+    mantissa, _, exponent = value.strip().lower().partition("e")
+    written = f"{mantissa if '.' in mantissa else mantissa + '.0'}e{exponent}" if exponent else value.strip()
+    return f" (YAML read it as text: write {written})"
 
 __all__ = [
     "CONTROLLER_KEYS", "OPERATOR_KEYS", "PLANT_KEYS", "Expectation", "Scenario", "YamlParser", "compose_mapping",

@@ -81,6 +81,8 @@ BAD = [
     ("plant: {mass: 1.0}\n", 1, ("missing key 'duration'",)),
     ("duration: -1\n", 1, ("duration", "-1", "> 0")),
     ("duration: .nan\n", 1, ("duration", "nan", "finite")),
+    ("duration: 2e1\n", 1, ("duration", "'2e1'", "finite", "YAML read it as text: write 2.0e1")),
+    ("duration: 1.0\nplant: {mu: 1e-1}\n", 2, ("mu", "'1e-1'", "YAML read it as text: write 1.0e-1")),
     ("duration: 1.0\nplant:\n  mass: 1.0\n  excitation_amplitude: -12.0\n", 4,
      ("excitation_amplitude", "-12.0", "[0, 1e+06] N")),
     ("duration: 1.0\nplant:\n  landing_friction: sticky\n", 3, ("landing_friction", "'sticky'", "impulsive, none")),
