@@ -76,10 +76,12 @@ class Probe:
     to every input; spins the given nodes together with itself."""
 
     def __init__(self, namespace: str, *nodes: Node, outputs: dict[str, type] | None = None,
-                 depth: int = 1000) -> None:
-        """``depth``: each subscription's queue (a message that finds it full pushes out the
-        oldest one not yet taken: a test that counts every message of a fast topic needs the
-        queue to hold what comes while the machine does not run this process)."""
+                 depth: int = 100) -> None:
+        """``depth``: each subscription's queue.  A message that finds it full pushes out the
+        oldest one not yet taken: a test that counts every message of a fast topic needs a
+        queue that holds what comes while the machine does not run this process.  A test that
+        looks at the last N messages after M > N more came relies on the default: at most
+        ``depth`` of them can be older ones still queued."""
         self.node = rclpy.create_node("probe", namespace=namespace)
         self.namespace = namespace
         self._services: dict[str, Any] = {}

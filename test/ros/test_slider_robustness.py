@@ -201,8 +201,10 @@ def test_an_atomic_set_valid_together_is_applied_whole(ros: None) -> None:
         assert low >= 1.0 - 1e-9 and high <= 7.0 + 1e-9 and high - low > 3.0, (low, high)
         # Taken whole: Pa = 3 N > m g = 2 N, throw number 1.5: it hops.
         assert probe.set_parameters_atomically(slider, {"mass": 0.2, "excitation_amplitude": 3.0}) == (True, "")
-        count = len(probe.received["pose"])
-        assert probe.spin_until(lambda: len(probe.received["pose"]) > count + 600, STATES_GUARD)
+        # (each topic's own 600 new messages: the two topics do not arrive in step)
+        count, forces = len(probe.received["pose"]), len(probe.received["friction_force"])
+        assert probe.spin_until(lambda: len(probe.received["pose"]) > count + 600
+                                and len(probe.received["friction_force"]) > forces + 600, STATES_GUARD)
         heights = [m.pose.position.z for m in probe.received["pose"][-500:]]
         normal = {stamp_ns(m): m.wrench.force.z for m in probe.received["friction_force"][-500:]}
         flying = [m for m in probe.received["pose"][-500:] if m.pose.position.z > 0.0]
