@@ -57,13 +57,12 @@ import numpy as np
 
 from friction_sim.core.engine.actuator import Exciter, ExciterState
 from friction_sim.core.engine.checkpoint import Checkpoint
-from friction_sim.core.engine.transient_segment import STEADY, cut_by, exciter_after, motion, segment_end, states
+from friction_sim.core.engine.transient_segment import STEADY, cut_by, exciter_after, segment_end, states
 from friction_sim.core.engine.transient_segment import start as start_transient
 from friction_sim.core.model.dimensionless import TWO_PI
 from friction_sim.core.model.events import MODES as _MODES
 from friction_sim.core.model.events import CycleMark, Event, EventKind, Mode, SliderState, Trajectory
 from friction_sim.core.model.params import Inputs, SliderParams, require_finite
-from friction_sim.core.physics.numerics import two_sum
 from friction_sim.core.physics.plant import plant_of
 from friction_sim.core.physics.roots import NEVER, reduce_phase
 from friction_sim.core.physics.segment import (
@@ -74,12 +73,13 @@ from friction_sim.core.physics.segment import (
     STUCK,
     Segment,
     Step,
-    travel,
 )
 from friction_sim.core.physics.stepper import (
     MAX_EVENTS_AT_ONE_INSTANT,
     Anchor,
     advance,
+    continued,
+    moved,
     offset,
     period_start,
     schedule,
@@ -252,9 +252,8 @@ class Slider:
             if self._transient.c and (boundary := cut_by(self._seg, self._transient, self._next_t, t,
                                                          self.next_mark_time)) is not None:
                 # the segment's closed form ends here: a new one from the same motion
-                assert self._exciter is not None
                 self._t = boundary
-                self._rebase(self._params, self._inputs, "settled" if boundary >= self._exciter.settles_at else "look")
+                self._rebase(self._params, self._inputs, boundary=True)
                 continue
             if self._next_mark_s <= self._next_s:  # by phase: a mark and an event may round to one t
                 if self._next_mark_t > t:
@@ -369,28 +368,19 @@ class Slider:
         self._params, self._inputs = params, inputs
         self._plant, self._steps = plant_of(params, inputs, in_flight), {}
 
-    def _rebase(self, params: SliderParams, inputs: Inputs, boundary: str = "") -> None:
-        """Start a new segment at the current time from the current state; at a
-        ``boundary`` of the exciter's transient nothing else changes: it has
-        ``settled`` (dropped), or the look-ahead ended (``look``: kept as it is)."""
-        seg, plant, t = self._seg, self._plant, self._t
-        tau = t - seg.t0
-        phase, cycles = reduce_phase(seg.phase0 + plant.omega * tau, seg.cycles)
-        stuck, flight = spent(seg, tau)
-        mode = seg.mode
-        if mode == STUCK:  # (the common case: a controller's change between slips)
-            x, xl, v, vz, z = seg.x0, seg.xl, 0.0, 0.0, 0.0
-        else:
-            moved, v, vz, z = motion(plant, seg, self._transient, tau)
-            x, xl = two_sum(seg.x0, seg.xl + moved)
-            if mode != FLIGHT:
-                mode, vz, z = (STUCK if v == 0.0 else (1 if v > 0.0 else -1)), 0.0, 0.0
+    def _rebase(self, params: SliderParams, inputs: Inputs, boundary: bool = False) -> None:
+        """Start a new segment at the current time from the current state
+        (:func:`~friction_sim.core.physics.stepper.continued`); at a ``boundary`` of
+        the exciter's transient's segment nothing else changes (the transient is
+        dropped once it has settled)."""
+        seg, t = self._seg, self._t
+        anchor_t = t if inputs.excitation_frequency != self._anchor.frequency else self._anchor.t
+        new = continued(self._plant, seg, self._transient.c, self._transient.lam, t, anchor_t)
         self._set_plant(params, inputs, seg.mode == FLIGHT)
-        self._exciter = exciter_after(self._exciter, params, inputs, self._plant, t, phase, boundary)
-        if inputs.excitation_frequency != self._anchor.frequency:
-            self._set_anchor(t, cycles, phase)
-        self._start(Segment(mode, phase, v, vz, max(z, 0.0), 0, False, t - self._anchor.t, t, x, xl, cycles, stuck,
-                            flight, seg.at_instant))
+        self._exciter = exciter_after(self._exciter, params, inputs, self._plant, t, new.phase0, boundary)
+        if anchor_t != self._anchor.t:
+            self._set_anchor(t, new.cycles, new.phase0)
+        self._start(new)
 
     def _start(self, seg: Segment) -> None:
         """Start ``seg`` and schedule its next event (on the steady forms worked out
@@ -462,9 +452,8 @@ class Slider:
         t = max(self._next_mark_t, seg.t0)  # a start that rounding put before this segment's is at it
         # Where the slider is when the phase passes 2*pi*n exactly (not at the rounded t).
         tau = to_cycle(n, seg.cycles, seg.phase0, self._plant.omega)
-        moved = (motion(self._plant, seg, self._transient, tau)[0] if self._transient.c
-                 else travel(self._plant, seg.mode, seg.v0, seg.phase0, tau))  # (only x is needed: no full state)
-        x, stuck, flight = period_start(seg, tau, moved)
+        transient = self._transient
+        x, stuck, flight = period_start(seg, tau, moved(self._plant, seg, transient.c, transient.lam, tau))
         assert self._marks is not None
         self._marks.append(CycleMark(n, t, x, stuck, flight))
         self._next_mark_n += 1
