@@ -374,11 +374,11 @@ class Slider:
         the exciter's transient's segment nothing else changes (the transient is
         dropped once it has settled)."""
         seg, t = self._seg, self._t
-        anchor_t = t if inputs.excitation_frequency != self._anchor.frequency else self._anchor.t
-        new = continued(self._plant, seg, self._transient.c, self._transient.lam, t, anchor_t)
+        retimed = inputs.excitation_frequency != self._anchor.frequency  # (the anchor moves to t)
+        new = continued(self._plant, seg, self._transient.c, self._transient.lam, t, t if retimed else self._anchor.t)
         self._set_plant(params, inputs, seg.mode == FLIGHT)
         self._exciter = exciter_after(self._exciter, params, inputs, self._plant, t, new.phase0, boundary)
-        if anchor_t != self._anchor.t:
+        if retimed:
             self._set_anchor(t, new.cycles, new.phase0)
         self._start(new)
 
