@@ -24,6 +24,16 @@ state at a period start, bit for bit, up to ``RING`` periods back: from there
 every later period start follows by adding the last repeat's increments, and
 the window is filled in without stepping through it.
 
+A resonant slider whose exciter starts off its steady state (:data:`INITIAL`:
+from rest, or after a step of drive level or frequency at t = 0) runs the
+exciter's transient as the single slider does after ``set_inputs`` at t = 0:
+the stepper's transient functions (the exciter after the change, each
+segment's transient force and look-ahead, the cut where it ends, the segment
+from the same motion) and the transient's root search, compiled, the very
+functions the single slider runs.  Under the transient no step is kept in the
+memo and no state repeats (its force differs from period to period): the
+shortcut waits until it has settled.
+
 Importing this module imports Numba, which the nodes never do: compiling
 happens on a population's first run (tens of seconds), after that from the
 on-disk cache (:func:`cache_directory`), under a key that changes with every

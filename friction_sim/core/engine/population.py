@@ -4,7 +4,9 @@
 and :class:`~friction_sim.core.model.params.Inputs` as a scalar or a 1-D array (one
 value per slider; scalars broadcast, missing fields take their defaults),
 starts every slider like ``Slider(params, inputs)`` (t0 = 0, x0 = 0, phase 0,
-stuck) and returns, per slider, the mean velocity over ``periods`` whole
+stuck; a resonant slider's exciter in steady state, or, with ``initial``, from
+rest or the steady state of another drive level or frequency:
+:meth:`Population.slider`) and returns, per slider, the mean velocity over ``periods`` whole
 excitation periods after ``settle_periods``, the flight and stick fractions
 and the event counts over the same window, and on request the exact state at
 given sample times.
