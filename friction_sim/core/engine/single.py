@@ -55,9 +55,17 @@ from typing import Any
 
 import numpy as np
 
-from friction_sim.core.engine.actuator import Exciter, ExciterState
+from friction_sim.core.engine.actuator import Exciter
 from friction_sim.core.engine.checkpoint import Checkpoint
-from friction_sim.core.engine.transient_segment import STEADY, cut_by, exciter_after, segment_end, states
+from friction_sim.core.engine.history import History
+from friction_sim.core.engine.transient_segment import (
+    STEADY,
+    ExciterReadings,
+    cut_by,
+    exciter_after,
+    segment_end,
+    states,
+)
 from friction_sim.core.engine.transient_segment import start as start_transient
 from friction_sim.core.model.dimensionless import TWO_PI
 from friction_sim.core.model.events import MODES as _MODES
@@ -79,15 +87,10 @@ from friction_sim.core.physics.stepper import (
     Anchor,
     advance,
     continued,
-    moved,
-    offset,
-    period_start,
     schedule,
     spent,
     step_of,
-    to_cycle,
 )
-from friction_sim.core.physics.transient import slideway_acceleration
 from friction_sim.errors import ParameterError, SimulationFault
 
 #: Steps kept in the memo (one per distinct segment start under the plant in force).
@@ -107,8 +110,9 @@ _KINDS = tuple(EventKind)
 # --------------------------------------------------------------------------
 
 
-class Slider:
-    """One slider, advanced exactly in time.
+class Slider(History, ExciterReadings):
+    """One slider, advanced exactly in time (what it has done: :class:`History`; what its
+    resonant exciter reads: :class:`~friction_sim.core.engine.transient_segment.ExciterReadings`).
 
     >>> slider = Slider()                 # the paper's Fig. 2 case
     >>> events = slider.advance_to(0.1)   # five excitation periods
@@ -186,46 +190,6 @@ class Slider:
     @property
     def inputs(self) -> Inputs:
         return self._inputs
-
-    @property
-    def events(self) -> list[Event]:
-        """The most recent events, oldest first (bounded by ``event_log_size``)."""
-        return list(self._events)
-
-    @property
-    def event_counts(self) -> dict[EventKind, int]:
-        """How many events of each kind happened since the start."""
-        return dict(self._counts)
-
-    @property
-    def stuck_time(self) -> float:
-        """Total time [s] spent stuck since the start, up to :attr:`t`."""
-        return spent(self._seg, self._t - self._seg.t0)[0]
-
-    @property
-    def flight_time(self) -> float:
-        """Total time [s] spent off the track since the start, up to :attr:`t`."""
-        return spent(self._seg, self._t - self._seg.t0)[1]
-
-    @property
-    def cycle_marks(self) -> list[CycleMark]:
-        """The most recent period starts, oldest first (empty unless enabled)."""
-        return list(self._marks) if self._marks is not None else []
-
-    def cycle_marks_after(self, n: int) -> list[CycleMark]:
-        """The kept period starts with a number above ``n``, oldest first."""
-        newer: list[CycleMark] = []
-        for mark in reversed(self._marks or ()):
-            if mark.n <= n:
-                break
-            newer.append(mark)
-        newer.reverse()
-        return newer
-
-    @property
-    def next_mark_time(self) -> float:
-        """When the next excitation period starts (inf when marks are not kept)."""
-        return self._next_mark_t if self._marks is not None else NEVER
 
     @property
     def next_event_time(self) -> float:
@@ -422,42 +386,6 @@ class Slider:
         self._counts[kind] += 1
         return event
 
-    # -- the resonant exciter (its transient's segments: transient_segment) --------
-
-    def slideway_acceleration(self) -> tuple[float, float]:
-        """(along, normal) [m/s^2]: the slideway's acceleration now in the track frame
-        (:func:`~friction_sim.core.physics.transient.slideway_acceleration`)."""
-        seg = self._seg
-        lam = self._exciter.lam if self._exciter is not None else 0j
-        return slideway_acceleration(self._plant, seg.phase0, self._transient.c, lam, self._t - seg.t0)
-
-    @property
-    def exciter(self) -> ExciterState | None:
-        """The resonant exciter's state now (None with the force actuator)."""
-        if self._exciter is None:
-            return None
-        seg = self._seg
-        theta = seg.phase0 + self._plant.omega * (self._t - seg.t0)
-        return self._exciter.state(self._t, theta)
-
-    def _schedule_mark(self) -> None:
-        """Aim at the start of period ``_next_mark_n``, timed from the anchor."""
-        if self._marks is not None:
-            self._next_mark_s = offset(self._anchor, self._next_mark_n, 0.0)
-            self._next_mark_t = self._anchor.t + self._next_mark_s
-
-    def _mark_cycle(self) -> None:
-        """Record the start of period ``_next_mark_n`` and aim at the next."""
-        seg, n = self._seg, self._next_mark_n
-        t = max(self._next_mark_t, seg.t0)  # a start that rounding put before this segment's is at it
-        # Where the slider is when the phase passes 2*pi*n exactly (not at the rounded t).
-        tau = to_cycle(n, seg.cycles, seg.phase0, self._plant.omega)
-        transient = self._transient
-        x, stuck, flight = period_start(seg, tau, moved(self._plant, seg, transient.c, transient.lam, tau))
-        assert self._marks is not None
-        self._marks.append(CycleMark(n, t, x, stuck, flight))
-        self._next_mark_n += 1
-        self._schedule_mark()
 
 
 __all__ = ["MAX_POSITION", "MAX_TIME", "CycleMark", "Event", "EventKind", "Mode", "Slider", "SliderState",

@@ -20,7 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from friction_sim.core.engine.actuator import Exciter
+from friction_sim.core.engine.actuator import Exciter, ExciterState
 from friction_sim.core.engine.transient_kernel import transient_step
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.physics import stepper
@@ -29,7 +29,7 @@ from friction_sim.core.physics.plant import Plant
 from friction_sim.core.physics.roots import NEVER
 from friction_sim.core.physics.segment import Segment, Step, evaluate
 from friction_sim.core.physics.stepper import transient_end
-from friction_sim.core.physics.transient import transient_evaluate
+from friction_sim.core.physics.transient import slideway_acceleration, transient_evaluate
 
 #: A state's numbers (x, v, acceleration, friction, normal force, phase, z, vz), at a time or at many.
 States = tuple[Floats, Floats, Floats, Floats, Floats, Floats, Floats, Floats]
@@ -126,4 +126,33 @@ def exciter_after(exciter: Exciter | None, params: SliderParams, inputs: Inputs,
     return exciter.change(params, inputs, plant, t, phase)
 
 
-__all__ = ["STEADY", "States", "Transient", "cut_by", "exciter_after", "motion", "segment_end", "start", "states"]
+class ExciterReadings:
+    """What a slider's resonant exciter reads now: the exciter's state and the slideway's
+    acceleration (a base of :class:`~friction_sim.core.engine.single.Slider`, which holds
+    the state it reads)."""
+
+    _t: float
+    _seg: Segment
+    _plant: Plant
+    _exciter: Exciter | None
+    _transient: Transient
+
+    def slideway_acceleration(self) -> tuple[float, float]:
+        """(along, normal) [m/s^2]: the slideway's acceleration now in the track frame
+        (:func:`~friction_sim.core.physics.transient.slideway_acceleration`)."""
+        seg = self._seg
+        lam = self._exciter.lam if self._exciter is not None else 0j
+        return slideway_acceleration(self._plant, seg.phase0, self._transient.c, lam, self._t - seg.t0)
+
+    @property
+    def exciter(self) -> ExciterState | None:
+        """The resonant exciter's state now (None with the force actuator)."""
+        if self._exciter is None:
+            return None
+        seg = self._seg
+        theta = seg.phase0 + self._plant.omega * (self._t - seg.t0)
+        return self._exciter.state(self._t, theta)
+
+
+__all__ = ["STEADY", "ExciterReadings", "States", "Transient", "cut_by", "exciter_after", "motion", "segment_end",
+           "start", "states"]
