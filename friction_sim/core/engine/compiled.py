@@ -182,27 +182,15 @@ _REST = Segment(STUCK, 0.0, 0.0, 0.0, 0.0, 0, False, 0.0, 0.0, 0.0, 0.0, 0, 0.0,
 
 
 @numba.njit(cache=True)
-def _start(p: Plant, seg: Segment, way: Slideway, way_t0: float, mass: float, until: float, frequency: float,
-           work: np.ndarray, memo_keys: Any, memo_steps: Any, memo_owner: np.ndarray,
-           owner: int) -> tuple[Step, complex, float]:
-    """(step, c, look_until) of ``seg``, as the single slider's ``_start`` works them out:
-    under the exciter's transient (``seg`` starts before ``until``) its transient force
-    and next step, sought up to ``look_until``
-    (:func:`~friction_sim.core.physics.stepper.transient_window`,
-    :func:`~friction_sim.core.physics.transient.transient_step`); else the steady step,
-    from the memo (by segment start ``seg[:START]``, a slot this slider's where
-    ``memo_owner`` holds ``owner``) or worked out and kept there."""
-    if seg.t0 < until:
-        c, horizon = transient_window(way, way_t0, mass, until, seg.t0, frequency)
-        return (transient_step(p, c, way.lam, horizon, seg.mode, seg.phase0, seg.v0, seg.vz0, seg.z0, seg.closing,
-                               seg.grounded, work), c, seg.t0 + horizon)
-    key = seg[:START]
-    slot = _memo_slot(key)
-    if memo_owner[slot] == owner and memo_keys[slot] == key:
-        return memo_steps[slot], 0j, NEVER
-    step = step_of(p, seg)
-    memo_steps[slot], memo_keys[slot], memo_owner[slot] = step, key, owner
-    return step, 0j, NEVER
+def _transient_start(p: Plant, seg: Segment, way: Slideway, way_t0: float, mass: float, until: float,
+                     frequency: float, work: np.ndarray) -> tuple[Step, complex, float]:
+    """(step, c, look_until) of ``seg``, which starts under the exciter's transient, as the
+    single slider's ``_start`` works them out: its transient force and its next step,
+    sought up to ``look_until`` (:func:`~friction_sim.core.physics.stepper.transient_window`,
+    :func:`~friction_sim.core.physics.transient.transient_step`; never kept in the memo)."""
+    c, horizon = transient_window(way, way_t0, mass, until, seg.t0, frequency)
+    return (transient_step(p, c, way.lam, horizon, seg.mode, seg.phase0, seg.v0, seg.vz0, seg.z0, seg.closing,
+                           seg.grounded, work), c, seg.t0 + horizon)
 
 
 @numba.njit(cache=True)
@@ -246,8 +234,8 @@ def _run_one(values: np.ndarray, impulsive: bool, resonant: bool, can_slip: bool
         if delay > 0.0:
             until = delay
     total = np.zeros(KINDS, np.int64)
-    step, c, look_until = _start(p, seg, way, way_t0, mass, until, frequency, work, memo_keys, memo_steps, memo_owner,
-                                 owner)
+    step, c, look_until = _transient_start(p, seg, way, way_t0, mass, until, frequency, work) if seg.t0 < until else (
+        step_of(p, seg), 0j, NEVER)
     ring_keys = [seg[:START]] * RING
     ring_n = np.full(RING, -1, np.int64)
     ring_whole = np.zeros(RING, np.int64)
@@ -261,7 +249,7 @@ def _run_one(values: np.ndarray, impulsive: bool, resonant: bool, can_slip: bool
     while True:
         next_s, next_t = schedule(anchor, seg, step)
         # under the transient the segment may be cut first (the single slider's Slider.advance_to)
-        cut_t, cut = transient_end(seg, c, look_until, next_t)
+        cut_t, cut = transient_end(seg, c, look_until, next_t) if c != 0j else (next_t, False)
         ends = next_s != NEVER or cut
         # period starts that come first (by phase: a mark and an event may round to one t; before a cut by time)
         while mark_n <= end and mark_s <= next_s and not (cut and anchor.t + mark_s >= cut_t):
@@ -333,8 +321,17 @@ def _run_one(values: np.ndarray, impulsive: bool, resonant: bool, can_slip: bool
                 return NO_PROGRESS
             total[step.kind] += 1
             seg = after
-        step, c, look_until = _start(p, seg, way, way_t0, mass, until, frequency, work, memo_keys, memo_steps,
-                                     memo_owner, owner)
+        if seg.t0 < until:  # under the transient: its own step, never kept
+            step, c, look_until = _transient_start(p, seg, way, way_t0, mass, until, frequency, work)
+            continue
+        c = 0j
+        key = seg[:START]
+        slot = _memo_slot(key)
+        if memo_owner[slot] == owner and memo_keys[slot] == key:
+            step = memo_steps[slot]
+        else:
+            step = step_of(p, seg)
+            memo_steps[slot], memo_keys[slot], memo_owner[slot] = step, key, owner
 
 
 @numba.njit(parallel=True, cache=True)
