@@ -6,6 +6,7 @@ many points of the general model.  It is a YAML file::
     name: parts                     # optional; names the output file
     settle_periods: 20              # whole periods simulated before averaging
     periods: 50                     # whole periods averaged
+    initial: rest                   # resonant actuator: the exciter starts from rest (default steady)
     chunk_size: 2000                # points per batch-core call (a Dask task)
     seed: 7                         # the random stream of `random:` (default 0)
     plant_params: calibrated.yaml   # optional ROS 2 parameters file (friction-sim calibrate's): the plant
@@ -31,7 +32,10 @@ Keys are any parameter or input of the general model (``core/spec.py``:
 (Gamma = Pa/(m g cos alpha)) and ``amplitude_ratio`` (a = Pa/(m g)) set
 ``excitation_amplitude`` point by point, ``drive_ratio`` (phi = Fd/(mu m g))
 sets ``drive_force``.  A key appears once, in one section.  What is not given
-takes its default.
+takes its default.  ``initial`` (``steady``, the default, or ``rest``:
+``core/spec.py``'s ``INITIAL``) is how a resonant point's exciter starts at
+t = 0: running in steady state, or at rest, its start-up transient run exactly
+by the population engine (the force actuator has no exciter: it changes nothing).
 
 The points are the grid combinations, times the ``points`` entries, times
 ``samples``: point ``p`` is numbered with the samples fastest, then the
@@ -77,9 +81,8 @@ DERIVED: dict[str, tuple[str, Setting]] = {
         "drive_ratio", 0.7, "-", "phi = Fd/(mu m g); sets drive_force", -1e6, 1e6)),
 }
 KEYS = (*FIELDS, *DERIVED)
-TOP_KEYS = ("name", "description", "output", "settle_periods", "periods", "chunk_size", "seed", "plant_params", "fixed",
-            "grid",
-            "points", "samples", "random")
+TOP_KEYS = ("name", "description", "output", "settle_periods", "periods", "initial", "chunk_size", "seed",
+            "plant_params", "fixed", "grid", "points", "samples", "random")
 DISTRIBUTIONS: dict[str, tuple[str, ...]] = {
     "uniform": ("low", "high"),
     "normal": ("mean", "std", "low", "high"),
@@ -124,6 +127,8 @@ class Sweep:
     random: dict[str, Distribution]
     output: Path
     description: str = ""
+    #: How a resonant point's exciter starts (:data:`~friction_sim.core.model.spec.INITIAL`).
+    initial: str = str(settings.INITIAL.default)
     source: str = field(default="", repr=False)
     where: str = "<sweep>"
     lines: dict[str, int] = field(default_factory=dict, repr=False)
@@ -240,6 +245,8 @@ class _SweepParser(ScenarioParser):
             settle_periods=self.checked(top["settle_periods"], settings.SETTLE_PERIODS)
             if "settle_periods" in top else 0,
             periods=self.checked(top["periods"], settings.PERIODS), chunk_size=chunk,
+            initial=self.checked(top["initial"], settings.INITIAL) if "initial" in top
+            else str(settings.INITIAL.default),
             seed=self.integer(top["seed"], "seed", 0, 2**63 - 1) if "seed" in top else 0,
             fixed=fixed, grid=grid, points=points, samples=samples, random=random,
             output=Path(str(top["output"][1])) if "output" in top else Path("out") / "sweeps" / f"{name}.parquet",

@@ -40,6 +40,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from friction_sim.core.engine.population import run_batch
+from friction_sim.core.model import spec as settings
 from friction_sim.core.model.spec import Setting
 from friction_sim.core.runtime.progress import Progress
 from friction_sim.errors import FrictionSimError, one_line
@@ -72,7 +73,7 @@ def run_chunk(sweep: Sweep, index: int, engine: str = "compiled", threads: int |
     values = {name: columns[name].astype(str) if FIELDS[name].kind is str else columns[name] for name in FIELDS}
     try:
         result = run_batch(values, settle_periods=sweep.settle_periods, periods=sweep.periods, engine=engine,
-                           threads=threads)
+                           threads=threads, initial=settings.INITIAL_INPUTS[sweep.initial])
     except FrictionSimError as error:  # one picklable error type, whatever the core raised, with the chunk named
         raise SweepRunError(f"chunk {index} (points {start}..{stop - 1}): {one_line(error)}") from None
     columns["mean_velocity"] = np.asarray(result.mean_velocity, dtype=float)

@@ -123,6 +123,8 @@ def test_the_shipped_sweeps_load() -> None:
 
 @pytest.mark.parametrize(("text", "line", "reason"), [
     ("periods: 5\nbogus: 1\n", 2, "unknown key 'bogus' in the sweep"),
+    ("periods: 5\ninitial: cold\n", 2, "initial = 'cold' rejected: must be one of steady, rest"),
+    ("periods: 5\ninitial: 1\n", 2, "initial = 1 rejected: must be a string"),
     ("settle_periods: 3\n", 1, "missing key 'periods'"),
     ("periods: 0\n", 1, "periods = 0 rejected: must be an integer in [1, 10000000]"),
     ("periods: 2.5\n", 1, "periods = 2.5 rejected"),

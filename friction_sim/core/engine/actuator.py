@@ -11,22 +11,14 @@ modules.  A slider starts on a running feeder: the slideway in steady state.
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 from friction_sim.core.model.dimensionless import TWO_PI
 from friction_sim.core.model.params import Inputs, SliderParams
-from friction_sim.core.physics.exciter import (
-    Slideway,
-    eigenvalue,
-    followed,
-    force_transient,
-    settle_delay,
-    slideway_state,
-    steady_slideway,
-)
+from friction_sim.core.physics.exciter import Slideway, eigenvalue, force_transient, slideway_state, steady_slideway
 from friction_sim.core.physics.plant import Plant, slideway_amplitude
 from friction_sim.core.physics.roots import NEVER
+from friction_sim.core.physics.stepper import exciter_changed, settled_at, transient_window
 
 
 class ExciterState(NamedTuple):
@@ -78,16 +70,22 @@ class Exciter:
         phase ``theta``; ``plant``: the new one): q and q' continuous, the new
         steady response and the transient that carries the difference."""
         amplitude, lag, omega = _steady(params, inputs)
-        way = followed(self._way, theta, t - self._t0, amplitude, lag, omega, _eigenvalue(params))
-        c = force_transient(way, params.mass, 0.0)
-        scale = abs(plant.n0) + abs(plant.tangential.b0) + plant.pa * (1.0 + abs(plant.cot_beta))
-        delay = settle_delay(c, way.lam, scale if scale > 0.0 else math.ulp(1.0))
+        way, delay = exciter_changed(self._way, t - self._t0, theta, amplitude, lag, omega, _eigenvalue(params),
+                                     params.mass, plant)
         return Exciter(params, inputs, way, t, t + delay if delay > 0.0 else -NEVER)
 
     def settled(self, t: float) -> Exciter:
-        """The exciter with its transient dropped at ``t`` (below rounding by now)."""
-        way = self._way
-        return Exciter(self._params, self._inputs, Slideway(way.amplitude, way.lag, way.omega, way.lam, 0j), t)
+        """The exciter from a cut of its transient's segment at ``t`` on: the transient
+        dropped if it has settled by then (below rounding), else as it is."""
+        way, t0, until = settled_at(self._way, self._t0, self._until, t)
+        if way is self._way:
+            return self
+        return Exciter(self._params, self._inputs, way, t0, until)
+
+    def window(self, t0: float, frequency: float) -> tuple[complex, float]:
+        """(c, horizon) of a segment starting at ``t0``
+        (:func:`~friction_sim.core.physics.stepper.transient_window`)."""
+        return transient_window(self._way, self._t0, self._params.mass, self._until, t0, frequency)
 
     def force(self, t: float) -> complex:
         """c: the part's transient normal force is Re(c*exp(lambda*s)) s after ``t``."""

@@ -4,7 +4,9 @@
 and :class:`~friction_sim.core.model.params.Inputs` as a scalar or a 1-D array (one
 value per slider; scalars broadcast, missing fields take their defaults),
 starts every slider like ``Slider(params, inputs)`` (t0 = 0, x0 = 0, phase 0,
-stuck) and returns, per slider, the mean velocity over ``periods`` whole
+stuck; a resonant slider's exciter in steady state, or, with ``initial``, from
+rest or the steady state of another drive level or frequency:
+:meth:`Population.slider`) and returns, per slider, the mean velocity over ``periods`` whole
 excitation periods after ``settle_periods``, the flight and stick fractions
 and the event counts over the same window, and on request the exact state at
 given sample times.
@@ -35,7 +37,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -98,45 +100,71 @@ class BatchResult:
 @dataclass(frozen=True)
 class Population:
     """The validated per-slider values: every field as an array of length ``n``
-    (floats; ``landing_friction`` as an array of str)."""
+    (floats; ``landing_friction`` as an array of str); ``initial``: the inputs of
+    :data:`~friction_sim.core.model.spec.EXCITER_START` whose steady state a resonant
+    slider's exciter starts from at t = 0, where they are not its own (see :func:`run_batch`)."""
 
     n: int
     columns: dict[str, NDArray[Any]]
+    initial: dict[str, NDArray[Any]] = field(default_factory=dict)
 
     def plant(self, i: int) -> tuple[SliderParams, Inputs]:
         """Slider ``i``'s parameters and inputs as the single slider takes them."""
         return plant_from({name: _item(column[i]) for name, column in self.columns.items()})
+
+    def slider(self, i: int, **options: Any) -> Slider:
+        """Slider ``i`` as a single slider at t = 0 (``options``: its logs), its exciter
+        started as the batch starts it: in the steady state of its ``initial`` inputs,
+        then stepped to its own at once (:meth:`Slider.set_inputs`), the transient running."""
+        params, inputs = self.plant(i)
+        start = inputs.replace(**{name: float(column[i]) for name, column in self.initial.items()})
+        if not params.resonant or start == inputs:
+            return Slider(params, inputs, **options)
+        slider = Slider(params, start, **options)
+        slider.set_inputs(inputs)
+        return slider
 
 
 def _item(value: Any) -> Any:
     return str(value) if isinstance(value, np.str_) else float(value)
 
 
-def population(values: Mapping[str, Any]) -> Population:
-    """Validate ``values`` (field -> scalar or 1-D array) and broadcast them to
-    one common length N; refuse a bad one with a :class:`ParameterError` that
-    names the field, the first bad value, its index and the limit."""
+def population(values: Mapping[str, Any], initial: Mapping[str, Any] | None = None) -> Population:
+    """Validate ``values`` (field -> scalar or 1-D array) and ``initial`` (the same, of
+    the inputs in :data:`~friction_sim.core.model.spec.EXCITER_START`, named
+    ``initial.<field>`` in errors) and broadcast them to one common length N; refuse
+    a bad one with a :class:`ParameterError` that names the field, the first bad
+    value, its index and the limit."""
     if not isinstance(values, Mapping):
         raise ParameterError("values", type(values).__name__, "must be a mapping of field names to values")
+    if initial is None:
+        initial = {}
+    if not isinstance(initial, Mapping):
+        raise ParameterError("initial", type(initial).__name__, "must be a mapping of input names to values")
     n = 0
     length_of = ""
     raw: dict[str, NDArray[Any]] = {}
-    for name, value in values.items():
+    entries = [(str(name), name, value) for name, value in values.items()]
+    entries += [(f"initial.{name}", name, value) for name, value in initial.items()]
+    for label, name, value in entries:
         setting = FIELDS.get(name)
+        if label != name and name not in spec.EXCITER_START:
+            raise ParameterError(label, value if np.ndim(value) == 0 else "<array>",
+                                 f"unknown start of the exciter; known: {', '.join(spec.EXCITER_START)}")
         if setting is None:
-            raise ParameterError(str(name), value if np.ndim(value) == 0 else "<array>",
+            raise ParameterError(label, value if np.ndim(value) == 0 else "<array>",
                                  f"unknown field; known: {', '.join(FIELDS)}")
         array = _as_array(setting, value)
         if array.ndim > 1:
-            raise ParameterError(name, f"<array of shape {array.shape}>", "must be a scalar or a 1-d array")
+            raise ParameterError(label, f"<array of shape {array.shape}>", "must be a scalar or a 1-d array")
         if array.ndim == 1:
             if array.size == 0:
-                raise ParameterError(name, "<empty array>", "must hold one value per slider (at least one)")
+                raise ParameterError(label, "<empty array>", "must hold one value per slider (at least one)")
             if n and array.size != n:
-                raise ParameterError(name, f"<array of length {array.size}>",
+                raise ParameterError(label, f"<array of length {array.size}>",
                                      f"must have the length of {length_of} ({n}), or be a scalar")
-            n, length_of = array.size, name
-        raw[name] = array
+            n, length_of = array.size, label
+        raw[label] = array
     n = max(n, 1)
     columns: dict[str, NDArray[Any]] = {}
     for name, setting in FIELDS.items():
@@ -146,7 +174,14 @@ def population(values: Mapping[str, Any]) -> Population:
             columns[name] = np.full(n, str(setting.default))
         else:
             columns[name] = np.full(n, float(setting.default))
-    return Population(n, columns)
+    starts: dict[str, NDArray[Any]] = {}
+    for name in spec.EXCITER_START:
+        if f"initial.{name}" in raw:
+            try:
+                starts[name] = _checked(FIELDS[name], raw[f"initial.{name}"], n)
+            except ParameterError as error:
+                raise ParameterError(f"initial.{name}", error.value, error.limit) from None
+    return Population(n, columns, starts)
 
 
 def _as_array(setting: spec.Setting, value: Any) -> NDArray[Any]:
@@ -229,7 +264,7 @@ def _sample_times(sample_times: ArrayLike | None) -> Floats | None:
 def run_batch(values: Mapping[str, Any], *, settle_periods: int, periods: int,
               sample_times: ArrayLike | None = None, engine: str = "compiled",
               periodic_shortcut: bool = True, threads: int | None = None,
-              progress: Callable[[str], None] | None = None) -> BatchResult:
+              progress: Callable[[str], None] | None = None, initial: Mapping[str, Any] | None = None) -> BatchResult:
     """Advance N independent sliders, each from rest at t = 0, phase 0, x = 0,
     exactly, and return their means over the window (see the module doc).
 
@@ -240,8 +275,18 @@ def run_batch(values: Mapping[str, Any], *, settle_periods: int, periods: int,
     lets a slider whose motion repeats bit for bit extrapolate its window
     instead of stepping through it (exact: a repeat of the state decides the
     future).  ``progress`` hears, in one line, when the engine is compiling.
+
+    ``initial`` (resonant sliders): the inputs, of
+    :data:`~friction_sim.core.model.spec.EXCITER_START`, whose steady state the
+    exciter starts from at t = 0, each a scalar or one value per slider: a step
+    to the slider's own drive level and frequency at t = 0, whose transient both
+    engines run exactly (``{"drive_level": 0.0}``: a start from rest, a sweep's
+    ``initial: rest``; :data:`~friction_sim.core.model.spec.INITIAL_INPUTS`).  A
+    field not given, or equal to the slider's own: the exciter starts in its
+    steady state (the default, no transient).  The single slider that does the
+    same is :meth:`Population.slider`.
     """
-    pop = population(values)
+    pop = population(values, initial)
     settle = _count("settle_periods", settle_periods, 0)
     count = _count("periods", periods, 1)
     times = _sample_times(sample_times)
@@ -255,7 +300,7 @@ def run_batch(values: Mapping[str, Any], *, settle_periods: int, periods: int,
 
     window, counts, samples, modes = compiled.run(
         pop.columns, lambda i: can_ever_slip(*pop.plant(i)), settle, count, times,
-        bool(periodic_shortcut), threads, progress)
+        bool(periodic_shortcut), threads, progress, pop.initial)
     batch_samples = None
     if times is not None and samples is not None and modes is not None:
         batch_samples = BatchSamples(times, samples[:, :, 0], samples[:, :, 1], samples[:, :, 2], samples[:, :, 3],
@@ -297,9 +342,8 @@ def scalar_windows(pop: Population, settle: int, count: int, times: Floats | Non
     column = {kind: k for k, kind in enumerate(EVENT_KINDS)}
     sampled: list[Any] = []
     for i in range(n):
-        params, inputs = pop.plant(i)
-        frequency = inputs.excitation_frequency
-        slider = Slider(params, inputs, event_log_size=0, cycle_log_size=2)
+        frequency = float(pop.columns["excitation_frequency"][i])
+        slider = pop.slider(i, event_log_size=0, cycle_log_size=2)
         for side, mark_n in enumerate((settle, settle + count)):
             boundary = mark_n / frequency  # the scalar core times period n's start at exactly n/f
             for event in slider.advance_to(boundary):
@@ -311,7 +355,7 @@ def scalar_windows(pop: Population, settle: int, count: int, times: Floats | Non
             assert mark.n == mark_n
             x[side][i], stuck[side][i], flight[side][i] = mark.x, mark.stuck_time, mark.flight_time
         if times is not None:
-            sampled.append(Slider(params, inputs, event_log_size=0).sample(times))
+            sampled.append(pop.slider(i, event_log_size=0).sample(times))
     samples = None
     if times is not None:
         samples = BatchSamples(t=times, x=np.array([s.x for s in sampled]), v=np.array([s.v for s in sampled]),

@@ -55,15 +55,22 @@ from typing import Any
 
 import numpy as np
 
-from friction_sim.core.engine.actuator import Exciter, ExciterState
+from friction_sim.core.engine.actuator import Exciter
 from friction_sim.core.engine.checkpoint import Checkpoint
-from friction_sim.core.engine.transient_segment import STEADY, cut_by, exciter_after, motion, segment_end, states
+from friction_sim.core.engine.history import History
+from friction_sim.core.engine.transient_segment import (
+    STEADY,
+    ExciterReadings,
+    cut_by,
+    exciter_after,
+    segment_end,
+    states,
+)
 from friction_sim.core.engine.transient_segment import start as start_transient
 from friction_sim.core.model.dimensionless import TWO_PI
 from friction_sim.core.model.events import MODES as _MODES
 from friction_sim.core.model.events import CycleMark, Event, EventKind, Mode, SliderState, Trajectory
 from friction_sim.core.model.params import Inputs, SliderParams, require_finite
-from friction_sim.core.physics.numerics import two_sum
 from friction_sim.core.physics.plant import plant_of
 from friction_sim.core.physics.roots import NEVER, reduce_phase
 from friction_sim.core.physics.segment import (
@@ -74,20 +81,16 @@ from friction_sim.core.physics.segment import (
     STUCK,
     Segment,
     Step,
-    travel,
 )
 from friction_sim.core.physics.stepper import (
     MAX_EVENTS_AT_ONE_INSTANT,
     Anchor,
     advance,
-    offset,
-    period_start,
+    continued,
     schedule,
     spent,
     step_of,
-    to_cycle,
 )
-from friction_sim.core.physics.transient import slideway_acceleration
 from friction_sim.errors import ParameterError, SimulationFault
 
 #: Steps kept in the memo (one per distinct segment start under the plant in force).
@@ -107,8 +110,9 @@ _KINDS = tuple(EventKind)
 # --------------------------------------------------------------------------
 
 
-class Slider:
-    """One slider, advanced exactly in time.
+class Slider(History, ExciterReadings):
+    """One slider, advanced exactly in time (what it has done: :class:`History`; what its
+    resonant exciter reads: :class:`~friction_sim.core.engine.transient_segment.ExciterReadings`).
 
     >>> slider = Slider()                 # the paper's Fig. 2 case
     >>> events = slider.advance_to(0.1)   # five excitation periods
@@ -188,46 +192,6 @@ class Slider:
         return self._inputs
 
     @property
-    def events(self) -> list[Event]:
-        """The most recent events, oldest first (bounded by ``event_log_size``)."""
-        return list(self._events)
-
-    @property
-    def event_counts(self) -> dict[EventKind, int]:
-        """How many events of each kind happened since the start."""
-        return dict(self._counts)
-
-    @property
-    def stuck_time(self) -> float:
-        """Total time [s] spent stuck since the start, up to :attr:`t`."""
-        return spent(self._seg, self._t - self._seg.t0)[0]
-
-    @property
-    def flight_time(self) -> float:
-        """Total time [s] spent off the track since the start, up to :attr:`t`."""
-        return spent(self._seg, self._t - self._seg.t0)[1]
-
-    @property
-    def cycle_marks(self) -> list[CycleMark]:
-        """The most recent period starts, oldest first (empty unless enabled)."""
-        return list(self._marks) if self._marks is not None else []
-
-    def cycle_marks_after(self, n: int) -> list[CycleMark]:
-        """The kept period starts with a number above ``n``, oldest first."""
-        newer: list[CycleMark] = []
-        for mark in reversed(self._marks or ()):
-            if mark.n <= n:
-                break
-            newer.append(mark)
-        newer.reverse()
-        return newer
-
-    @property
-    def next_mark_time(self) -> float:
-        """When the next excitation period starts (inf when marks are not kept)."""
-        return self._next_mark_t if self._marks is not None else NEVER
-
-    @property
     def next_event_time(self) -> float:
         """When the next event happens under the present inputs (inf: never)."""
         return self._next_t
@@ -252,9 +216,8 @@ class Slider:
             if self._transient.c and (boundary := cut_by(self._seg, self._transient, self._next_t, t,
                                                          self.next_mark_time)) is not None:
                 # the segment's closed form ends here: a new one from the same motion
-                assert self._exciter is not None
                 self._t = boundary
-                self._rebase(self._params, self._inputs, "settled" if boundary >= self._exciter.settles_at else "look")
+                self._rebase(self._params, self._inputs, boundary=True)
                 continue
             if self._next_mark_s <= self._next_s:  # by phase: a mark and an event may round to one t
                 if self._next_mark_t > t:
@@ -369,28 +332,19 @@ class Slider:
         self._params, self._inputs = params, inputs
         self._plant, self._steps = plant_of(params, inputs, in_flight), {}
 
-    def _rebase(self, params: SliderParams, inputs: Inputs, boundary: str = "") -> None:
-        """Start a new segment at the current time from the current state; at a
-        ``boundary`` of the exciter's transient nothing else changes: it has
-        ``settled`` (dropped), or the look-ahead ended (``look``: kept as it is)."""
-        seg, plant, t = self._seg, self._plant, self._t
-        tau = t - seg.t0
-        phase, cycles = reduce_phase(seg.phase0 + plant.omega * tau, seg.cycles)
-        stuck, flight = spent(seg, tau)
-        mode = seg.mode
-        if mode == STUCK:  # (the common case: a controller's change between slips)
-            x, xl, v, vz, z = seg.x0, seg.xl, 0.0, 0.0, 0.0
-        else:
-            moved, v, vz, z = motion(plant, seg, self._transient, tau)
-            x, xl = two_sum(seg.x0, seg.xl + moved)
-            if mode != FLIGHT:
-                mode, vz, z = (STUCK if v == 0.0 else (1 if v > 0.0 else -1)), 0.0, 0.0
+    def _rebase(self, params: SliderParams, inputs: Inputs, boundary: bool = False) -> None:
+        """Start a new segment at the current time from the current state
+        (:func:`~friction_sim.core.physics.stepper.continued`); at a ``boundary`` of
+        the exciter's transient's segment nothing else changes (the transient is
+        dropped once it has settled)."""
+        seg, t = self._seg, self._t
+        retimed = inputs.excitation_frequency != self._anchor.frequency  # (the anchor moves to t)
+        new = continued(self._plant, seg, self._transient.c, self._transient.lam, t, t if retimed else self._anchor.t)
         self._set_plant(params, inputs, seg.mode == FLIGHT)
-        self._exciter = exciter_after(self._exciter, params, inputs, self._plant, t, phase, boundary)
-        if inputs.excitation_frequency != self._anchor.frequency:
-            self._set_anchor(t, cycles, phase)
-        self._start(Segment(mode, phase, v, vz, max(z, 0.0), 0, False, t - self._anchor.t, t, x, xl, cycles, stuck,
-                            flight, seg.at_instant))
+        self._exciter = exciter_after(self._exciter, params, inputs, self._plant, t, new.phase0, boundary)
+        if retimed:
+            self._set_anchor(t, new.cycles, new.phase0)
+        self._start(new)
 
     def _start(self, seg: Segment) -> None:
         """Start ``seg`` and schedule its next event (on the steady forms worked out
@@ -432,43 +386,6 @@ class Slider:
         self._counts[kind] += 1
         return event
 
-    # -- the resonant exciter (its transient's segments: transient_segment) --------
-
-    def slideway_acceleration(self) -> tuple[float, float]:
-        """(along, normal) [m/s^2]: the slideway's acceleration now in the track frame
-        (:func:`~friction_sim.core.physics.transient.slideway_acceleration`)."""
-        seg = self._seg
-        lam = self._exciter.lam if self._exciter is not None else 0j
-        return slideway_acceleration(self._plant, seg.phase0, self._transient.c, lam, self._t - seg.t0)
-
-    @property
-    def exciter(self) -> ExciterState | None:
-        """The resonant exciter's state now (None with the force actuator)."""
-        if self._exciter is None:
-            return None
-        seg = self._seg
-        theta = seg.phase0 + self._plant.omega * (self._t - seg.t0)
-        return self._exciter.state(self._t, theta)
-
-    def _schedule_mark(self) -> None:
-        """Aim at the start of period ``_next_mark_n``, timed from the anchor."""
-        if self._marks is not None:
-            self._next_mark_s = offset(self._anchor, self._next_mark_n, 0.0)
-            self._next_mark_t = self._anchor.t + self._next_mark_s
-
-    def _mark_cycle(self) -> None:
-        """Record the start of period ``_next_mark_n`` and aim at the next."""
-        seg, n = self._seg, self._next_mark_n
-        t = max(self._next_mark_t, seg.t0)  # a start that rounding put before this segment's is at it
-        # Where the slider is when the phase passes 2*pi*n exactly (not at the rounded t).
-        tau = to_cycle(n, seg.cycles, seg.phase0, self._plant.omega)
-        moved = (motion(self._plant, seg, self._transient, tau)[0] if self._transient.c
-                 else travel(self._plant, seg.mode, seg.v0, seg.phase0, tau))  # (only x is needed: no full state)
-        x, stuck, flight = period_start(seg, tau, moved)
-        assert self._marks is not None
-        self._marks.append(CycleMark(n, t, x, stuck, flight))
-        self._next_mark_n += 1
-        self._schedule_mark()
 
 
 __all__ = ["MAX_POSITION", "MAX_TIME", "CycleMark", "Event", "EventKind", "Mode", "Slider", "SliderState",

@@ -20,14 +20,16 @@ from typing import NamedTuple
 
 import numpy as np
 
-from friction_sim.core.engine.actuator import Exciter
+from friction_sim.core.engine.actuator import Exciter, ExciterState
 from friction_sim.core.engine.transient_kernel import transient_step
 from friction_sim.core.model.params import Inputs, SliderParams
+from friction_sim.core.physics import stepper
 from friction_sim.core.physics.numerics import Floats
 from friction_sim.core.physics.plant import Plant
 from friction_sim.core.physics.roots import NEVER
-from friction_sim.core.physics.segment import Segment, Step, evaluate, moved_and_velocities
-from friction_sim.core.physics.transient import LOOK_AHEAD_PERIODS, transient_evaluate, transient_motion
+from friction_sim.core.physics.segment import Segment, Step, evaluate
+from friction_sim.core.physics.stepper import transient_end
+from friction_sim.core.physics.transient import slideway_acceleration, transient_evaluate
 
 #: A state's numbers (x, v, acceleration, friction, normal force, phase, z, vz), at a time or at many.
 States = tuple[Floats, Floats, Floats, Floats, Floats, Floats, Floats, Floats]
@@ -53,8 +55,7 @@ def start(exciter: Exciter | None, plant: Plant, seg: Segment, frequency: float)
     None if the exciter has no transient at the segment's start (the steady step applies)."""
     if exciter is None or not exciter.active(seg.t0):
         return None
-    c = exciter.force(seg.t0)
-    horizon = min(exciter.settles_at - seg.t0, LOOK_AHEAD_PERIODS / frequency)
+    c, horizon = exciter.window(seg.t0, frequency)
     step = transient_step(plant, c, exciter.lam, horizon, seg.mode, seg.phase0, seg.v0, seg.vz0, seg.z0, seg.closing,
                           seg.grounded)
     return Transient(c, exciter.lam, seg.t0 + horizon), step
@@ -62,10 +63,7 @@ def start(exciter: Exciter | None, plant: Plant, seg: Segment, frequency: float)
 
 def motion(plant: Plant, seg: Segment, transient: Transient, tau: float) -> tuple[float, float, float, float]:
     """(x(tau) - x(0), v, vz, z) ``tau`` into ``seg`` (with the exciter's transient, if it has one)."""
-    if transient.c:
-        return transient_motion(plant, seg.mode, transient.c, transient.lam, seg.v0, seg.vz0, seg.z0, seg.phase0,
-                                tau)
-    return moved_and_velocities(plant, seg.mode, seg.v0, seg.vz0, seg.z0, seg.phase0, tau)
+    return stepper.motion(plant, seg, transient.c, transient.lam, tau)
 
 
 def states(plant: Plant, seg: Segment, transient: Transient, tau: Floats) -> States[Floats]:
@@ -99,11 +97,7 @@ def segment_end(seg: Segment, transient: Transient, next_t: float) -> tuple[floa
     same motion, whose next event is sought on.  The boundary cuts the
     segment unless its next event comes before it.  Advancing and sampling
     both end the segment here, so they evaluate every time in the same segment."""
-    if transient.c:
-        boundary = max(transient.look_until, seg.t0)
-        if boundary <= next_t:
-            return boundary, True
-    return next_t, False
+    return transient_end(seg, transient.c, transient.look_until, next_t)
 
 
 def cut_by(seg: Segment, transient: Transient, next_t: float, t: float, next_mark_t: float) -> float | None:
@@ -116,15 +110,15 @@ def cut_by(seg: Segment, transient: Transient, next_t: float, t: float, next_mar
 
 
 def exciter_after(exciter: Exciter | None, params: SliderParams, inputs: Inputs, plant: Plant, t: float,
-                  phase: float, boundary: str) -> Exciter | None:
+                  phase: float, boundary: bool) -> Exciter | None:
     """The exciter from a new segment at ``t`` (excitation ``phase``) on: at a
-    ``boundary`` of its transient nothing else changes (``settled``: the transient
-    is dropped; ``look``: kept as it is); at a change of ``params`` and
+    ``boundary`` of its transient's segment nothing else changes (the transient is
+    dropped if it has settled, else kept as it is); at a change of ``params`` and
     ``inputs`` (with ``plant``, theirs) the slideway's motion carries on into the
     new steady state (none with the force actuator)."""
     if boundary:
         assert exciter is not None
-        return exciter.settled(t) if boundary == "settled" else exciter
+        return exciter.settled(t)
     if not params.resonant:
         return None
     if exciter is None:
@@ -132,4 +126,33 @@ def exciter_after(exciter: Exciter | None, params: SliderParams, inputs: Inputs,
     return exciter.change(params, inputs, plant, t, phase)
 
 
-__all__ = ["STEADY", "States", "Transient", "cut_by", "exciter_after", "motion", "segment_end", "start", "states"]
+class ExciterReadings:
+    """What a slider's resonant exciter reads now: the exciter's state and the slideway's
+    acceleration (a base of :class:`~friction_sim.core.engine.single.Slider`, which holds
+    the state it reads)."""
+
+    _t: float
+    _seg: Segment
+    _plant: Plant
+    _exciter: Exciter | None
+    _transient: Transient
+
+    def slideway_acceleration(self) -> tuple[float, float]:
+        """(along, normal) [m/s^2]: the slideway's acceleration now in the track frame
+        (:func:`~friction_sim.core.physics.transient.slideway_acceleration`)."""
+        seg = self._seg
+        lam = self._exciter.lam if self._exciter is not None else 0j
+        return slideway_acceleration(self._plant, seg.phase0, self._transient.c, lam, self._t - seg.t0)
+
+    @property
+    def exciter(self) -> ExciterState | None:
+        """The resonant exciter's state now (None with the force actuator)."""
+        if self._exciter is None:
+            return None
+        seg = self._seg
+        theta = seg.phase0 + self._plant.omega * (self._t - seg.t0)
+        return self._exciter.state(self._t, theta)
+
+
+__all__ = ["STEADY", "ExciterReadings", "States", "Transient", "cut_by", "exciter_after", "motion", "segment_end",
+           "start", "states"]

@@ -275,6 +275,14 @@ SETTLE_PERIODS = Setting("settle_periods", 200, "periods", "whole excitation per
                          0, 1_000_000)
 PERIODS = Setting("periods", 200, "periods", "whole excitation periods the mean speed is averaged over", 1, 10_000_000)
 CHUNK_SIZE = Setting("chunk_size", 5000, "points", "points of a sweep per batch-core call (a Dask task)", 1, 10_000_000)
+INITIAL = Setting("initial", "steady", "-", "resonant actuator: how the exciter starts at t = 0: steady (running in "
+                  "steady state, as a slider starts on a running feeder) or rest (the slideway at rest: the feeder's "
+                  "start-up transient, as after a step of drive level from 0)", choices=("steady", "rest"))
+#: The inputs a batch run's resonant exciter may start from the steady state of (a step of
+#: drive level or frequency at t = 0: ``initial: rest`` is a drive level of 0).
+EXCITER_START = ("drive_level", "excitation_frequency")
+#: The inputs each value of :data:`INITIAL` starts the exciter from (none: the slider's own).
+INITIAL_INPUTS: dict[str, dict[str, float]] = {"steady": {}, "rest": {"drive_level": 0.0}}
 
 # -- the controller ------------------------------------------------------------------
 

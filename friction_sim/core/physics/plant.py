@@ -274,10 +274,18 @@ def onset_form(p: Plant, direction: int) -> Form:
     return p.onset_forward if direction > 0 else p.onset_backward
 
 
-def stays(p: Plant, theta: float) -> int:
-    """At phase theta in contact and at rest: 0 if it stays stuck, else the direction it slips in."""
-    if form_at(p.onset_forward, theta) > 0.0:
+def onset_gain(p: Plant, direction: int) -> float:
+    """What a force normal to the track adds to the onset form s*Ft - mu_s*R of ``direction``,
+    per unit of that force (as the exciter's transient force acts)."""
+    return direction * p.cot_beta + p.mu_s
+
+
+def stays(p: Plant, theta: float, force: float) -> int:
+    """At phase theta in contact and at rest, with ``force`` added normal to the track
+    (the exciter's transient force; 0.0: none, and adding it changes no sign): 0 if it
+    stays stuck, else the direction it slips in."""
+    if form_at(p.onset_forward, theta) + onset_gain(p, 1) * force > 0.0:
         return 1
-    if form_at(p.onset_backward, theta) > 0.0:
+    if form_at(p.onset_backward, theta) + onset_gain(p, -1) * force > 0.0:
         return -1
     return 0

@@ -25,7 +25,7 @@ import math
 from typing import Final, NamedTuple
 
 from friction_sim.core.physics.numerics import Floats, sine
-from friction_sim.core.physics.plant import Form, Plant, form_at, onset_form, slip_form, slip_gain, stays
+from friction_sim.core.physics.plant import Form, Plant, form_at, slip_form, slip_gain, stays
 from friction_sim.core.physics.roots import (
     NEVER,
     Harmonic,
@@ -242,36 +242,71 @@ def general_step(p: Plant, mode: int, phase0: float, v0: float, vz0: float, z0: 
     """:func:`next_step` of the general model.  ``closing`` and ``grounded``
     guard progress: an at-once restart of the slip that just stopped, or of a
     flight that ended as it began, could only come from rounding, so it waits
-    for the window to open again (see :func:`roots.next_slip_start`)."""
+    for the window to open again (see :func:`roots.next_slip_start`).  Which
+    candidate wins is :func:`contact_event`'s call, and :func:`event_step` works
+    out what follows, as for the exciter's transient
+    (:func:`~friction_sim.core.physics.transient.transient_step`)."""
     omega = p.omega
-    kind, direction, theta = STICK, 0, NEVER  # theta: the phase of an event tied to one
+    direction, theta = 0, NEVER  # theta: the phase of an event tied to one
     if mode == FLIGHT:
         z = z_axis(p, phase0, vz0, z0)
         kind, delay = LANDING, landing_delay(z.w0, z.b0, z.b1, z.phase0, z.omega, z.start)
-    else:
+    elif mode == STUCK:  # by phase: each onset is tied to one
         lift = _onset_phase(p.lift, phase0, grounded)
-        if mode == STUCK:
-            theta, kind = lift, LIFT_OFF
-            for s in (1, -1):
-                onset = _onset_phase(onset_form(p, s), phase0, closing == s)
-                if onset != NEVER and (theta == NEVER or onset < theta):
-                    theta, kind, direction = onset, SLIP_START, s
-            delay = NEVER if theta == NEVER else (theta - phase0) / omega
-        else:
-            h = x_axis(p, mode, v0, phase0)
-            delay = slip_stop_delay(h.w0, h.b0, h.b1, h.phase0, omega)
-            if lift != NEVER and (lift - phase0) / omega <= delay:
-                theta, kind, delay = lift, LIFT_OFF, (lift - phase0) / omega
+        forward = _onset_phase(p.onset_forward, phase0, closing == FORWARD)
+        backward = _onset_phase(p.onset_backward, phase0, closing == BACKWARD)
+        kind, direction, theta = contact_event(mode, lift, forward, backward, NEVER)
+        delay = NEVER if theta == NEVER else (theta - phase0) / omega
+    else:  # by delay, a lift-off tied to its phase
+        lift = _onset_phase(p.lift, phase0, grounded)
+        h = x_axis(p, mode, v0, phase0)
+        kind, direction, delay = contact_event(mode, NEVER if lift == NEVER else (lift - phase0) / omega, NEVER,
+                                               NEVER, slip_stop_delay(h.w0, h.b0, h.b1, h.phase0, omega))
+        if kind == LIFT_OFF:
+            theta = lift
     if delay == NEVER:
         return NO_STEP
+    v, vz = velocities(p, mode, v0, vz0, z0, phase0, delay)
+    return event_step(p, mode, kind, direction, delay, theta, phase0, travel(p, mode, v0, phase0, delay), v, vz,
+                      0.0)
+
+
+def sooner(kind: int, direction: int, when: float, other: int, other_direction: int, other_when: float,
+           wins_ties: bool) -> tuple[int, int, float]:
+    """(kind, direction, when) of the earlier of an event found so far and another
+    candidate (``when``: a phase or a delay, ``inf``: never); the candidate wins a tie
+    only if it ``wins_ties``."""
+    if other_when < when or (wins_ties and other_when == when):
+        return other, other_direction, other_when
+    return kind, direction, when
+
+
+def contact_event(mode: int, lift: float, forward: float, backward: float, stop: float) -> tuple[int, int, float]:
+    """(kind, direction, when) of the event a segment on the track meets first, from
+    when each candidate comes (``inf``: never): stuck, a slip's onset forward or
+    backward (forward wins a tie) or a lift-off (which wins any tie); slipping, the
+    slip's stop or a lift-off (which wins a tie).  The one rule of both models, the
+    steady one (:func:`general_step`) and the exciter's transient
+    (:func:`~friction_sim.core.physics.transient.transient_step`)."""
+    if mode == STUCK:
+        kind, direction, when = sooner(SLIP_START, FORWARD, forward, SLIP_START, BACKWARD, backward, False)
+        return sooner(kind, direction, when, LIFT_OFF, 0, lift, True)
+    return sooner(STICK, 0, stop, LIFT_OFF, 0, lift, True)
+
+
+def event_step(p: Plant, mode: int, kind: int, direction: int, delay: float, theta: float, phase0: float,
+               moved: float, v: float, vz: float, force: float) -> Step:
+    """The :class:`Step` of the event ``contact_event`` (or a landing) chose, ``delay``
+    into a segment that started at ``phase0``, tied to the phase ``theta`` (``inf``:
+    not tied, at phase0 + omega*delay), after ``moved`` with velocities v and vz just
+    before; ``force``: the normal force added then (the exciter's transient; 0.0: none),
+    which decides with the forms whether a stopped slip slips on (:func:`stays`)."""
     tied = theta != NEVER
     if not tied:
-        theta = phase0 + omega * delay
+        theta = phase0 + p.omega * delay
     phase, whole = reduce_phase(theta, 0)
-    v, vz = velocities(p, mode, v0, vz0, z0, phase0, delay)
-    moved = travel(p, mode, v0, phase0, delay)
-    return outcome(p, mode, kind, direction, stays(p, theta) if kind == STICK else 0, delay, tied, phase, whole,
-                   moved, v, vz)
+    return outcome(p, mode, kind, direction, stays(p, theta, force) if kind == STICK else 0, delay, tied, phase,
+                   whole, moved, v, vz)
 
 
 def outcome(p: Plant, mode: int, kind: int, direction: int, slips: int, delay: float, tied: bool, phase: float,

@@ -17,6 +17,15 @@ its memo of steps by ``seg[:START]``: see
 * :func:`period_start` gives the position and the booked times at the start of
   an excitation period within a segment (where :func:`to_cycle` says it is).
 
+Under the resonant exciter's transient (:mod:`~friction_sim.core.physics.transient`)
+the same engines run the same few functions more, whichever engine runs them:
+:func:`exciter_changed` (the slideway and when its transient settles after a
+change), :func:`transient_window` (a segment's transient force and how far
+its next event is sought), :func:`transient_end` (where the segment is cut
+instead), :func:`continued` (the segment that starts there, or at any change,
+from the same motion) and :func:`motion` (the closed forms with the transient
+added, where it is).
+
 The phase anchor (:class:`Anchor`) ties a time to a total phase under the
 present frequency; every event and period start is timed afresh from it
 (:func:`offset`), so rounding errors never add up from one event to the next:
@@ -29,8 +38,12 @@ from __future__ import annotations
 from typing import NamedTuple
 
 from friction_sim.core.model.dimensionless import TWO_PI
+from friction_sim.core.physics.exciter import Slideway, followed, force_transient, settle_delay
+from friction_sim.core.physics.numerics import two_sum
 from friction_sim.core.physics.plant import Plant
-from friction_sim.core.physics.segment import FLIGHT, STUCK, Segment, Step, next_step
+from friction_sim.core.physics.roots import NEVER, reduce_phase
+from friction_sim.core.physics.segment import FLIGHT, STUCK, Segment, Step, moved_and_velocities, next_step, travel
+from friction_sim.core.physics.transient import LOOK_AHEAD_PERIODS, transient_motion
 
 #: More events than this at one instant means the general model made no
 #: progress (a rounding case its guards missed): a stepper (the single slider,
@@ -118,5 +131,91 @@ def period_start(seg: Segment, tau: float, moved: float) -> tuple[float, float, 
     return seg.x0 + (seg.xl + moved), stuck, flight
 
 
-__all__ = ["MAX_EVENTS_AT_ONE_INSTANT", "Anchor", "advance", "offset", "period_start", "schedule", "spent", "step_of",
-           "to_cycle"]
+# -- under the resonant exciter's transient ----------------------------------------------------
+
+#: The force scale of a plant's transient when it has no force at all (the settling
+#: rule needs one above zero): 2**-52, one ulp of 1.
+_UNIT_SCALE = 2.0**-52
+
+
+def exciter_changed(way: Slideway, tau: float, theta: float, amplitude: float, lag: float, omega: float,
+                    lam: complex, mass: float, p: Plant) -> tuple[Slideway, float]:
+    """(the slideway, the delay after which its transient has settled: 0 if it has none)
+    after a change ``tau`` into ``way``, the drive at phase ``theta``, to the steady
+    response (``amplitude``, ``lag``, ``omega``) and eigenvalue ``lam`` (the new plant
+    ``p``, of a part of ``mass``): q and q' continuous (:func:`~friction_sim.core.physics.exciter.followed`),
+    the transient settled once its force is below rounding of the plant's forces."""
+    new = followed(way, theta, tau, amplitude, lag, omega, lam)
+    c = force_transient(new, mass, 0.0)
+    scale = abs(p.n0) + abs(p.tangential.b0) + p.pa * (1.0 + abs(p.cot_beta))
+    return new, settle_delay(c, new.lam, scale if scale > 0.0 else _UNIT_SCALE)
+
+
+def transient_window(way: Slideway, way_t0: float, mass: float, until: float, t0: float,
+                     frequency: float) -> tuple[complex, float]:
+    """(c, horizon) of a segment starting at ``t0`` under the transient of ``way``
+    (started at ``way_t0``, settled by ``until``): its force Re(c*exp(lambda*tau)) on a
+    part of ``mass``, and how far its next event is sought, up to the settling or
+    :data:`~friction_sim.core.physics.transient.LOOK_AHEAD_PERIODS` periods of
+    ``frequency``, whichever is sooner."""
+    return force_transient(way, mass, t0 - way_t0), min(until - t0, LOOK_AHEAD_PERIODS / frequency)
+
+
+def transient_end(seg: Segment, c: complex, look_until: float, next_t: float) -> tuple[float, bool]:
+    """(time, cut): where ``seg``'s closed form stops holding, and whether it is cut
+    there rather than ended by its next event (at ``next_t``).  Under a transient
+    (``c`` other than 0) it holds only up to ``look_until`` (never before its start),
+    where its next event was sought no further: there an engine starts a new segment
+    from the same motion (:func:`continued`), unless the event comes first."""
+    if c != 0j:
+        boundary = max(look_until, seg.t0)
+        if boundary <= next_t:
+            return boundary, True
+    return next_t, False
+
+
+def motion(p: Plant, seg: Segment, c: complex, lam: complex, tau: float) -> tuple[float, float, float, float]:
+    """(x(tau) - x(0), v, vz, z) ``tau`` into ``seg``, with the transient force
+    Re(c*exp(lam*tau)) added if ``c`` is not 0."""
+    if c != 0j:
+        return transient_motion(p, seg.mode, c, lam, seg.v0, seg.vz0, seg.z0, seg.phase0, tau)
+    return moved_and_velocities(p, seg.mode, seg.v0, seg.vz0, seg.z0, seg.phase0, tau)
+
+
+def moved(p: Plant, seg: Segment, c: complex, lam: complex, tau: float) -> float:
+    """x(tau) - x(0) of ``seg`` (:func:`motion`, without the rest where it is steady)."""
+    return motion(p, seg, c, lam, tau)[0] if c != 0j else travel(p, seg.mode, seg.v0, seg.phase0, tau)
+
+
+def continued(p: Plant, seg: Segment, c: complex, lam: complex, t: float, anchor_t: float) -> Segment:
+    """The segment that starts at ``t`` from ``seg``'s motion (under ``p`` and the
+    transient ``c``, ``lam``): at a change of parameters or inputs, or where a
+    transient's segment is cut (:func:`transient_end`).  The progress guards are
+    reset; a slip that has come to rest is stuck; ``anchor_t``: the phase anchor's
+    time the new segment is timed from."""
+    tau = t - seg.t0
+    phase, cycles = reduce_phase(seg.phase0 + p.omega * tau, seg.cycles)
+    stuck, flight = spent(seg, tau)
+    mode = seg.mode
+    if mode == STUCK:  # (the common case: a controller's change between slips)
+        x, xl, v, vz, z = seg.x0, seg.xl, 0.0, 0.0, 0.0
+    else:
+        travelled, v, vz, z = motion(p, seg, c, lam, tau)
+        x, xl = two_sum(seg.x0, seg.xl + travelled)
+        if mode != FLIGHT:
+            mode, vz, z = (STUCK if v == 0.0 else (1 if v > 0.0 else -1)), 0.0, 0.0
+    return Segment(mode, phase, v, vz, max(z, 0.0), 0, False, t - anchor_t, t, x, xl, cycles, stuck, flight,
+                   seg.at_instant)
+
+
+def settled_at(way: Slideway, way_t0: float, until: float, t: float) -> tuple[Slideway, float, float]:
+    """(slideway, its start, when it settles) from a cut at ``t`` on: the transient
+    dropped (exactly zero, -inf) once ``t`` has reached ``until``, else unchanged."""
+    if t >= until:
+        return Slideway(way.amplitude, way.lag, way.omega, way.lam, 0j), t, -NEVER
+    return way, way_t0, until
+
+
+__all__ = ["MAX_EVENTS_AT_ONE_INSTANT", "Anchor", "advance", "continued", "exciter_changed", "motion", "moved",
+           "offset", "period_start", "schedule", "settled_at", "spent", "step_of", "to_cycle", "transient_end",
+           "transient_window"]

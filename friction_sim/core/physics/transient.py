@@ -49,23 +49,22 @@ import numpy as np
 from friction_sim.core.model.dimensionless import TWO_PI
 from friction_sim.core.physics.exciter import exp_terms
 from friction_sim.core.physics.numerics import ulp
-from friction_sim.core.physics.plant import Form, Plant, form_at, onset_form, slip_form, slip_gain
-from friction_sim.core.physics.roots import NEVER, harmonic, harmonic_at, illinois_update, reduce_phase
+from friction_sim.core.physics.plant import Form, Plant, onset_form, onset_gain, slip_form, slip_gain
+from friction_sim.core.physics.roots import NEVER, harmonic, harmonic_at, illinois_update
 from friction_sim.core.physics.segment import (
     BACKWARD,
     FLIGHT,
     FORWARD,
     LANDING,
-    LIFT_OFF,
     NO_STEP,
-    SLIP_START,
     STICK,
     STUCK,
     Added,
     Segment,
     Step,
+    contact_event,
     evaluate,
-    outcome,
+    event_step,
 )
 
 #: Under the exciter's transient a segment's next event is sought this many
@@ -321,14 +320,6 @@ def _derivative_slack(s: Signal, k: int) -> float:
 
 
 
-# -- the gains of the transient force on each form ---------------------------------------------
-
-
-def onset_gain(p: Plant, direction: int) -> float:
-    """What it adds to the onset form s*Ft - mu_s*R."""
-    return direction * p.cot_beta + p.mu_s
-
-
 # -- a segment's next event --------------------------------------------------------------------
 
 
@@ -360,14 +351,17 @@ def transient_step(p: Plant, c: complex, lam: complex, horizon: float, mode: int
                    vz0: float, z0: float, closing: int, grounded: bool, work: Work) -> Step:
     """:func:`~friction_sim.core.physics.segment.next_step` under the steady forms of
     ``p`` plus the transient force Re(c*exp(lam*tau)): the next event before
-    ``horizon`` (when the transient settles), or none."""
+    ``horizon`` (when the transient settles), or none.  The candidates are found by
+    :func:`first_time`, each only before the earliest found so far; which one wins,
+    and what follows it, is the steady model's rule
+    (:func:`~friction_sim.core.physics.segment.contact_event`,
+    :func:`~friction_sim.core.physics.segment.event_step`)."""
     omega = p.omega
-    kind, direction, delay = STICK, 0, NEVER
+    kind, direction, delay = LANDING, 0, NEVER
     if mode == FLIGHT:
         rate = signal(0, p.flight_z, 1.0 / p.mass, c, lam, phase0, omega, 0.0, 0.0)
         speed = signal(1, p.flight_z, 1.0 / p.mass, c, lam, phase0, omega, vz0, 0.0)
         height = signal(2, p.flight_z, 1.0 / p.mass, c, lam, phase0, omega, vz0, z0)
-        kind = LANDING
         if z0 > 0.0:
             delay = first_time(height, 0.0, horizon, False, work)
         elif vz0 < 0.0:  # on the track and moving into it: lands at once
@@ -376,34 +370,29 @@ def transient_step(p: Plant, c: complex, lam: complex, horizon: float, mode: int
             apex = _returns_to_zero(rate, speed, horizon, work)
             delay = first_time(height, apex, horizon, False, work) if apex != NEVER else NEVER
     elif mode == STUCK:  # each candidate is sought only before the earliest found so far
-        kind = SLIP_START
-        for s in (FORWARD, BACKWARD):
-            onset = _after_window(signal(0, onset_form(p, s), onset_gain(p, s), c, lam, phase0, omega, 0.0, 0.0),
-                                  0.0, min(delay, horizon), closing == s, work)
-            if onset < delay:
-                direction, delay = s, onset
-        lift = _after_window(signal(0, p.lift, 1.0, c, lam, phase0, omega, 0.0, 0.0), 0.0, min(delay, horizon),
-                             grounded, work)
-        if lift <= delay:  # (a lift-off at the same instant as an onset wins, as in the steady model)
-            kind, direction, delay = LIFT_OFF, 0, lift
+        forward = _after_window(_onset(p, FORWARD, c, lam, phase0), 0.0, horizon, closing == FORWARD, work)
+        backward = _after_window(_onset(p, BACKWARD, c, lam, phase0), 0.0, min(forward, horizon),
+                                 closing == BACKWARD, work)
+        lift = _after_window(signal(0, p.lift, 1.0, c, lam, phase0, omega, 0.0, 0.0), 0.0,
+                             min(forward, backward, horizon), grounded, work)
+        kind, direction, delay = contact_event(mode, lift, forward, backward, NEVER)
     else:
         form, gain = slip_form(p, mode), slip_gain(p, mode)
         stop = _returns_to_zero(signal(0, form, gain, c, lam, phase0, omega, 0.0, 0.0),
                                 signal(1, form, gain, c, lam, phase0, omega, mode * v0, 0.0), horizon, work)
         lift = _after_window(signal(0, p.lift, 1.0, c, lam, phase0, omega, 0.0, 0.0), 0.0, min(stop, horizon),
                              grounded, work)
-        kind, delay = (LIFT_OFF, lift) if lift <= stop else (STICK, stop)
+        kind, direction, delay = contact_event(mode, lift, NEVER, NEVER, stop)
     if delay == NEVER:
         return NO_STEP
-    phase, whole = reduce_phase(phase0 + omega * delay, 0)
     moved, v, vz, _ = transient_motion(p, mode, c, lam, v0, vz0, z0, phase0, delay)
-    slips = 0
-    if kind == STICK:  # the direction it would slip in at once (the steady model's stays, with the transient)
-        force = transient_force(c, lam, delay)
-        for s in (FORWARD, BACKWARD):
-            if slips == 0 and form_at(onset_form(p, s), phase0 + omega * delay) + onset_gain(p, s) * force > 0.0:
-                slips = s
-    return outcome(p, mode, kind, direction, slips, delay, False, phase, whole, moved, v, vz)
+    force = transient_force(c, lam, delay) if kind == STICK else 0.0  # (it decides whether a stop slips on)
+    return event_step(p, mode, kind, direction, delay, NEVER, phase0, moved, v, vz, force)
+
+
+def _onset(p: Plant, direction: int, c: complex, lam: complex, phase0: float) -> Signal:
+    """The onset form of ``direction`` with the transient force added."""
+    return signal(0, onset_form(p, direction), onset_gain(p, direction), c, lam, phase0, p.omega, 0.0, 0.0)
 
 
 # -- the state within a segment ----------------------------------------------------------------
