@@ -53,6 +53,8 @@ class SteppedNode(Protocol):
     @property
     def frame_id(self) -> str: ...
     @property
+    def topics(self) -> Any: ...
+    @property
     def context(self) -> Any: ...
     def get_parameter(self, name: str) -> Any: ...
     def get_logger(self) -> Any: ...
@@ -223,6 +225,7 @@ class LockstepLoop:
         answer, to a controller linked since the last call); it may answer at once, in this thread."""
         link = self._link
         controller = link.controller if link is not None else None
+        self.node.topics.linked_readers = int(controller is not None)  # (its own subscription to the samples)
         if link is None or controller is None:
             return
         generation, sample_ns, reading_ns = self._handed

@@ -5,9 +5,10 @@
 it is on), ``diagnostics`` (the message the node builds) and ``/clock`` (only
 while ``publish_clock`` is true: the publisher exists only then).  Whatever goes
 out on a topic is handed to the node's sinks as it goes (a recording, a live
-view), in the same order.  The states and /clock go out on a topic only while
-someone reads it (they are volatile: a reader gets what comes after it
-matched, either way); the sinks get them always.
+view), in the same order.  The states, the period means and /clock go out on a
+topic only while someone reads it (they are volatile: a reader gets what comes
+after it matched, either way), besides a controller that a lockstep link
+serves; the sinks get them always.
 
 :class:`SliderTopics` also counts the ticks computed and published, so a
 ``~/step`` or ``~/reset`` answers once the state it left is out
@@ -83,6 +84,9 @@ class SliderTopics:
         self._published = threading.Condition()  # the tick thread's count of ticks published, for ~/step
         #: Ticks computed (counted under the lock) and published (under ``_published``).
         self.ticks_computed = self._ticks_published = 0
+        #: Readers of mean_velocity in this process that a lockstep link hands the samples to
+        #: (:mod:`~friction_sim.ros.lockstep_link`): the topic goes out only if another reads it.
+        self.linked_readers = 0
         #: The state last published (a paused tick publishes only when it differs).
         self.last_published: SliderState | None = None
 
@@ -125,8 +129,9 @@ class SliderTopics:
                 fill_state_messages(state, self.frame_id, self._pose, self._velocity, self._friction)
                 for publisher in readers:
                     publisher.publish(self._state_msgs[publisher])
-            for period in tick.periods:
-                self._mean_pub.publish(mean_velocity_message(period, self.frame_id))
+            if tick.periods and self._mean_pub.get_subscription_count() > self.linked_readers:
+                for period in tick.periods:
+                    self._mean_pub.publish(mean_velocity_message(period, self.frame_id))
             if self._imu_pub is not None:
                 self._imu_pub.publish(tick.accelerations, hold_after_ns=self._answered_ns())
             self.last_published = state

@@ -105,9 +105,11 @@ def _counting_attach(monkeypatch: pytest.MonkeyPatch, allow: bool) -> list[bool]
     return linked
 
 
-def _listen(namespace: str) -> tuple[Any, list[int], Any]:
-    """A node of this process listening on ``control_answer`` (as ``ros2 topic echo`` would), spun in a thread."""
+def _listen(namespace: str) -> tuple[list[int], list[int], Any]:
+    """A node of this process listening on ``control_answer`` and ``mean_velocity`` (as ``ros2 topic
+    echo`` would), spun in a thread: the stamps it heard on each, and how to stop it."""
     import rclpy
+    from geometry_msgs.msg import TwistStamped
     from rclpy.executors import SingleThreadedExecutor
 
     from friction_sim.io.messages import message_class, stamp_ns
@@ -117,6 +119,9 @@ def _listen(namespace: str) -> tuple[Any, list[int], Any]:
     heard: list[int] = []
     node.create_subscription(message_class(STAMPED_TYPE), "control_answer",
                              lambda msg: heard.append(stamp_ns(msg.header.stamp)), STAMPED_DEPTH)
+    samples: list[int] = []
+    node.create_subscription(TwistStamped, "mean_velocity", lambda msg: samples.append(stamp_ns(msg.header.stamp)),
+                             STAMPED_DEPTH)
     executor, stop = SingleThreadedExecutor(), threading.Event()
     executor.add_node(node)
     spinner = threading.Thread(target=lambda: [executor.spin_once(timeout_sec=0.05) for _ in iter(stop.is_set, True)],
@@ -129,15 +134,16 @@ def _listen(namespace: str) -> tuple[Any, list[int], Any]:
         executor.shutdown()
         node.destroy_node()
 
-    return node, heard, close
+    return heard, samples, close
 
 
 def test_linked_or_through_the_topics_a_run_records_the_same_and_listeners_hear_every_answer(
         ros: None, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """acceptance_7 (resonant, inner loop on the accelerometer): linked in process, then with
     the link refused (every turn over DDS, as between processes), then linked with a listener
-    on control_answer: three identical recordings, and the listener hears every answer from the
-    moment it matched the controller (discovery is asynchronous, as for any DDS listener) to the end."""
+    on control_answer and mean_velocity: three identical recordings, and the listener hears every
+    answer and sample from the moment it matched their publisher (discovery is asynchronous, as for
+    any DDS listener) to the end."""
     namespace = f"/link_{uuid.uuid4().hex[:8]}"  # (the same for all three: the recordings name it)
     linked = _counting_attach(monkeypatch, allow=True)
     first = _run(tmp_path / "linked.mcap", namespace)
@@ -148,16 +154,17 @@ def test_linked_or_through_the_topics_a_run_records_the_same_and_listeners_hear_
     assert differences(first, second) == []
 
     linked = _counting_attach(monkeypatch, allow=True)
-    _, heard, close = _listen(namespace)
+    heard, published, close = _listen(namespace)
     try:
         third = _run(tmp_path / "heard.mcap", namespace)
         # every period's end at 50 Hz but the run's own end (t = 3 s: the run stops there, unanswered)
         samples = [round(k / 50.0 * 1e9) for k in range(1, 150)]
         deadline = time.monotonic() + 30.0
-        while samples[-1] not in heard and time.monotonic() < deadline:
-            time.sleep(0.01)  # poll interval of a wait for the listener to have the last answer
+        while (samples[-1] not in heard or samples[-1] not in published) and time.monotonic() < deadline:
+            time.sleep(0.01)  # poll interval of a wait for the listener to have the last answer and sample
     finally:
         close()
     assert linked == [True]
     assert differences(first, third) == []
     assert heard and sorted(set(heard)) == [stamp for stamp in samples if stamp >= min(heard)]
+    assert published and sorted(set(published)) == [stamp for stamp in samples if stamp >= min(published)]
