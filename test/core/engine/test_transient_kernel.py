@@ -86,6 +86,22 @@ def test_a_plant_of_other_types_runs_the_plain_step() -> None:
     assert kernel.transient_step(odd, *args[1:]) == expected
 
 
+def test_the_types_are_checked_per_shape_of_plant_and_a_number_numba_types_otherwise_is_caught() -> None:
+    """The compiled types are checked once per shape of plant (classes and leaf types), not per
+    plant: a controller that sets the drive level makes a plant a period.  What Numba would type
+    differently is still caught: an int beyond 64 bits, a float where an int was."""
+    kernel.use(kernel.COMPILED)
+    p = plant_of(SliderParams(actuator="resonant"), Inputs())
+    args = (p, 0.3 + 0.1j, complex(-6.5, 326.0), 0.5, 0, 0.2, 0.0, 0.0, 0.0, 0, True)
+    kernel.transient_step(*args)
+    assert kernel.compiled_ready()
+    other = plant_of(SliderParams(actuator="resonant", mass=2.0), Inputs(drive_level=0.7))
+    assert other != p and kernel.KERNEL.entry(other) is not None
+    assert kernel.KERNEL.entry(p._replace(direction=2**64)) is None
+    assert kernel.KERNEL.entry(p._replace(direction=float(p.direction))) is None
+    assert kernel.KERNEL.entry(p) is not None
+
+
 def test_a_failed_compile_leaves_the_plain_step_and_says_why_once(monkeypatch: pytest.MonkeyPatch,
                                                                  caplog: pytest.LogCaptureFixture) -> None:
     def broken(args: object) -> kernel.CompiledStep:
