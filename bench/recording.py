@@ -190,7 +190,7 @@ def paced(folder: Path, wall_seconds: float) -> None:
             done = time.perf_counter()
             ticks.append(done - started)
             puts.append(done - queued)
-            waited = round(recorder.wait_seconds * 1e9)
+            waited = round(recorder.queue.wait_seconds * 1e9)
             rt.clock.hold(waited - held)
             held = waited
         wall = time.monotonic() - begin

@@ -108,7 +108,7 @@ class InProcessPlant:
     def last_sample_ns(self) -> int:
         """The stamp [ns] of the last mean velocity the slider published (-1: none yet)."""
         with self.slider.lock:
-            period = self.slider.realtime.last_period
+            period = self.slider.realtime.period_means.last
         return to_ns(period.t) if period is not None else -1
 
     def answered(self) -> bool:

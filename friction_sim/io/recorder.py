@@ -34,19 +34,22 @@ and :func:`friction_sim.experiment.offline.record_offline` hand it what a run
 produces.  Its methods only put a record on a bounded queue (one entry per
 call: a tick's states go together); a background thread builds the
 messages (the state topics many at a time, :class:`~friction_sim.io.cdr.FixedLayout`),
-compresses and writes.  No message is lost silently:
+compresses and writes.  The queue and its back-pressure are a
+:class:`~friction_sim.io.recordqueue.RecordQueue` (:attr:`Recorder.queue`).
+No message is lost silently:
 
 * By default (``block_when_full=True``) a producer that finds the queue
   full waits for the writer, for as long as the writer makes progress and
   no longer: not once the recording has failed or the writer thread has
-  ended.  :attr:`Recorder.wait_seconds` and :attr:`Recorder.waits` say how
-  long and how often producers waited (a real-time caller rebases its clock).
+  ended.  :attr:`RecordQueue.wait_seconds <friction_sim.io.recordqueue.RecordQueue.wait_seconds>`
+  and :attr:`~friction_sim.io.recordqueue.RecordQueue.waits` (of :attr:`Recorder.queue`) say
+  how long and how often producers waited (a real-time caller rebases its clock).
 * With ``block_when_full=False`` records that do not fit are dropped, counted
   and the count is written in the file (``friction_sim_summary``).
 * When a write fails (disk full, file too large, I/O error) the recording
   stops: :attr:`Recorder.error` holds one line saying what failed, where,
   and how much the file holds; later records are counted no-ops
-  (:attr:`Recorder.unrecorded`) that never block; :meth:`Recorder.finish`
+  (:attr:`~friction_sim.io.recordqueue.RecordQueue.unrecorded`) that never block; :meth:`Recorder.finish`
   returns the stats with the error, never raises.  The file keeps every
   chunk written before the failure and reads and verifies up to there
   (:mod:`friction_sim.io.reader`).
@@ -72,7 +75,6 @@ import os
 import threading
 import time
 import weakref
-from collections import deque
 from collections.abc import Mapping
 from pathlib import Path
 from types import TracebackType
@@ -84,6 +86,7 @@ from friction_sim.errors import ParameterError, RecordingPathError, one_line
 from friction_sim.io import cdr
 from friction_sim.io.bagfile import BagFile, RecordingStats
 from friction_sim.io.messages import TOPIC_TYPES, message_class, node_name, value_text
+from friction_sim.io.recordqueue import RecordQueue
 from friction_sim.io.recordwriter import Item, Metadata, RecordWriter, qualified_topic
 from friction_sim.io.sinks import ClockRecord, CommandRecord, ParametersRecord, Record, record_size
 from friction_sim.io.typesupport import DEFAULT_QOS
@@ -106,14 +109,8 @@ LOADS = "loads"
 #: The plant and input fields a recording starts from (what ``--verify`` rebuilds).
 PLANT_FIELDS = tuple(spec.PLANT)
 INPUT_FIELDS = tuple(spec.INPUTS)
-#: Messages a command or parameter change may queue beyond the capacity before
-#: it waits (a flood brings at most the subscriptions' depth per topic and tick).
-URGENT_HEADROOM = 4096
-#: The records that may use URGENT_HEADROOM: commands and parameter changes.
+#: The records that may use the queue's URGENT_HEADROOM: commands and parameter changes.
 _URGENT = frozenset({CommandRecord, ParametersRecord})
-#: Wall time [s] the writer lets records gather after the first of a batch (unless the queue is
-#: half full): a batch then holds a tick's worth many times over, written in one numpy pass.
-GATHER = 0.02
 
 
 def plant_parameters(params: SliderParams, inputs: Inputs) -> dict[str, float | str]:
@@ -173,6 +170,11 @@ class Recorder:
     SIGKILL can lose.  A path that cannot be written raises one
     :class:`~friction_sim.errors.RecordingPathError` (nothing is left open);
     later failures never raise (:attr:`error`).
+
+    The queue between the producers and the writer thread, with its counts
+    (waits, unrecorded messages), is :attr:`queue`; the recorder owns the
+    file's life: opening it, the writer thread's loop, flushing, finishing
+    and failing.
     """
 
     def __init__(
@@ -197,23 +199,11 @@ class Recorder:
         self.error: str | None = None
         self._setting = setting
         self._fsync = fsync
-        self._block = block_when_full
-        self._capacity = int(queue_size)
-        self._lock = threading.Lock()
-        self._not_empty = threading.Condition(self._lock)
-        self._not_full = threading.Condition(self._lock)
-        self._items: deque[tuple[Item, int]] = deque()  # (record, messages it makes)
-        self._pending = 0  # messages queued
-        self._taken = 0  # messages the writer took from the queue
-        self._stopping = False
-        self._failed = False
+        #: The bounded queue the producers put records on and the writer thread takes them from.
+        self.queue = RecordQueue(queue_size, block=block_when_full, path=self.path,
+                                 writer_alive=lambda: self._thread.is_alive())
         self._finished = False
         self._finish_lock = threading.Lock()
-        self._dropped = 0
-        self._unrecorded = 0
-        self._wait_ns = 0
-        self._waits = 0
-        self._warned_behind = False
         self._stream = self._open()
         if metadata is not None and metadata_name == METADATA_NAME and external_force_z_convention is not None:
             metadata = {**metadata, CONVENTION_KEY: metadata.get(CONVENTION_KEY, external_force_z_convention)}
@@ -267,7 +257,7 @@ class Recorder:
         if kind is ClockRecord:
             return True
         size = record_size(record)
-        return not size or self._put(record, size, urgent=kind in _URGENT)
+        return not size or self.queue.put(record, size, urgent=kind in _URGENT)
 
     def close(self) -> None:
         """Finish the file (see :meth:`finish`)."""
@@ -275,7 +265,7 @@ class Recorder:
 
     def add_metadata(self, name: str, data: Mapping[str, Any]) -> bool:
         """Queue an MCAP metadata record (values written as text)."""
-        return self._put(Metadata(name, {str(k): value_text(v) for k, v in data.items()}), 0)
+        return self.queue.put(Metadata(name, {str(k): value_text(v) for k, v in data.items()}), 0)
 
     # -- state ----------------------------------------------------------------------
 
@@ -283,27 +273,7 @@ class Recorder:
     def dropped(self) -> int:
         """Messages dropped so far: the queue was full and the producer does
         not wait, a record no message could hold, or handed over after finish."""
-        return self._dropped + self._writer.bad
-
-    @property
-    def unrecorded(self) -> int:
-        """Messages not recorded because the recording had failed (see :attr:`error`)."""
-        return self._unrecorded
-
-    @property
-    def wait_seconds(self) -> float:
-        """Wall time [s] producers have waited for the writer so far."""
-        return self._wait_ns / 1e9
-
-    @property
-    def waits(self) -> int:
-        """How many times a producer waited for the writer."""
-        return self._waits
-
-    @property
-    def failed(self) -> bool:
-        """Whether the recording stopped on an error (:attr:`error` says which)."""
-        return self._failed
+        return self.queue.dropped + self._writer.bad
 
     @property
     def writer_alive(self) -> bool:
@@ -315,57 +285,6 @@ class Recorder:
         """Whether :meth:`finish` was called."""
         return self._finished
 
-    def _put(self, item: Item, size: int, *, urgent: bool = False) -> bool:
-        """Queue ``item`` (``size`` messages); False if it was not queued (counted).
-
-        An ``urgent`` item (a command, a parameter change: few, and handled on
-        the node's parameter-service thread too) may use :data:`URGENT_HEADROOM`
-        messages beyond the capacity before it waits, so a node whose states
-        keep the queue full still answers a parameter set at once."""
-        with self._lock:
-            if self._failed:
-                self._unrecorded += size
-                return False
-            if self._stopping:
-                self._dropped += size
-                return False
-            capacity = self._capacity + (URGENT_HEADROOM if urgent else 0)
-            if self._pending and self._pending + size > capacity:
-                if self._block:
-                    if not self._wait_for_room(size, capacity):
-                        if self._failed:
-                            self._unrecorded += size
-                        else:
-                            self._dropped += size
-                        return False
-                else:
-                    self._dropped += size
-                    warn, self._warned_behind = not self._warned_behind, True
-                    if warn:
-                        _log.warning("recording %s: the writer falls behind; dropping messages (counted in the "
-                                     "file)", self.path)
-                    return False
-            self._items.append((item, size))
-            self._pending += size
-            if len(self._items) == 1 or self._capacity // 2 <= self._pending < self._capacity // 2 + size:
-                self._not_empty.notify()  # the first of a batch, or half full: not every call (a futex wake costs)
-            return True
-
-    def _wait_for_room(self, size: int, capacity: int) -> bool:
-        """Wait (lock held) until ``size`` messages fit in ``capacity``; False if
-        they never will: the recording failed or is finishing, or the writer is gone."""
-        started = time.monotonic_ns()
-        self._waits += 1
-        try:
-            while True:
-                if self._failed or self._stopping or not self._thread.is_alive():
-                    return False
-                if not (self._pending and self._pending + size > capacity):
-                    return True
-                self._not_full.wait(0.1)  # woken by the writer's progress; the timeout only re-checks it lives
-        finally:
-            self._wait_ns += time.monotonic_ns() - started
-
     # -- finishing ---------------------------------------------------------------
 
     def finish(self) -> RecordingStats:
@@ -376,28 +295,19 @@ class Recorder:
         with self._finish_lock:
             if self._finished:
                 return self.stats
-            with self._lock:
-                self._stopping = True
-                self._not_empty.notify_all()
-                self._not_full.notify_all()
+            self.queue.stop()
             _open_recorders.discard(self)
             self._thread.join()
-            with self._lock:  # left in the queue by a writer that ended early: counted, not lost silently
-                if self._failed:
-                    self._unrecorded += self._pending
-                else:
-                    self._dropped += self._pending
-                self._items.clear()
-                self._pending = 0
+            self.queue.discard()  # left in the queue by a writer that ended early: counted, not lost silently
             self._finished = True
             self._update_stats()
             return self.stats
 
     def _update_stats(self) -> None:
         self.stats.dropped = self.dropped
-        self.stats.unrecorded = self._unrecorded
-        self.stats.waited = self.wait_seconds
-        self.stats.waits = self._waits
+        self.stats.unrecorded = self.queue.unrecorded
+        self.stats.waited = self.queue.wait_seconds
+        self.stats.waits = self.queue.waits
         self.stats.error = self.error
 
     def __enter__(self) -> Recorder:
@@ -423,20 +333,7 @@ class Recorder:
         next_flush = time.monotonic() + self.flush_interval
         dirty = False
         while True:
-            with self._lock:
-                while not self._items and not self._stopping:
-                    timeout = next_flush - time.monotonic()
-                    if timeout <= 0.0:
-                        break
-                    self._not_empty.wait(timeout)
-                if self._items and not self._stopping and self._pending < self._capacity // 2:
-                    self._not_empty.wait(GATHER)  # gather: a numpy pass, a wake-up and a GIL hand-over a batch
-                batch = [item for item, _ in self._items]
-                self._taken += self._pending
-                self._items.clear()
-                self._pending = 0
-                self._not_full.notify_all()
-                stop = self._stopping and not batch
+            batch, stop = self.queue.take(next_flush)
             if stop:
                 return
             if batch:
@@ -471,14 +368,8 @@ class Recorder:
         at = f" (t = {stats.last_ns / 1e9:.3f} s)" if stats.last_ns is not None else ""
         message = (f"recording failed: {_reason(error)} writing {self.path} after {stats.messages} messages{at}; "
                    "the run goes on unrecorded")
-        with self._lock:
-            self.error = stats.error = message
-            self._failed = True
-            # Queued, or taken but not in the file: a batch half written, the chunk that was being built.
-            self._unrecorded += self._pending + self._taken - stats.messages - self._writer.bad
-            self._items.clear()
-            self._pending = 0
-            self._not_full.notify_all()
+        self.error = stats.error = message
+        self.queue.fail(stats.messages + self._writer.bad)
         stats.bytes = self._file.position
         _log.error("%s", message)
         with contextlib.suppress(OSError):
@@ -491,6 +382,7 @@ class Recorder:
             os.fsync(self._stream.fileno())
         self.stats.chunks_flushed += 1
         self.stats.last_flush = time.monotonic()
+
 
 def _checked_path(setting: str, path: str | os.PathLike[str]) -> str:
     """``path`` as text, if it can name a file to write (RecordingPathError if not)."""

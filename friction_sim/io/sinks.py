@@ -15,7 +15,7 @@ A sink must be cheap to call (the tick thread calls it): queue the work, do
 it elsewhere.  A sink that must not lose anything may make the caller wait
 when it falls behind (the recorder does, for as long as its writer makes
 progress, and says how long in
-:attr:`~friction_sim.io.recorder.Recorder.wait_seconds`).  A record is read
+:attr:`~friction_sim.io.recordqueue.RecordQueue.wait_seconds`).  A record is read
 later, on the sink's own thread: what it holds (a message, a dict of
 parameters) must not be changed once written.
 """

@@ -246,7 +246,7 @@ class RecorderHealth:
         """Wall time [ns] the recorder held its producers since the last call."""
         if self.recorder is None:
             return 0
-        waited = round(self.recorder.wait_seconds * 1e9)
+        waited = round(self.recorder.queue.wait_seconds * 1e9)
         new, self._waited_ns = max(0, waited - self._waited_ns), max(waited, self._waited_ns)
         return new
 
@@ -256,7 +256,7 @@ class RecorderHealth:
         recorder = self.recorder
         if recorder is None:
             return {}
-        waited = recorder.wait_seconds
+        waited = recorder.queue.wait_seconds
         report = {"recording": str(recorder.path), "recording_error": recorder.error or "",
                   "recording_dropped": recorder.dropped, "recording_waited_s": waited,
                   "recording_waited_in_interval_s": waited - self._reported}

@@ -266,7 +266,7 @@ def test_a_full_queue_drops_and_counts_without_blocking_a_caller_that_does_not_w
     # never have returned, and the recorder counts every wait (none, below).
     # 3 states (9 messages) fit in the queue, and up to 3 more if the writer took them before it stalled.
     assert 3 <= accepted <= 6 and recorder.dropped == 3 * (100 - accepted), "drops count messages"
-    assert recorder.waits == 0
+    assert recorder.queue.waits == 0
     recorder.gate.set()
     stats = recorder.finish()
     assert stats.dropped == 3 * (100 - accepted) and stats.per_topic["/pose"] == accepted and stats.error is None
@@ -293,7 +293,7 @@ def test_a_producer_that_waits_loses_nothing_and_resumes_when_the_writer_moves(t
     producer = threading.Thread(target=produce)
     producer.start()
     assert not done.wait(0.5), "the producer waits while the writer is stuck"
-    assert recorder.dropped == 0 and recorder.waits >= 1
+    assert recorder.dropped == 0 and recorder.queue.waits >= 1
     opened = time.monotonic()
     recorder.gate.set()
     assert done.wait(10.0), "the producer goes on once the writer moves"
@@ -315,7 +315,7 @@ def test_a_command_never_waits_behind_a_queue_full_of_states(tmp_path: Path) -> 
     recorder.write(StatesRecord(tuple(states(10)), "slideway"))  # 30 messages: the queue is full
     recorder.write(CommandRecord(Outcome(Command(0.001, "drive_force", {"drive_force": 0.8})), "slideway"))
     recorder.write(ParametersRecord({"publish_rate": 500.0}, 0.001, True))
-    assert recorder.waits == 0  # the writer is stalled: a wait would never have ended
+    assert recorder.queue.waits == 0  # the writer is stalled: a wait would never have ended
     recorder.gate.set()
     stats = recorder.finish()
     assert stats.dropped == 0 and stats.per_topic["/drive_force"] == 1

@@ -105,11 +105,11 @@ rt = RealtimeSlider(params, inputs, wall_ns=0, real_time_factor=10.0, log_rate=1
 waits_after, puts_after, failed_at = 0, 0, None
 for k in range(1, ticks + 1):
     tick = rt.tick(k * 1_000_000)
-    failed = recorder.failed
-    waits = recorder.waits
+    failed = recorder.queue.failed
+    waits = recorder.queue.waits
     deliver_tick([recorder], tick, "slideway")
     if failed:
-        waits_after += recorder.waits - waits
+        waits_after += recorder.queue.waits - waits
         puts_after += 1
         failed_at = k if failed_at is None else failed_at
     if k % 20 == 0:
@@ -218,15 +218,15 @@ def test_a_disk_that_fills_wakes_a_waiting_producer_and_later_puts_are_counted_n
     producer.start()
     assert produced.wait(30.0), "the producer is never stuck behind a failed writer"
     producer.join()
-    assert recorder.failed and recorder.waits >= 1, "it did wait while the writer worked"
+    assert recorder.queue.failed and recorder.queue.waits >= 1, "it did wait while the writer worked"
     match = FAILED.match(recorder.error or "")
     assert match and match.group(1) == str(errno.ENOSPC) and match.group(2) == "No space left on device", recorder.error
     written = int(match.group(4))
     assert written > 0 and recorder.dropped == 0
-    assert written + recorder.unrecorded == 120_000, "every message is in the file or counted"
-    before, waits = recorder.unrecorded, recorder.waits
+    assert written + recorder.queue.unrecorded == 120_000, "every message is in the file or counted"
+    before, waits = recorder.queue.unrecorded, recorder.queue.waits
     recorder.write(StatesRecord(tuple(states(50_000, 1000)), "slideway"))
-    assert recorder.waits == waits and recorder.unrecorded == before + 3000, "refused at once, counted"
+    assert recorder.queue.waits == waits and recorder.queue.unrecorded == before + 3000, "refused at once, counted"
     stats = recorder.finish()
     assert stats.error == recorder.error and stats.messages == written and recorder.finish() is stats
     errors = [r for r in caplog.records if r.levelno >= logging.WARNING]

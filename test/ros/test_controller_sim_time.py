@@ -49,7 +49,7 @@ class Feeder:
         for _ in range(n):
             seen = len(self.outputs)
             self.call("step")
-            sample = self.slider.realtime.last_period.t  # (the step's own sample: one period, one sample)
+            sample = self.slider.realtime.period_means.last.t  # (the step's own sample: one period, one sample)
 
             def answered(seen: int = seen, sample: float = sample) -> bool:
                 last = self.controller.control.clock.last_stamp

@@ -110,7 +110,7 @@ def test_published_trajectory_equals_the_exact_core_whatever_the_jitter(rig) -> 
     probe.spin_until(lambda: len(probe.received["pose"]) - start >= 1500, 10.0)
     accepted = [o for o in outcomes if o.accepted]
     assert len(accepted) == 7
-    assert node.realtime.stats.total_late_ticks > 0, "the jitter made some ticks late"
+    assert node.realtime.interval.stats.total_late_ticks > 0, "the jitter made some ticks late"
 
     velocities = {stamp_ns(m): m for m in probe.received["velocity"]}
     frictions = {stamp_ns(m): m for m in probe.received["friction_force"]}
@@ -225,7 +225,7 @@ def test_parameters_via_the_parameter_services(rig) -> None:  # type: ignore[no-
     assert set_("excitation_frequency", 100.0) == (True, "")
     assert node.realtime.slider.inputs.excitation_frequency == 100.0
     assert set_("mean_window_periods", 4) == (True, "")
-    assert node.realtime.mean_window_periods == 4
+    assert node.realtime.period_means.window_periods == 4
     assert set_("publish_rate", 200.0) == (True, "")
     set_ns = round(node.realtime.slider.t * 1e9)  # the set was answered: later ticks run at the new rate
 
@@ -245,10 +245,10 @@ def test_parameters_via_the_parameter_services(rig) -> None:  # type: ignore[no-
     assert intervals[len(intervals) // 2] == pytest.approx(5_000_000, abs=500_000), intervals
     assert set_("real_time_factor", 3.0) == (True, "")
     rt = node.realtime
-    sim_before, slipped, wall = rt.slider.t, rt.time_slipped, time.monotonic()  # after the set's round trip
+    sim_before, slipped, wall = rt.slider.t, rt.pace.time_slipped, time.monotonic()  # after the set's round trip
     probe.spin_for(1.0)
     # simulated time plus what stalls of this busy test process let slip (max_catch_up) runs at 3x the wall clock
-    ratio = (rt.slider.t - sim_before + rt.time_slipped - slipped) / (time.monotonic() - wall)
+    ratio = (rt.slider.t - sim_before + rt.pace.time_slipped - slipped) / (time.monotonic() - wall)
     assert 2.5 < ratio < 3.5
 
 
@@ -297,7 +297,7 @@ def test_a_stalled_timer_does_not_change_the_physics(rig, max_catch_up: float) -
     clock, rt = node.realtime.clock, node.realtime
     with node._lock:  # noqa: SLF001 - stall the tick thread: ticks are missed
         before_ns = round(rt.slider.t * 1e9)  # the last tick before the stall
-        wall1, slipped1, stalls1 = time.monotonic_ns(), rt.time_slipped, rt.stalls
+        wall1, slipped1, stalls1 = time.monotonic_ns(), rt.pace.time_slipped, rt.pace.stalls
         lag1 = wall1 - clock.now_ns(wall1)
         time.sleep(0.25)  # the stall under test (time itself is what is tested)
 
@@ -310,11 +310,11 @@ def test_a_stalled_timer_does_not_change_the_physics(rig, max_catch_up: float) -
         assert gaps.max() > 0.2, "simulation time followed the wall clock over the stall"
     else:
         assert gaps.max() <= max_catch_up + 1e-9, "the late tick simulated at most max_catch_up of the stall"
-        assert rt.stalls > stalls1 and rt.time_slipped - slipped1 > 0.2
+        assert rt.pace.stalls > stalls1 and rt.pace.time_slipped - slipped1 > 0.2
     # Simulation time follows the wall clock again, behind by what slipped, to well under a millisecond.
     wall2 = time.monotonic_ns()
     lag2 = wall2 - clock.now_ns(wall2)
-    assert abs((lag2 - lag1) - (rt.time_slipped - slipped1) * 1e9) < 1_000_000
+    assert abs((lag2 - lag1) - (rt.pace.time_slipped - slipped1) * 1e9) < 1_000_000
     exact = Slider(SliderParams(), Inputs())
     last = probe.received["pose"][-1]
     exact.advance_to(stamp_ns(last) / 1e9)

@@ -39,7 +39,7 @@ def test_the_simulation_waits_for_a_slow_recorder_without_a_jump_in_time(ros: No
     node = SliderNode(namespace=ns, parameter_overrides=[Parameter("log_path", value=str(tmp_path / "run.mcap"))])
     recorder = node.recorder
     assert recorder is not None and recorder.namespace == ns
-    recorder._capacity = 300  # noqa: SLF001 - a small queue, and a writer slower than the simulation:
+    recorder.queue.capacity = 300  # a small queue, and a writer slower than the simulation:
     write = recorder._writer.write  # noqa: SLF001
 
     def slow(batch: Any) -> None:
@@ -50,16 +50,16 @@ def test_the_simulation_waits_for_a_slow_recorder_without_a_jump_in_time(ros: No
     probe = Probe(ns, node, outputs={"pose": PoseStamped, "diagnostics": DiagnosticArray})
     try:
         probe.wait_for_connection(topic="pose")
-        start, waited = len(probe.received["pose"]), recorder.wait_seconds
+        start, waited = len(probe.received["pose"]), recorder.queue.wait_seconds
         reported = len(probe.received["diagnostics"])
         began = time.monotonic()
         # Until the node's own counts say it: the tick has waited more than 2 s for the writer, and
         # three reports have come since (the last two of them over windows held back).
-        assert probe.spin_until(lambda: recorder.wait_seconds - waited > 2.0
+        assert probe.spin_until(lambda: recorder.queue.wait_seconds - waited > 2.0
                                 and len(probe.received["diagnostics"]) >= reported + 3, 60.0)
         wall = time.monotonic() - began
-        waited = recorder.wait_seconds - waited
-        assert recorder.waits > 0 and waited > 2.0, "the tick waited for the writer"
+        waited = recorder.queue.wait_seconds - waited
+        assert recorder.queue.waits > 0 and waited > 2.0, "the tick waited for the writer"
         stamps = [stamp_ns(m) for m in probe.received["pose"][start:]]
         simulated = (stamps[-1] - stamps[0]) / 1e9
         # Simulation time holds still while the tick waits: over the window it advances by the wall

@@ -19,9 +19,11 @@ from friction_sim.core.meanspeed.urelation import NO_PREDICTION, Prediction
 from friction_sim.core.model.commands import unused_input
 from friction_sim.core.model.events import EventKind
 from friction_sim.core.model.params import Inputs, SliderParams
-from friction_sim.core.model.records import PeriodSummary, share
+from friction_sim.core.model.records import share
 from friction_sim.core.model.spec import NS_PER_S
 from friction_sim.core.physics.plant import steady_excitation, steady_throw_number
+from friction_sim.core.runtime.pace import Pace
+from friction_sim.core.runtime.periods import PeriodMeans
 from friction_sim.core.runtime.simclock import SimClock, TickStats
 
 
@@ -33,14 +35,9 @@ class Reported(Protocol):
     publish_rate: float
     accepted: int
     rejected: int
-    behind: int
-    stalls: int
-    time_slipped: float
     last_rejection: str
-    max_catch_up: float | None
-
-    @property
-    def last_period(self) -> PeriodSummary | None: ...
+    pace: Pace
+    period_means: PeriodMeans
 
     def now(self, wall_ns: int) -> float: ...
 
@@ -88,7 +85,7 @@ class DiagnosticsInterval:
         inputs = slider.inputs
         flight_time, lift_offs, landings = flight_record(slider)
         sim_elapsed = slider.t - stats.interval_slider_start
-        last_period = rt.last_period
+        last_period = rt.period_means.last
         report = {
             "sim_time": sim_now,
             "paused": rt.clock.paused,
@@ -101,8 +98,8 @@ class DiagnosticsInterval:
             "commands_accepted": rt.accepted,
             "commands_rejected": rt.rejected,
             "commands_rejected_in_interval": rt.rejected - self._rejected_before,
-            "ticks_behind_in_interval": rt.behind - self._behind_before,
-            "max_catch_up": rt.max_catch_up, "stalls": rt.stalls, "time_slipped": rt.time_slipped,
+            "ticks_behind_in_interval": rt.pace.behind - self._behind_before,
+            "max_catch_up": rt.pace.max_catch_up, "stalls": rt.pace.stalls, "time_slipped": rt.pace.time_slipped,
             "last_rejection": rt.last_rejection,
             "drive_force": inputs.drive_force,
             "excitation_amplitude": input_shown(slider, "excitation_amplitude"),
@@ -128,7 +125,7 @@ class DiagnosticsInterval:
             "measured_mean_velocity": last_period.mean_velocity if last_period else math.nan,
         }
         self._rejected_before = rt.rejected
-        self._behind_before = rt.behind
+        self._behind_before = rt.pace.behind
         stats.ticks = 0
         stats.late_ticks = 0
         stats.interval_start_ns = wall_ns

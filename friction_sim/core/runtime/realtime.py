@@ -20,6 +20,9 @@ holds everything that is not message conversion:
 * It keeps the tick statistics the node publishes as diagnostics, with the
   lift-offs, landings and time in flight of each diagnostics interval
   (:mod:`~friction_sim.core.runtime.diagnostics`).
+* One advance goes only as far as :mod:`~friction_sim.core.runtime.pace`
+  allows (after a stall, or beyond a few ms of work), and on the way keeps the
+  log samples and accelerometer readings of :mod:`~friction_sim.core.runtime.loggrid`.
 * A change of plant or inputs is taken under a guard (:mod:`~friction_sim.core.runtime.guard`): if the core raises
   while taking it, or the state it leaves is not finite, everything is put
   back as it was and the command is refused with the reason.  If advancing
@@ -51,27 +54,22 @@ from friction_sim.core.model.commands import (
     apply,
     reason,
 )
-from friction_sim.core.model.events import Event, SliderState
 from friction_sim.core.model.params import Inputs, SliderParams, check_load
-from friction_sim.core.model.records import Acceleration, PeriodSummary, Tick
+from friction_sim.core.model.records import PeriodSummary, Tick
 from friction_sim.core.model.spec import NS_PER_S
-from friction_sim.core.runtime.accelerometer import Accelerometer, grid
+from friction_sim.core.runtime.accelerometer import Accelerometer
 from friction_sim.core.runtime.diagnostics import DiagnosticsInterval
 from friction_sim.core.runtime.guard import non_finite, take_guarded
+from friction_sim.core.runtime.intake import take_checked
+from friction_sim.core.runtime.loggrid import LogGrid
+from friction_sim.core.runtime.pace import Pace
 from friction_sim.core.runtime.periods import PeriodMeans
-from friction_sim.core.runtime.simclock import SimClock, TickStats
+from friction_sim.core.runtime.simclock import SimClock
 from friction_sim.errors import ParameterError, SimulationFault, one_line
 
-_PHYSICS = {**spec.PLANT, **spec.INPUTS}
 #: Period marks the core keeps; more than this many periods in one tick are
 #: summarised only from the last ones (only at absurd real-time factors).
 _MARK_BACKLOG = 4096
-#: Log samples one advance takes at most (a few ms of work).  Asked for more
-#: (real_time_factor x log_rate beyond what this machine computes), the
-#: simulation falls behind the wall clock instead, as it does for a slow
-#: recorder: one tick never holds the node for seconds, parameter sets stay
-#: answered, and diagnostics report the achieved real-time factor.
-MAX_SAMPLES_PER_ADVANCE = 1000
 #: Log samples one ``~/step`` may make at most (they are kept in memory until
 #: the next tick hands them to the recorder): 100 s at the default log rate.
 MAX_STEP_SAMPLES = 100_000
@@ -95,26 +93,23 @@ class RealtimeSlider:
         check_load(inputs.excitation_frequency, self.clock.rate, load_blame)
         self.slider = Slider(params, inputs, event_log_size=1000, cycle_log_size=_MARK_BACKLOG)
         self.publish_rate = float(spec.PUBLISH_RATE.check(publish_rate))
-        self._set_catch_up(None if max_catch_up is None else float(spec.MAX_CATCH_UP.check(max_catch_up)))
-        #: Stalls of the host whose rest was not simulated, and the simulated seconds given up (see _set_catch_up).
-        self.stalls, self.time_slipped = 0, 0.0
-        #: The per-period summaries made from the core's period marks.
+        self.log_rate = float(spec.LOG_RATE.check(log_rate)) if log_rate is not None else None
+        #: How far one advance may go (max_catch_up, the sample budget), and the stalls,
+        #: the time slipped and the advances cut short so far.
+        self.pace = Pace(self.clock, self.log_rate)
+        self.pace.set_catch_up(None if max_catch_up is None else float(spec.MAX_CATCH_UP.check(max_catch_up)),
+                               self.publish_rate)
+        #: The per-period summaries made from the core's period marks (the mean window, the last period).
         self.period_means = PeriodMeans(mean_window_periods)
         self.accepted = 0
         self.rejected = 0
-        #: Advances cut short by MAX_SAMPLES_PER_ADVANCE (the simulation fell behind real time).
-        self.behind = 0
         self.last_rejection = ""
         #: The diagnostics interval: its tick statistics, counts and prediction.
         self.interval = DiagnosticsInterval(wall_ns)
-        self.log_rate = float(spec.LOG_RATE.check(log_rate)) if log_rate is not None else None
-        self._next_log_index = 0  # the log grid is k / log_rate in simulation time
-        # What advancing produced since the last tick (commands advance too).
-        self._events: list[Event] = []
-        self._samples: list[SliderState] = []
-        self._accelerations: list[Acceleration] = []
         #: The slideway's accelerometer (None: off), sampled on its own grid while advancing.
         self.accelerometer: Accelerometer | None = accelerometer if accelerometer and accelerometer.rate else None
+        #: The log and accelerometer grids, and what advancing produced since the last tick (commands advance too).
+        self.grid = LogGrid(self.log_rate, self.accelerometer)
         self._periods: list[PeriodSummary] = []  # summaries made before a reset, for the next tick
         #: Why the run cannot go on ('' while it can): see :class:`SimulationFault`.
         self.fault = ""
@@ -156,7 +151,7 @@ class RealtimeSlider:
         for command in batch:
             stamped = command if command.t == t else command.at(t)  # the node stamps them already
             try:
-                problem = self._take_checked(stamped)
+                problem = take_checked(self.slider, stamped, self.clock.rate)
             except ParameterError as error:
                 outcomes.append(self._refuse(stamped, reason(stamped, error)))
                 continue
@@ -166,19 +161,6 @@ class RealtimeSlider:
             self.accepted += 1
             outcomes.append(Outcome(stamped))
         return outcomes
-
-    def _take_checked(self, command: Command) -> str:
-        """Take ``command`` through the one gate plus the real-time load rule
-        (:func:`~friction_sim.core.runtime.guard.take_guarded`).
-
-        Each value is first checked against its own range alone: a NaN, inf or
-        out-of-range value (what a flood of bad commands is made of) is refused
-        there, in a few microseconds, without building new plant and inputs.
-        """
-        for field, value in command.values.items():
-            _PHYSICS[field].check(value)
-        return take_guarded(self.slider, command,
-                            lambda params, inputs: check_load(inputs.excitation_frequency, self.clock.rate))
 
     def configure(self, values: Mapping[str, Any], wall_ns: int) -> Outcome:
         """A set of node parameters, checked and applied as one new state, now: one
@@ -203,9 +185,9 @@ class RealtimeSlider:
                        "real_time_factor" if "real_time_factor" in values else "excitation_frequency")
             publish_rate = float(spec.PUBLISH_RATE.check(values.get("publish_rate", self.publish_rate)))
             catch_up = float(spec.MAX_CATCH_UP.check(values["max_catch_up"])) if "max_catch_up" in values \
-                else self.max_catch_up
+                else self.pace.max_catch_up
             window = int(spec.MEAN_WINDOW_PERIODS.check(values.get("mean_window_periods",
-                                                                   self.mean_window_periods)))
+                                                                   self.period_means.window_periods)))
         except ParameterError as error:
             return self._refuse(command, str(error))
         problem = take_guarded(self.slider, command)  # (the gate again: the plant and inputs checked above)
@@ -213,8 +195,8 @@ class RealtimeSlider:
             return self._refuse(command, f"{', '.join(values)}: {problem}")
         self.clock.set_rate(rate, wall_ns)
         self.publish_rate = publish_rate
-        self._set_catch_up(catch_up)
-        self.set_mean_window(window)
+        self.pace.set_catch_up(catch_up, publish_rate)
+        self.period_means.set_window(window)
         if physics:
             self.accepted += 1
         return Outcome(command)
@@ -300,26 +282,6 @@ class RealtimeSlider:
         self.period_means.restart()
         return Outcome(Command(t, RESET))
 
-    # -- settings -----------------------------------------------------------
-
-    def _set_catch_up(self, seconds: float | None) -> None:
-        """``max_catch_up``, never under two ticks (None, for a synthetic clock or a test: no limit)."""
-        self.max_catch_up = seconds
-        self.clock.catch_up_ns = None if seconds is None else round(max(seconds, 2.0 / self.publish_rate) * NS_PER_S)
-
-    def set_mean_window(self, periods: int) -> None:
-        """Average the mean velocity over the last ``periods`` whole periods."""
-        self.period_means.set_window(periods)
-
-    @property
-    def mean_window_periods(self) -> int:
-        return self.period_means.window_periods
-
-    @property
-    def last_period(self) -> PeriodSummary | None:
-        """The summary of the last period that ended (None before the first)."""
-        return self.period_means.last
-
     # -- the tick -------------------------------------------------------------
 
     def tick(self, wall_ns: int) -> Tick:
@@ -331,55 +293,13 @@ class RealtimeSlider:
         self.interval.count_tick(wall_ns, self.publish_rate)
         self._advance(wall_ns)
         state = self.slider.state()
-        problem = non_finite(state)
-        for sample in self._samples:
-            if problem:
-                break
-            problem = non_finite(sample)
+        problem = non_finite(state) or self.grid.non_finite()
         if problem:
             self._fail(f"the state became non-finite ({problem})")
         periods = self._periods + self.period_means.new(self.slider, self.marks_before)
-        events, samples = self._events, tuple(self._samples)
-        accelerations = tuple(self._accelerations)
-        self._events, self._samples, self._periods, self._accelerations = [], [], [], []
+        events, samples, accelerations = self.grid.take()
+        self._periods = []
         return Tick(state, events, periods, samples, paused=self.clock.paused, accelerations=accelerations)
-
-    def _log_samples(self, t: float) -> None:
-        """Advance through the log grid points up to ``t`` not logged yet,
-        keeping the exact state at each (and the events on the way), and
-        through the accelerometer's grid, in time order.  Mostly one point per
-        tick: a scalar advance is cheaper than numpy here, and cutting the time
-        axis there does not change the motion."""
-        accelerometer = self.accelerometer
-        due = accelerometer.due(self.slider.t, t) if accelerometer is not None else range(0)
-        rate = self.log_rate or 1.0
-        logged = grid(rate, self._next_log_index, self.slider.t, t) if self.log_rate else range(0)
-        self._next_log_index = max(self._next_log_index, logged.stop)
-        if accelerometer is None or not due:  # (every tick of a node without the accelerometer: no merge)
-            for k in logged:
-                self._events.extend(self.slider.advance_to(max(k / rate, self.slider.t)))
-                self._samples.append(self.slider.state())
-            return
-        points = sorted([(k / rate, 0, k) for k in logged] + [(k / accelerometer.rate, 1, k) for k in due])
-        for when, kind, k in points:
-            self._events.extend(self.slider.advance_to(max(when, self.slider.t)))
-            if kind:
-                self._accelerations.append(accelerometer.read(self.slider, k))
-            else:
-                self._samples.append(self.slider.state())
-
-    def _reachable(self, t: float, wall_ns: int) -> float:
-        """``t`` (after a stall: the clock's catch-up limit, where the rest slips), or the time
-        :data:`MAX_SAMPLES_PER_ADVANCE` log samples ahead if sooner; simulation time is held there."""
-        if slipped := self.clock.slip(wall_ns):
-            self.stalls += 1
-            self.time_slipped += slipped / NS_PER_S
-        if self.log_rate is None or t - self.slider.t <= MAX_SAMPLES_PER_ADVANCE / self.log_rate:
-            return t
-        limit_ns = math.floor((self.slider.t + MAX_SAMPLES_PER_ADVANCE / self.log_rate) * NS_PER_S)
-        self.clock.fall_behind(limit_ns, wall_ns)
-        self.behind += 1
-        return max(limit_ns / NS_PER_S, self.slider.t)
 
     def _advance(self, wall_ns: int) -> float:
         """Advance to the present, keeping the events and log samples on the way
@@ -387,7 +307,7 @@ class RealtimeSlider:
         if self.fault:
             raise SimulationFault(self.fault)
         try:
-            t = self._reachable(self.now(wall_ns), wall_ns)
+            t = self.pace.reachable(self.now(wall_ns), self.slider.t, wall_ns)
         except Exception as error:  # noqa: BLE001 - whatever the core raised, the run cannot go on
             self._fail(f"advancing failed ({one_line(error, with_type=True)})")
         self._advance_sim(t)
@@ -395,17 +315,11 @@ class RealtimeSlider:
 
     def _advance_sim(self, t: float, *, chunked: bool = False) -> None:
         """Advance the core to ``t``, keeping the events and log samples on the
-        way; ``chunked``: in pieces of :data:`MAX_SAMPLES_PER_ADVANCE` samples
-        (a step).  A failure of the core is a :class:`SimulationFault`."""
+        way (:meth:`LogGrid.advance <friction_sim.core.runtime.loggrid.LogGrid.advance>`);
+        ``chunked``: in pieces of :data:`~friction_sim.core.runtime.loggrid.MAX_SAMPLES_PER_ADVANCE`
+        samples (a step).  A failure of the core is a :class:`SimulationFault`."""
         try:
-            while True:
-                end = t
-                if chunked and self.log_rate is not None:
-                    end = min(t, self.slider.t + MAX_SAMPLES_PER_ADVANCE / self.log_rate)
-                self._log_samples(end)
-                self._events.extend(self.slider.advance_to(end))
-                if end >= t:
-                    break
+            self.grid.advance(self.slider, t, chunked=chunked)
         except Exception as error:  # noqa: BLE001 - whatever the core raised, the run cannot go on
             self._fail(f"advancing failed ({one_line(error, with_type=True)})")
         self.clock.reached(round(self.slider.t * NS_PER_S))
@@ -418,11 +332,6 @@ class RealtimeSlider:
         raise SimulationFault(self.fault)
 
     # -- diagnostics ------------------------------------------------------------
-
-    @property
-    def stats(self) -> TickStats:
-        """The tick statistics of the present diagnostics interval."""
-        return self.interval.stats
 
     def prediction(self, params: SliderParams | None = None, inputs: Inputs | None = None) -> Prediction:
         """The mean-speed prediction for ``params`` and ``inputs`` (default: those

@@ -7,7 +7,8 @@ from __future__ import annotations
 
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.model.params import Inputs, SliderParams
-from friction_sim.core.runtime.realtime import MAX_SAMPLES_PER_ADVANCE, NS_PER_S, RealtimeSlider
+from friction_sim.core.runtime.loggrid import MAX_SAMPLES_PER_ADVANCE
+from friction_sim.core.runtime.realtime import NS_PER_S, RealtimeSlider
 
 
 def test_an_advance_takes_at_most_its_share_of_samples_and_time_falls_behind() -> None:
@@ -20,7 +21,7 @@ def test_an_advance_takes_at_most_its_share_of_samples_and_time_falls_behind() -
         tick = rt.tick(wall)
         assert len(tick.samples) <= MAX_SAMPLES_PER_ADVANCE + 1
         times.extend(s.t for s in tick.samples)
-    assert rt.behind == 5
+    assert rt.pace.behind == 5
     assert rt.slider.t == rt.now(wall), "simulation time is held where the advance stopped"
     # one unbroken 1 kHz grid from the start, no jump anywhere
     assert times == [k / 1000.0 for k in range(len(times))]
@@ -35,7 +36,7 @@ def test_falling_behind_does_not_change_the_motion() -> None:
     samples = []
     for k in range(1, 4):
         samples.extend(rt.tick(k * NS_PER_S // 10).samples)
-    assert rt.behind == 3
+    assert rt.pace.behind == 3
     reference = Slider(SliderParams(), inputs)
     for state in samples:
         reference.advance_to(state.t)
@@ -45,7 +46,7 @@ def test_falling_behind_does_not_change_the_motion() -> None:
 def test_within_its_share_the_clock_is_followed_exactly() -> None:
     rt = RealtimeSlider(SliderParams(), Inputs(), wall_ns=0, real_time_factor=2.0, log_rate=1000.0)
     rt.tick(NS_PER_S // 10)
-    assert rt.behind == 0 and rt.slider.t == 0.2
+    assert rt.pace.behind == 0 and rt.slider.t == 0.2
 
 
 MS = NS_PER_S // 1000
@@ -65,7 +66,7 @@ def test_a_stall_of_the_host_is_simulated_only_up_to_max_catch_up() -> None:
     followed exactly again from there."""
     rt = RealtimeSlider(SliderParams(), Inputs(), wall_ns=0, real_time_factor=0.5, max_catch_up=0.02)
     wall = _ticking(rt, 0, 10)
-    assert rt.slider.t == 0.005 and rt.stalls == 0
+    assert rt.slider.t == 0.005 and rt.pace.stalls == 0
     readings = [rt.now(wall + k * MS) for k in range(0, 500, 7)]
     assert readings == sorted(readings) and readings[-1] == 0.005 + 0.5 * 0.02, \
         "readings during the stall run up to the catch-up limit and stand there"
@@ -73,9 +74,9 @@ def test_a_stall_of_the_host_is_simulated_only_up_to_max_catch_up() -> None:
     rt.tick(wall)
     assert rt.slider.t == 0.005 + 0.5 * 0.02, "the late tick simulates 20 ms of wall time at half speed"
     assert rt.now(wall) == rt.slider.t and rt.diagnostics(wall)["sim_time"] == rt.slider.t, "no step back"
-    assert rt.stalls == 1 and rt.time_slipped == 0.5 * 0.48
+    assert rt.pace.stalls == 1 and rt.pace.time_slipped == 0.5 * 0.48
     _ticking(rt, wall, 4)
-    assert rt.slider.t == 0.015 + 0.5 * 0.004 and rt.stalls == 1
+    assert rt.slider.t == 0.015 + 0.5 * 0.004 and rt.pace.stalls == 1
     report = rt.diagnostics(wall + 4 * MS)
     assert report["sim_time"] == rt.slider.t
     assert (report["stalls"], report["time_slipped"], report["max_catch_up"]) == (1, 0.24, 0.02)
@@ -84,16 +85,16 @@ def test_a_stall_of_the_host_is_simulated_only_up_to_max_catch_up() -> None:
 def test_a_late_tick_within_max_catch_up_catches_up_in_full() -> None:
     rt = RealtimeSlider(SliderParams(), Inputs(), wall_ns=0, max_catch_up=0.02)
     rt.tick(20 * MS)
-    assert rt.slider.t == 0.02 and rt.stalls == 0
+    assert rt.slider.t == 0.02 and rt.pace.stalls == 0
 
 
 def test_max_catch_up_is_never_less_than_two_ticks() -> None:
     """At publish_rate 10 Hz ticks are 100 ms apart: on time, they never slip."""
     rt = RealtimeSlider(SliderParams(), Inputs(), wall_ns=0, publish_rate=10.0, max_catch_up=0.02)
     wall = _ticking(rt, 0, 5, 100 * MS)
-    assert rt.slider.t == 0.5 and rt.stalls == 0
+    assert rt.slider.t == 0.5 and rt.pace.stalls == 0
     rt.tick(wall + 250 * MS)
-    assert rt.slider.t == 0.7 and rt.stalls == 1
+    assert rt.slider.t == 0.7 and rt.pace.stalls == 1
 
 
 def test_a_pause_is_not_a_stall() -> None:
@@ -103,17 +104,17 @@ def test_a_pause_is_not_a_stall() -> None:
     rt.tick(5 * NS_PER_S)
     rt.resume(5 * NS_PER_S)
     rt.tick(5 * NS_PER_S + MS)
-    assert rt.slider.t == 0.002 and rt.stalls == 0
+    assert rt.slider.t == 0.002 and rt.pace.stalls == 0
 
 
 def test_max_catch_up_is_a_setting_checked_at_the_edge() -> None:
     rt = RealtimeSlider(SliderParams(), Inputs(), wall_ns=0, max_catch_up=0.02)
-    assert rt.configure({"max_catch_up": 0.5}, MS).accepted and rt.max_catch_up == 0.5
+    assert rt.configure({"max_catch_up": 0.5}, MS).accepted and rt.pace.max_catch_up == 0.5
     refused = rt.configure({"max_catch_up": 0.0}, 2 * MS)
     assert not refused.accepted and "max_catch_up" in refused.reason and "0.0" in refused.reason
-    assert rt.max_catch_up == 0.5
+    assert rt.pace.max_catch_up == 0.5
     rt.tick(2 * MS + 400 * MS)
-    assert rt.stalls == 0, "within the new limit"
+    assert rt.pace.stalls == 0, "within the new limit"
 
 
 def test_a_stall_does_not_change_the_motion() -> None:
@@ -126,7 +127,7 @@ def test_a_stall_does_not_change_the_motion() -> None:
     for gap in (MS, 300 * MS, MS, 700 * MS, 5 * MS):
         wall += gap
         samples.extend(rt.tick(wall).samples)
-    assert rt.stalls == 2
+    assert rt.pace.stalls == 2
     assert [s.t for s in samples] == [k / 1000.0 for k in range(len(samples))], "one unbroken log grid"
     reference = Slider(SliderParams(), inputs)
     for state in samples:
