@@ -58,6 +58,7 @@ import numpy as np
 from friction_sim.core.engine.actuator import Exciter
 from friction_sim.core.engine.checkpoint import Checkpoint
 from friction_sim.core.engine.history import History
+from friction_sim.core.engine.transient_kernel import prepare as prepare_transient
 from friction_sim.core.engine.transient_segment import (
     STEADY,
     ExciterReadings,
@@ -172,6 +173,8 @@ class Slider(History, ExciterReadings):
                 self._marks.append(CycleMark(0, self._t, x0, 0.0))
         self._set_plant(self._params, self._inputs, in_flight=False)
         self._exciter = Exciter(self._params, self._inputs, t0=self._t) if self._params.resonant else None
+        if self._exciter is not None:
+            prepare_transient(self._plant)  # (its compiled step loads while the slider's user starts up)
         self._transient = STEADY  # the exciter's transient over the segment (see transient_segment)
         self._set_anchor(self._t, 0, phase)
         self._start(Segment(STUCK, phase, 0.0, 0.0, 0.0, 0, False, 0.0, self._t, x0, 0.0, 0, 0.0, 0.0, 0))

@@ -171,11 +171,27 @@ def search_steps() -> int:
     return int(WORK[0])
 
 
+def prepare(p: Plant) -> None:
+    """In :data:`AUTO` mode, start loading (from the cache) or compiling the step for plants
+    like ``p`` now, in the background, rather than at the first transient step: a resonant
+    slider's start-up (a node's discovery, an experiment's) then overlaps the ~0.5 s it takes
+    to load, instead of its first simulated second running interpreted beside it."""
+    kernel = KERNEL
+    if kernel.compiled is None and kernel.mode == AUTO and kernel.failure is None:
+        kernel.start(_arguments(p, 0j, 0j, 0.0, 0, 0.0, 0.0, 0.0, 0.0, 0, True))
+
+
+def _arguments(p: Plant, c: complex, lam: complex, horizon: float, mode: int, phase0: float, v0: float,
+               vz0: float, z0: float, closing: int, grounded: bool) -> tuple[Any, ...]:
+    """The step's arguments as the compiled code takes them (its types)."""
+    return (p, complex(c), complex(lam), float(horizon), int(mode), float(phase0), float(v0), float(vz0),
+            float(z0), int(closing), bool(grounded), WORK)
+
+
 def transient_step(p: Plant, c: complex, lam: complex, horizon: float, mode: int, phase0: float, v0: float,
                    vz0: float, z0: float, closing: int, grounded: bool) -> Step:
     """:func:`~friction_sim.core.physics.transient.transient_step`, compiled when ready."""
-    args = (p, complex(c), complex(lam), float(horizon), int(mode), float(phase0), float(v0), float(vz0),
-            float(z0), int(closing), bool(grounded), WORK)
+    args = _arguments(p, c, lam, horizon, mode, phase0, v0, vz0, z0, closing, grounded)
     kernel = KERNEL
     if kernel.compiled is None and kernel.mode != PLAIN and kernel.failure is None:
         thread = kernel.start(args)
