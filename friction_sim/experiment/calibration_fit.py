@@ -357,13 +357,24 @@ def linearized(result: Any, names: tuple[str, ...], known: bool, dof: int, quant
     variance = 1.0 if known else float(np.sum(np.asarray(result.fun) ** 2)) / dof
     covariance = np.linalg.pinv(jacobian.T @ jacobian) * variance
     errors = np.sqrt(np.diag(covariance))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        correlation = covariance / np.outer(errors, errors)
+    correlation = correlation_of(covariance)
     if check:
         check_correlation(correlation, names)
     estimates = tuple(Estimate(name, float(v), float(e), float(v - quantile * e), float(v + quantile * e))
                       for name, v, e in zip(names, result.x, errors))
     return estimates, correlation, covariance
+
+
+def correlation_of(covariance: Floats) -> Floats:
+    """The correlation matrix of ``covariance``.  A parameter whose variance is 0 or not
+    finite (the data show no change of the residuals along it: its intervals say it is
+    not determined) correlates with nothing: 0 off the diagonal, 1 on it, never a nan."""
+    errors = np.sqrt(np.abs(np.diag(covariance)))
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        correlation = np.asarray(covariance / np.outer(errors, errors), dtype=float)
+    correlation[~np.isfinite(correlation)] = 0.0
+    np.fill_diagonal(correlation, 1.0)
+    return correlation
 
 
 def check_correlation(correlation: Floats, names: tuple[str, ...]) -> None:

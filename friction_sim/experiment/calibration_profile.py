@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from friction_sim.experiment.calibration_fit import Floats, Problem, step_sizes
+from friction_sim.experiment.calibration_fit import Floats, Problem, correlation_of, step_sizes
 
 #: An end is found when |r| is within this of q (an interval end to a thousandth of a standard error).
 ROOT_TOLERANCE = 1e-3
@@ -269,10 +269,7 @@ def chord_correlation(problem: Problem, estimate: Floats, profiled: tuple[Profil
     values = np.asarray(problem.residuals(xs), dtype=float)
     jacobian = np.stack([(values[2 * i] - values[2 * i + 1]) / (xs[2 * i, i] - xs[2 * i + 1, i]) for i in range(p)],
                         axis=-1)
-    covariance = np.linalg.pinv(jacobian.T @ jacobian)
-    errors = np.sqrt(np.diag(covariance))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.asarray(covariance / np.outer(errors, errors))
+    return correlation_of(np.linalg.pinv(jacobian.T @ jacobian))
 
 
 __all__ = ["Profile", "chord_correlation", "loss_cost", "profiles"]
