@@ -92,6 +92,9 @@ params, inputs = SliderParams(), Inputs()
 def stop(signum, frame):
     raise KeyboardInterrupt
 signal.signal(signal.SIGTERM, stop)
+# Ctrl-C raises KeyboardInterrupt, as in a terminal, even when this child was started with SIGINT
+# ignored (Python then leaves it ignored: a test run from a background job of a shell hung here).
+signal.signal(signal.SIGINT, signal.default_int_handler)
 
 rt = RealtimeSlider(params, inputs, wall_ns=time.monotonic_ns(), log_rate=1000.0)
 try:
