@@ -61,6 +61,7 @@ class AnsweringNode(Protocol):
     @property
     def ready(self) -> bool: ...
     def get_parameter(self, name: str) -> Any: ...
+    def get_fully_qualified_name(self) -> str: ...
     def resolve_topic_name(self, topic: str, *, only_expand: bool = False) -> str: ...
     def create_publisher(self, *args: Any, **kwargs: Any) -> Any: ...
 
@@ -119,7 +120,7 @@ class LockstepAnswers:
     def start(self) -> None:
         """Begin to answer (once the node holds this object): linked to the slider of this
         process if there is one, else from the topics, in a thread of their own."""
-        self._link = lockstep_link.attach(self.node.context, self._topics, self)
+        self._link = lockstep_link.attach(self.node.context, self._topics, self, self.node.get_fully_qualified_name())
         if self._link is None:  # (linked, the slider's thread brings every sample)
             self._thread.start()
 
@@ -251,6 +252,11 @@ class LockstepAnswers:
             if self._publisher.get_subscription_count() <= 1:  # (the slider's own: it has the answer)
                 return
         self._publisher.publish(msg)
+
+    def report(self, msg: Any) -> None:
+        """The node's diagnostics just published: to a linked slider's recording too."""
+        if self._link is not None:
+            self._link.reports.append(msg)
 
     def values(self) -> dict[str, Any]:
         """The answers' figures for diagnostics."""

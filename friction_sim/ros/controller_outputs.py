@@ -163,3 +163,5 @@ class ControllerOutputs:
         else:
             time_msg(host.lockstep.stamp_ns, msg.header.stamp)
         self._diagnostics.publish(msg)
+        if host.lockstep is not None:
+            host.lockstep.report(msg)

@@ -23,7 +23,11 @@ The topics still carry the turn for anyone else: the slider publishes every
 sample as always (and the readings whenever someone reads them), and a linked
 controller publishes its answer too whenever someone besides its slider
 listens.  The slider then takes the copy that comes over DDS as a repeat
-(``lockstep_stale_answers``, a wall-clock figure, left out of digests).
+(``lockstep_stale_answers``, a wall-clock figure, left out of digests).  The
+controller's diagnostics, stamped with the sample they answer, reach the
+slider's recording through the link too (and the copy on DDS is not recorded):
+over DDS the first ones could go out before the recording's reader had
+matched the controller, and be lost in one run but not the next.
 """
 
 from __future__ import annotations
@@ -65,6 +69,10 @@ class Link:
         #: The linked controller's answers (None: none linked), and how many have been linked.
         self.controller: LinkedAnswers | None = None
         self.generation = 0
+        #: The linked controller's node (its fully qualified name: its diagnostics' hardware_id).
+        self.controller_name = ""
+        #: The linked controller's diagnostics (DiagnosticArray), oldest first, for the slider's recording.
+        self.reports: deque[Any] = deque()
 
     def answer(self, msg: Any) -> None:
         """The controller's answer message: queued for the slider, which is woken if it sleeps."""
@@ -103,14 +111,15 @@ def linkable(context: Any, topics: TurnTopics) -> bool:
         return link is not None and link.context is context and link.controller is None
 
 
-def attach(context: Any, topics: TurnTopics, answers: LinkedAnswers) -> Link | None:
-    """Link the controller's ``answers`` to the slider of this process that offers
-    ``topics`` (None: there is none, or it has a controller already)."""
+def attach(context: Any, topics: TurnTopics, answers: LinkedAnswers, name: str = "") -> Link | None:
+    """Link the controller's ``answers`` (its node ``name``) to the slider of this process
+    that offers ``topics`` (None: there is none, or it has a controller already)."""
     with _lock:
         link = _offers.get((id(context), topics))
         if link is None or link.context is not context or link.controller is not None:
             return None
         link.controller = answers
+        link.controller_name = name
         link.generation += 1
     return link
 

@@ -34,7 +34,8 @@ from friction_sim.core.runtime.accelerometer import Accelerometer
 from friction_sim.core.runtime.lockstep import LockstepGate, LockstepSlider, participants, to_ns
 from friction_sim.core.runtime.realtime import RealtimeSlider
 from friction_sim.errors import ParameterError, SimulationFault
-from friction_sim.io.messages import ACCELEROMETER, mean_velocity_message, message_class, seconds_to_ns
+from friction_sim.io.messages import ACCELEROMETER, mean_velocity_message, message_class, seconds_to_ns, stamp_ns
+from friction_sim.io.sinks import MessageRecord, deliver
 from friction_sim.io.stamped import CONTROL_ANSWER, STAMPED_COMMAND, STAMPED_DEPTH, STAMPED_TYPE, stamped_commands
 from friction_sim.ros import lockstep_link
 from friction_sim.ros.intake import Arrivals, PolledGroup, take_all
@@ -54,6 +55,8 @@ class SteppedNode(Protocol):
     def frame_id(self) -> str: ...
     @property
     def topics(self) -> Any: ...
+    @property
+    def sinks(self) -> Any: ...
     @property
     def context(self) -> Any: ...
     def get_parameter(self, name: str) -> Any: ...
@@ -225,7 +228,11 @@ class LockstepLoop:
         answer, to a controller linked since the last call); it may answer at once, in this thread."""
         link = self._link
         controller = link.controller if link is not None else None
-        self.node.topics.linked_readers = int(controller is not None)  # (its own subscription to the samples)
+        topics = self.node.topics
+        topics.linked_readers = int(controller is not None)  # (its own subscription to the samples)
+        topics.linked_name = link.controller_name if link is not None and controller is not None else ""
+        if link is not None:
+            self._record_reports(link)
         if link is None or controller is None:
             return
         generation, sample_ns, reading_ns = self._handed
@@ -238,6 +245,16 @@ class LockstepLoop:
         self._handed = (link.generation, samples[-1][0] if samples else sample_ns,
                         readings[-1][0] if readings else reading_ns)
         controller.deliver(samples, readings)
+        self._record_reports(link)
+
+    def _record_reports(self, link: lockstep_link.Link) -> None:
+        """The linked controller's diagnostics to the recording: those stamped in the run
+        (0 < stamp <= now), as the slider records other nodes' diagnostics it hears."""
+        now_ns = self.rt.t_ns
+        while link.reports:
+            msg = link.reports.popleft()
+            if 0 < stamp_ns(msg.header.stamp) <= now_ns:
+                deliver(self.node.sinks, MessageRecord("diagnostics", msg, now_ns))
 
     def _refused(self, why: str) -> Outcome:
         """Count input refused before it became a command (a malformed stamped message; lock held)."""

@@ -205,9 +205,11 @@ def watch_namespace(node: Any, now: Callable[[], float], *, lockstep: bool) -> N
         if not node.sinks:
             return
         log_time_ns = seconds_to_ns(now())
+        linked = getattr(getattr(node, "topics", None), "linked_name", "")
+        skipped = (own, linked) if linked else (own,)
         if lockstep and topic == "diagnostics" and (not 0 < stamp_ns(msg.header.stamp) <= log_time_ns or any(
-                status.hardware_id == own for status in msg.status)):
-            return  # (its own: recorded as it publishes them)
+                status.hardware_id in skipped for status in msg.status)):
+            return  # (its own: recorded as it publishes them; a linked controller's: through the link)
         deliver(node.sinks, MessageRecord(topic, msg, log_time_ns))
 
     for topic, kind in (("diagnostics", DiagnosticArray), ("target_speed", message_class("std_msgs/msg/Float64"))):

@@ -87,6 +87,9 @@ class SliderTopics:
         #: Readers of mean_velocity in this process that a lockstep link hands the samples to
         #: (:mod:`~friction_sim.ros.lockstep_link`): the topic goes out only if another reads it.
         self.linked_readers = 0
+        #: The node name of that controller ('' while none is linked): its diagnostics reach the
+        #: recording through the link, not from the topic.
+        self.linked_name = ""
         #: The state last published (a paused tick publishes only when it differs).
         self.last_published: SliderState | None = None
 

@@ -96,8 +96,8 @@ def _counting_attach(monkeypatch: pytest.MonkeyPatch, allow: bool) -> list[bool]
     """Record each attach of a controller (whether it linked); with ``allow`` false none links."""
     linked: list[bool] = []
 
-    def counted(context: Any, topics: TurnTopics, answers: Any) -> Any:
-        link = ATTACH(context, topics, answers) if allow else None
+    def counted(context: Any, topics: TurnTopics, answers: Any, name: str = "") -> Any:
+        link = ATTACH(context, topics, answers, name) if allow else None
         linked.append(link is not None)
         return link
 
