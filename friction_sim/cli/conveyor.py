@@ -110,8 +110,15 @@ def draw_bands(figure: Any, bands: Sequence[Band], source: str) -> Any:
         axes.set_ylabel("calibrated plant: mean speed V [mm/s]")
         axes.legend(loc="lower right", fontsize=7)
     if bands:
-        figure.suptitle(f"{figure.get_suptitle()}\nwith the plant calibrated in {source}", fontsize=10)
+        figure.suptitle(f"{suptitle_text(figure)}\nwith the plant calibrated in {source}", fontsize=10)
     return figure
+
+
+def suptitle_text(figure: Any) -> str:
+    """The figure's title ('' if none).  ``Figure.get_suptitle`` is Matplotlib 3.8's; Ubuntu
+    24.04 (the Jazzy platform) has 3.6, whose figures keep the title's Text as ``_suptitle``."""
+    title = getattr(figure, "_suptitle", None)
+    return str(title.get_text()) if title is not None else ""
 
 
 def features(sweep: ConveyorSweep) -> list[str]:

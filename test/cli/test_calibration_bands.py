@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from friction_sim.cli.conveyor import calibrated_bands, draw_bands
+from friction_sim.cli.conveyor import calibrated_bands, draw_bands, suptitle_text
 from friction_sim.cli.figures import conveyor_figure
 from friction_sim.core.meanspeed.conveyor import conveyor_sweep
 from friction_sim.experiment.calibration import FitOptions, calibrate
@@ -51,7 +51,7 @@ def test_the_conveyor_figure_draws_the_calibrated_band_in_both_panels(calibrated
             assert at.min() == pytest.approx(low) and at.max() == pytest.approx(high)
         (curve,) = axes.lines
         assert np.array_equal(curve.get_xdata(), band.x) and np.array_equal(curve.get_ydata(), p.speed * 1e3)
-    assert "calibrated" in figure.get_suptitle()
+    assert "calibrated" in suptitle_text(figure)
 
 
 def test_a_fitted_or_given_axis_gets_no_band(calibrated: Path) -> None:
