@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from friction_sim.cli.options import Verb, add_flag
 from friction_sim.core.model import spec
@@ -92,14 +94,21 @@ def run(args: argparse.Namespace) -> int:
 def _sweep(args: argparse.Namespace, options: FitOptions) -> int:
     """A frequency sweep: fit the exciter's data to its amplitudes (and lags)."""
     from friction_sim.cli.calibration_figures import sweep_figure
-    from friction_sim.cli.figures import save_figure
 
     result = calibrate_sweep(read_sweep(args.measurements), read_fixed(args.fixed, args.set), options)
+    return _report(args.output, result, sweep_figure)
+
+
+def _report(folder: Path, result: Any, draw: Callable[[Any], Any]) -> int:
+    """What every fit route prints and writes: the summary, calibrated.yaml, the fit's
+    figure (``draw``) as calibration.png and the profiles; the exit code 0."""
+    from friction_sim.cli.figures import save_figure
+
     for line in result.summary():
         print(line)
-    _write_plant(args.output, result.parameters_file())
-    print(f"wrote {save_figure(sweep_figure(result), args.output / 'calibration.png')}")
-    _write_profiles(args.output, result)
+    _write_plant(folder, result.parameters_file())
+    print(f"wrote {save_figure(draw(result), folder / 'calibration.png')}")
+    _write_profiles(folder, result)
     return 0
 
 
@@ -117,7 +126,7 @@ def _write_profiles(folder: Path,
 
 def _recording(args: argparse.Namespace, options: FitOptions) -> int:
     """A recording: fit its trajectory (the commands in force are the file's own)."""
-    from friction_sim.cli.figures import run_calibration_figure, save_figure
+    from friction_sim.cli.figures import run_calibration_figure
     from friction_sim.experiment.calibration_run import calibrate_run
     from friction_sim.experiment.verify import recorded_run
     from friction_sim.io.reader import read_recording
@@ -127,18 +136,12 @@ def _recording(args: argparse.Namespace, options: FitOptions) -> int:
     if fits_exciter(options.fit):
         return _readings(args, options)
     result = calibrate_run(recorded_run(read_recording(args.measurements)), options)
-    for line in result.summary():
-        print(line)
-    _write_plant(args.output, result.parameters_file())
-    print(f"wrote {save_figure(run_calibration_figure(result), args.output / 'calibration.png')}")
-    _write_profiles(args.output, result)
-    return 0
+    return _report(args.output, result, run_calibration_figure)
 
 
 def _readings(args: argparse.Namespace, options: FitOptions) -> int:
     """A recording with the accelerometer on: fit the exciter's data to its readings."""
     from friction_sim.cli.calibration_figures import readings_figure
-    from friction_sim.cli.figures import save_figure
     from friction_sim.experiment.calibration_accel import accelerometer_readings, calibrate_readings
     from friction_sim.experiment.verify import recorded_run
     from friction_sim.io.reader import read_recording
@@ -146,12 +149,7 @@ def _readings(args: argparse.Namespace, options: FitOptions) -> int:
     recording = read_recording(args.measurements)
     run = recorded_run(recording)
     result = calibrate_readings(run, accelerometer_readings(recording, run.initial), options)
-    for line in result.summary():
-        print(line)
-    _write_plant(args.output, result.parameters_file())
-    print(f"wrote {save_figure(readings_figure(result), args.output / 'calibration.png')}")
-    _write_profiles(args.output, result)
-    return 0
+    return _report(args.output, result, readings_figure)
 
 
 def _write_plant(folder: Path, text: str) -> None:

@@ -104,19 +104,24 @@ def withdraw(link: Link) -> None:
         link.controller = None
 
 
+def _free(context: Any, topics: TurnTopics) -> Link | None:
+    """The offer of ``topics`` in ``context`` with no controller linked yet (lock held)."""
+    link = _offers.get((id(context), topics))
+    return link if link is not None and link.context is context and link.controller is None else None
+
+
 def linkable(context: Any, topics: TurnTopics) -> bool:
     """Whether a slider of this process offers ``topics`` with no controller linked yet."""
     with _lock:
-        link = _offers.get((id(context), topics))
-        return link is not None and link.context is context and link.controller is None
+        return _free(context, topics) is not None
 
 
 def attach(context: Any, topics: TurnTopics, answers: LinkedAnswers, name: str = "") -> Link | None:
     """Link the controller's ``answers`` (its node ``name``) to the slider of this process
     that offers ``topics`` (None: there is none, or it has a controller already)."""
     with _lock:
-        link = _offers.get((id(context), topics))
-        if link is None or link.context is not context or link.controller is not None:
+        link = _free(context, topics)
+        if link is None:
             return None
         link.controller = answers
         link.controller_name = name
