@@ -136,6 +136,14 @@ class InProcessPlant:
         if not result.successful:
             raise ExperimentError(f"the slider refused {values}: {result.reason}")
 
+    def set_controller_parameters(self, values: dict[str, Any]) -> None:
+        """Set the controller's parameters, one by one (as its parameter service does, on the node
+        itself: a round trip through DDS, a few ms, held the slider at each scheduled target)."""
+        controller = self.nodes[1]
+        for name, result in zip(values, controller.set_parameters(overrides(values)), strict=True):
+            if not result.successful:
+                raise ExperimentError(f"controller refused {name}: {result.reason}")
+
     def close(self) -> None:
         """Destroy the nodes (the slider finishes its recording)."""
         if self._own is not None:
@@ -243,6 +251,10 @@ class AttachedPlant:
         """Set the slider's parameters through its parameter service."""
         set_parameters(self.driver, self.executor, "slider", values)
         self._follow(Command(self.now(), PARAMETERS, values))
+
+    def set_controller_parameters(self, values: dict[str, Any]) -> None:
+        """Set the controller's parameters through its parameter service."""
+        set_parameters(self.driver, self.executor, "controller", values)
 
     def close(self) -> None:
         """Finish this process's recording."""

@@ -59,7 +59,7 @@ from friction_sim.io.messages import (
     message_class,
 )
 from friction_sim.io.sinks import CommandRecord
-from friction_sim.ros.driving import set_parameters, spin_once, spin_until
+from friction_sim.ros.driving import spin_once, spin_until
 
 Progress = Callable[[Status], None]
 #: Wall time [s] a lockstep run waits for a slider whose time stands still on its way to a point
@@ -179,7 +179,7 @@ def _play_lockstep(spec: ExperimentSpec, plant: InProcessPlant | AttachedPlant, 
         for command in plant_sets(commands):
             plant.set_parameters(dict(command.values))
         if controller:
-            set_parameters(scheduler.driver, executor, "controller", controller)
+            plant.set_controller_parameters(controller)
             for command in commands:
                 if not command.for_slider:
                     _record_unseen(plant.recorder, command.at(start + t_ns / 1e9))

@@ -63,6 +63,7 @@ class SteppedNode(Protocol):
     def get_logger(self) -> Any: ...
     def resolve_topic_name(self, topic: str, *, only_expand: bool = False) -> str: ...
     def create_subscription(self, *args: Any, **kwargs: Any) -> Any: ...
+    def create_guard_condition(self, callback: Callable[[], None]) -> Any: ...
 
     def take_commands(self) -> None: ...
     def record(self, outcomes: Sequence[Outcome]) -> None: ...
@@ -126,6 +127,10 @@ class LockstepLoop:
         self._link = lockstep_link.offer(node.context, lockstep_link.TurnTopics(
             *(node.resolve_topic_name(topic) for topic in ("mean_velocity", CONTROL_ANSWER, ACCELEROMETER))),
             self._arrivals.wake)
+        #: Triggered when the scheduler's promise holds the slider: the executor spinning this node (an
+        #: experiment's driver, waiting for the slider to stand there before it acts) looks at once,
+        #: not at the end of its wait's timeout.
+        self._held = node.create_guard_condition(_nothing)
         #: The readings (stamp [ns], normal [m/s^2]) of samples not yet answered: what a linked controller needs.
         self._readings: deque[tuple[int, float]] = deque()
         #: The link's controller handed to last (its generation), and the last sample and reading handed to it [ns].
@@ -179,6 +184,8 @@ class LockstepLoop:
             else:
                 if blocked_since is None:
                     blocked_since = last = now
+                    if rt.gate.promise_ns <= rt.t_ns:
+                        self._held.trigger()
                 rt.gate.waited += now - last
                 last = now
                 if now - blocked_since > rt.gate.timeout:
@@ -299,6 +306,10 @@ class LockstepLoop:
 
 def _unused(msg: Any) -> None:
     """The callback of a polled subscription: never called (the loop takes its messages)."""
+
+
+def _nothing() -> None:
+    """The callback of the guard condition that wakes the executor: the wake-up is the point."""
 
 
 __all__ = ["REPEAT", "LockstepLoop", "runtime_for"]
