@@ -39,7 +39,14 @@ from friction_sim.io.sinks import (
     StatesRecord,
     deliver_tick,
 )
-from friction_sim.io.typesupport import message_definition, message_type_name, share_directory, type_hash
+from friction_sim.io.typesupport import (
+    PLAIN_DUMPERS,
+    message_definition,
+    message_type_name,
+    plain_yaml,
+    share_directory,
+    type_hash,
+)
 
 from recording_helpers import plain, varied_schedule
 
@@ -184,6 +191,8 @@ def test_file_layout_is_what_rosbag2s_mcap_plugin_writes(tmp_path: Path) -> None
     assert float(ours["log_rate"]) == 500.0 and float(ours["mass"]) == 1.0 and float(ours["drive_force"]) == 0.7
     assert metadata["friction_sim_summary"] == {"messages": str(stats.messages), "dropped": "0"}
     bag = yaml.safe_load(metadata["rosbag2"]["serialized_metadata"])
+    for dumper in PLAIN_DUMPERS.values():  # (libyaml's emitter where PyYAML has it: the same text as its own)
+        assert plain_yaml(bag, dumper) == metadata["rosbag2"]["serialized_metadata"]
     assert bag["version"] == 9 and bag["storage_identifier"] == "mcap" and bag["ros_distro"] == "jazzy"
     assert bag["message_count"] == stats.messages
     assert bag["duration"]["nanoseconds"] == stats.last_ns - stats.first_ns == 1_000_000_000
