@@ -185,6 +185,8 @@ class DriveLoop:
         self.gain_ratio = 1.0
         #: The natural frequency the readings show (the model's until a steady period is read).
         self.natural_frequency = model.natural_frequency
+        self._response_key: tuple[float, float, float] | None = None
+        self._response_value = (math.nan, math.nan)
         self._reference = self._amplitude(self.drive_level)  # [m/s^2]: a frequency move keeps its meaning
         self._way = steady_slideway(self._amplitude(self.drive_level), self._lag(), self._omega(), self._lam())
         self._planned: list[_Planned] = []
@@ -196,7 +198,12 @@ class DriveLoop:
     # -- the model in force -----------------------------------------------------------
 
     def _response(self) -> tuple[float, float]:
-        return response(self.frequency, self.natural_frequency, self.model.damping_ratio)
+        """The model's resonance curve at the frequency in force (kept while neither frequency
+        moves: a boundary's plan asks for it a dozen times, and it costs an exact hypot)."""
+        key = (self.frequency, self.natural_frequency, self.model.damping_ratio)
+        if key != self._response_key:
+            self._response_key, self._response_value = key, response(*key)
+        return self._response_value
 
     def _lag(self) -> float:
         return self._response()[1]
@@ -244,6 +251,8 @@ class DriveLoop:
         level = saturated_level(self._plan(elapsed, self.cycles / self.frequency))
         self._way = self._driven(self._way, elapsed, level)
         self.drive_level = level
+        if self._planned and t < self._planned[-1].t_start:  # (time went back: those windows are of no reading now)
+            self._planned = []
         self._planned = [*self._planned[-63:], _Planned(t, self.frequency, level, self._way, self.natural_frequency,
                                                         self.gain_ratio)]
         return level, self.frequency
@@ -312,9 +321,10 @@ class DriveLoop:
         model moves toward them (see the module doc), by at most
         :data:`MAX_GAIN_CORRECTION` and :data:`MAX_LAG_CORRECTION` per reading.
         With the model right the two readings agree to rounding and nothing moves."""
-        planned = self._planned_for(reading)
-        if planned is None or len(reading.times) < MIN_SAMPLES or not reading.amplitude > 0.0 or self._stepped(planned):
+        index = self._planned_index(reading)
+        if index is None or len(reading.times) < MIN_SAMPLES or not reading.amplitude > 0.0 or self._stepped(index):
             return
+        planned = self._planned[index]
         normal = [slideway_state(planned.way, TWO_PI * planned.frequency * (t - planned.t_start),
                                  t - planned.t_start)[2] for t in reading.times]
         expected = fit_period(reading.times, normal, reading.t_start, reading.t_end, reading.cycles)
@@ -341,25 +351,35 @@ class DriveLoop:
         way = self._way
         self._way = way._replace(amplitude=way.amplitude * factor, d=way.d * factor)
 
-    def _stepped(self, planned: _Planned) -> bool:
-        """Whether the level stepped by more than :data:`LEARNING_STEP` at the window's
-        start: when exactly a level takes effect at the plant (a message's way, the
-        plant's tick) the model cannot know, and the error of that moment, times the
-        step, would be learnt as a wrong gain or f_n.  Such windows teach nothing."""
-        index = self._planned.index(planned)
+    def _stepped(self, index: int) -> bool:
+        """Whether the level stepped by more than :data:`LEARNING_STEP` at the start of
+        the window ``self._planned[index]``: when exactly a level takes effect at the plant
+        (a message's way, the plant's tick) the model cannot know, and the error of that
+        moment, times the step, would be learnt as a wrong gain or f_n.  Such windows teach nothing."""
         if index == 0:
             return False
-        before = self._planned[index - 1].level
-        return abs(planned.level - before) > LEARNING_STEP * max(planned.level, before)
+        level, before = self._planned[index].level, self._planned[index - 1].level
+        return abs(level - before) > LEARNING_STEP * max(level, before)
 
     def level_of(self, reading: Vibration) -> float | None:
         """The drive level this loop drove ``reading``'s window at (None: not one of its last 64)."""
-        planned = self._planned_for(reading)
-        return planned.level if planned is not None else None
+        index = self._planned_index(reading)
+        return self._planned[index].level if index is not None else None
 
-    def _planned_for(self, reading: Vibration) -> _Planned | None:
-        """The period this loop drove that ``reading`` is of (None: not one of the last 64)."""
-        return next((p for p in self._planned if _close(p.t_start, reading.t_start)), None)
+    def _planned_index(self, reading: Vibration) -> int | None:
+        """Where in ``self._planned`` the period this loop drove that ``reading`` is of
+        lies (the first such: a boundary taken twice plans twice), None: not one of the last 64.
+        The boundaries come in time order (a stamp before the last restarts the loop), so the
+        windows are searched from the newest back, down to the first that starts too early."""
+        start = reading.t_start
+        found = None
+        for index in range(len(self._planned) - 1, -1, -1):
+            planned_start = self._planned[index].t_start
+            if _close(planned_start, start):
+                found = index
+            elif planned_start < start:
+                break
+        return found
 
     def _track(self) -> None:
         """Move the drive frequency toward the natural frequency (lag 90 degrees)."""

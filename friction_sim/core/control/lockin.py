@@ -95,12 +95,17 @@ class LockIn:
         self._samples: deque[tuple[float, float]] = deque(maxlen=MAX_SAMPLES)
         self._bounds: deque[float] = deque(maxlen=4096)  # bounded if readings() is never asked for
         self._latest = -math.inf
+        #: Whether every sample came at or after the one before (each topic arrives in order):
+        #: then a period's samples are found from the newest back, not by a scan of all kept.
+        self._in_order = True
         self._keep = keep  # seconds of samples kept before the oldest open period (a late boundary)
 
     def add_sample(self, t: float, normal: float) -> None:
         """An accelerometer reading: the normal specific force [m/s^2] at simulation time ``t``."""
         if t > self._latest:
             self._latest = t
+        elif t < self._latest:
+            self._in_order = False
         self._samples.append((t, normal))
 
     def add_boundary(self, t: float) -> None:
@@ -113,6 +118,7 @@ class LockIn:
         self._samples.clear()
         self._bounds.clear()
         self._latest = -math.inf
+        self._in_order = True
 
     def readings(self) -> list[Vibration]:
         """The periods completed since the last call, oldest first (a period with
@@ -120,7 +126,7 @@ class LockIn:
         done: list[Vibration] = []
         while len(self._bounds) >= 2 and self._latest >= self._bounds[1]:
             start, end = self._bounds.popleft(), self._bounds[0]
-            inside = [(t, z) for t, z in self._samples if start <= t <= end]
+            inside = self._inside(start, end)
             if len(inside) >= MIN_SAMPLES:
                 times, normal = zip(*inside, strict=True)
                 done.append(fit_period(times, normal, start, end, self.cycles))
@@ -128,6 +134,22 @@ class LockIn:
         while self._samples and self._samples[0][0] < oldest - self._keep:
             self._samples.popleft()
         return done
+
+    def _inside(self, start: float, end: float) -> list[tuple[float, float]]:
+        """The samples kept with start <= t <= end, in the order they came.  In time order
+        (the usual case) they are the last ones before any after ``end``: a walk back from
+        the newest stops at the first before ``start``, so a period costs its own samples,
+        not the half second kept before it."""
+        if not self._in_order:
+            return [(t, z) for t, z in self._samples if start <= t <= end]
+        inside: list[tuple[float, float]] = []
+        for sample in reversed(self._samples):
+            if sample[0] < start:
+                break
+            if sample[0] <= end:
+                inside.append(sample)
+        inside.reverse()
+        return inside
 
 
 __all__ = ["MAX_SAMPLES", "MIN_SAMPLES", "LockIn", "Vibration", "fit_period"]

@@ -138,9 +138,18 @@ def compile_step(args: tuple[Any, ...]) -> CompiledStep:
 def _shape(value: Any) -> tuple[Any, ...]:
     """What Numba's type of a tuple of numbers depends on: each level's class, and each
     leaf's (an int's also whether it fits 64 bits, which Numba's int64 holds)."""
-    return (type(value), *(_shape(field) if isinstance(field, tuple) else
-                            (int, -2**63 <= field < 2**63) if type(field) is int else type(field)
-                            for field in value))
+    kinds: list[Any] = [type(value)]
+    for field in value:  # (a loop, not a generator: once per plant, and a plant a period)
+        kind = type(field)
+        if kind is float:
+            kinds.append(float)
+        elif isinstance(field, tuple):
+            kinds.append(_shape(field))
+        elif kind is int:
+            kinds.append((int, -2**63 <= field < 2**63))
+        else:
+            kinds.append(kind)
+    return tuple(kinds)
 
 
 def use(mode: str) -> None:

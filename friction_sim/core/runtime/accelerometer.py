@@ -32,6 +32,11 @@ def grid(rate: float, next_index: int, t_from: float, t: float) -> range:
     return range(max(next_index, math.ceil(t_from * rate * (1.0 - 1e-15))), last + 1)
 
 
+#: Noise variates drawn from the generator at once: it gives the same sequence whatever the
+#: block, and a draw per reading cost more than the reading (three per reading).
+NOISE_BLOCK = 3 * 256
+
+
 class Accelerometer:
     """Samples at k/``rate`` [Hz] with white ``noise`` (standard deviation
     [m/s^2] per axis, from a generator seeded with ``seed``) and ``bias`` [m/s^2]."""
@@ -41,6 +46,8 @@ class Accelerometer:
         self.noise = float(spec.ACCELEROMETER_NOISE.check(noise))
         self.bias = float(spec.ACCELEROMETER_BIAS.check(bias))
         self._random = np.random.default_rng(int(spec.ACCELEROMETER_SEED.check(seed)))
+        self._block: list[float] = []  # standard normal variates drawn, the first ``_used`` of them used
+        self._used = 0
         self.next_index = 0  # the next grid point k not sampled yet
 
     def due(self, t_from: float, t: float) -> range:
@@ -57,9 +64,18 @@ class Accelerometer:
         z = normal + gravity * cos_degrees(params.track_inclination)
         y = 0.0
         if self.noise > 0.0:
-            dx, dy, dz = self._random.normal(0.0, self.noise, 3)
+            dx, dy, dz = self._normal()
             x, y, z = x + dx, y + dy, z + dz
         return Acceleration(slider.t, x + self.bias, y + self.bias, z + self.bias)
 
+    def _normal(self) -> tuple[float, float, float]:
+        """Three normal variates of standard deviation :attr:`noise`: the generator's next
+        three, as its ``normal(0.0, noise, 3)`` computes them (0 + noise*z, bit for bit)."""
+        if self._used + 3 > len(self._block):
+            self._block, self._used = self._random.standard_normal(NOISE_BLOCK).tolist(), 0
+        block, first, noise = self._block, self._used, self.noise
+        self._used = first + 3
+        return 0.0 + noise * block[first], 0.0 + noise * block[first + 1], 0.0 + noise * block[first + 2]
 
-__all__ = ["Accelerometer", "grid"]
+
+__all__ = ["NOISE_BLOCK", "Accelerometer", "grid"]

@@ -22,6 +22,9 @@ from friction_sim.errors import ParameterError, one_line
 
 def non_finite(state: SliderState) -> str:
     """'' if every number of ``state`` is finite, else the first that is not (``x = inf``)."""
+    if math.isfinite(state.t + state.x + state.v + state.acceleration + state.friction_force + state.normal_force
+                     + state.z + state.vz):
+        return ""  # (a sum is finite only if every term is: the names are looked up only when one is not)
     for name in ("t", "x", "v", "acceleration", "friction_force", "normal_force", "z", "vz"):
         value = getattr(state, name)
         if not math.isfinite(value):

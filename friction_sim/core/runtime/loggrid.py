@@ -65,16 +65,23 @@ class LogGrid:
         self._next_log_index = max(self._next_log_index, logged.stop)
         if accelerometer is None or not due:  # (every tick of a node without the accelerometer: no merge)
             for k in logged:
-                self._events.extend(slider.advance_to(max(k / rate, slider.t)))
+                self._to(slider, k / rate)
                 self._samples.append(slider.state())
             return
         points = sorted([(k / rate, 0, k) for k in logged] + [(k / accelerometer.rate, 1, k) for k in due])
         for when, kind, k in points:
-            self._events.extend(slider.advance_to(max(when, slider.t)))
+            self._to(slider, when)
             if kind:
                 self._accelerations.append(accelerometer.read(slider, k))
             else:
                 self._samples.append(slider.state())
+
+    def _to(self, slider: Slider, when: float) -> None:
+        """Advance ``slider`` to grid time ``when``, keeping the events on the way; nothing
+        if it stands there or beyond already (the two grids share most points: an advance
+        to where the slider stands finds nothing to do, at the cost of looking)."""
+        if when > slider.t:
+            self._events.extend(slider.advance_to(when))
 
     def non_finite(self) -> str:
         """'' if every log sample kept is finite, else what the first that is not holds."""

@@ -5,6 +5,7 @@ the two topics deliver, and its scatter under the accelerometer's noise."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -110,3 +111,28 @@ def test_noise_scatters_the_amplitude_as_least_squares_says() -> None:
     assert len(errors) >= 400
     assert abs(errors.mean()) < 4 * expected / math.sqrt(len(errors))
     assert errors.std() == pytest.approx(expected, rel=0.15)
+
+
+@pytest.mark.parametrize("swap", [None, 37])
+def test_a_period_reads_exactly_the_samples_inside_it_in_the_order_they_came(swap: int | None) -> None:
+    """Each reading is the fit of the samples with start <= t <= end, taken in the order they
+    arrived: found from the newest back while they come in time order, by a scan once one came
+    out of order (``swap``: two neighbours exchanged).  Samples on a boundary count in both periods."""
+    samples, bounds = _resonant_readings(50.0, 52.0, 1000.0, 6)
+    samples.insert(46, (samples[45][0], 1.5))  # (two samples at one time)
+    if swap is not None:
+        samples[swap], samples[swap + 1] = samples[swap + 1], samples[swap]
+    lockin, got = LockIn(), []
+    for t, z in samples:  # readings asked for as the samples come, boundaries on time
+        lockin.add_sample(t, z)
+        for b in bounds:
+            if b <= t:
+                lockin.add_boundary(b)
+        got.extend(lockin.readings())
+    expected = []
+    for start, end in itertools.pairwise(bounds):
+        inside = [(t, z) for t, z in samples if start <= t <= end]
+        if end <= samples[-1][0]:
+            expected.append(fit_period([t for t, _ in inside], [z for _, z in inside], start, end))
+    assert len(got) == len(expected) >= 5
+    assert got == expected
