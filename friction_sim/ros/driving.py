@@ -26,14 +26,17 @@ def overrides(values: dict[str, Any]) -> list[Parameter]:
     return [Parameter(name, value=value) for name, value in values.items()]
 
 
-def spin_until(executor: Any, done: Callable[[], bool], seconds: float, failure: str) -> None:
+def spin_until(executor: Any, done: Callable[[], bool], seconds: float, failure: str, *, poll: float = 0.01) -> None:
     """Spin ``executor`` until ``done()``; an ExperimentError saying ``failure``
-    after ``seconds`` of wall time (math.inf: wait for ever)."""
+    after ``seconds`` of wall time (math.inf: wait for ever).  ``done()`` is asked
+    after each callback and at least every ``poll`` seconds: a condition that no
+    callback of the executor's nodes brings about needs the default; one that
+    one does (a message, a guard condition) may wait longer between looks."""
     deadline = time.monotonic() + seconds
     while not done():
         if time.monotonic() > deadline:
             raise ExperimentError(failure)
-        spin_once(executor, 0.01)
+        spin_once(executor, poll)
 
 
 def spin_once(executor: Any, timeout: float) -> None:

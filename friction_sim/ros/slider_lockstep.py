@@ -131,6 +131,7 @@ class LockstepLoop:
         #: experiment's driver, waiting for the slider to stand there before it acts) looks at once,
         #: not at the end of its wait's timeout.
         self._held = node.create_guard_condition(_nothing)
+        self._held_there = False  # whether it was triggered where the slider stands
         #: The readings (stamp [ns], normal [m/s^2]) of samples not yet answered: what a linked controller needs.
         self._readings: deque[tuple[int, float]] = deque()
         #: The link's controller handed to last (its generation), and the last sample and reading handed to it [ns].
@@ -172,11 +173,13 @@ class LockstepLoop:
                 node.warn_refused(outcome)
             if tick is not None:
                 blocked_since = None
+                self._held_there = False
                 self._diagnostics_due()
                 continue
             if outcomes or (self._link is not None and self._link.answers):
                 continue
             node.flush_readings()  # (a controller that began to read the accelerometer gets what it needs)
+            self._wake_driver_when_held()
             blocker, joined = rt.gate.blocker(rt.t_ns)
             now = time.monotonic()
             if not blocker:
@@ -184,8 +187,6 @@ class LockstepLoop:
             else:
                 if blocked_since is None:
                     blocked_since = last = now
-                    if rt.gate.promise_ns <= rt.t_ns:
-                        self._held.trigger()
                 rt.gate.waited += now - last
                 last = now
                 if now - blocked_since > rt.gate.timeout:
@@ -198,6 +199,15 @@ class LockstepLoop:
                     self._repeat_awaited()
                     repeated = now
             self._arrivals.wait(_COMMANDS_EVERY)
+
+    def _wake_driver_when_held(self) -> None:
+        """Trigger the guard condition once the slider stands at the scheduler's promise with
+        every sample answered: what a driver waits for before it acts at that time."""
+        gate = self.rt.gate
+        held = gate.promise_ns <= self.rt.t_ns and not gate.awaited
+        if held and not self._held_there:
+            self._held.trigger()
+        self._held_there = held
 
     def _take_inbox(self) -> list[Any]:
         """Hand the queued stamped messages to the gate (lock held); the outcomes of
