@@ -138,10 +138,12 @@ class RecordWriter:
 
     def write(self, batch: Sequence[Item]) -> None:
         """Write the records of ``batch``.  The states of consecutive ticks
-        (of one frame) go together, before those ticks' events, period means
-        and accelerometer samples; any other record (a command, parameters, a
-        message, metadata) keeps its place: everything queued before it is
-        written before it.  Each topic stays in time order."""
+        (of one frame) go together, then those ticks' events and period means,
+        then their accelerometer samples together; any other record (a command,
+        parameters, a message, metadata) keeps its place: everything queued
+        before it is written before it (a file cut short holds the commands
+        the states it holds followed, and no later ones).  Each topic stays in
+        time order."""
         states: list[SliderState] = []
         frame_id = ""
         later: list[Item] = []  # events, periods and samples of the ticks whose states are in ``states``
@@ -163,8 +165,26 @@ class RecordWriter:
     def _write_run(self, states: list[SliderState], frame_id: str, later: list[Item]) -> None:
         if states:
             self._write_states(states, frame_id)
+        samples: list[AccelerationsRecord] = []
         for item in later:
-            self._write_safely(item)
+            if isinstance(item, AccelerationsRecord):
+                if samples and (item.frame_id, item.noise) != (samples[-1].frame_id, samples[-1].noise):
+                    self._write_samples(samples)
+                    samples = []
+                samples.append(item)
+            else:
+                self._write_safely(item)
+        self._write_samples(samples)
+
+    def _write_samples(self, records: list[AccelerationsRecord]) -> None:
+        """Write consecutive accelerometer records of one frame and noise in one pass."""
+        if len(records) <= 1:
+            for record in records:
+                self._write_safely(record)
+            return
+        first = records[0]
+        self._write_safely(AccelerationsRecord(tuple(sample for record in records for sample in record.samples),
+                                               first.frame_id, first.noise))
 
     def topic(self, topic: str) -> str:
         """The fully qualified name of ``topic`` (cached)."""
