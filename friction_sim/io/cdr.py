@@ -310,8 +310,43 @@ def is_message(value: Any) -> bool:
         dataclasses.is_dataclass(value) and hasattr(value, "__msgtype__"))
 
 
+# -- diagnostic_msgs/DiagnosticStatus ---------------------------------------------
+
+_U32 = struct.Struct("<I")
+#: CDR, little endian (the encapsulation header every message begins with).
+_LITTLE_ENDIAN = b"\x00\x01\x00\x00"
+
+
+def diagnostic_status(level: int, name: str, message: str, hardware_id: str,
+                      values: Sequence[tuple[str, str]]) -> bytes:
+    """The CDR of a diagnostic_msgs/DiagnosticStatus, byte for byte what rosbags
+    serializes.  Hand-written because the recording writes an event of the motion
+    as one, twice a period: rosbags' generic serializer took ~40 us a message, this
+    ~6 us (a byte, three strings, a sequence of string pairs: CDR aligns each
+    string's length to 4 bytes from the end of the encapsulation header)."""
+    out = bytearray(_LITTLE_ENDIAN)
+    out.append(level)
+    for text in (name, message, hardware_id):
+        _cdr_string(out, text)
+    out += b"\x00" * (-len(out) % 4)
+    out += _U32.pack(len(values))
+    for key, value in values:
+        _cdr_string(out, key)
+        _cdr_string(out, value)
+    return bytes(out)
+
+
+def _cdr_string(out: bytearray, text: str) -> None:
+    """Append a CDR string: its length (the NUL included) aligned to 4, UTF-8, a NUL."""
+    data = text.encode()
+    out += b"\x00" * (-len(out) % 4)  # (the header's 4 bytes keep the body's alignment)
+    out += _U32.pack(len(data) + 1)
+    out += data
+    out.append(0)
+
+
 __all__ = [
-    "FRAME_ID_OFFSET", "STAMP_OFFSET", "FixedLayout", "column", "deserialize", "field_names", "fields", "fixed_layouts",
-    "header_end", "is_message", "serialize", "stamped_body_offset", "stamps_ns",
+    "FRAME_ID_OFFSET", "STAMP_OFFSET", "FixedLayout", "column", "deserialize", "diagnostic_status", "field_names",
+    "fields", "fixed_layouts", "header_end", "is_message", "serialize", "stamped_body_offset", "stamps_ns",
     "to_rosbags", "typestore",
 ]

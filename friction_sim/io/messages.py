@@ -305,14 +305,21 @@ def event_message(event: Event) -> DiagnosticStatus:
     so ``ros2 bag play`` and ``ros2 topic echo`` work without our package.
     The time of the event is the message's log time and the ``t`` value.
     """
+    name, message, values = event_fields(event)
+    return DiagnosticStatus(level=DiagnosticStatus.OK, name=name, message=message,
+                            values=[KeyValue(key=key, value=value) for key, value in values])
+
+
+def event_fields(event: Event) -> tuple[str, str, list[tuple[str, str]]]:
+    """The name, message and (key, value text) pairs of :func:`event_message`'s status
+    (what a recording serializes directly, :func:`~friction_sim.io.cdr.diagnostic_status`)."""
     before, after = _mode(event.before), _mode(event.after)
     values: dict[str, Any] = {"t": float(event.t), "x": float(event.x), "phase": float(event.phase),
                               "before": before, "after": after}
     if event.kind in FLIGHT_EVENTS:
         values.update(v_before=float(event.v_before), v_after=float(event.v_after),
                       vz_before=float(event.vz_before), vz_after=float(event.vz_after))
-    return DiagnosticStatus(level=DiagnosticStatus.OK, name=event.kind.value, message=f"{before} -> {after}",
-                            values=key_values(values))
+    return event.kind.value, f"{before} -> {after}", [(str(key), value_text(value)) for key, value in values.items()]
 
 
 def _mode(mode: Mode | int) -> str:
@@ -417,8 +424,8 @@ def key_values(values: Mapping[str, Any]) -> list[KeyValue]:
 
 __all__ = [
     "ACCELEROMETER", "COMMAND_TOPICS", "DEFAULT_NODE", "FLIGHT_EVENTS", "NS_PER_S", "SIM_CONTROL", "SLIDER_NODE",
-    "STATE_TOPICS", "TOPIC_TYPES", "command_from_message", "command_message", "command_topic", "event_message",
-    "fill_state_messages", "imu_message", "mean_velocity_message", "message_class", "node_name", "ns_to_seconds",
-    "parameter_event_values", "parameter_python_value", "parameter_value", "parameters_message",
+    "STATE_TOPICS", "TOPIC_TYPES", "command_from_message", "command_message", "command_topic", "event_fields",
+    "event_message", "fill_state_messages", "imu_message", "mean_velocity_message", "message_class", "node_name",
+    "ns_to_seconds", "parameter_event_values", "parameter_python_value", "parameter_value", "parameters_message",
     "rejection_message", "seconds_to_ns", "stamp_ns", "state_messages", "time_msg",
 ]

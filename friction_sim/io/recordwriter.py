@@ -28,16 +28,17 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from friction_sim.core.model.events import Mode, SliderState
+from friction_sim.core.model.events import Event, Mode, SliderState
 from friction_sim.core.model.records import Acceleration, PeriodSummary
 from friction_sim.errors import one_line
 from friction_sim.io.bagfile import MAX_STAMP_NS, BagFile, RowGroup
-from friction_sim.io.cdr import FixedLayout, fixed_layouts
+from friction_sim.io.cdr import FixedLayout, diagnostic_status, fixed_layouts
 from friction_sim.io.messages import (
     ACCELEROMETER,
     STATE_TOPICS,
     command_message,
     command_topic,
+    event_fields,
     event_message,
     fill_state_messages,
     imu_message,
@@ -62,6 +63,10 @@ from friction_sim.io.sinks import (
     record_size,
 )
 from friction_sim.io.typesupport import message_type_name
+
+#: The type of an event's message, and its level (diagnostic_msgs/DiagnosticStatus OK).
+_STATUS = "diagnostic_msgs/msg/DiagnosticStatus"
+_OK = 0
 
 _log = logging.getLogger("friction_sim.io.recorder")
 
@@ -282,12 +287,22 @@ class RecordWriter:
             self._write_period(item.period, item.frame_id)
         elif isinstance(item, AccelerationsRecord):
             self._write_accelerations(item.samples, item.frame_id, item.noise)
+        elif isinstance(item, EventRecord):
+            self._write_event(item.event)
         elif isinstance(item, StatesRecord):  # (one by one: the states' messages have no fixed layout)
             for state in item.states:
                 self._add_state(state, item.frame_id)
         else:
             for topic, msg, log_time_ns in record_messages(item, self.node):
                 self._add(self.topic(topic), msg, log_time_ns)
+
+    def _write_event(self, event: Event) -> None:
+        """Write an event as the DiagnosticStatus :func:`event_message` builds, serialized directly."""
+        name, message, values = event_fields(event)
+        data = diagnostic_status(_OK, name, message, "", values)
+        log_time_ns = seconds_to_ns(event.t)
+        if not self.file.add_serialized(self.topic("events"), _STATUS, data, log_time_ns):
+            self._count_bad(1, _STATUS, f"log time {log_time_ns} ns is outside ROS time")
 
     def _add_state(self, state: SliderState, frame_id: str) -> None:
         """Write a state one message at a time (messages reused: serialized at once)."""

@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from friction_sim.core.model.events import Mode, SliderState
 from friction_sim.core.model.records import PeriodSummary
@@ -101,3 +103,30 @@ def test_a_recording_holds_exactly_the_bytes_rosbags_writes(tmp_path: Path) -> N
             frame_id = FRAMES[(k // 250) % len(FRAMES)]
             assert raw.log_time == M.seconds_to_ns(state.t)
             assert raw.data == cdr.serialize(M.state_messages(state, frame_id)[topic_index]), (topic, k)
+
+
+@settings(max_examples=200, deadline=None)
+@given(level=st.integers(0, 127), texts=st.lists(st.text(max_size=12), min_size=3, max_size=3),
+       values=st.lists(st.tuples(st.text(max_size=9), st.text(max_size=9)), max_size=6))
+def test_a_diagnostic_status_is_serialized_as_rosbags_serializes_it(level: int, texts: list[str],
+                                                                    values: list[tuple[str, str]]) -> None:
+    """The recording's direct serialization of a status (its events) gives rosbags' bytes for any
+    strings (lengths and UTF-8 widths move every alignment) and any number of key-value pairs."""
+    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+
+    texts = [text.replace("\x00", "") for text in texts]  # (a ROS string holds no NUL)
+    values = [(key.replace("\x00", ""), value.replace("\x00", "")) for key, value in values]
+    name, message, hardware_id = texts
+    msg = DiagnosticStatus(level=bytes([level]), name=name, message=message, hardware_id=hardware_id,
+                           values=[KeyValue(key=key, value=value) for key, value in values])
+    assert cdr.diagnostic_status(level, name, message, hardware_id, values) == cdr.serialize(msg)
+
+
+def test_an_event_is_recorded_as_its_status_message() -> None:
+    """What the recording writes for an event is the serialization of :func:`event_message`'s status."""
+    from friction_sim.core.model.events import Event, EventKind
+
+    for event in (Event(0.031, EventKind.LANDING, 4e-4, 3.9, Mode.FLIGHT, Mode.STUCK, v_before=0.021,
+                        vz_before=-0.08), Event(0.01, EventKind.STICK, 1e-5, 3.0, Mode.FORWARD, Mode.STUCK)):
+        name, message, values = M.event_fields(event)
+        assert cdr.diagnostic_status(0, name, message, "", values) == cdr.serialize(M.event_message(event))
