@@ -26,6 +26,7 @@ import uuid
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from friction_sim.core.engine import transient_kernel
 from friction_sim.core.model.commands import (
     COMMANDS,
     CONTROLLER,
@@ -71,6 +72,10 @@ LOCKSTEP_WAIT = 120.0
 #: (each is a rebuild of the executor's wait set, ~0.5 ms of the GIL the slider computes with).
 ATTACHED_POLL = 0.01
 HELD_POLL = 0.1
+#: Wall time [s] a lockstep run in this process waits, before it starts, for its resonant
+#: slider's compiled transient step to load (:func:`~friction_sim.core.engine.transient_kernel.await_loading`):
+#: a load from the cache takes ~0.5 s; a first compile, longer, is not waited for.
+KERNEL_WAIT = 3.0
 
 
 def run_experiment(spec: ExperimentSpec, *, namespace: str | None = None, attach: bool = False,
@@ -106,6 +111,8 @@ def run_experiment(spec: ExperimentSpec, *, namespace: str | None = None, attach
         _wait_until_connected(executor, publishers, spec.controller, plant, scheduler)
         operator = _OperatorHands(driver, executor, publishers, spec.operator)
         if scheduler is not None:
+            if not attach:  # (the slider stands at its start until the first promise)
+                transient_kernel.await_loading(KERNEL_WAIT)
             _play_lockstep(spec, plant, executor, scheduler, result, progress, operator)
         else:
             _play(spec, plant, executor, publishers, result, progress, operator)

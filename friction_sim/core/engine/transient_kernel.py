@@ -190,6 +190,19 @@ def prepare(p: Plant) -> None:
         kernel.start(_arguments(p, 0j, 0j, 0.0, 0, 0.0, 0.0, 0.0, 0.0, 0, True))
 
 
+def await_loading(timeout: float) -> bool:
+    """Wait at most ``timeout`` s of wall time for the compiled step that :func:`prepare`
+    (a resonant slider's creation) began to load; whether it is ready.  A run that goes as
+    fast as it can (lockstep) waits for it before it starts: a load from the on-disk cache
+    takes ~0.5 s, and a run started meanwhile steps interpreted, with the load taking the
+    GIL from it.  A compile from scratch takes longer than any sensible ``timeout``: the run
+    then starts interpreted and takes the compiled step when it is ready (same numbers)."""
+    thread = KERNEL.thread
+    if thread is not None and KERNEL.compiled is None:
+        thread.join(timeout)
+    return KERNEL.compiled is not None
+
+
 def _arguments(p: Plant, c: complex, lam: complex, horizon: float, mode: int, phase0: float, v0: float,
                vz0: float, z0: float, closing: int, grounded: bool) -> tuple[Any, ...]:
     """The step's arguments as the compiled code takes them (its types)."""
@@ -210,5 +223,6 @@ def transient_step(p: Plant, c: complex, lam: complex, horizon: float, mode: int
     return entry(*args) if entry is not None else _transient.transient_step(*args)
 
 
-__all__ = ["AUTO", "COMPILED", "KERNEL", "MODES", "PLAIN", "WORK", "CompiledStep", "Kernel", "compile_step",
+__all__ = ["AUTO", "COMPILED", "KERNEL", "MODES", "PLAIN", "WORK", "CompiledStep", "Kernel", "await_loading",
+           "compile_step",
            "compiled_ready", "failure", "mode", "search_steps", "transient_step", "use"]
