@@ -136,13 +136,16 @@ def _sources() -> list[Path]:
 def cache_directory() -> Path:
     """Where compiled code is kept: ``$NUMBA_CACHE_DIR``, else the user's cache
     (``$XDG_CACHE_HOME``, else ~/.cache), under friction_sim/numba/<key>, where
-    the key hashes every source the code depends on and the Numba version (Numba
-    itself only notices a change of this file, not of the physics it calls).
+    the key hashes every source the code depends on, where it lies, and the Numba
+    version (Numba itself only notices a change of this file, not of the physics
+    it calls; and it takes a file of another modification time for a changed one:
+    two checkouts of the same sources sharing a directory recompiled in turn).
     A package installed read-only (a colcon install, a system prefix) compiles
     into the user's cache; where that cannot be written, into the temporary
     directory."""
     digest = hashlib.sha256(numba.__version__.encode())
     for source in _sources():
+        digest.update(str(source.resolve()).encode())
         digest.update(source.read_bytes())
     base = os.environ.get("NUMBA_CACHE_DIR") or os.path.join(
         os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "friction_sim", "numba")

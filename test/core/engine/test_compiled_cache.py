@@ -23,11 +23,11 @@ from friction_sim.core.engine.population import run_batch
 PACKAGE = Path(friction_sim.__file__).parent
 
 
-def cache_directory_in(env: dict[str, str]) -> Path:
+def cache_directory_in(env: dict[str, str], cwd: Path | None = None) -> Path:
     """The cache directory a fresh process chooses under ``env`` (the choice is made at import)."""
     done = subprocess.run(
         [sys.executable, "-c", "from friction_sim.core.engine import compiled; print(compiled.CACHE_DIR)"],
-        capture_output=True, text=True, env=env, timeout=120, check=False)
+        capture_output=True, text=True, env=env, timeout=120, check=False, cwd=cwd)
     assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr
     return Path(done.stdout.strip().splitlines()[-1])
 
@@ -42,6 +42,19 @@ def test_the_cache_is_the_users_keyed_by_the_sources(tmp_path: Path) -> None:
     assert chosen.parent == tmp_path / "xdg" / "friction_sim" / "numba"
     assert chosen.name == compiled.cache_directory().name, "the same sources and Numba: the same key"
     assert cache_directory_in(clean_env(NUMBA_CACHE_DIR=str(tmp_path / "own"))).parent == tmp_path / "own"
+
+
+def test_two_copies_of_the_sources_keep_their_code_apart(tmp_path: Path) -> None:
+    """Numba takes a source of another modification time for a changed one: a second checkout
+    (or an install beside the sources) sharing the directory would recompile each time the
+    other had run.  The key holds where the sources lie."""
+    import shutil
+
+    shutil.copytree(PACKAGE, tmp_path / "copy" / "friction_sim", ignore=shutil.ignore_patterns("__pycache__"))
+    env = clean_env(XDG_CACHE_HOME=str(tmp_path / "xdg"))
+    here = cache_directory_in(env)
+    there = cache_directory_in(env | {"PYTHONPATH": str(tmp_path / "copy")}, cwd=tmp_path)  # (not this checkout's)
+    assert here.parent == there.parent and here.name != there.name
 
 
 def test_an_unwritable_user_cache_falls_back_to_the_temporary_directory(tmp_path: Path) -> None:
