@@ -51,6 +51,7 @@ from friction_sim.experiment.offline import record_offline
 from friction_sim.experiment.runner import run_experiment
 from friction_sim.experiment.scenario import load_scenario
 from friction_sim.io.digest import differences, recording_digest, run_digest
+from friction_sim.ros.heap import limit_heap_arenas
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = (ROOT / "config" / "acceptance_7_resonant_steps.yaml", ROOT / "config" / "demo.yaml")
@@ -147,6 +148,7 @@ def main() -> int:
           "Digests: run_digest of each repeat's recording (wall-clock figures left out). Figures only; "
           "a digest mismatch exits 1.")
     same = True
+    limit_heap_arenas()  # (as friction-sim and the node executables do, before any thread starts)
     rclpy.init(args=[])
     try:
         with tempfile.TemporaryDirectory() as folder:

@@ -51,6 +51,7 @@ from friction_sim.experiment.job import ExperimentSpec, Status
 from friction_sim.experiment.runner import run_experiment
 from friction_sim.experiment.scenario import load_scenario
 from friction_sim.io.digest import differences, recording_digest
+from friction_sim.ros.heap import limit_heap_arenas
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "config" / "demo.yaml"
@@ -177,6 +178,7 @@ def main() -> int:
           "would be measured). Figures only; "
           "exit 1 only if verify fails or the two runs' recordings differ.")
     ok = True
+    limit_heap_arenas()  # (as friction-sim and the node executables do, before any thread starts)
     rclpy.init(args=[])
     try:
         with tempfile.TemporaryDirectory() as temporary:

@@ -52,6 +52,7 @@ from friction_sim.cli import (
 )
 from friction_sim.cli.options import Verb, flag_of
 from friction_sim.errors import FrictionSimError, ParameterError
+from friction_sim.ros.heap import limit_heap_arenas
 
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
@@ -113,6 +114,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``friction-sim``; returns the exit code."""
+    limit_heap_arenas()  # (a command may run nodes: before their threads start)
     parser = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
     ros_args: list[str] = []

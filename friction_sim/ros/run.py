@@ -31,6 +31,7 @@ from rclpy.utilities import remove_ros_args
 from friction_sim.core.model.commands import consumed_by
 from friction_sim.core.model.spec import Setting
 from friction_sim.errors import FrictionSimError, NodeFault, one_line
+from friction_sim.ros.heap import limit_heap_arenas
 from friction_sim.ros.intake import LostMessages
 
 RCLError = _rclpy.RCLError
@@ -235,6 +236,7 @@ def run_node(
     if refused is not None:
         return refused
     interrupted = _InterruptFlag()
+    limit_heap_arenas()  # (before the middleware's threads start)
     rclpy.init(args=argv)  # (rclpy's own handler chains to ours)
     bridge_python_logging()
     nodes: list[Node] = []

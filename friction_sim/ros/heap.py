@@ -1,0 +1,37 @@
+"""The C heap of a process that runs nodes: a bound on glibc's per-thread arenas.
+
+glibc gives threads that allocate at once arenas of their own, up to eight per
+core, and keeps what is freed in each.  A node process has many threads (the
+DDS middleware's, the slider's loop, the recorder's writer, an executor's), so
+its resident memory grew with what every arena held on to: the demo feeder's
+simulated hour (``bench/soak.py``) ended 10-20 % above its first minute,
+varying from run to run, and 7 % with two arenas (the rest is the
+experiment's own per-period series, which grow by design).  ``MALLOC_ARENA_MAX``
+set in the environment has the same effect and takes precedence: a user's
+setting is left as it is.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+
+#: Arenas a node process uses at most (glibc's M_ARENA_MAX; two is what is commonly set for
+#: servers with many threads: memory flat, the allocator's locks barely contended here).
+ARENAS = 2
+#: glibc's mallopt() parameter for the arena bound (malloc.h).
+_M_ARENA_MAX = -8
+
+
+def limit_heap_arenas(arenas: int = ARENAS) -> bool:
+    """Bound glibc's arenas to ``arenas`` for this process, before its threads start; whether it
+    was set (not on another C library, nor when ``MALLOC_ARENA_MAX`` says otherwise already)."""
+    if "MALLOC_ARENA_MAX" in os.environ:
+        return False
+    with contextlib.suppress(OSError, AttributeError):
+        return bool(ctypes.CDLL(None).mallopt(_M_ARENA_MAX, arenas))
+    return False
+
+
+__all__ = ["ARENAS", "limit_heap_arenas"]
