@@ -18,11 +18,13 @@ parser and the report depend on it, not on the runner.
 from __future__ import annotations
 
 import json
+import os
+import tempfile
 from array import array
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Generic, TypeVar, cast, overload
+from typing import IO, Any, Generic, NamedTuple, TypeVar, cast, overload
 
 from friction_sim.core.model import spec as settings
 from friction_sim.core.model.commands import Command
@@ -126,9 +128,15 @@ class Series(Sequence[Row], Generic[Row]):
     ``reversed``), the same values (doubles either way).  One thread
     appends (the controller's listener runs on its own); a reader on another
     sees whole rows, every row up to some recent one.
+
+    Full blocks beyond the newest :data:`RESIDENT_BLOCKS` go to a temporary
+    file of the series' own (unnamed: the system removes it with the last
+    reference), read back when asked for: an hour's series no longer grow
+    the process (1.6 kB a simulated second, 6 % of the soak's memory over
+    the hour).  Where the file cannot be written the blocks stay in memory.
     """
 
-    __slots__ = ("_blocks", "_per_block", "width")
+    __slots__ = ("_blocks", "_per_block", "_spill", "width")
 
     def __init__(self, width: int, rows: Iterable[Row] = ()) -> None:
         if not 1 <= width <= SERIES_BLOCK:
@@ -136,8 +144,13 @@ class Series(Sequence[Row], Generic[Row]):
         self.width = width
         self._per_block = SERIES_BLOCK // width * width  # values a block holds: whole rows
         # Replaced, never changed but for its last block's growth: a reader's reference stays whole.
-        self._blocks: list[array[float]] = [array("d")]
+        self._blocks: list[array[float] | _Spilled] = [array("d")]
+        self._spill: _SpillFile | None = None  # (made with the first block spilled)
         self.extend(rows)
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Pickled as its rows (a spilled block's file stays with this process)."""
+        return (Series, (self.width, list(self)))
 
     def append(self, row: Row) -> None:
         """Add ``row`` (``width`` numbers) at the end; a ValueError (nothing added) for another width."""
@@ -161,12 +174,33 @@ class Series(Sequence[Row], Generic[Row]):
         at = 0
         while at < len(values):
             last = self._blocks[-1]
+            assert isinstance(last, array), "the last block is in memory"
             if len(last) == self._per_block:
                 last = array("d")
-                self._blocks = [*self._blocks, last]
+                self._blocks = [*self._spilled(self._blocks), last]
             end = at + self._per_block - len(last)
             last.extend(values[at:end])
             at = end
+
+    def _spilled(self, blocks: list[array[float] | _Spilled]) -> list[array[float] | _Spilled]:
+        """``blocks`` (all full) with the one :data:`RESIDENT_BLOCKS` from the newest written to the file."""
+        index = len(blocks) - RESIDENT_BLOCKS
+        block = blocks[index] if index >= 0 else None
+        if not isinstance(block, array):
+            return blocks
+        if self._spill is None:
+            self._spill = _SpillFile.make()
+        spilled = self._spill.put(block) if self._spill is not None else None
+        if spilled is None:
+            return blocks
+        return [*blocks[:index], spilled, *blocks[index + 1:]]
+
+    def _values(self, block: array[float] | _Spilled) -> array[float]:
+        """A block's values (read back from the file if it was spilled)."""
+        if isinstance(block, array):
+            return block
+        assert self._spill is not None, "a spilled block has its file"
+        return self._spill.get(block)
 
     def column(self, index: int) -> array[float]:
         """Field ``index`` of every row (0: the times), as a new array."""
@@ -174,7 +208,7 @@ class Series(Sequence[Row], Generic[Row]):
             raise IndexError(f"column {index} of a series of {self.width}")
         values: array[float] = array("d")
         for block in self._blocks:
-            values.extend(block[index::self.width])
+            values.extend(self._values(block)[index::self.width])
         return values
 
     def since(self, start: float) -> Series[Row]:
@@ -183,8 +217,8 @@ class Series(Sequence[Row], Generic[Row]):
 
     @property
     def nbytes(self) -> int:
-        """Bytes its values take (8 a value; the last block's spare room for growth not counted)."""
-        return sum(len(block) for block in self._blocks) * 8
+        """Bytes its values take (8 a value, in memory or spilled; the last block's spare room not counted)."""
+        return sum(block.values if isinstance(block, _Spilled) else len(block) for block in self._blocks) * 8
 
     def __len__(self) -> int:
         blocks = self._blocks
@@ -205,11 +239,11 @@ class Series(Sequence[Row], Generic[Row]):
         if not 0 <= at < n:
             raise IndexError(f"row {index} of a series of {n}")
         block, offset = divmod(at * self.width, self._per_block)
-        return cast(Row, tuple(blocks[block][offset:offset + self.width]))
+        return cast(Row, tuple(self._values(blocks[block])[offset:offset + self.width]))
 
     def __iter__(self) -> Iterator[Row]:
         for block in self._blocks:
-            values = iter(block)
+            values = iter(self._values(block))
             yield from cast(Iterator[Row], zip(*[values] * self.width))
 
     def __eq__(self, other: object) -> bool:
@@ -222,6 +256,54 @@ class Series(Sequence[Row], Generic[Row]):
 
     def __repr__(self) -> str:
         return f"Series(width={self.width}, {len(self)} rows)"
+
+
+#: Full blocks of a :class:`Series` kept in memory, the newest (what a status line and a
+#: controller's report read); older ones go to the series' file.
+RESIDENT_BLOCKS = 2
+
+
+class _Spilled(NamedTuple):
+    """A full block of a :class:`Series` in its file: where, and how many values (its ``len``)."""
+
+    offset: int
+    values: int
+
+
+class _SpillFile:
+    """A series' unnamed temporary file of spilled blocks: written by the appending thread
+    (``pwrite`` at its end), read by any (``pread``: no shared position)."""
+
+    def __init__(self, stream: IO[bytes]) -> None:
+        self._stream = stream
+        self._end = 0
+
+    @classmethod
+    def make(cls) -> _SpillFile | None:
+        """A new file, or None where none can be made (the blocks then stay in memory)."""
+        try:
+            return cls(tempfile.TemporaryFile(prefix="friction_sim-series-"))
+        except OSError:
+            return None
+
+    def put(self, block: array[float]) -> _Spilled | None:
+        """Write ``block`` at the end; where it lies, or None if it could not be written whole."""
+        data = block.tobytes()
+        try:
+            written = os.pwrite(self._stream.fileno(), data, self._end)
+        except OSError:
+            return None
+        if written != len(data):
+            return None
+        spilled = _Spilled(self._end, len(block))
+        self._end += len(data)
+        return spilled
+
+    def get(self, block: _Spilled) -> array[float]:
+        """The values of a spilled block."""
+        values: array[float] = array("d")
+        values.frombytes(os.pread(self._stream.fileno(), 8 * block.values, block.offset))
+        return values
 
 
 def _pairs() -> Series[tuple[float, float]]:
@@ -305,6 +387,7 @@ def read_scenario_metadata(meta: Mapping[str, str]) -> ScenarioRecord | None:
 
 
 __all__ = [
-    "SCENARIO_METADATA", "ExperimentResult", "ExperimentSpec", "OperatorAction", "ScenarioRecord", "Series", "Status",
-    "read_scenario_metadata", "scenario_metadata", "schedule_from_json", "schedule_json",
+    "RESIDENT_BLOCKS", "SCENARIO_METADATA", "SERIES_BLOCK", "ExperimentResult", "ExperimentSpec", "OperatorAction",
+    "ScenarioRecord", "Series", "Status", "read_scenario_metadata", "scenario_metadata", "schedule_from_json",
+    "schedule_json",
 ]

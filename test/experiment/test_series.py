@@ -13,7 +13,7 @@ from contextlib import contextmanager
 
 import pytest
 
-from friction_sim.experiment.job import SERIES_BLOCK, ExperimentResult, Series
+from friction_sim.experiment.job import RESIDENT_BLOCKS, SERIES_BLOCK, ExperimentResult, Series
 
 
 class Held:
@@ -128,3 +128,40 @@ def test_a_reader_on_another_thread_sees_whole_rows() -> None:
             assert t == v
     writer.join()
     assert len(series) == 200_000
+
+
+def test_an_hours_series_keeps_only_its_newest_blocks_in_memory() -> None:
+    """Full blocks beyond the newest RESIDENT_BLOCKS go to the series' file: the memory held stays
+    that of a few blocks however long the run, and every row reads back as it was written (in
+    order, by index, by column, pickled), while it keeps growing."""
+    blocks = 12
+    rows = [(0.02 * k, math.sin(k), k / 3.0) for k in range(blocks * (SERIES_BLOCK // 3) + 7)]
+    with traced() as grown:
+        series: Series[tuple[float, float, float]] = Series(3)
+        for row in rows:
+            series.append(row)
+    assert grown.bytes < (RESIDENT_BLOCKS + 2) * SERIES_BLOCK * 8, f"{grown.bytes} bytes held for {blocks} blocks"
+    assert series.nbytes == 8 * 3 * len(rows) and len(series) == len(rows)
+    assert list(series) == rows and [series[k] for k in range(0, len(rows), 1013)] == rows[::1013]
+    assert series[0] == rows[0] and series[-1] == rows[-1] and list(series.column(1)) == [v for _, v, _ in rows]
+    assert pickle.loads(pickle.dumps(series)) == rows
+    series.append((1e9, 1.0, 2.0))
+    assert series[-1] == (1e9, 1.0, 2.0) and series[:len(rows)] == rows
+
+
+@pytest.mark.parametrize("failure", ["no file", "a full disk"])
+def test_a_series_whose_file_cannot_be_written_keeps_its_blocks_in_memory(
+        failure: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """No temporary file (a read-only or missing TMPDIR), or a write that fails (ENOSPC): the
+    blocks stay where they are, every row intact, and the series goes on growing."""
+    import os
+    import tempfile
+
+    def refused(*args: object, **kwargs: object) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(tempfile if failure == "no file" else os, "TemporaryFile" if failure == "no file"
+                        else "pwrite", refused)
+    rows = [(float(k), -float(k)) for k in range(6 * (SERIES_BLOCK // 2) + 3)]
+    series: Series[tuple[float, float]] = Series(2, rows)
+    assert list(series) == rows and series[SERIES_BLOCK // 2] == rows[SERIES_BLOCK // 2]
