@@ -49,7 +49,6 @@ from mcap.records import (
     SummaryOffset,
 )
 
-from friction_sim.core.model.spec import NS_PER_S
 from friction_sim.errors import RecordingError
 from friction_sim.io import cdr
 from friction_sim.io.chunks import MCAP_MAGIC
@@ -155,27 +154,26 @@ class RowGroup:
 class _RowFrame:
     """A row of a :class:`RowGroup` on its channels as one numpy structured type: the
     bytes every row shares (each message's opcode, length and channel, its layout's
-    template) and a named field for each number that varies, so a row group is filled
-    in a numpy call per field (a byte-offset view per field cost three times as much)."""
+    template) and a named field for each number that varies (the message record's
+    sequence and times, and its layout's :meth:`~friction_sim.io.cdr.FixedLayout.fields`
+    under the prefix ``m<index>_``), so a row group is filled in a numpy call per field."""
 
     dtype: np.dtype[Any]
     template: np.ndarray[Any, np.dtype[np.uint8]]
+    prefixes: tuple[str, ...]
 
     @classmethod
     def of(cls, group: RowGroup, channels: tuple[int, ...]) -> _RowFrame:
         fields: dict[str, tuple[str, int]] = {}
         template = bytearray(group.row_size)
-        for index, (channel, layout, start) in enumerate(zip(channels, group.layouts, group.starts)):
+        prefixes = tuple(f"m{index}_" for index in range(len(channels)))
+        for prefix, channel, layout, start in zip(prefixes, channels, group.layouts, group.starts):
             _MESSAGE.pack_into(template, start, Opcode.MESSAGE, 22 + layout.size, channel, 0, 0, 0)
             body = start + _MESSAGE.size
             template[body:body + layout.size] = layout.template
-            fields.update({f"sequence{index}": ("<u4", start + 11), f"log_time{index}": ("<u8", start + 15),
-                           f"publish_time{index}": ("<u8", start + 23), f"sec{index}": ("<i4", body + layout.stamp),
-                           f"nanosec{index}": ("<u4", body + layout.stamp + 4)})
-            fields.update({f"value{index}_{value}": ("<f8", body + offset) for value, offset in layout.values})
-        dtype = np.dtype({"names": list(fields), "formats": [kind for kind, _ in fields.values()],
-                          "offsets": [offset for _, offset in fields.values()], "itemsize": group.row_size})
-        return cls(dtype, np.frombuffer(bytes(template), dtype=np.uint8))
+            fields.update({f"{prefix}sequence": ("<u4", start + 11), f"{prefix}log_time": ("<u8", start + 15),
+                           f"{prefix}publish_time": ("<u8", start + 23), **layout.fields(prefix, body)})
+        return cls(cdr.structured(fields, group.row_size), np.frombuffer(bytes(template), dtype=np.uint8), prefixes)
 
 
 class BagFile:
@@ -271,13 +269,10 @@ class BagFile:
         data = rows.view(np.uint8)
         data.reshape(n, group.row_size)[:] = frame.template  # the bytes every row shares
         counter = np.arange(n, dtype=np.int64)
-        seconds, nanoseconds = np.divmod(log_times, NS_PER_S)
-        for index, (channel, layout) in enumerate(zip(channels, group.layouts)):
-            rows[f"sequence{index}"] = (self._sequence[channel] + counter) % _SEQUENCE_MOD
-            rows[f"log_time{index}"] = rows[f"publish_time{index}"] = log_times
-            rows[f"sec{index}"], rows[f"nanosec{index}"] = seconds, nanoseconds
-            for value, _ in layout.values:
-                rows[f"value{index}_{value}"] = values[:, value]
+        for prefix, channel, layout in zip(frame.prefixes, channels, group.layouts):
+            rows[f"{prefix}sequence"] = (self._sequence[channel] + counter) % _SEQUENCE_MOD
+            rows[f"{prefix}log_time"] = rows[f"{prefix}publish_time"] = log_times
+            layout.fill(rows, prefix, log_times, values)
         # Built whole: only now change the chunk, its indexes and the sequence numbers.
         first = len(self._chunk)
         for channel, start in zip(channels, group.starts):

@@ -208,29 +208,36 @@ class FixedLayout:
             _F64.pack_into(data, offset, values[index])
         return bytes(data)
 
-    def encode_into(self, rows: np.ndarray[Any, np.dtype[np.uint8]], start: int,
-                    ns: np.ndarray[Any, np.dtype[np.int64]], values: np.ndarray[Any, np.dtype[np.float64]]) -> None:
-        """Write one message per row into ``rows[:, start:start + size]``:
-        stamped ``ns[i]`` (>= 0, seconds within int32) with ``values[i]``."""
-        rows[:, start:start + self.size] = np.frombuffer(self.template, dtype=np.uint8)
-        sec, nanosec = np.divmod(ns, NS_PER_S)
-        column(rows, start + self.stamp, "<i4")[:] = sec
-        column(rows, start + self.stamp + 4, "<u4")[:] = nanosec
-        for index, offset in self.values:
-            column(rows, start + offset, "<f8")[:] = values[:, index]
+    def fields(self, prefix: str, at: int) -> dict[str, tuple[str, int]]:
+        """The numbers a message of this layout carries, as fields of a numpy structured type
+        (name: (format, byte offset)): its stamp's ``sec`` and ``nanosec`` and each value
+        ``value<index>``, named after ``prefix``, the message starting at byte ``at`` of a row."""
+        return {f"{prefix}sec": ("<i4", at + self.stamp), f"{prefix}nanosec": ("<u4", at + self.stamp + 4),
+                **{f"{prefix}value{index}": ("<f8", at + offset) for index, offset in self.values}}
+
+    def fill(self, rows: np.ndarray[Any, np.dtype[Any]], prefix: str, ns: np.ndarray[Any, np.dtype[np.int64]],
+             values: np.ndarray[Any, np.dtype[np.float64]]) -> None:
+        """Write into structured ``rows`` (whose type holds :meth:`fields` under ``prefix``) each
+        message's stamp ``ns[i]`` (>= 0, seconds within int32) and its ``values[i]``."""
+        rows[f"{prefix}sec"], rows[f"{prefix}nanosec"] = np.divmod(ns, NS_PER_S)
+        for index, _ in self.values:
+            rows[f"{prefix}value{index}"] = values[:, index]
 
     def encode(self, ns: np.ndarray[Any, np.dtype[np.int64]],
                values: np.ndarray[Any, np.dtype[np.float64]]) -> np.ndarray[Any, np.dtype[np.uint8]]:
         """One message per row (``len(ns)`` rows of :attr:`size` bytes)."""
-        rows = np.empty((len(ns), self.size), dtype=np.uint8)
-        self.encode_into(rows, 0, ns, values)
-        return rows
+        rows = np.empty(len(ns), dtype=structured(self.fields("", 0), self.size))
+        data = rows.view(np.uint8).reshape(len(ns), self.size)
+        data[:] = np.frombuffer(self.template, dtype=np.uint8)
+        self.fill(rows, "", ns, values)
+        return data
 
 
-def column(rows: np.ndarray[Any, np.dtype[np.uint8]], offset: int, dtype: str) -> np.ndarray[Any, np.dtype[Any]]:
-    """A view of the scalar of ``dtype`` at byte ``offset`` of every row (little endian, unaligned)."""
-    width = np.dtype(dtype).itemsize
-    return rows[:, offset:offset + width].view(dtype)[:, 0]
+def structured(fields: dict[str, tuple[str, int]], size: int) -> np.dtype[Any]:
+    """The numpy structured type of rows of ``size`` bytes holding ``fields`` (name: (format,
+    byte offset), little endian, unaligned): a row group is filled in one numpy call per field."""
+    return np.dtype({"names": list(fields), "formats": [kind for kind, _ in fields.values()],
+                     "offsets": [offset for _, offset in fields.values()], "itemsize": size})
 
 
 def fixed_layouts(make: Callable[[int, Sequence[float]], Sequence[Any]],
@@ -346,7 +353,7 @@ def _cdr_string(out: bytearray, text: str) -> None:
 
 
 __all__ = [
-    "FRAME_ID_OFFSET", "STAMP_OFFSET", "FixedLayout", "column", "deserialize", "diagnostic_status", "field_names",
+    "FRAME_ID_OFFSET", "STAMP_OFFSET", "FixedLayout", "deserialize", "diagnostic_status", "field_names",
     "fields", "fixed_layouts", "header_end", "is_message", "serialize", "stamped_body_offset", "stamps_ns",
-    "to_rosbags", "typestore",
+    "structured", "to_rosbags", "typestore",
 ]
