@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticStatus
 
 from friction_sim.core.model.events import Event, Mode, SliderState
 from friction_sim.core.model.records import Acceleration, PeriodSummary
@@ -36,6 +37,7 @@ from friction_sim.io.cdr import FixedLayout, diagnostic_status, fixed_layouts
 from friction_sim.io.messages import (
     ACCELEROMETER,
     STATE_TOPICS,
+    TOPIC_TYPES,
     command_message,
     command_topic,
     event_fields,
@@ -64,9 +66,9 @@ from friction_sim.io.sinks import (
 )
 from friction_sim.io.typesupport import message_type_name
 
-#: The type of an event's message, and its level (diagnostic_msgs/DiagnosticStatus OK).
-_STATUS = "diagnostic_msgs/msg/DiagnosticStatus"
-_OK = 0
+#: An event's message type and level (:func:`~friction_sim.io.messages.event_message`'s), for its direct serialization.
+_EVENT_TYPE = TOPIC_TYPES["events"]
+_EVENT_LEVEL = ord(DiagnosticStatus.OK)
 
 _log = logging.getLogger("friction_sim.io.recorder")
 
@@ -299,10 +301,10 @@ class RecordWriter:
     def _write_event(self, event: Event) -> None:
         """Write an event as the DiagnosticStatus :func:`event_message` builds, serialized directly."""
         name, message, values = event_fields(event)
-        data = diagnostic_status(_OK, name, message, "", values)
+        data = diagnostic_status(_EVENT_LEVEL, name, message, "", values)
         log_time_ns = seconds_to_ns(event.t)
-        if not self.file.add_serialized(self.topic("events"), _STATUS, data, log_time_ns):
-            self._count_bad(1, _STATUS, f"log time {log_time_ns} ns is outside ROS time")
+        if not self.file.add_serialized(self.topic("events"), _EVENT_TYPE, data, log_time_ns):
+            self._count_outside(_EVENT_TYPE, log_time_ns)
 
     def _add_state(self, state: SliderState, frame_id: str) -> None:
         """Write a state one message at a time (messages reused: serialized at once)."""
@@ -317,7 +319,11 @@ class RecordWriter:
     def _add(self, topic: str, msg: Any, log_time_ns: int) -> None:
         """Write one message; a log time no ROS stamp holds is dropped and counted."""
         if not self.file.add(topic, msg, log_time_ns):
-            self._count_bad(1, message_type_name(type(msg)), f"log time {log_time_ns} ns is outside ROS time")
+            self._count_outside(message_type_name(type(msg)), log_time_ns)
+
+    def _count_outside(self, type_name: str, log_time_ns: int) -> None:
+        """Count a message dropped because its log time is one no ROS stamp holds."""
+        self._count_bad(1, type_name, f"log time {log_time_ns} ns is outside ROS time")
 
     def _count_bad(self, messages: int, what: str, why: str) -> None:
         """Count ``messages`` dropped because no message could hold them (warn once per kind)."""
