@@ -41,7 +41,7 @@ from friction_sim.io.messages import (
 )
 from friction_sim.io.sinks import MessageRecord, PeriodRecord, Record
 from friction_sim.io.stamped import STAMPED_COMMAND, STAMPED_TYPE
-from friction_sim.ros.driving import get_parameters, overrides, set_parameters, spin_until
+from friction_sim.ros.driving import check_results, get_parameters, overrides, set_parameters, spin_until
 
 
 def _plant_values(spec: ExperimentSpec) -> dict[str, Any]:
@@ -139,10 +139,7 @@ class InProcessPlant:
     def set_controller_parameters(self, values: dict[str, Any]) -> None:
         """Set the controller's parameters, one by one (as its parameter service does, on the node
         itself: a round trip through DDS, a few ms, held the slider at each scheduled target)."""
-        controller = self.nodes[1]
-        for name, result in zip(values, controller.set_parameters(overrides(values)), strict=True):
-            if not result.successful:
-                raise ExperimentError(f"controller refused {name}: {result.reason}")
+        check_results("controller", values, self.nodes[1].set_parameters(overrides(values)))
 
     def close(self) -> None:
         """Destroy the nodes (the slider finishes its recording)."""

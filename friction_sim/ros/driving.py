@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from rclpy.parameter import Parameter
@@ -75,7 +75,13 @@ def set_parameters(driver: Any, executor: Any, node: str, values: dict[str, Any]
     """Set ``values`` on ``node`` through its parameter service; refusals are ExperimentErrors."""
     future = parameter_client(driver, executor, node).set_parameters(overrides(values))
     spin_until(executor, future.done, math.inf, "")
-    for name, result in zip(values, future.result().results):
+    check_results(node, values, future.result().results)
+
+
+def check_results(node: str, values: dict[str, Any], results: Sequence[Any]) -> None:
+    """An ExperimentError naming the first of ``values`` that ``node`` refused (rcl_interfaces
+    SetParametersResult, one per value), if any."""
+    for name, result in zip(values, results, strict=False):
         if not result.successful:
             raise ExperimentError(f"{node} refused {name}: {result.reason}")
 
@@ -87,4 +93,5 @@ def get_parameters(driver: Any, executor: Any, node: str, names: list[str]) -> l
     return list(future.result().values)
 
 
-__all__ = ["get_parameters", "overrides", "parameter_client", "set_parameters", "spin_once", "spin_until"]
+__all__ = ["check_results", "get_parameters", "overrides", "parameter_client", "set_parameters", "spin_once",
+           "spin_until"]
