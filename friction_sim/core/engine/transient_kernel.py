@@ -224,5 +224,4 @@ def transient_step(p: Plant, c: complex, lam: complex, horizon: float, mode: int
 
 
 __all__ = ["AUTO", "COMPILED", "KERNEL", "MODES", "PLAIN", "WORK", "CompiledStep", "Kernel", "await_loading",
-           "compile_step",
-           "compiled_ready", "failure", "mode", "search_steps", "transient_step", "use"]
+           "compile_step", "compiled_ready", "failure", "mode", "search_steps", "transient_step", "use"]

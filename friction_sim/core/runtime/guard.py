@@ -11,6 +11,7 @@ whether the core can take one.
 from __future__ import annotations
 
 import math
+import operator
 from collections.abc import Callable
 
 from friction_sim.core.engine.single import Slider
@@ -19,14 +20,17 @@ from friction_sim.core.model.events import SliderState
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.errors import ParameterError, one_line
 
+#: The numbers of a state that must be finite (its phase and mode follow from them).
+_NUMBER_NAMES = ("t", "x", "v", "acceleration", "friction_force", "normal_force", "z", "vz")
+_NUMBERS = operator.attrgetter(*_NUMBER_NAMES)
+
 
 def non_finite(state: SliderState) -> str:
     """'' if every number of ``state`` is finite, else the first that is not (``x = inf``)."""
-    if math.isfinite(state.t + state.x + state.v + state.acceleration + state.friction_force + state.normal_force
-                     + state.z + state.vz):
-        return ""  # (a sum is finite only if every term is: the names are looked up only when one is not)
-    for name in ("t", "x", "v", "acceleration", "friction_force", "normal_force", "z", "vz"):
-        value = getattr(state, name)
+    values = _NUMBERS(state)
+    if math.isfinite(sum(values)):
+        return ""  # (a sum is finite only if every term is: each is looked at only when one is not)
+    for name, value in zip(_NUMBER_NAMES, values, strict=True):
         if not math.isfinite(value):
             return f"{name} = {value!r}"
     return ""
