@@ -50,7 +50,9 @@ results come back as typed records (:class:`SliderState`, :class:`Event`,
 
 from __future__ import annotations
 
+from bisect import bisect_left
 from collections import deque
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -66,6 +68,7 @@ from friction_sim.core.engine.transient_segment import (
     exciter_after,
     segment_end,
     states,
+    states_at,
 )
 from friction_sim.core.engine.transient_segment import start as start_transient
 from friction_sim.core.model.dimensionless import TWO_PI
@@ -233,6 +236,44 @@ class Slider(History, ExciterReadings):
         self._t = float(t)
         return happened
 
+    def sample_grids(self, state_times: list[float], reading_times: list[float]
+                     ) -> tuple[list[SliderState], list[list[float]], list[Event]]:
+        """Advance through two ascending lists of times (>= :attr:`t`) at once, to the
+        last: the state at each of ``state_times``, the slideway's (along, normal)
+        acceleration at each of ``reading_times``, and the events on the way.  Each is
+        what :meth:`advance_to` to its time then :meth:`state` (or
+        :meth:`slideway_acceleration`) gives, bit for bit, evaluated a segment at a
+        time (compiled once the transient kernel is ready): a log grid's hot path."""
+        states: list[SliderState] = []
+        readings: list[list[float]] = []
+        happened: list[Event] = []
+        for state_range, reading_range in self._by_segment(happened, state_times, reading_times):
+            if state_range:
+                seg, t0, mode = self._seg, self._seg.t0, _MODES[self._seg.mode]
+                times = state_times[state_range.start:state_range.stop]
+                rows = states_at(self._plant, seg, self._transient, [t - t0 for t in times])
+                states.extend(SliderState(t, x, v, acc, friction, normal, theta % TWO_PI, mode, z, vz)
+                              for t, (x, v, acc, friction, normal, theta, z, vz) in zip(times, rows))
+            if reading_range:
+                readings.extend(self._accelerations_at(reading_times[reading_range.start:reading_range.stop]))
+        return states, readings, happened
+
+    def _by_segment(self, happened: list[Event], *grids: Any) -> Iterator[list[range]]:
+        """Advance through ascending grids of times (lists or arrays, >= :attr:`t`) at once,
+        to the last time of any, segment by segment: with the slider in each segment, the
+        indices of each grid's times that fall in it (a time at the segment's end is the
+        next one's, as :meth:`advance_to` leaves it); the events on the way go to ``happened``."""
+        firsts = [0] * len(grids)
+        last = max((float(grid[-1]) for grid in grids if len(grid)), default=self._t)
+        while any(first < len(grid) for first, grid in zip(firsts, grids)):
+            end = segment_end(self._seg, self._transient, self._next_t)[0]
+            lasts = [bisect_left(grid, end, first) for first, grid in zip(firsts, grids)]
+            yield [range(first, stop) for first, stop in zip(firsts, lasts)]
+            firsts = lasts
+            if any(first < len(grid) for first, grid in zip(firsts, grids)):
+                happened.extend(self.advance_to(end))
+        happened.extend(self.advance_to(last))
+
     def sample(self, times: np.ndarray) -> Trajectory:
         """Advance through ascending ``times`` (>= :attr:`t`) and return the exact
         state at each, evaluated segment by segment with numpy: the state
@@ -248,21 +289,15 @@ class Slider(History, ExciterReadings):
             raise ParameterError("times", float(times[0]), f"must ascend from >= {self._t!r} s")
         columns = [np.empty_like(times) for _ in range(9)]
         happened: list[Event] = []
-        first = 0
-        while first < times.size:
-            end = segment_end(self._seg, self._transient, self._next_t)[0]
-            last = int(np.searchsorted(times, end, side="left"))
-            if last > first:
+        for (part,) in self._by_segment(happened, times):
+            if part:
+                first, last = part.start, part.stop
                 seg = self._seg
                 values = states(self._plant, seg, self._transient, times[first:last] - seg.t0)
                 for column, value in zip(columns, values):
                     column[first:last] = value
                 columns[5][first:last] %= TWO_PI
                 columns[8][first:last] = seg.mode
-                first = last
-            if first < times.size:
-                happened.extend(self.advance_to(end))
-        happened.extend(self.advance_to(float(times[-1])))
         x, v, acc, friction, normal, phase, z, vz, mode = columns
         return Trajectory(times, x, v, acc, friction, normal, phase, mode.astype(np.int8), tuple(happened), z, vz)
 

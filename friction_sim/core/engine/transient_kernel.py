@@ -31,7 +31,7 @@ import numpy as np
 
 from friction_sim.core.physics import transient as _transient
 from friction_sim.core.physics.plant import Plant
-from friction_sim.core.physics.segment import Step
+from friction_sim.core.physics.segment import STUCK, Segment, Step
 
 #: Compile on a background thread at the first transient step; plain until ready.
 AUTO = "auto"
@@ -93,11 +93,27 @@ class Kernel:
 class CompiledStep:
     """The compiled step's entry point, which skips Numba's dispatch (typing a
     :class:`Plant` of nested named tuples costs more than the step itself), and
-    the test that a plant has the types it was compiled for."""
+    the test that a plant has the types it was compiled for; the compiled
+    samplers of a segment (:func:`~friction_sim.core.physics.transient.states_into`,
+    :func:`~friction_sim.core.physics.transient.accelerations_into`), entered the
+    same way, and the shape of segment they were compiled for."""
 
-    def __init__(self, entry: StepFunction, fits: Callable[[Plant], bool]) -> None:
+    def __init__(self, entry: StepFunction, fits: Callable[[Plant], bool], states: Callable[..., None],
+                 accelerations: Callable[..., None], segment_shape: tuple[Any, ...]) -> None:
         self.entry = entry
         self.fits = fits
+        self.states = states
+        self.accelerations = accelerations
+        self.segment_shape = segment_shape
+        #: The last segment checked against :attr:`segment_shape` and the verdict (one tuple, replaced whole).
+        self.segment_checked: tuple[Segment | None, bool] = (None, False)
+
+    def segment_fits(self, seg: Segment) -> bool:
+        """Whether ``seg`` has the types the samplers were compiled for (checked once per segment)."""
+        checked = self.segment_checked
+        if checked[0] is not seg:
+            checked = self.segment_checked = (seg, _shape(seg) == self.segment_shape)
+        return checked[1]
 
 
 #: The process's kernel (one compile per process, like the on-disk cache it loads from).
@@ -132,7 +148,25 @@ def compile_step(args: tuple[Any, ...]) -> CompiledStep:
             verdicts[key] = verdict
         return verdict
 
-    return CompiledStep(dispatcher.overloads[signature].entry_point, fits)
+    taus, states, accelerations = np.zeros(1), np.zeros((8, 1)), np.zeros((2, 1))
+    sampler_types = (plant_type, typeof(_REST), typeof(0j), typeof(0j), typeof(taus))
+    return CompiledStep(dispatcher.overloads[signature].entry_point, fits,
+                        _entry(numba, _transient.states_into, (*sampler_types, typeof(states))),
+                        _entry(numba, _transient.accelerations_into,
+                               (plant_type, typeof(0.0), *sampler_types[2:], typeof(accelerations))),
+                        _shape(_REST))
+
+
+#: A segment of the types the stepper makes (the samplers are compiled for them).
+_REST = Segment(STUCK, 0.0, 0.0, 0.0, 0.0, 0, False, 0.0, 0.0, 0.0, 0.0, 0, 0.0, 0.0, 0)
+
+
+def _entry(numba: Any, function: Callable[..., Any], signature: tuple[Any, ...]) -> Callable[..., Any]:
+    """The entry point of ``function`` compiled for ``signature`` (from the on-disk cache when it is there)."""
+    dispatcher: Any = numba.njit(cache=True)(function)
+    dispatcher.compile(signature)
+    entry: Callable[..., Any] = dispatcher.overloads[signature].entry_point
+    return entry
 
 
 def _shape(value: Any) -> tuple[Any, ...]:
@@ -203,6 +237,43 @@ def await_loading(timeout: float) -> bool:
     return KERNEL.compiled is not None
 
 
+def states_at(p: Plant, seg: Segment, c: complex, lam: complex, taus: list[float]) -> list[list[float]]:
+    """The states ``taus`` into ``seg`` (x, v, acceleration, friction force, normal force,
+    unreduced phase, z, vz each), the transient force Re(c*exp(lam*tau)) added unless ``c``
+    is 0: :func:`~friction_sim.core.physics.transient.states_into`, compiled when it is ready
+    and was compiled for the types of ``p`` and ``seg``, else plain (the same numbers)."""
+    out = np.empty((8, len(taus)))
+    compiled = _sampler(p, seg)
+    if compiled is not None:
+        compiled.states(p, seg, complex(c), complex(lam), np.array(taus, dtype=float), out)
+    else:
+        _transient.states_into(p, seg, c, lam, np.array(taus, dtype=float), out)
+    rows: list[list[float]] = out.T.tolist()
+    return rows
+
+
+def accelerations_at(p: Plant, seg: Segment, c: complex, lam: complex, taus: list[float]) -> list[list[float]]:
+    """The slideway's (along, normal) acceleration ``taus`` into ``seg``:
+    :func:`~friction_sim.core.physics.transient.accelerations_into`, compiled when ready
+    (as :func:`states_at`)."""
+    out = np.empty((2, len(taus)))
+    compiled = _sampler(p, seg)
+    if compiled is not None:
+        compiled.accelerations(p, float(seg.phase0), complex(c), complex(lam), np.array(taus, dtype=float), out)
+    else:
+        _transient.accelerations_into(p, seg.phase0, c, lam, np.array(taus, dtype=float), out)
+    rows: list[list[float]] = out.T.tolist()
+    return rows
+
+
+def _sampler(p: Plant, seg: Segment) -> CompiledStep | None:
+    """The compiled code if it is ready and fits ``p`` and ``seg`` (None: the plain samplers run)."""
+    compiled = KERNEL.compiled
+    if compiled is None or KERNEL.entry(p) is None or not compiled.segment_fits(seg):
+        return None
+    return compiled
+
+
 def _arguments(p: Plant, c: complex, lam: complex, horizon: float, mode: int, phase0: float, v0: float,
                vz0: float, z0: float, closing: int, grounded: bool) -> tuple[Any, ...]:
     """The step's arguments as the compiled code takes them (its types)."""
@@ -223,5 +294,6 @@ def transient_step(p: Plant, c: complex, lam: complex, horizon: float, mode: int
     return entry(*args) if entry is not None else _transient.transient_step(*args)
 
 
-__all__ = ["AUTO", "COMPILED", "KERNEL", "MODES", "PLAIN", "WORK", "CompiledStep", "Kernel", "await_loading",
-           "compile_step", "compiled_ready", "failure", "mode", "search_steps", "transient_step", "use"]
+__all__ = ["AUTO", "COMPILED", "KERNEL", "MODES", "PLAIN", "WORK", "CompiledStep", "Kernel", "accelerations_at",
+           "await_loading", "compile_step", "compiled_ready", "failure", "mode", "search_steps", "states_at",
+           "transient_step", "use"]

@@ -20,6 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from friction_sim.core.engine import transient_kernel
 from friction_sim.core.engine.actuator import Exciter, ExciterState
 from friction_sim.core.engine.transient_kernel import transient_step
 from friction_sim.core.model.params import Inputs, SliderParams
@@ -86,6 +87,12 @@ def states(plant: Plant, seg: Segment, transient: Transient, tau: Floats) -> Sta
     return x, v, acc, friction, normal, theta, z, vz
 
 
+def states_at(plant: Plant, seg: Segment, transient: Transient, taus: list[float]) -> list[list[float]]:
+    """The states at each of ``taus`` into ``seg``, as :func:`states` gives them at a float, bit
+    for bit (:func:`~friction_sim.core.engine.transient_kernel.states_at`: compiled when ready)."""
+    return transient_kernel.states_at(plant, seg, transient.c, transient.lam, taus)
+
+
 def segment_end(seg: Segment, transient: Transient, next_t: float) -> tuple[float, bool]:
     """(time, cut): where ``seg``'s closed form stops holding, and whether it is cut
     there rather than ended by its next event (at ``next_t``).
@@ -144,6 +151,14 @@ class ExciterReadings:
         lam = self._exciter.lam if self._exciter is not None else 0j
         return slideway_acceleration(self._plant, seg.phase0, self._transient.c, lam, self._t - seg.t0)
 
+    def _accelerations_at(self, times: list[float]) -> list[list[float]]:
+        """(along, normal) at each of ``times`` in the present segment, as
+        :meth:`slideway_acceleration` gives them there, bit for bit (compiled when ready)."""
+        seg = self._seg
+        lam = self._exciter.lam if self._exciter is not None else 0j
+        return transient_kernel.accelerations_at(self._plant, seg, self._transient.c, lam,
+                                                 [t - seg.t0 for t in times])
+
     @property
     def exciter(self) -> ExciterState | None:
         """The resonant exciter's state now (None with the force actuator)."""
@@ -155,4 +170,4 @@ class ExciterReadings:
 
 
 __all__ = ["STEADY", "ExciterReadings", "States", "Transient", "cut_by", "exciter_after", "motion", "segment_end",
-           "start", "states"]
+           "start", "states", "states_at"]

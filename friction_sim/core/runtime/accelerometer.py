@@ -17,7 +17,7 @@ import numpy as np
 
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.model import spec
-from friction_sim.core.model.params import cos_degrees, sin_degrees
+from friction_sim.core.model.params import SliderParams, cos_degrees, sin_degrees
 from friction_sim.core.model.records import Acceleration
 
 
@@ -56,9 +56,13 @@ class Accelerometer:
 
     def read(self, slider: Slider, k: int) -> Acceleration:
         """The sample of grid point ``k``; the slider stands at its time."""
-        self.next_index = k + 1
         along, normal = slider.slideway_acceleration()
-        params = slider.params
+        return self.reading(slider.params, k, slider.t, along, normal)
+
+    def reading(self, params: SliderParams, k: int, t: float, along: float, normal: float) -> Acceleration:
+        """The sample of grid point ``k`` at time ``t``, where the slideway's acceleration in the
+        track frame is (``along``, ``normal``) under ``params``."""
+        self.next_index = k + 1
         gravity = params.gravity
         x = along + gravity * sin_degrees(params.track_inclination)
         z = normal + gravity * cos_degrees(params.track_inclination)
@@ -66,7 +70,7 @@ class Accelerometer:
         if self.noise > 0.0:
             dx, dy, dz = self._normal()
             x, y, z = x + dx, y + dy, z + dz
-        return Acceleration(slider.t, x + self.bias, y + self.bias, z + self.bias)
+        return Acceleration(t, x + self.bias, y + self.bias, z + self.bias)
 
     def _normal(self) -> tuple[float, float, float]:
         """Three normal variates of standard deviation :attr:`noise`: the generator's next

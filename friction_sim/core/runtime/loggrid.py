@@ -53,35 +53,25 @@ class LogGrid:
                 break
 
     def _log_samples(self, slider: Slider, t: float) -> None:
-        """Advance through the log grid points up to ``t`` not logged yet,
-        keeping the exact state at each (and the events on the way), and
-        through the accelerometer's grid, in time order.  Mostly one point per
-        tick: a scalar advance is cheaper than numpy here, and cutting the time
-        axis there does not change the motion."""
+        """Advance through the log grid points up to ``t`` not logged yet, keeping
+        the exact state at each (and the events on the way), and through the
+        accelerometer's grid, reading it at each: a segment at a time
+        (:meth:`~friction_sim.core.engine.single.Slider.sample_grids`), which
+        gives each state and reading as advancing to its time does, bit for bit."""
         accelerometer = self.accelerometer
         due = accelerometer.due(slider.t, t) if accelerometer is not None else range(0)
         rate = self.log_rate or 1.0
         logged = grid(rate, self._next_log_index, slider.t, t) if self.log_rate else range(0)
         self._next_log_index = max(self._next_log_index, logged.stop)
-        if accelerometer is None or not due:  # (every tick of a node without the accelerometer: no merge)
-            for k in logged:
-                self._to(slider, k / rate)
-                self._samples.append(slider.state())
+        if not logged and not due:
             return
-        points = sorted([(k / rate, 0, k) for k in logged] + [(k / accelerometer.rate, 1, k) for k in due])
-        for when, kind, k in points:
-            self._to(slider, when)
-            if kind:
-                self._accelerations.append(accelerometer.read(slider, k))
-            else:
-                self._samples.append(slider.state())
-
-    def _to(self, slider: Slider, when: float) -> None:
-        """Advance ``slider`` to grid time ``when``, keeping the events on the way; nothing
-        if it stands there or beyond already (the two grids share most points: an advance
-        to where the slider stands finds nothing to do, at the cost of looking)."""
-        if when > slider.t:
-            self._events.extend(slider.advance_to(when))
+        reading_times = [k / accelerometer.rate for k in due] if accelerometer is not None else []
+        states, readings, events = slider.sample_grids([k / rate for k in logged], reading_times)
+        self._events.extend(events)
+        self._samples.extend(states)
+        if accelerometer is not None:
+            self._accelerations.extend(accelerometer.reading(slider.params, k, when, along, normal)
+                                       for k, when, (along, normal) in zip(due, reading_times, readings))
 
     def non_finite(self) -> str:
         """'' if every log sample kept is finite, else what the first that is not holds."""

@@ -22,8 +22,10 @@ from reference_exciter import random_case
 
 from friction_sim.core.engine import transient_kernel as kernel
 from friction_sim.core.engine.single import Slider
+from friction_sim.core.engine.transient_segment import Transient
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.physics.plant import plant_of
+from friction_sim.core.physics.segment import FORWARD, Segment
 
 from helpers import exciter_states
 
@@ -124,3 +126,71 @@ def test_an_unknown_mode_is_refused_by_name() -> None:
     with pytest.raises(ValueError, match="'fast' is not one of auto, compiled, plain"):
         kernel.use("fast")
     assert kernel.mode() in kernel.MODES and not math.isnan(kernel.search_steps())
+
+
+def _slider_of(case: object) -> tuple[Slider, float, float]:
+    """A slider of a random case of test/reference_exciter.py before its drive step, the step's time and level."""
+    from helpers import exciter_states
+
+    _, slider = exciter_states(case, np.array([1e-3]))
+    [(when, level)] = case.changes  # type: ignore[attr-defined]
+    return slider, when, level
+
+
+def _grids_by_points(slider: Slider, state_times: list[float], reading_times: list[float]) -> tuple[list, list, list]:
+    """The reference: advance to each time of the two grids in turn, then read the state or the slideway."""
+    states, readings, events = [], [], []
+    for when, kind in sorted([(t, 0) for t in state_times] + [(t, 1) for t in reading_times]):
+        events.extend(slider.advance_to(when))
+        if kind:
+            readings.append(list(slider.slideway_acceleration()))
+        else:
+            states.append(slider.state())
+    return states, readings, events
+
+
+@settings(max_examples=20, deadline=None, derandomize=True)
+@given(seed=st.integers(0, 2**32 - 1), mode=st.sampled_from([kernel.PLAIN, kernel.COMPILED]))
+def test_sampling_the_log_grids_a_segment_at_a_time_is_advancing_point_by_point_bit_for_bit(seed: int,
+                                                                                           mode: str) -> None:
+    # (the log grid's hot path: the segment's states and readings in one call, compiled once ready)
+    kernel.use(mode)
+    case = random_case(np.random.default_rng(seed))
+    log_rate, reading_rate = 1000.0, float(np.random.default_rng(seed).choice([1000.0, 1300.0, 370.0]))
+    by_grid, when, level = _slider_of(case)
+    by_point, _, _ = _slider_of(case)
+    for start, stop in ((by_grid.t, when), (when, 0.25)):
+        states = [k / log_rate for k in range(math.ceil(start * log_rate), math.floor(stop * log_rate) + 1)]
+        readings = [k / reading_rate for k in range(math.ceil(start * reading_rate),
+                                                    math.floor(stop * reading_rate) + 1)]
+        states, readings = [t for t in states if t >= by_grid.t], [t for t in readings if t >= by_grid.t]
+        assert by_grid.sample_grids(states, readings) == _grids_by_points(by_point, states, readings)
+        assert by_grid.t == by_point.t
+        by_grid.set_inputs(drive_level=level)
+        by_point.set_inputs(drive_level=level)
+    assert by_grid.state() == by_point.state()
+    if mode == kernel.COMPILED:
+        assert kernel.compiled_ready(), kernel.failure()
+
+
+def test_the_grids_of_kostek_s_case_are_its_states_bit_for_bit() -> None:
+    kernel.use(kernel.COMPILED)
+    by_grid, by_point = Slider(SliderParams(), Inputs()), Slider(SliderParams(), Inputs())
+    times = [k / 1000.0 for k in range(101)]
+    assert by_grid.sample_grids(times, times[::3]) == _grids_by_points(by_point, times, times[::3])
+
+
+def test_a_segment_of_other_types_is_sampled_plain() -> None:
+    # (the compiled samplers' entry point skips Numba's type checks, as the step's does)
+    kernel.use(kernel.COMPILED)
+    p = plant_of(SliderParams(actuator="resonant"), Inputs())
+    seg = Segment(FORWARD, 0.2, 0.01, 0.0, 0.0, 0, True, 0.0, 0.5, 0.001, 0.0, 25, 0.1, 0.0, 0)
+    transient = Transient(0.3 + 0.1j, complex(-6.5, 326.0), 0.6)
+    kernel.transient_step(p, transient.c, transient.lam, 0.5, FORWARD, 0.2, 0.01, 0.0, 0.0, 0, True)  # (compiles)
+    taus = [1e-4, 2e-4]
+    expected = kernel.states_at(p, seg, transient.c, transient.lam, taus)
+    compiled = kernel.KERNEL.compiled
+    assert compiled is not None and compiled.segment_fits(seg)
+    odd = seg._replace(closing=float(seg.closing))  # a float where the compiled code has an int
+    assert not compiled.segment_fits(odd)
+    assert kernel.states_at(p, odd, transient.c, transient.lam, taus) == expected
