@@ -109,10 +109,15 @@ class CompiledStep:
         self.segment_checked: tuple[Segment | None, bool] = (None, False)
 
     def segment_fits(self, seg: Segment) -> bool:
-        """Whether ``seg`` has the types the samplers were compiled for (checked once per segment)."""
+        """Whether ``seg`` has the types the samplers were compiled for (checked once per segment:
+        a segment's fields are numbers, so a flat look at each class does, cheaper than :func:`_shape`)."""
         checked = self.segment_checked
         if checked[0] is not seg:
-            checked = self.segment_checked = (seg, _shape(seg) == self.segment_shape)
+            kinds = self.segment_shape
+            fits = type(seg) is kinds[0] and all(
+                type(field) is kind or (kind == (int, True) and type(field) is int and -2**63 <= field < 2**63)
+                for field, kind in zip(seg, kinds[1:], strict=True))
+            checked = self.segment_checked = (seg, fits)
         return checked[1]
 
 

@@ -12,6 +12,7 @@ rest, REP 145), plus an optional bias and seeded white noise (off by default).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -56,21 +57,26 @@ class Accelerometer:
 
     def read(self, slider: Slider, k: int) -> Acceleration:
         """The sample of grid point ``k``; the slider stands at its time."""
-        along, normal = slider.slideway_acceleration()
-        return self.reading(slider.params, k, slider.t, along, normal)
+        [sample] = self.readings(slider.params, [k], [slider.t], [slider.slideway_acceleration()])
+        return sample
 
-    def reading(self, params: SliderParams, k: int, t: float, along: float, normal: float) -> Acceleration:
-        """The sample of grid point ``k`` at time ``t``, where the slideway's acceleration in the
-        track frame is (``along``, ``normal``) under ``params``."""
-        self.next_index = k + 1
+    def readings(self, params: SliderParams, points: Sequence[int], times: Sequence[float],
+                 slideway: Sequence[Sequence[float]]) -> list[Acceleration]:
+        """The samples of grid ``points`` (ascending) at ``times``, where the slideway's
+        acceleration in the track frame is (along, normal) of ``slideway`` under ``params``."""
         gravity = params.gravity
-        x = along + gravity * sin_degrees(params.track_inclination)
-        z = normal + gravity * cos_degrees(params.track_inclination)
-        y = 0.0
-        if self.noise > 0.0:
-            dx, dy, dz = self._normal()
-            x, y, z = x + dx, y + dy, z + dz
-        return Acceleration(t, x + self.bias, y + self.bias, z + self.bias)
+        gravity_x = gravity * sin_degrees(params.track_inclination)
+        gravity_z = gravity * cos_degrees(params.track_inclination)
+        bias, noisy = self.bias, self.noise > 0.0
+        samples: list[Acceleration] = []
+        for k, t, (along, normal) in zip(points, times, slideway, strict=True):
+            self.next_index = k + 1
+            x, y, z = along + gravity_x, 0.0, normal + gravity_z
+            if noisy:
+                dx, dy, dz = self._normal()
+                x, y, z = x + dx, y + dy, z + dz
+            samples.append(Acceleration(t, x + bias, y + bias, z + bias))
+        return samples
 
     def _normal(self) -> tuple[float, float, float]:
         """Three normal variates of standard deviation :attr:`noise`: the generator's next

@@ -70,8 +70,7 @@ class LogGrid:
         self._events.extend(events)
         self._samples.extend(states)
         if accelerometer is not None:
-            self._accelerations.extend(accelerometer.reading(slider.params, k, when, along, normal)
-                                       for k, when, (along, normal) in zip(due, reading_times, readings))
+            self._accelerations.extend(accelerometer.readings(slider.params, due, reading_times, readings))
 
     def non_finite(self) -> str:
         """'' if every log sample kept is finite, else what the first that is not holds."""

@@ -193,4 +193,7 @@ def test_a_segment_of_other_types_is_sampled_plain() -> None:
     assert compiled is not None and compiled.segment_fits(seg)
     odd = seg._replace(closing=float(seg.closing))  # a float where the compiled code has an int
     assert not compiled.segment_fits(odd)
+    assert not compiled.segment_fits(seg._replace(cycles=2**64))  # (beyond Numba's int64)
+    assert not compiled.segment_fits(seg._replace(grounded=1))  # an int where the compiled code has a bool
+    assert compiled.segment_fits(seg._replace(cycles=2**63 - 1))
     assert kernel.states_at(p, odd, transient.c, transient.lam, taus) == expected
