@@ -110,9 +110,9 @@ class RecordingStats:
 @dataclass
 class _ChannelChunk:
     """One channel's messages in the open chunk: index entries (log time,
-    offset in the chunk) as arrays and a list of single ones, count, time range."""
+    offset in the chunk) as pairs of arrays and a list of single ones, count, time range."""
 
-    arrays: list[np.ndarray[Any, np.dtype[np.uint64]]] = field(default_factory=list)
+    arrays: list[tuple[np.ndarray[Any, Any], np.ndarray[Any, Any]]] = field(default_factory=list)
     singles: list[int] = field(default_factory=list)  # log time, offset, log time, offset, ...
     count: int = 0
     first: int = 2**64
@@ -123,19 +123,30 @@ class _ChannelChunk:
         self.count += 1
         self.first, self.last = min(self.first, log_time), max(self.last, log_time)
 
-    def add_many(self, log_times: np.ndarray[Any, np.dtype[np.int64]],
-                 offsets: np.ndarray[Any, np.dtype[np.int64]]) -> None:
-        if self.singles:
-            self.arrays.append(np.array(self.singles, dtype=np.uint64).reshape(-1, 2))
-            self.singles = []
-        self.arrays.append(np.column_stack((log_times, offsets)).astype(np.uint64))
+    def add_many(self, log_times: np.ndarray[Any, np.dtype[np.int64]], offsets: np.ndarray[Any, np.dtype[np.int64]],
+                 first: int, last: int) -> None:
+        """Entries for messages at ``log_times`` (from ``first`` to ``last``) and ``offsets``."""
+        self._keep_singles()
+        self.arrays.append((log_times, offsets))
         self.count += len(log_times)
-        self.first, self.last = min(self.first, int(log_times.min())), max(self.last, int(log_times.max()))
+        self.first, self.last = min(self.first, first), max(self.last, last)
+
+    def _keep_singles(self) -> None:
+        if self.singles:
+            pairs = np.array(self.singles, dtype=np.int64).reshape(-1, 2)
+            self.arrays.append((pairs[:, 0], pairs[:, 1]))
+            self.singles = []
 
     def entries(self) -> bytes:
-        """The index entries, little-endian (log time, offset) pairs in the order written."""
-        parts = [*self.arrays, np.array(self.singles, dtype=np.uint64).reshape(-1, 2)]
-        return np.concatenate(parts).astype("<u8").tobytes()
+        """The index entries, little-endian (log time, offset) pairs in the order written
+        (built once per chunk: a run of rows adds its arrays as they are)."""
+        self._keep_singles()
+        if not self.arrays:
+            return b""
+        table = np.empty((self.count, 2), dtype="<u8")
+        table[:, 0] = np.concatenate([times for times, _ in self.arrays])
+        table[:, 1] = np.concatenate([offsets for _, offsets in self.arrays])
+        return table.tobytes()
 
 
 @dataclass(frozen=True)
@@ -174,6 +185,21 @@ class _RowFrame:
             fields.update({f"{prefix}sequence": ("<u4", start + 11), f"{prefix}log_time": ("<u8", start + 15),
                            f"{prefix}publish_time": ("<u8", start + 23), **layout.fields(prefix, body)})
         return cls(cdr.structured(fields, group.row_size), np.frombuffer(bytes(template), dtype=np.uint8), prefixes)
+
+
+@dataclass(frozen=True)
+class EncodedRows:
+    """Rows of a :class:`RowGroup` built by :meth:`BagFile.encode_rows`, on its
+    ``channels``, at ``log_times``, written by :meth:`BagFile.append_rows`."""
+
+    group: RowGroup
+    channels: tuple[int, ...]
+    prefixes: tuple[str, ...]
+    rows: np.ndarray[Any, np.dtype[Any]]
+    log_times: np.ndarray[Any, np.dtype[np.int64]]
+
+    def __len__(self) -> int:
+        return len(self.log_times)
 
 
 class BagFile:
@@ -258,27 +284,43 @@ class BagFile:
         """Write the group's messages for each row: stamped and logged at
         ``log_times[i]`` (each within 0..MAX_STAMP_NS), carrying ``values[i]``;
         in row order, the group's topics in order within a row."""
-        n = len(log_times)
-        if n == 0:
-            return
+        encoded = self.encode_rows(group, log_times, values)
+        self.append_rows(encoded, 0, len(log_times))
+
+    def encode_rows(self, group: RowGroup, log_times: np.ndarray[Any, np.dtype[np.int64]],
+                    values: np.ndarray[Any, np.dtype[np.float64]]) -> EncodedRows:
+        """The group's messages for each row (see :meth:`add_rows`), built in one
+        pass and written later, a slice at a time (:meth:`append_rows`): a writer
+        that keeps other records in their place between the rows of one batch
+        builds them once, not once per slice."""
         channels = tuple(self._channel(topic, layout.type_name) for topic, layout in zip(group.topics, group.layouts))
         frame = self._frames.get((group, channels))
         if frame is None:
             frame = self._frames[(group, channels)] = _RowFrame.of(group, channels)
+        n = len(log_times)
         rows = np.empty(n, dtype=frame.dtype)
-        data = rows.view(np.uint8)
-        data.reshape(n, group.row_size)[:] = frame.template  # the bytes every row shares
-        counter = np.arange(n, dtype=np.int64)
-        for prefix, channel, layout in zip(frame.prefixes, channels, group.layouts):
-            rows[f"{prefix}sequence"] = (self._sequence[channel] + counter) % _SEQUENCE_MOD
+        rows.view(np.uint8).reshape(n, group.row_size)[:] = frame.template  # the bytes every row shares
+        for prefix, layout in zip(frame.prefixes, group.layouts):
             rows[f"{prefix}log_time"] = rows[f"{prefix}publish_time"] = log_times
             layout.fill(rows, prefix, log_times, values)
+        return EncodedRows(group, channels, frame.prefixes, rows, log_times)
+
+    def append_rows(self, encoded: EncodedRows, start: int, stop: int) -> None:
+        """Write rows ``start`` to ``stop`` of ``encoded``, numbered on each channel
+        from where it stands (slices of one encoding are written in order)."""
+        n = stop - start
+        if n <= 0:
+            return
+        group, rows, log_times = encoded.group, encoded.rows[start:stop], encoded.log_times[start:stop]
+        counter = np.arange(n, dtype=np.int64)
+        for prefix, channel in zip(encoded.prefixes, encoded.channels):
+            rows[f"{prefix}sequence"] = (self._sequence[channel] + counter) % _SEQUENCE_MOD
         # Built whole: only now change the chunk, its indexes and the sequence numbers.
-        first = len(self._chunk)
-        for channel, start in zip(channels, group.starts):
+        first, low, high = len(self._chunk), int(log_times.min()), int(log_times.max())
+        for channel, offset in zip(encoded.channels, group.starts):
             self._sequence[channel] = (self._sequence[channel] + n) % _SEQUENCE_MOD
-            self._channel_chunk(channel).add_many(log_times, first + start + group.row_size * counter)
-        self._chunk += data.data
+            self._channel_chunk(channel).add_many(log_times, first + offset + group.row_size * counter, low, high)
+        self._chunk += rows.view(np.uint8).data
         self._maybe_end_chunk()
 
     # -- chunks ---------------------------------------------------------------------
@@ -448,4 +490,5 @@ def _records(records: Sequence[McapRecord]) -> bytes:
     return b"".join(_record(record) for record in records)
 
 
-__all__ = ["MAX_STAMP_NS", "ROSBAG2_METADATA_VERSION", "ROS_DISTRO", "BagFile", "RecordingStats", "RowGroup"]
+__all__ = ["MAX_STAMP_NS", "ROSBAG2_METADATA_VERSION", "ROS_DISTRO", "BagFile", "EncodedRows", "RecordingStats",
+           "RowGroup"]

@@ -32,7 +32,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from friction_sim.core.model.events import Event, Mode, SliderState
 from friction_sim.core.model.records import Acceleration, PeriodSummary
 from friction_sim.errors import one_line
-from friction_sim.io.bagfile import MAX_STAMP_NS, BagFile, RowGroup
+from friction_sim.io.bagfile import MAX_STAMP_NS, BagFile, EncodedRows, RowGroup
 from friction_sim.io.cdr import FixedLayout, diagnostic_status, fixed_layouts
 from friction_sim.io.messages import (
     ACCELEROMETER,
@@ -117,6 +117,45 @@ def imu_row_builder(frame_id: str, noise: float) -> Callable[[int, Sequence[floa
     return make
 
 
+def _state_table(states: Sequence[SliderState]) -> np.ndarray:
+    """A row (t, :data:`STATE_VALUES`...) per state."""
+    return np.array([(s.t, *state_row(s)) for s in states], dtype=np.float64)
+
+
+def _sample_table(samples: Sequence[Acceleration]) -> np.ndarray:
+    """A row (t, x, y, z) per accelerometer sample."""
+    return np.array([(s.t, s.x, s.y, s.z) for s in samples], dtype=np.float64)
+
+
+class _Piece(NamedTuple):
+    """A pass of a batch's rows: its first record's index in the batch, the rows built
+    (None: the pass failed), and how many were kept before each record (and after the last)."""
+
+    first: int
+    rows: EncodedRows | None
+    kept: list[int]
+
+
+class _Encoded:
+    """The records of one group of a batch (a frame's states, or its samples at one noise),
+    built at once (:meth:`RecordWriter._build`) and written a run at a time, in the order
+    queued (:meth:`RecordWriter.write`)."""
+
+    def __init__(self, records: list[Any] | None = None) -> None:
+        self.records: list[Any] = records if records is not None else []
+        self.pieces: list[_Piece] | None = None  # (None: not built yet)
+        self.written = 0  # records written (or dropped) so far
+
+    def append(self, file: BagFile, count: int) -> None:
+        """Write the next ``count`` records' rows (those kept)."""
+        start, stop = self.written, self.written + count
+        self.written = stop  # (first: a run that fails is dropped, and the next ones keep their rows)
+        for first, rows, kept in self.pieces or ():
+            low, high = max(start, first), min(stop, first + len(kept) - 1)
+            if rows is not None and low < high:
+                file.append_rows(rows, kept[low - first], kept[high - first])
+
+
 def qualified_topic(namespace: str, topic: str) -> str:
     """``topic`` as rosbag2 names it: absolute names stay, relative ones are
     resolved in ``namespace`` (``pose`` in ``/`` is ``/pose``, in ``/feeder1``
@@ -142,6 +181,9 @@ class RecordWriter:
         self._period_layouts: dict[str, FixedLayout | None] = {}
         self._imu_groups: dict[tuple[str, float], RowGroup | None] = {}
         self._templates: tuple[Any, Any, Any] | None = None  # pose, twist, wrench: the one-at-a-time path
+        # The batch being written: its states by frame and samples by (frame, noise), built (see write).
+        self._state_rows: dict[str, _Encoded] = {}
+        self._sample_rows: dict[tuple[str, float], _Encoded] = {}
 
     def write(self, batch: Sequence[Item]) -> None:
         """Write the records of ``batch``.  The states of consecutive ticks
@@ -150,7 +192,17 @@ class RecordWriter:
         parameters, a message, metadata) keeps its place: everything queued
         before it is written before it (a file cut short holds the commands
         the states it holds followed, and no later ones).  Each topic stays in
-        time order."""
+        time order.  The states and samples of the whole batch are built at
+        once, before it is written (:meth:`_encode`): a controller that answers
+        every period puts a command between each period's, and building them a
+        run at a time took half the writer's work."""
+        self._encode(batch)
+        try:
+            self._write_in_place(batch)
+        finally:
+            self._state_rows, self._sample_rows = {}, {}
+
+    def _write_in_place(self, batch: Sequence[Item]) -> None:
         states: list[SliderState] = []
         frame_id = ""
         later: list[Item] = []  # events, periods and samples of the ticks whose states are in ``states``
@@ -202,28 +254,57 @@ class RecordWriter:
 
     # -- states and periods, many at a time ---------------------------------------------
 
+    def _encode(self, batch: Sequence[Item]) -> None:
+        """Gather the states (by frame) and accelerometer samples (by frame and noise) of
+        ``batch``, in the order queued: each group is built at its first run (once
+        what was queued before it is written, so channels are made in the order queued)
+        and written a run at a time."""
+        for item in batch:
+            if isinstance(item, StatesRecord):
+                self._state_rows.setdefault(item.frame_id, _Encoded()).records.extend(item.states)
+            elif isinstance(item, AccelerationsRecord):
+                self._sample_rows.setdefault((item.frame_id, item.noise), _Encoded()).records.extend(item.samples)
+
+    def _build(self, encoded: _Encoded, group: RowGroup, table_of: Callable[[Sequence[Any]], np.ndarray],
+               per_record: int, what: str, why: str) -> None:
+        """Build ``encoded``'s records as rows of ``group`` (``table_of`` gives a row of (t, values...)
+        per record), in passes of :data:`ROWS_PER_PASS`, once; a record whose time no ROS stamp holds
+        is dropped and counted (``per_record`` messages each), as is a pass that fails."""
+        if encoded.pieces is not None:
+            return
+        encoded.pieces = []
+        records = encoded.records
+        for first in range(0, len(records), ROWS_PER_PASS):
+            part = records[first:first + ROWS_PER_PASS]
+            try:
+                table = table_of(part)
+                ns = np.rint(table[:, 0] * 1e9)  # = seconds_to_ns(t): round half to even, as round()
+                ok = (ns >= 0.0) & (ns <= MAX_STAMP_NS)  # False for NaN too
+                if not ok.all():
+                    self._count_bad(per_record * int((~ok).sum()), what, why)
+                    ns, table = ns[ok], table[ok]
+                rows: EncodedRows | None = self.file.encode_rows(group, ns.astype(np.int64), table[:, 1:])
+                kept = [0, *np.cumsum(ok).tolist()]
+            except OSError:
+                raise
+            except Exception as error:  # noqa: BLE001 - bad records must not end the recording
+                self._count_bad(per_record * len(part), what, one_line(error, with_type=True))
+                rows, kept = None, [0] * (len(part) + 1)
+            encoded.pieces.append(_Piece(first, rows, kept))
+
     def _write_states(self, states: Sequence[SliderState], frame_id: str) -> None:
         """Write states as pose, velocity and friction_force: many at a time
         when the three messages are fixed-layout (they are), else one by one."""
         group = self._state_group(frame_id)
-        for first in range(0, len(states), ROWS_PER_PASS):
-            part = states[first:first + ROWS_PER_PASS]
-            if group is None:
-                for state in part:
-                    self._write_safely(StatesRecord((state,), frame_id))
-                continue
-            try:
-                table = np.array([(s.t, *state_row(s)) for s in part], dtype=np.float64)
-                ns = np.rint(table[:, 0] * 1e9)  # = seconds_to_ns(t): round half to even, as round()
-                ok = (ns >= 0.0) & (ns <= MAX_STAMP_NS)  # False for NaN too
-                if not ok.all():
-                    self._count_bad(3 * int((~ok).sum()), "state", "a state time no ROS stamp holds")
-                    ns, table = ns[ok], table[ok]
-                self.file.add_rows(group, ns.astype(np.int64), table[:, 1:])
-            except OSError:
-                raise
-            except Exception as error:  # noqa: BLE001 - bad records must not end the recording
-                self._count_bad(3 * len(part), "state", one_line(error, with_type=True))
+        if group is None:
+            for state in states:
+                self._write_safely(StatesRecord((state,), frame_id))
+            return
+        encoded = self._state_rows.get(frame_id)
+        if encoded is None:  # (not queued in a batch)
+            encoded = _Encoded(list(states))
+        self._build(encoded, group, _state_table, 3, "state", "a state time no ROS stamp holds")
+        encoded.append(self.file, len(states))
 
     def _state_group(self, frame_id: str) -> RowGroup | None:
         """The fixed layouts of a state's three messages in ``frame_id`` (cached)."""
@@ -247,25 +328,28 @@ class RecordWriter:
         else:
             self._add(topic, mean_velocity_message(period, frame_id), ns)
 
+    def _imu_group(self, frame_id: str, noise: float) -> RowGroup | None:
+        """The fixed layout of the accelerometer's Imu message in ``frame_id`` at ``noise`` (cached)."""
+        key = (frame_id, noise)
+        if key not in self._imu_groups:
+            self._imu_groups[key] = self.file.row_group([self.topic(ACCELEROMETER)],
+                                                        imu_row_builder(frame_id, noise), 3)
+        return self._imu_groups[key]
+
     def _write_accelerations(self, samples: Sequence[Acceleration], frame_id: str, noise: float) -> None:
         """Write accelerometer samples as sensor_msgs/Imu, many at a time (one by one if
         the message has no fixed layout)."""
-        topic = self.topic(ACCELEROMETER)
-        key = (frame_id, noise)
-        if key not in self._imu_groups:
-            self._imu_groups[key] = self.file.row_group([topic], imu_row_builder(frame_id, noise), 3)
-        group = self._imu_groups[key]
+        group = self._imu_group(frame_id, noise)
         if group is None:
+            topic = self.topic(ACCELEROMETER)
             for sample in samples:
                 self._add(topic, imu_message(sample, frame_id, noise), seconds_to_ns(sample.t))
             return
-        table = np.array([(s.t, s.x, s.y, s.z) for s in samples], dtype=np.float64)
-        ns = np.rint(table[:, 0] * 1e9)  # = seconds_to_ns(t), as the message's stamp
-        ok = (ns >= 0.0) & (ns <= MAX_STAMP_NS)  # False for NaN too
-        if not ok.all():
-            self._count_bad(int((~ok).sum()), "accelerations", "a sample time no ROS stamp holds")
-            ns, table = ns[ok], table[ok]
-        self.file.add_rows(group, ns.astype(np.int64), table[:, 1:])
+        encoded = self._sample_rows.get((frame_id, noise))
+        if encoded is None:  # (not queued in a batch)
+            encoded = _Encoded(list(samples))
+        self._build(encoded, group, _sample_table, 1, "accelerations", "a sample time no ROS stamp holds")
+        encoded.append(self.file, len(samples))
 
     # -- one record at a time --------------------------------------------------------
 

@@ -385,3 +385,60 @@ def test_recorded_states_are_on_the_grid_whatever_the_tick_times(tmp_path: Path)
     assert len(events) == sum(rt.slider.event_counts.values())
     assert [float({kv.key: kv.value for kv in m.values}["t"]) for _, m in events] == [e.t for e in rt.slider.events]
     assert all(a <= b for (a, _), (b, _) in itertools.pairwise(events))
+
+
+# -- a batch of states and commands --------------------------------------------------------
+
+
+@pytest.mark.parametrize("rows_per_pass", [2048, 3])
+def test_in_a_batch_of_states_and_commands_each_record_keeps_its_place(tmp_path: Path, rows_per_pass: int,
+                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """A controller that answers every period puts a command between each period's
+    states and samples.  The writer builds a batch's rows at once but writes them a
+    run at a time: each command stays between the states it followed and those that
+    follow it (a file cut short holds the commands the states it holds followed, and
+    no later ones; a copy of the file message by message keeps that), each channel
+    numbered in order.  Chunks of one byte: each run ends one.  In passes of 3 rows
+    too, with a state whose time no stamp holds (dropped, counted, the rest in place)."""
+    from mcap.records import Channel, Message
+    from mcap.stream_reader import StreamReader
+
+    from friction_sim.io import recordwriter
+    from friction_sim.io.bagfile import BagFile, RecordingStats
+    from friction_sim.io.recordwriter import RecordWriter
+    from friction_sim.io.typesupport import DEFAULT_QOS
+
+    monkeypatch.setattr(recordwriter, "ROWS_PER_PASS", rows_per_pass)
+
+    path = tmp_path / "run.mcap"
+    expected = []
+    with path.open("wb") as stream:
+        file = BagFile(stream, DEFAULT_QOS, 1, RecordingStats(path))
+        file.start("ros2", "test")
+        writer = RecordWriter(file, "/", path, "slider")
+        for batch in range(3):
+            items: list[Any] = []
+            for tick in range(4):
+                t = batch + 0.1 * tick
+                bad = dataclasses.replace(STATE, t=-1.0)  # (no stamp holds it)
+                items += [StatesRecord((dataclasses.replace(STATE, t=t), *[bad][:tick == 2]), "slideway"),
+                          AccelerationsRecord((Acceleration(t, 0.1, 0.0, 9.8),), "slideway", 0.0),
+                          CommandRecord(Outcome(Command(t + 0.05, "drive_force", {"drive_force": 0.1 * tick})),
+                                        "slideway")]
+                ns, command_ns = round(t * 1e9), round((t + 0.05) * 1e9)
+                expected += [("/pose", ns), ("/velocity", ns), ("/friction_force", ns), ("/accelerometer", ns),
+                             ("/drive_force", command_ns)]
+            writer.write(items)
+            assert writer.bad == 3 * (batch + 1)
+        file.finish()
+    topics: dict[int, str] = {}
+    written, sequences = [], {}
+    with path.open("rb") as stream:
+        for record in StreamReader(stream).records:
+            if isinstance(record, Channel):
+                topics[record.id] = record.topic
+            elif isinstance(record, Message):
+                written.append((topics[record.channel_id], record.log_time))
+                sequences.setdefault(record.channel_id, []).append(record.sequence)
+    assert written == expected
+    assert all(numbers == list(range(len(numbers))) for numbers in sequences.values())
