@@ -70,6 +70,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from friction_sim.core.control.lockin import MIN_SAMPLES, Vibration, fit_period
+from friction_sim.core.engine.transient_kernel import normal_accelerations
 from friction_sim.core.model import spec
 from friction_sim.core.model.dimensionless import TWO_PI
 from friction_sim.core.model.params import SliderParams
@@ -325,8 +326,7 @@ class DriveLoop:
         if index is None or len(reading.times) < MIN_SAMPLES or not reading.amplitude > 0.0 or self._stepped(index):
             return
         planned = self._planned[index]
-        normal = [slideway_state(planned.way, TWO_PI * planned.frequency * (t - planned.t_start),
-                                 t - planned.t_start)[2] for t in reading.times]
+        normal = normal_accelerations(planned.way, planned.frequency, planned.t_start, reading.times)
         expected = fit_period(reading.times, normal, reading.t_start, reading.t_end, reading.cycles)
         if not expected.amplitude > 0.0:
             return

@@ -24,12 +24,14 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 
+from friction_sim.core.physics import exciter as _exciter
 from friction_sim.core.physics import transient as _transient
+from friction_sim.core.physics.exciter import Slideway
 from friction_sim.core.physics.plant import Plant
 from friction_sim.core.physics.segment import STUCK, Segment, Step
 
@@ -99,12 +101,15 @@ class CompiledStep:
     same way, and the shape of segment they were compiled for."""
 
     def __init__(self, entry: StepFunction, fits: Callable[[Plant], bool], states: Callable[..., None],
-                 accelerations: Callable[..., None], segment_shape: tuple[Any, ...]) -> None:
+                 accelerations: Callable[..., None], segment_shape: tuple[Any, ...],
+                 slideway: Callable[..., None]) -> None:
         self.entry = entry
         self.fits = fits
         self.states = states
         self.accelerations = accelerations
         self.segment_shape = segment_shape
+        #: :func:`~friction_sim.core.physics.exciter.normal_accelerations_into`, for a slideway of floats.
+        self.slideway = slideway
         #: The last segment checked against :attr:`segment_shape` and the verdict (one tuple, replaced whole).
         self.segment_checked: tuple[Segment | None, bool] = (None, False)
 
@@ -159,11 +164,15 @@ def compile_step(args: tuple[Any, ...]) -> CompiledStep:
                         _entry(numba, _transient.states_into, (*sampler_types, typeof(states))),
                         _entry(numba, _transient.accelerations_into,
                                (plant_type, typeof(0.0), *sampler_types[2:], typeof(accelerations))),
-                        _shape(_REST))
+                        _shape(_REST),
+                        _entry(numba, _exciter.normal_accelerations_into,
+                               (typeof(_STILL), typeof(0.0), typeof(0.0), typeof(taus), typeof(taus))))
 
 
 #: A segment of the types the stepper makes (the samplers are compiled for them).
 _REST = Segment(STUCK, 0.0, 0.0, 0.0, 0.0, 0, False, 0.0, 0.0, 0.0, 0.0, 0, 0.0, 0.0, 0)
+#: A slideway of the types a drive loop's model makes.
+_STILL = Slideway(0.0, 0.0, 1.0, -1 + 1j, 0j)
 
 
 def _entry(numba: Any, function: Callable[..., Any], signature: tuple[Any, ...]) -> Callable[..., Any]:
@@ -271,6 +280,21 @@ def accelerations_at(p: Plant, seg: Segment, c: complex, lam: complex, taus: lis
     return rows
 
 
+def normal_accelerations(way: Slideway, frequency: float, t_start: float, times: Sequence[float]) -> list[float]:
+    """q'' of the slideway ``way`` at ``times`` (see
+    :func:`~friction_sim.core.physics.exciter.normal_accelerations_into`): compiled when it is
+    ready and ``way`` holds floats and complex numbers as compiled, else plain (the same numbers)."""
+    out = np.empty(len(times))
+    compiled = KERNEL.compiled if KERNEL.mode != PLAIN else None
+    if compiled is not None and type(way) is Slideway and all(
+            type(field) is kind for field, kind in zip(way, (float, float, float, complex, complex))):
+        compiled.slideway(way, float(frequency), float(t_start), np.array(times, dtype=float), out)
+    else:
+        _exciter.normal_accelerations_into(way, frequency, t_start, np.array(times, dtype=float), out)
+    values: list[float] = out.tolist()
+    return values
+
+
 def _sampler(p: Plant, seg: Segment) -> CompiledStep | None:
     """The compiled code if it is ready and fits ``p`` and ``seg`` (None: the plain samplers run)."""
     compiled = KERNEL.compiled
@@ -300,5 +324,6 @@ def transient_step(p: Plant, c: complex, lam: complex, horizon: float, mode: int
 
 
 __all__ = ["AUTO", "COMPILED", "KERNEL", "MODES", "PLAIN", "WORK", "CompiledStep", "Kernel", "accelerations_at",
-           "await_loading", "compile_step", "compiled_ready", "failure", "mode", "search_steps", "states_at",
+           "await_loading", "compile_step", "compiled_ready", "failure", "mode", "normal_accelerations", "search_steps",
+           "states_at",
            "transient_step", "use"]

@@ -35,6 +35,8 @@ from __future__ import annotations
 import math
 from typing import NamedTuple, overload
 
+import numpy as np
+
 from friction_sim.core.model.dimensionless import TWO_PI, Real
 from friction_sim.core.physics.numerics import hypot
 
@@ -129,6 +131,16 @@ def slideway_state(way: Slideway, theta: float, tau: float) -> tuple[float, floa
     return q, qd, qdd
 
 
+def normal_accelerations_into(way: Slideway, frequency: float, t_start: float, times: np.ndarray,
+                              out: np.ndarray) -> None:
+    """q'' at each of ``times`` of the slideway ``way``, started at ``t_start`` and driven
+    at ``frequency``: what a sensor on it reads normal to the track, gravity aside
+    (:func:`slideway_state`, one time after the other), into ``out``."""
+    for i in range(times.size):
+        tau = float(times[i]) - t_start
+        out[i] = slideway_state(way, TWO_PI * frequency * tau, tau)[2]
+
+
 def rebased(way: Slideway, theta: float, tau: float, amplitude: float, lag: float, omega: float,
             lam: complex) -> Slideway:
     """The slideway after a change ``tau`` into ``way`` (drive phase ``theta``
@@ -197,5 +209,6 @@ def exp_terms(lam: complex, tau: float) -> tuple[complex, complex, complex]:
     return e_m1 + 1.0, e_m1 / lam, e_m2
 
 
-__all__ = ["SETTLED", "Response", "Slideway", "eigenvalue", "exp_terms", "followed", "force_transient", "rebased",
-           "response", "settle_delay", "slideway_state", "steady_acceleration", "steady_response", "steady_slideway"]
+__all__ = ["SETTLED", "Response", "Slideway", "eigenvalue", "exp_terms", "followed", "force_transient",
+           "normal_accelerations_into", "rebased", "response", "settle_delay", "slideway_state", "steady_acceleration",
+           "steady_response", "steady_slideway"]

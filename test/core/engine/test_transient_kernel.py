@@ -23,6 +23,7 @@ from reference_exciter import random_case
 from friction_sim.core.engine import transient_kernel as kernel
 from friction_sim.core.engine.single import Slider
 from friction_sim.core.engine.transient_segment import Transient
+from friction_sim.core.model.dimensionless import TWO_PI
 from friction_sim.core.model.params import Inputs, SliderParams
 from friction_sim.core.physics.plant import plant_of
 from friction_sim.core.physics.segment import FORWARD, Segment
@@ -197,3 +198,24 @@ def test_a_segment_of_other_types_is_sampled_plain() -> None:
     assert not compiled.segment_fits(seg._replace(grounded=1))  # an int where the compiled code has a bool
     assert compiled.segment_fits(seg._replace(cycles=2**63 - 1))
     assert kernel.states_at(p, odd, transient.c, transient.lam, taus) == expected
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(amplitude=st.floats(0.0, 50.0), lag=st.floats(0.0, 3.1), natural=st.floats(30.0, 70.0),
+       zeta=st.floats(0.005, 0.2), d=st.complex_numbers(max_magnitude=1e-3), start=st.floats(0.0, 100.0))
+def test_a_drive_model_s_accelerometer_reading_is_the_same_compiled(amplitude: float, lag: float, natural: float,
+                                                                    zeta: float, d: complex, start: float) -> None:
+    # (the drive loop reads its model at a window's sample times: compiled once ready, the plain slideway_state's bits)
+    from friction_sim.core.physics.exciter import Slideway, eigenvalue, slideway_state
+
+    way = Slideway(amplitude, lag, TWO_PI * 50.0, eigenvalue(natural, zeta), d)
+    times = [start + k / 1000.0 for k in range(21)]
+    plain = [slideway_state(way, TWO_PI * 50.0 * (t - start), t - start)[2] for t in times]
+    kernel.use(kernel.COMPILED)
+    p = plant_of(SliderParams(actuator="resonant"), Inputs())
+    kernel.transient_step(p, 0.3 + 0.1j, complex(-6.5, 326.0), 0.5, FORWARD, 0.2, 0.01, 0.0, 0.0, 0, True)  # (compiles)
+    assert kernel.compiled_ready(), kernel.failure()
+    assert kernel.normal_accelerations(way, 50.0, start, times) == plain
+    odd = way._replace(amplitude=int(amplitude))  # an int where the compiled code has a float: plain
+    assert kernel.normal_accelerations(odd, 50.0, start, times) == [
+        slideway_state(odd, TWO_PI * 50.0 * (t - start), t - start)[2] for t in times]
