@@ -66,19 +66,22 @@ def fit_period(times: Iterable[float], normal: Iterable[float], t_start: float, 
     """The least-squares reading of one window of ``cycles`` drive periods from
     the samples (t, a_z) in it (see the module doc); a :class:`ParameterError`
     if the window is empty or holds fewer than :data:`MIN_SAMPLES` samples."""
-    t = np.asarray(list(times), dtype=float)
-    z = np.asarray(list(normal), dtype=float)
+    t = np.array(times if isinstance(times, (list, tuple)) else list(times), dtype=float)
+    z = np.array(normal if isinstance(normal, (list, tuple)) else list(normal), dtype=float)
     if not t_end > t_start:
         raise ParameterError("period", (t_start, t_end), "must end after it starts")
     if t.size < MIN_SAMPLES or t.size != z.size:
         raise ParameterError("samples", int(t.size), f"a period needs at least {MIN_SAMPLES} accelerometer samples")
     theta = TWO_PI * cycles * (t - t_start) / (t_end - t_start)
-    design = np.column_stack([np.ones_like(theta), np.sin(theta), np.cos(theta)])
+    design = np.empty((t.size, 3))  # rows (1, sin, cos), as column_stack makes them, a period at a time
+    design[:, 0] = 1.0
+    design[:, 1] = np.sin(theta)  # (into a contiguous array first: numpy's SIMD loops take that one)
+    design[:, 2] = np.cos(theta)
     (offset, in_phase, quadrature), *_ = np.linalg.lstsq(design, z, rcond=None)
     # q'' = -P/m = -R sin(theta - lag) = I sin(theta) + Q cos(theta): I = -R cos(lag), Q = R sin(lag)
     lag = math.atan2(float(quadrature), -float(in_phase))
     return Vibration(t_start, t_end, math.hypot(float(in_phase), float(quadrature)), lag, float(offset), int(t.size),
-                     tuple(float(x) for x in t), cycles)
+                     tuple(t.tolist()), cycles)
 
 
 class LockIn:
