@@ -61,6 +61,7 @@ from friction_sim.io.messages import (
 )
 from friction_sim.io.sinks import CommandRecord
 from friction_sim.ros.driving import spin_once, spin_until
+from friction_sim.ros.heap import run_heap
 
 Progress = Callable[[Status], None]
 #: Wall time [s] a lockstep run waits for a slider whose time stands still on its way to a point
@@ -110,12 +111,13 @@ def run_experiment(spec: ExperimentSpec, *, namespace: str | None = None, attach
             attached=attach) if spec.lockstep else None
         _wait_until_connected(executor, publishers, spec.controller, plant, scheduler)
         operator = _OperatorHands(driver, executor, publishers, spec.operator)
-        if scheduler is not None:
-            if not attach:  # (the slider stands at its start until the first promise)
-                transient_kernel.await_loading(KERNEL_WAIT)
-            _play_lockstep(spec, plant, executor, scheduler, result, progress, operator)
-        else:
-            _play(spec, plant, executor, publishers, result, progress, operator)
+        if scheduler is not None and not attach:  # (the slider stands at its start until the first promise)
+            transient_kernel.await_loading(KERNEL_WAIT)
+        with run_heap():  # (the collector walks what the run makes, not the process's start-up)
+            if scheduler is not None:
+                _play_lockstep(spec, plant, executor, scheduler, result, progress, operator)
+            else:
+                _play(spec, plant, executor, publishers, result, progress, operator)
     finally:
         if plant is not None:
             plant.close()

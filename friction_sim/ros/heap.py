@@ -1,4 +1,5 @@
-"""The C heap of a process that runs nodes: a bound on glibc's per-thread arenas.
+"""The heap of a process that runs nodes: a bound on glibc's per-thread arenas, and
+the garbage collector kept off what was there before a run.
 
 glibc gives threads that allocate at once arenas of their own, up to eight per
 core, and keeps what is freed in each.  A node process has many threads (the
@@ -9,13 +10,25 @@ varying from run to run, and 7 % with two arenas (the rest is the
 experiment's own per-period series, which grow by design).  ``MALLOC_ARENA_MAX``
 set in the environment has the same effect and takes precedence: a user's
 setting is left as it is.
+
+Python's cyclic garbage collector, when it collects its oldest generation,
+walks every object the process holds: after start-up (rclpy, numpy, Numba,
+the nodes) that is ~80 ms of the GIL, stopped in the middle of a run, and
+it comes when allocation counts say so (an experiment in lockstep ran a third
+slower for the one it met; a real-time slider fell that far behind its
+clock).  :func:`run_heap` freezes what exists when a run starts
+(``gc.freeze``): collections during the run walk only what the run made.
+Nothing is lost: reference counting frees as always, and what was frozen is
+handed back to the collector when the run ends.
 """
 
 from __future__ import annotations
 
 import contextlib
 import ctypes
+import gc
 import os
+from collections.abc import Iterator
 
 #: Arenas a node process uses at most (glibc's M_ARENA_MAX; two is what is commonly set for
 #: servers with many threads: memory flat, the allocator's locks barely contended here).
@@ -34,4 +47,17 @@ def limit_heap_arenas(arenas: int = ARENAS) -> bool:
     return False
 
 
-__all__ = ["ARENAS", "limit_heap_arenas"]
+@contextlib.contextmanager
+def run_heap() -> Iterator[None]:
+    """Within it the garbage collector leaves alone the objects that existed when it began
+    (``gc.freeze``); at its end they are the collector's again (``gc.unfreeze``: what a
+    run left unreachable is collected later, outside it).  Not nested: the end of an
+    inner one would hand back the outer one's objects too."""
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
+
+
+__all__ = ["ARENAS", "limit_heap_arenas", "run_heap"]

@@ -31,7 +31,7 @@ from rclpy.utilities import remove_ros_args
 from friction_sim.core.model.commands import consumed_by
 from friction_sim.core.model.spec import Setting
 from friction_sim.errors import FrictionSimError, NodeFault, one_line
-from friction_sim.ros.heap import limit_heap_arenas
+from friction_sim.ros.heap import limit_heap_arenas, run_heap
 from friction_sim.ros.intake import LostMessages
 
 RCLError = _rclpy.RCLError
@@ -251,7 +251,8 @@ def run_node(
         nodes = list(made) if isinstance(made, Sequence) else [made]
         for node in nodes:
             executor.add_node(node)
-        _spin(executor, interrupted)
+        with run_heap():  # (the collector walks what the node makes, not the process's start-up)
+            _spin(executor, interrupted)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except NodeFault:
