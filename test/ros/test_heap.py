@@ -50,11 +50,11 @@ def test_a_run_s_collections_leave_what_existed_before_it_alone_and_hand_it_back
             self.me = self
 
     before = Cycle()
-    assert gc.get_freeze_count() == 0
+    interpreters = gc.get_freeze_count()  # (Python 3.12 freezes a few hundred of its own at start-up)
     tracked = len(gc.get_objects())
     with run_heap():
         frozen = gc.get_freeze_count()
-        assert frozen >= tracked and len(gc.get_objects()) < 100  # (only what the run made is walked)
+        assert frozen >= interpreters + tracked and len(gc.get_objects()) < 100  # (only the run's are walked)
         made = Cycle()
         del made
         assert gc.collect() >= 1  # (the run's own garbage, a cycle, is collected)
