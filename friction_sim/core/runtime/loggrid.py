@@ -65,8 +65,10 @@ class LogGrid:
         self._next_log_index = max(self._next_log_index, logged.stop)
         if not logged and not due:
             return
-        reading_times = [k / accelerometer.rate for k in due] if accelerometer is not None else []
-        states, readings, events = slider.sample_grids([k / rate for k in logged], reading_times)
+        # (a point the rounded grid puts a hair before where the slider stands is read where it stands)
+        now = slider.t
+        reading_times = [max(k / accelerometer.rate, now) for k in due] if accelerometer is not None else []
+        states, readings, events = slider.sample_grids([max(k / rate, now) for k in logged], reading_times)
         self._events.extend(events)
         self._samples.extend(states)
         if accelerometer is not None:
