@@ -30,7 +30,7 @@ from friction_sim.core.physics.plant import Plant
 from friction_sim.core.physics.roots import NEVER
 from friction_sim.core.physics.segment import Segment, Step, evaluate
 from friction_sim.core.physics.stepper import transient_end
-from friction_sim.core.physics.transient import slideway_acceleration, transient_evaluate
+from friction_sim.core.physics.transient import slideway_acceleration, state_at
 
 #: A state's numbers (x, v, acceleration, friction, normal force, phase, z, vz), at a time or at many.
 States = tuple[Floats, Floats, Floats, Floats, Floats, Floats, Floats, Floats]
@@ -74,15 +74,11 @@ def states(plant: Plant, seg: Segment, transient: Transient, tau: Floats) -> Sta
     :func:`~friction_sim.core.physics.transient.transient_evaluate`'s, one by one
     (so a sampled state is the scalar one, bit for bit)."""
     c, lam = transient.c, transient.lam
+    if isinstance(tau, float):
+        return state_at(plant, seg, c, lam, tau)
     if not c:
         return evaluate(plant, seg, tau)
-
-    def at(each: float) -> tuple[float, float, float, float, float, float, float, float]:
-        return transient_evaluate(plant, seg, c, lam, each)
-
-    if isinstance(tau, float):
-        return at(tau)
-    rows = zip(*map(at, tau.tolist()))
+    rows = zip(*(state_at(plant, seg, c, lam, each) for each in tau.tolist()))
     x, v, acc, friction, normal, theta, z, vz = (np.array(column, dtype=float) for column in rows)
     return x, v, acc, friction, normal, theta, z, vz
 

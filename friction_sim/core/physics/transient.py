@@ -450,18 +450,22 @@ def transient_evaluate(p: Plant, seg: Segment, c: complex, lam: complex,
     return float(x), float(v), float(acc), float(friction), float(normal), float(theta), float(z), float(vz)
 
 
+def state_at(p: Plant, seg: Segment, c: complex, lam: complex,
+             tau: float) -> tuple[float, float, float, float, float, float, float, float]:
+    """The state ``tau`` into ``seg`` at a float (x, v, acceleration, friction force, normal
+    force, unreduced phase, z, vz): :func:`transient_evaluate` under the transient (``c``
+    other than 0), else the steady :func:`~friction_sim.core.physics.segment.evaluate`."""
+    if c != 0j:
+        return transient_evaluate(p, seg, c, lam, tau)
+    return evaluate(p, seg, tau)
+
+
 def states_into(p: Plant, seg: Segment, c: complex, lam: complex, taus: np.ndarray, out: np.ndarray) -> None:
-    """The state at each of ``taus`` into ``seg`` into the columns of ``out`` (8 rows: x, v,
-    acceleration, friction force, normal force, unreduced phase, z, vz): one time after
-    the other, :func:`transient_evaluate` under the transient (``c`` other than 0), else
-    the steady :func:`~friction_sim.core.physics.segment.evaluate` at a float, so a
-    column is the state a scalar evaluation gives, bit for bit, compiled or not."""
+    """The state at each of ``taus`` into ``seg`` into the columns of ``out`` (8 rows, as
+    :func:`state_at` gives them): one time after the other, so a column is the state a
+    scalar evaluation gives, bit for bit, compiled or not."""
     for i in range(taus.size):
-        tau = float(taus[i])
-        if c != 0j:
-            x, v, acc, friction, normal, theta, z, vz = transient_evaluate(p, seg, c, lam, tau)
-        else:
-            x, v, acc, friction, normal, theta, z, vz = evaluate(p, seg, tau)
+        x, v, acc, friction, normal, theta, z, vz = state_at(p, seg, c, lam, float(taus[i]))
         out[0, i], out[1, i], out[2, i], out[3, i] = x, v, acc, friction
         out[4, i], out[5, i], out[6, i], out[7, i] = normal, theta, z, vz
 
@@ -474,5 +478,5 @@ def accelerations_into(p: Plant, phase0: float, c: complex, lam: complex, taus: 
         out[0, i], out[1, i] = slideway_acceleration(p, phase0, c, lam, float(taus[i]))
 
 
-__all__ = ["LOOK_AHEAD_PERIODS", "Signal", "accelerations_into", "first_time", "slideway_acceleration",
+__all__ = ["LOOK_AHEAD_PERIODS", "Signal", "accelerations_into", "first_time", "slideway_acceleration", "state_at",
            "states_into", "transient_evaluate", "transient_force", "transient_motion", "transient_step"]
