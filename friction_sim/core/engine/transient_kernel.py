@@ -101,28 +101,21 @@ class CompiledStep:
     same way, and the shape of segment they were compiled for."""
 
     def __init__(self, entry: StepFunction, fits: Callable[[Plant], bool], states: Callable[..., None],
-                 accelerations: Callable[..., None], segment_shape: tuple[Any, ...],
-                 slideway: Callable[..., None]) -> None:
+                 accelerations: Callable[..., None], slideway: Callable[..., None]) -> None:
         self.entry = entry
         self.fits = fits
         self.states = states
         self.accelerations = accelerations
-        self.segment_shape = segment_shape
         #: :func:`~friction_sim.core.physics.exciter.normal_accelerations_into`, for a slideway of floats.
         self.slideway = slideway
-        #: The last segment checked against :attr:`segment_shape` and the verdict (one tuple, replaced whole).
+        #: The last segment checked against the samplers' types and the verdict (one tuple, replaced whole).
         self.segment_checked: tuple[Segment | None, bool] = (None, False)
 
     def segment_fits(self, seg: Segment) -> bool:
-        """Whether ``seg`` has the types the samplers were compiled for (checked once per segment:
-        a segment's fields are numbers, so a flat look at each class does, cheaper than :func:`_shape`)."""
+        """Whether ``seg`` has the types the samplers were compiled for (checked once per segment)."""
         checked = self.segment_checked
         if checked[0] is not seg:
-            kinds = self.segment_shape
-            fits = type(seg) is kinds[0] and all(
-                type(field) is kind or (kind == (int, True) and type(field) is int and -2**63 <= field < 2**63)
-                for field, kind in zip(seg, kinds[1:], strict=True))
-            checked = self.segment_checked = (seg, fits)
+            checked = self.segment_checked = (seg, _flat_fits(seg, _REST_SHAPE))
         return checked[1]
 
 
@@ -164,7 +157,6 @@ def compile_step(args: tuple[Any, ...]) -> CompiledStep:
                         _entry(numba, _transient.states_into, (*sampler_types, typeof(states))),
                         _entry(numba, _transient.accelerations_into,
                                (plant_type, typeof(0.0), *sampler_types[2:], typeof(accelerations))),
-                        _shape(_REST),
                         _entry(numba, _exciter.normal_accelerations_into,
                                (typeof(_STILL), typeof(0.0), typeof(0.0), typeof(taus), typeof(taus))))
 
@@ -173,6 +165,15 @@ def compile_step(args: tuple[Any, ...]) -> CompiledStep:
 _REST = Segment(STUCK, 0.0, 0.0, 0.0, 0.0, 0, False, 0.0, 0.0, 0.0, 0.0, 0, 0.0, 0.0, 0)
 #: A slideway of the types a drive loop's model makes.
 _STILL = Slideway(0.0, 0.0, 1.0, -1 + 1j, 0j)
+
+
+def _flat_fits(value: tuple[Any, ...], shape: tuple[Any, ...]) -> bool:
+    """Whether a flat tuple of numbers (a segment, a slideway) has ``shape``
+    (:func:`_shape` of a sample of the compiled types): a look at each field's class,
+    cheaper than taking its shape (an int's, also whether it fits 64 bits)."""
+    return type(value) is shape[0] and all(
+        type(field) is kind or (kind == (int, True) and type(field) is int and -2**63 <= field < 2**63)
+        for field, kind in zip(value, shape[1:], strict=True))
 
 
 def _entry(numba: Any, function: Callable[..., Any], signature: tuple[Any, ...]) -> Callable[..., Any]:
@@ -198,6 +199,10 @@ def _shape(value: Any) -> tuple[Any, ...]:
         else:
             kinds.append(kind)
     return tuple(kinds)
+
+
+#: The shapes the samplers were compiled for (:func:`_flat_fits`).
+_REST_SHAPE, _STILL_SHAPE = _shape(_REST), _shape(_STILL)
 
 
 def use(mode: str) -> None:
@@ -256,12 +261,12 @@ def states_at(p: Plant, seg: Segment, c: complex, lam: complex, taus: list[float
     unreduced phase, z, vz each), the transient force Re(c*exp(lam*tau)) added unless ``c``
     is 0: :func:`~friction_sim.core.physics.transient.states_into`, compiled when it is ready
     and was compiled for the types of ``p`` and ``seg``, else plain (the same numbers)."""
-    out = np.empty((8, len(taus)))
+    out, at = np.empty((8, len(taus))), np.array(taus, dtype=float)
     compiled = _sampler(p, seg)
     if compiled is not None:
-        compiled.states(p, seg, complex(c), complex(lam), np.array(taus, dtype=float), out)
+        compiled.states(p, seg, complex(c), complex(lam), at, out)
     else:
-        _transient.states_into(p, seg, c, lam, np.array(taus, dtype=float), out)
+        _transient.states_into(p, seg, c, lam, at, out)
     rows: list[list[float]] = out.T.tolist()
     return rows
 
@@ -270,12 +275,12 @@ def accelerations_at(p: Plant, seg: Segment, c: complex, lam: complex, taus: lis
     """The slideway's (along, normal) acceleration ``taus`` into ``seg``:
     :func:`~friction_sim.core.physics.transient.accelerations_into`, compiled when ready
     (as :func:`states_at`)."""
-    out = np.empty((2, len(taus)))
+    out, at = np.empty((2, len(taus))), np.array(taus, dtype=float)
     compiled = _sampler(p, seg)
     if compiled is not None:
-        compiled.accelerations(p, float(seg.phase0), complex(c), complex(lam), np.array(taus, dtype=float), out)
+        compiled.accelerations(p, float(seg.phase0), complex(c), complex(lam), at, out)
     else:
-        _transient.accelerations_into(p, seg.phase0, c, lam, np.array(taus, dtype=float), out)
+        _transient.accelerations_into(p, seg.phase0, c, lam, at, out)
     rows: list[list[float]] = out.T.tolist()
     return rows
 
@@ -284,13 +289,12 @@ def normal_accelerations(way: Slideway, frequency: float, t_start: float, times:
     """q'' of the slideway ``way`` at ``times`` (see
     :func:`~friction_sim.core.physics.exciter.normal_accelerations_into`): compiled when it is
     ready and ``way`` holds floats and complex numbers as compiled, else plain (the same numbers)."""
-    out = np.empty(len(times))
+    out, at = np.empty(len(times)), np.array(times, dtype=float)
     compiled = KERNEL.compiled if KERNEL.mode != PLAIN else None
-    if compiled is not None and type(way) is Slideway and all(
-            type(field) is kind for field, kind in zip(way, (float, float, float, complex, complex))):
-        compiled.slideway(way, float(frequency), float(t_start), np.array(times, dtype=float), out)
+    if compiled is not None and _flat_fits(way, _STILL_SHAPE):
+        compiled.slideway(way, float(frequency), float(t_start), at, out)
     else:
-        _exciter.normal_accelerations_into(way, frequency, t_start, np.array(times, dtype=float), out)
+        _exciter.normal_accelerations_into(way, frequency, t_start, at, out)
     values: list[float] = out.tolist()
     return values
 
@@ -325,5 +329,4 @@ def transient_step(p: Plant, c: complex, lam: complex, horizon: float, mode: int
 
 __all__ = ["AUTO", "COMPILED", "KERNEL", "MODES", "PLAIN", "WORK", "CompiledStep", "Kernel", "accelerations_at",
            "await_loading", "compile_step", "compiled_ready", "failure", "mode", "normal_accelerations", "search_steps",
-           "states_at",
-           "transient_step", "use"]
+           "states_at", "transient_step", "use"]

@@ -144,16 +144,18 @@ class ExciterReadings:
         """(along, normal) [m/s^2]: the slideway's acceleration now in the track frame
         (:func:`~friction_sim.core.physics.transient.slideway_acceleration`)."""
         seg = self._seg
-        lam = self._exciter.lam if self._exciter is not None else 0j
-        return slideway_acceleration(self._plant, seg.phase0, self._transient.c, lam, self._t - seg.t0)
+        return slideway_acceleration(self._plant, seg.phase0, self._transient.c, self._lam(), self._t - seg.t0)
 
     def _accelerations_at(self, times: list[float]) -> list[list[float]]:
         """(along, normal) at each of ``times`` in the present segment, as
         :meth:`slideway_acceleration` gives them there, bit for bit (compiled when ready)."""
         seg = self._seg
-        lam = self._exciter.lam if self._exciter is not None else 0j
-        return transient_kernel.accelerations_at(self._plant, seg, self._transient.c, lam,
+        return transient_kernel.accelerations_at(self._plant, seg, self._transient.c, self._lam(),
                                                  [t - seg.t0 for t in times])
+
+    def _lam(self) -> complex:
+        """The exciter's eigenvalue (0 with the force actuator)."""
+        return self._exciter.lam if self._exciter is not None else 0j
 
     @property
     def exciter(self) -> ExciterState | None:
