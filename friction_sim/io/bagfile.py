@@ -198,9 +198,6 @@ class EncodedRows:
     rows: np.ndarray[Any, np.dtype[Any]]
     log_times: np.ndarray[Any, np.dtype[np.int64]]
 
-    def __len__(self) -> int:
-        return len(self.log_times)
-
 
 class BagFile:
     """The MCAP writer of a recorder (see the module docstring)."""

@@ -127,6 +127,20 @@ def _sample_table(samples: Sequence[Acceleration]) -> np.ndarray:
     return np.array([(s.t, s.x, s.y, s.z) for s in samples], dtype=np.float64)
 
 
+class _RowKind(NamedTuple):
+    """What the records of a row group are: a row (t, values...) per record, the messages
+    a record makes, and what a dropped one is counted as (and why, for a time no stamp holds)."""
+
+    table: Callable[[Sequence[Any]], np.ndarray]
+    messages: int
+    what: str
+    unstamped: str
+
+
+_STATES = _RowKind(_state_table, 3, "state", "a state time no ROS stamp holds")
+_SAMPLES = _RowKind(_sample_table, 1, "accelerations", "a sample time no ROS stamp holds")
+
+
 class _Piece(NamedTuple):
     """A pass of a batch's rows: its first record's index in the batch, the rows built
     (None: the pass failed), and how many were kept before each record (and after the last)."""
@@ -138,11 +152,11 @@ class _Piece(NamedTuple):
 
 class _Encoded:
     """The records of one group of a batch (a frame's states, or its samples at one noise),
-    built at once (:meth:`RecordWriter._build`) and written a run at a time, in the order
+    built at once (:meth:`RecordWriter._append`) and written a run at a time, in the order
     queued (:meth:`RecordWriter.write`)."""
 
-    def __init__(self, records: list[Any] | None = None) -> None:
-        self.records: list[Any] = records if records is not None else []
+    def __init__(self) -> None:
+        self.records: list[Any] = []
         self.pieces: list[_Piece] | None = None  # (None: not built yet)
         self.written = 0  # records written (or dropped) so far
 
@@ -265,32 +279,33 @@ class RecordWriter:
             elif isinstance(item, AccelerationsRecord):
                 self._sample_rows.setdefault((item.frame_id, item.noise), _Encoded()).records.extend(item.samples)
 
-    def _build(self, encoded: _Encoded, group: RowGroup, table_of: Callable[[Sequence[Any]], np.ndarray],
-               per_record: int, what: str, why: str) -> None:
-        """Build ``encoded``'s records as rows of ``group`` (``table_of`` gives a row of (t, values...)
-        per record), in passes of :data:`ROWS_PER_PASS`, once; a record whose time no ROS stamp holds
-        is dropped and counted (``per_record`` messages each), as is a pass that fails."""
-        if encoded.pieces is not None:
-            return
-        encoded.pieces = []
-        records = encoded.records
-        for first in range(0, len(records), ROWS_PER_PASS):
-            part = records[first:first + ROWS_PER_PASS]
-            try:
-                table = table_of(part)
-                ns = np.rint(table[:, 0] * 1e9)  # = seconds_to_ns(t): round half to even, as round()
-                ok = (ns >= 0.0) & (ns <= MAX_STAMP_NS)  # False for NaN too
-                if not ok.all():
-                    self._count_bad(per_record * int((~ok).sum()), what, why)
-                    ns, table = ns[ok], table[ok]
-                rows: EncodedRows | None = self.file.encode_rows(group, ns.astype(np.int64), table[:, 1:])
-                kept = [0, *np.cumsum(ok).tolist()]
-            except OSError:
-                raise
-            except Exception as error:  # noqa: BLE001 - bad records must not end the recording
-                self._count_bad(per_record * len(part), what, one_line(error, with_type=True))
-                rows, kept = None, [0] * (len(part) + 1)
-            encoded.pieces.append(_Piece(first, rows, kept))
+    def _append(self, encoded: _Encoded, count: int, group: RowGroup, kind: _RowKind) -> None:
+        """Write the next ``count`` records of ``encoded`` as rows of ``group``, building all
+        its records the first time (in passes of :data:`ROWS_PER_PASS`); a record whose time no
+        ROS stamp holds is dropped and counted, as is a pass that fails."""
+        if encoded.pieces is None:
+            encoded.pieces = []
+            records = encoded.records
+            for first in range(0, len(records), ROWS_PER_PASS):
+                encoded.pieces.append(self._piece(first, records[first:first + ROWS_PER_PASS], group, kind))
+        encoded.append(self.file, count)
+
+    def _piece(self, first: int, part: Sequence[Any], group: RowGroup, kind: _RowKind) -> _Piece:
+        """One pass of :meth:`_append`: the rows of ``part``, whose first record is ``first``."""
+        try:
+            table = kind.table(part)
+            ns = np.rint(table[:, 0] * 1e9)  # = seconds_to_ns(t): round half to even, as round()
+            ok = (ns >= 0.0) & (ns <= MAX_STAMP_NS)  # False for NaN too
+            if not ok.all():
+                self._count_bad(kind.messages * int((~ok).sum()), kind.what, kind.unstamped)
+                ns, table = ns[ok], table[ok]
+            rows = self.file.encode_rows(group, ns.astype(np.int64), table[:, 1:])
+            return _Piece(first, rows, [0, *np.cumsum(ok).tolist()])
+        except OSError:
+            raise
+        except Exception as error:  # noqa: BLE001 - bad records must not end the recording
+            self._count_bad(kind.messages * len(part), kind.what, one_line(error, with_type=True))
+            return _Piece(first, None, [0] * (len(part) + 1))
 
     def _write_states(self, states: Sequence[SliderState], frame_id: str) -> None:
         """Write states as pose, velocity and friction_force: many at a time
@@ -300,11 +315,7 @@ class RecordWriter:
             for state in states:
                 self._write_safely(StatesRecord((state,), frame_id))
             return
-        encoded = self._state_rows.get(frame_id)
-        if encoded is None:  # (not queued in a batch)
-            encoded = _Encoded(list(states))
-        self._build(encoded, group, _state_table, 3, "state", "a state time no ROS stamp holds")
-        encoded.append(self.file, len(states))
+        self._append(self._state_rows[frame_id], len(states), group, _STATES)
 
     def _state_group(self, frame_id: str) -> RowGroup | None:
         """The fixed layouts of a state's three messages in ``frame_id`` (cached)."""
@@ -345,11 +356,7 @@ class RecordWriter:
             for sample in samples:
                 self._add(topic, imu_message(sample, frame_id, noise), seconds_to_ns(sample.t))
             return
-        encoded = self._sample_rows.get((frame_id, noise))
-        if encoded is None:  # (not queued in a batch)
-            encoded = _Encoded(list(samples))
-        self._build(encoded, group, _sample_table, 1, "accelerations", "a sample time no ROS stamp holds")
-        encoded.append(self.file, len(samples))
+        self._append(self._sample_rows[(frame_id, noise)], len(samples), group, _SAMPLES)
 
     # -- one record at a time --------------------------------------------------------
 
