@@ -67,8 +67,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
 from friction_sim.core.control.lockin import MIN_SAMPLES, Vibration, fit_period
 from friction_sim.core.engine.transient_kernel import normal_accelerations
 from friction_sim.core.model import spec
@@ -83,6 +81,7 @@ from friction_sim.core.physics.exciter import (
     steady_acceleration,
     steady_slideway,
 )
+from friction_sim.core.physics.numerics import solve_positive_definite
 
 #: The plan's pull toward the reference's level, relative to its authority over the state: as
 #: strong as the state's own pull, so the levels do not swing far from the reference's; a level
@@ -282,34 +281,38 @@ class DriveLoop:
         """The slideway ``tau`` into ``way``, from then on driven at ``level`` (model in force)."""
         return rebased(way, 0.0, tau, self._amplitude(level), self._lag(), self._omega(), self._lam())
 
-    def _state(self, way: Slideway, tau: float) -> np.ndarray:
+    def _state(self, way: Slideway, tau: float) -> tuple[float, float]:
         """(omega*q, q') at a boundary: both in m/s, so neither dominates the plan's least squares."""
         q, velocity, _ = slideway_state(way, 0.0, tau)
-        return np.array([self._omega() * q, velocity])
+        return self._omega() * q, velocity
 
     def _plan(self, elapsed: float, period: float) -> float:
         """The first of two drive levels that put the slideway into the reference's
         steady motion two periods on (an affine map of the two levels, solved);
         ``elapsed`` is the period that just ended, ``period`` the coming ones."""
-        def after(first: float, second: float) -> np.ndarray:
+        def after(first: float, second: float) -> tuple[float, float]:
             way = self._driven(self._driven(self._way, elapsed, first), period, second)
             return self._state(way, period)
 
         origin = after(0.0, 0.0)
-        matrix = np.column_stack([after(1.0, 0.0) - origin, after(0.0, 1.0) - origin])
+        by_first, by_second = after(1.0, 0.0), after(0.0, 1.0)
+        a0, a1 = by_first[0] - origin[0], by_first[1] - origin[1]  # the map's columns: what each level moves
+        b0, b1 = by_second[0] - origin[0], by_second[1] - origin[1]
         goal = self._state(steady_slideway(self._reference, self._lag(), self._omega(), self._lam()), 0.0)
+        r0, r1 = goal[0] - origin[0], goal[1] - origin[1]
         level = self.level_for(self._reference)
         # Least squares with a small pull toward the reference's level: near resonance the two
         # levels push the state along nearly one direction, and the other (a phase error) is
-        # left to decay by itself rather than chased with levels of opposite extremes.
-        weight = REGULARIZATION * float(np.sum(matrix * matrix))
-        normal = matrix.T @ matrix + weight * np.eye(2)
-        rhs = matrix.T @ (goal - origin) + weight * level
-        try:
-            first, _ = np.linalg.solve(normal, rhs)
-        except np.linalg.LinAlgError:  # no authority over the state (a zero gain)
+        # left to decay by itself rather than chased with levels of opposite extremes.  The
+        # 2x2 normal equations are solved in plain floats: the same levels on every CPU.
+        fsum = math.fsum
+        weight = REGULARIZATION * fsum((a0 * a0, a1 * a1, b0 * b0, b1 * b1))
+        normal = ((fsum((a0 * a0, a1 * a1)) + weight,), (fsum((a0 * b0, a1 * b1)), fsum((b0 * b0, b1 * b1)) + weight))
+        rhs = (fsum((a0 * r0, a1 * r1)) + weight * level, fsum((b0 * r0, b1 * r1)) + weight * level)
+        solution = solve_positive_definite(normal, rhs)
+        if solution is None:  # no authority over the state (a zero gain)
             return level
-        return float(first) if math.isfinite(first) else level
+        return solution[0] if math.isfinite(solution[0]) else level
 
     # -- what the accelerometer says ----------------------------------------------------
 

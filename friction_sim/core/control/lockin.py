@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from friction_sim.core.model.dimensionless import TWO_PI
+from friction_sim.core.physics.numerics import solve_positive_definite
 from friction_sim.errors import ParameterError
 
 #: A period's fit needs at least this many samples (three unknowns, and one to spare).
@@ -65,23 +66,45 @@ def fit_period(times: Iterable[float], normal: Iterable[float], t_start: float, 
                cycles: int = 1) -> Vibration:
     """The least-squares reading of one window of ``cycles`` drive periods from
     the samples (t, a_z) in it (see the module doc); a :class:`ParameterError`
-    if the window is empty or holds fewer than :data:`MIN_SAMPLES` samples."""
-    t = np.array(times if isinstance(times, (list, tuple)) else list(times), dtype=float)
-    z = np.array(normal if isinstance(normal, (list, tuple)) else list(normal), dtype=float)
+    if the window is empty, holds fewer than :data:`MIN_SAMPLES` samples, or
+    holds them at too few phases of the drive to tell its sine from its cosine.
+
+    The three unknowns solve the fit's normal equations, their sums correctly
+    rounded (:func:`~friction_sim.core.physics.numerics.solve_positive_definite`):
+    the same reading on every CPU, which a LAPACK least-squares solve is not.
+    Over a period the three columns are nearly orthogonal (they are orthogonal
+    for evenly spread samples), so the normal equations lose nothing to their
+    squared condition number."""
+    t = times if isinstance(times, tuple) else tuple(_floats(times))
+    z = normal if isinstance(normal, (list, tuple)) else _floats(normal)
     if not t_end > t_start:
         raise ParameterError("period", (t_start, t_end), "must end after it starts")
-    if t.size < MIN_SAMPLES or t.size != z.size:
-        raise ParameterError("samples", int(t.size), f"a period needs at least {MIN_SAMPLES} accelerometer samples")
-    theta = TWO_PI * cycles * (t - t_start) / (t_end - t_start)
-    design = np.empty((t.size, 3))  # rows (1, sin, cos), as column_stack makes them, a period at a time
-    design[:, 0] = 1.0
-    design[:, 1] = np.sin(theta)  # (into a contiguous array first: numpy's SIMD loops take that one)
-    design[:, 2] = np.cos(theta)
-    (offset, in_phase, quadrature), *_ = np.linalg.lstsq(design, z, rcond=None)
+    if len(t) < MIN_SAMPLES or len(t) != len(z):
+        raise ParameterError("samples", len(t), f"a period needs at least {MIN_SAMPLES} accelerometer samples")
+    scale, span = TWO_PI * cycles, t_end - t_start
+    sines, cosines = [], []
+    for ti in t:
+        theta = scale * (ti - t_start) / span
+        sines.append(math.sin(theta))
+        cosines.append(math.cos(theta))
+    fsum = math.fsum
+    sin_cos = fsum([s * c for s, c in zip(sines, cosines, strict=True)])
+    gram = ((float(len(t)),), (fsum(sines), fsum([s * s for s in sines])),
+            (fsum(cosines), sin_cos, fsum([c * c for c in cosines])))
+    moments = (fsum(z), fsum([s * a for s, a in zip(sines, z, strict=True)]),
+               fsum([c * a for c, a in zip(cosines, z, strict=True)]))
+    solution = solve_positive_definite(gram, moments)
+    if solution is None:
+        raise ParameterError("samples", len(t), "the samples lie at too few phases of the drive to read its phase")
+    offset, in_phase, quadrature = solution
     # q'' = -P/m = -R sin(theta - lag) = I sin(theta) + Q cos(theta): I = -R cos(lag), Q = R sin(lag)
-    lag = math.atan2(float(quadrature), -float(in_phase))
-    return Vibration(t_start, t_end, math.hypot(float(in_phase), float(quadrature)), lag, float(offset), int(t.size),
-                     tuple(t.tolist()), cycles)
+    lag = math.atan2(quadrature, -in_phase)
+    return Vibration(t_start, t_end, math.hypot(in_phase, quadrature), lag, offset, len(t), t, cycles)
+
+
+def _floats(values: Iterable[float]) -> list[float]:
+    """``values`` as Python floats (an array's through ``tolist``, one call)."""
+    return np.asarray(values, dtype=float).tolist() if isinstance(values, np.ndarray) else [float(v) for v in values]
 
 
 class LockIn:
@@ -125,14 +148,19 @@ class LockIn:
 
     def readings(self) -> list[Vibration]:
         """The periods completed since the last call, oldest first (a period with
-        too few samples is skipped: the accelerometer is off or too slow)."""
+        too few samples is skipped: the accelerometer is off or too slow; so is one
+        whose samples lie at too few phases of the drive to read it: a rate a small
+        multiple of the drive's, over more than one period)."""
         done: list[Vibration] = []
         while len(self._bounds) >= 2 and self._latest >= self._bounds[1]:
             start, end = self._bounds.popleft(), self._bounds[0]
             inside = self._inside(start, end)
             if len(inside) >= MIN_SAMPLES:
                 times, normal = zip(*inside, strict=True)
-                done.append(fit_period(times, normal, start, end, self.cycles))
+                try:
+                    done.append(fit_period(times, normal, start, end, self.cycles))
+                except ParameterError:  # the phases cannot be told apart (the only refusal left here)
+                    continue
         oldest = self._bounds[0] if self._bounds else self._latest
         while self._samples and self._samples[0][0] < oldest - self._keep:
             self._samples.popleft()

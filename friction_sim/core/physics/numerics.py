@@ -8,11 +8,14 @@ out here: :func:`hypot` (``math.hypot`` is CPython's own algorithm), :func:`ulp`
 (``math.ulp``), and the exact rounding error of a sum (:func:`two_sum`) or a
 product.  :func:`sine` takes a float with libm's sin and an array with numpy's,
 so the closed forms of a segment's state evaluate at either (:data:`Floats`).
+:func:`solve_positive_definite` solves a fit's small normal equations the same
+way on every CPU, which ``numpy.linalg`` does not.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any, TypeVar
 
 import numpy as np
@@ -94,3 +97,48 @@ def hypot(a: float, b: float) -> float:
     hh, hh_error = _two_product(h, h)
     h += ((total - hh) + (low - hh_error)) / (2.0 * h)
     return math.ldexp(h, exponent)
+
+
+#: The spacing of doubles at 1 (2**-52).
+_EPSILON = 2.0**-52
+
+
+def solve_positive_definite(matrix: Sequence[Sequence[float]], rhs: Sequence[float]) -> list[float] | None:
+    """x with ``matrix`` x = ``rhs`` for a small symmetric positive definite matrix (the
+    normal equations of a fit of a few unknowns), by Cholesky's factorization in plain
+    floats, every sum correctly rounded (``math.fsum``); None if the matrix is not
+    positive definite to rounding (a pivot at or below n*eps times its largest diagonal
+    entry: the data do not tell the unknowns apart).  Only the lower triangle is read.
+
+    Not ``numpy.linalg``: LAPACK and BLAS run the kernels OpenBLAS picks for the CPU
+    when it loads (fused multiply-adds or not, AVX-512 or not), which round differently,
+    and a controller's decisions made with them made a different lockstep recording on
+    another CPU.  Nor the builtin ``sum``, whose rounding changed in Python 3.12."""
+    size = len(rhs)
+    largest = max(float(matrix[i][i]) for i in range(size))
+    if not 0.0 < largest < math.inf:
+        return None
+    tolerance = size * _EPSILON * largest
+    lower: list[list[float]] = []
+    for i in range(size):
+        row: list[float] = []
+        for k in range(i):
+            row.append((matrix[i][k] - _dot(row, lower[k], k)) / lower[k][k])
+        pivot = matrix[i][i] - _dot(row, row, i)
+        if not pivot > tolerance:
+            return None
+        row.append(math.sqrt(pivot))
+        lower.append(row)
+    forward: list[float] = []
+    for i in range(size):
+        forward.append((rhs[i] - _dot(lower[i], forward, i)) / lower[i][i])
+    solution = [0.0] * size
+    for i in reversed(range(size)):
+        above = math.fsum(lower[k][i] * solution[k] for k in range(i + 1, size))
+        solution[i] = (forward[i] - above) / lower[i][i]
+    return solution
+
+
+def _dot(a: Sequence[float], b: Sequence[float], count: int) -> float:
+    """The first ``count`` terms of a . b, their sum correctly rounded."""
+    return math.fsum(a[k] * b[k] for k in range(count))

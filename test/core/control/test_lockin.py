@@ -136,3 +136,26 @@ def test_a_period_reads_exactly_the_samples_inside_it_in_the_order_they_came(swa
             expected.append(fit_period([t for t, _ in inside], [z for _, z in inside], start, end))
     assert len(got) == len(expected) >= 5
     assert got == expected
+
+
+def test_samples_at_two_phases_of_the_drive_are_no_reading() -> None:
+    """An accelerometer at twice the drive frequency over two-period windows samples
+    only the phases 0 and pi, where the sine is zero: its amplitude and lag cannot be
+    read.  fit_period refuses, naming the samples; the lock-in skips the window, as one
+    with too few samples, and reads the next one that can be read."""
+    times = [0.0, 0.01, 0.02, 0.03, 0.04]
+    normal = [9.81 + math.cos(math.pi * k) for k in range(5)]
+    with pytest.raises(ParameterError, match=r"samples = 5 rejected: .*too few phases"):
+        fit_period(times, normal, 0.0, 0.04, cycles=2)
+    lockin = LockIn(cycles=2)
+    for t, z in zip(times, normal, strict=True):
+        lockin.add_sample(t, z)
+    for t in (0.0, 0.04):
+        lockin.add_boundary(t)
+    assert lockin.readings() == []
+    later = [0.04 + 0.04 * k / 7 for k in range(1, 8)]
+    for t in later:
+        lockin.add_sample(t, 9.81 + math.cos(2 * math.pi * t / 0.02))  # the same vibration, at 7 more phases
+    lockin.add_boundary(later[-1])
+    (reading,) = lockin.readings()
+    assert reading.t_start == 0.04 and reading.amplitude == pytest.approx(1.0, rel=1e-12)
