@@ -106,16 +106,17 @@ _EPSILON = 2.0**-52
 def solve_positive_definite(matrix: Sequence[Sequence[float]], rhs: Sequence[float]) -> list[float] | None:
     """x with ``matrix`` x = ``rhs`` for a small symmetric positive definite matrix (the
     normal equations of a fit of a few unknowns), by Cholesky's factorization in plain
-    floats, every sum correctly rounded (``math.fsum``); None if the matrix is not
-    positive definite to rounding (a pivot at or below n*eps times its largest diagonal
-    entry: the data do not tell the unknowns apart).  Only the lower triangle is read.
+    floats, every sum in one fixed order; None if the matrix is not positive definite
+    to rounding (a pivot at or below n*eps times its largest diagonal entry: the data
+    do not tell the unknowns apart).  Only the lower triangle is read.
 
     Not ``numpy.linalg``: LAPACK and BLAS run the kernels OpenBLAS picks for the CPU
     when it loads (fused multiply-adds or not, AVX-512 or not), which round differently,
     and a controller's decisions made with them made a different lockstep recording on
     another CPU.  Nor the builtin ``sum``, whose rounding changed in Python 3.12."""
     size = len(rhs)
-    largest = max(float(matrix[i][i]) for i in range(size))
+    diagonal = [float(matrix[i][i]) for i in range(size)]
+    largest = max(diagonal)
     if not 0.0 < largest < math.inf:
         return None
     tolerance = size * _EPSILON * largest
@@ -123,22 +124,27 @@ def solve_positive_definite(matrix: Sequence[Sequence[float]], rhs: Sequence[flo
     for i in range(size):
         row: list[float] = []
         for k in range(i):
-            row.append((matrix[i][k] - _dot(row, lower[k], k)) / lower[k][k])
-        pivot = matrix[i][i] - _dot(row, row, i)
+            row.append((matrix[i][k] - _dot(row, lower[k])) / lower[k][k])
+        pivot = diagonal[i] - _dot(row, row)
         if not pivot > tolerance:
             return None
         row.append(math.sqrt(pivot))
         lower.append(row)
     forward: list[float] = []
     for i in range(size):
-        forward.append((rhs[i] - _dot(lower[i], forward, i)) / lower[i][i])
-    solution = [0.0] * size
+        forward.append((rhs[i] - _dot(lower[i], forward)) / lower[i][i])
+    solution = forward  # solved in place, from the last unknown up
     for i in reversed(range(size)):
-        above = math.fsum(lower[k][i] * solution[k] for k in range(i + 1, size))
+        above = 0.0
+        for k in range(i + 1, size):
+            above += lower[k][i] * solution[k]
         solution[i] = (forward[i] - above) / lower[i][i]
     return solution
 
 
-def _dot(a: Sequence[float], b: Sequence[float], count: int) -> float:
-    """The first ``count`` terms of a . b, their sum correctly rounded."""
-    return math.fsum(a[k] * b[k] for k in range(count))
+def _dot(a: Sequence[float], b: Sequence[float]) -> float:
+    """a . b over the shorter of the two, summed from the first term on."""
+    total = 0.0
+    for x, y in zip(a, b):
+        total += x * y
+    return total
