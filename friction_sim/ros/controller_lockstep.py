@@ -167,8 +167,7 @@ class LockstepAnswers:
 
     def _take_delivered(self, samples: Sequence[tuple[int, float]], readings: Sequence[tuple[int, float]]) -> None:
         """Queue the readings, then take the samples in order (callback lock held)."""
-        for stamp, normal in readings:
-            self.queue.acceleration(stamp, normal)
+        self.queue.accelerations(readings)
         for stamp, speed in samples:
             self.sample(stamp, speed)
         if not samples:
@@ -203,8 +202,7 @@ class LockstepAnswers:
         """Queue every accelerometer reading waiting on the topic (taken serialized: see
         :func:`~friction_sim.io.series.imu_normals`)."""
         datas = cast(list[bytes], take_all(self.node.accelerometer, ACCELEROMETER_BATCH))  # (a raw subscription)
-        for stamp, normal in imu_normals(datas):
-            self.queue.acceleration(stamp, normal)
+        self.queue.accelerations(imu_normals(datas))
 
     def answer_waiting(self) -> None:
         """Answer every queued sample whose turn has come (none before the model is settled)."""
@@ -217,11 +215,8 @@ class LockstepAnswers:
             if ready is None:
                 return
             stamp_ns, speed, readings = ready
-            for t_ns, normal in readings:
-                try:
-                    self.runtime.take_acceleration(t_ns / NS_PER_S, normal)
-                except ParameterError as error:
-                    self.node.warn(f"{error}; sample ignored")
+            for error in self.runtime.take_accelerations([(t_ns / NS_PER_S, normal) for t_ns, normal in readings]):
+                self.node.warn(f"{error}; sample ignored")
             self._answer(stamp_ns, speed)
 
     def _answer(self, stamp_ns: int, speed: float) -> None:

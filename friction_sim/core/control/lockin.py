@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -128,11 +128,19 @@ class LockIn:
 
     def add_sample(self, t: float, normal: float) -> None:
         """An accelerometer reading: the normal specific force [m/s^2] at simulation time ``t``."""
-        if t > self._latest:
-            self._latest = t
-        elif t < self._latest:
-            self._in_order = False
-        self._samples.append((t, normal))
+        self.add_samples(((t, normal),))
+
+    def add_samples(self, samples: Sequence[tuple[float, float]]) -> None:
+        """Accelerometer readings (t, normal), in the order they came (a thousand a second: a
+        controller hands over a window's at once)."""
+        latest, in_order = self._latest, self._in_order
+        for t, _ in samples:
+            if t > latest:
+                latest = t
+            elif t < latest:
+                in_order = False
+        self._latest, self._in_order = latest, in_order
+        self._samples.extend(samples)
 
     def add_boundary(self, t: float) -> None:
         """A period ended at ``t`` (drive phase a whole turn): a mean_velocity stamp."""

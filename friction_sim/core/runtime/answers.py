@@ -20,6 +20,7 @@ sample past each multiple of it.
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -57,8 +58,13 @@ class AnswerQueue:
 
     def acceleration(self, stamp_ns: int, normal: float) -> None:
         """Keep an accelerometer sample until the answer that needs it."""
-        self._accelerations.append((stamp_ns, normal))
-        self._latest_acceleration_ns = max(self._latest_acceleration_ns, stamp_ns)
+        self.accelerations(((stamp_ns, normal),))
+
+    def accelerations(self, readings: Sequence[tuple[int, float]]) -> None:
+        """Keep accelerometer samples (stamp [ns], normal), in the order they came, until the answers that need them."""
+        if readings:
+            self._accelerations.extend(readings)
+            self._latest_acceleration_ns = max(self._latest_acceleration_ns, max(stamp for stamp, _ in readings))
 
     def next_ready(self, needs_accelerometer: bool) -> tuple[int, float, list[tuple[int, float]]] | None:
         """The oldest sample that can be answered now, with the accelerometer samples

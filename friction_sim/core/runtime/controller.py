@@ -45,7 +45,7 @@ from friction_sim.core.control.speedlimit import LIMIT_SLACK_SAMPLES
 from friction_sim.core.model import spec
 from friction_sim.core.model.dimensionless import amplitude_for
 from friction_sim.core.model.params import SliderParams, plant_from
-from friction_sim.core.runtime.drive import DriveCommand, DriveRuntime, drive_settings, outer_model
+from friction_sim.core.runtime.drive import DriveCommand, DriveRuntime, drive_settings, outer_model, refusal_text
 from friction_sim.errors import ParameterError
 
 #: The plant's parameters that make up the controller's model (the resonant
@@ -329,12 +329,20 @@ class RealtimeController:
         ahead of the plant, or beyond any slideway of the model: see
         :meth:`DriveRuntime.take_acceleration`) is refused (counted,
         ParameterError with the reason).  Without the inner loop it is only counted."""
+        for refusal in self.take_accelerations(((t, normal),)):
+            raise refusal
+
+    def take_accelerations(self, readings: Sequence[tuple[float, float]]) -> list[ParameterError]:
+        """Accelerometer samples (t, normal) in the order they came, as
+        :meth:`take_acceleration` takes each (a window's at once); the refused
+        ones' errors, in order (counted, not raised)."""
         if self.drive is None:
-            return
-        reason = self.drive.take_acceleration(t, normal)
-        if reason:
-            self.refuse(reason)
-            raise ParameterError("accelerometer", (t, normal), reason.partition("refused: ")[2])
+            return []
+        errors = []
+        for t, normal, why in self.drive.take_accelerations(readings):
+            self.refuse(refusal_text(t, normal, why))
+            errors.append(ParameterError("accelerometer", (t, normal), why))
+        return errors
 
     def drive_boundary(self, t: float) -> DriveCommand | None:
         """A window of the plant ended at ``t``: the drive for the next (None:

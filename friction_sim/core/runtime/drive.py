@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -63,6 +63,11 @@ def outer_model(model: SliderParams) -> SliderParams:
     """The plant as the outer mean-speed law sees it: Pa set directly (the force
     actuator), whatever actuator makes it; the exciter is this runtime's business."""
     return model if model.actuator == "force" else model.replace(actuator="force")
+
+
+def refusal_text(t: float, normal: float, why: str) -> str:
+    """The one line that says an accelerometer sample (t, normal) was refused, and ``why``."""
+    return f"accelerometer sample ({t!r} s, {normal!r} m/s^2) refused: {why}"
 
 
 class DriveRuntime:
@@ -127,27 +132,44 @@ class DriveRuntime:
         [m/s^2]); '' or why it was refused: not finite, stamped ahead of the
         plant (more than :data:`MAX_LEAD_WINDOWS` windows past the latest window
         end taken), or a reading no slideway of the model gives (:data:`PLAUSIBLE_FACTOR`)."""
-        reason = self._implausible(t, normal)
-        if reason:
-            self.samples_refused += 1
-            return f"accelerometer sample ({t!r} s, {normal!r} m/s^2) refused: {reason}"
-        self.samples += 1
-        if self.inner_loop:
-            self.lockin.add_sample(t, normal)
-        return ""
+        return "".join(refusal_text(*refused) for refused in self.take_accelerations(((t, normal),)))
 
-    def _implausible(self, t: float, normal: float) -> str:
-        """Why a sample (t, normal) is from no plant in force, or ''."""
+    def take_accelerations(self, readings: Sequence[tuple[float, float]]) -> list[tuple[float, float, str]]:
+        """Accelerometer samples (t, normal) in the order they came, as
+        :meth:`take_acceleration` takes each (a window's at once: a thousand a
+        second); the refused ones (t, normal, why), in order."""
+        refused: list[tuple[float, float, str]] = []
+        taken: list[tuple[float, float]] = []
+        latest = self._latest_reading()
+        for t, normal in readings:
+            why = self._implausible(t, normal, latest)
+            if why:
+                refused.append((t, normal, why))
+            else:
+                taken.append((t, normal))
+        self.samples += len(taken)
+        self.samples_refused += len(refused)
+        if self.inner_loop:
+            self.lockin.add_samples(taken)
+        return refused
+
+    def _latest_reading(self) -> float:
+        """The latest time a reading may be stamped [s]: :data:`MAX_LEAD_WINDOWS` windows past
+        the latest window end taken (inf before one is)."""
+        if self._last_boundary is None:
+            return math.inf
+        return self._last_boundary + MAX_LEAD_WINDOWS * self.loop.cycles / self.loop.frequency
+
+    def _implausible(self, t: float, normal: float, latest: float) -> str:
+        """Why a sample (t, normal) is from no plant in force, or '' (``latest``: :meth:`_latest_reading`)."""
         if not (math.isfinite(t) and math.isfinite(normal)):
             return "must be finite"
         if abs(normal) > self.plausible_reading:
             return (f"|linear_acceleration.z| must be <= {self.plausible_reading:.6g} m/s^2, {PLAUSIBLE_FACTOR:g} x "
                     "(g + 2 A G_peak) of the model: no slideway of it vibrates harder")
-        if self._last_boundary is not None:
-            latest = self._last_boundary + MAX_LEAD_WINDOWS * self.loop.cycles / self.loop.frequency
-            if t > latest:
-                return (f"stamped ahead of the plant: must be <= {latest!r} s, the latest window end taken "
-                        f"({self._last_boundary!r} s) plus {MAX_LEAD_WINDOWS} windows")
+        if t > latest:
+            return (f"stamped ahead of the plant: must be <= {latest!r} s, the latest window end taken "
+                    f"({self._last_boundary!r} s) plus {MAX_LEAD_WINDOWS} windows")
         return ""
 
     def boundary(self, t: float, wanted_amplitude: float) -> DriveCommand:
@@ -212,4 +234,4 @@ def drive_settings(values: Mapping[str, Any]) -> tuple[bool, bool, int]:
             int(values.get("mean_window_periods", spec.MEAN_WINDOW_PERIODS.default)))
 
 
-__all__ = ["DriveCommand", "DriveRuntime", "drive_settings", "outer_model"]
+__all__ = ["DriveCommand", "DriveRuntime", "drive_settings", "outer_model", "refusal_text"]

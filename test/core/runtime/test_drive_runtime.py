@@ -208,3 +208,30 @@ def test_a_level_worked_out_saturates_at_the_specs_drive_range() -> None:
     looped = DriveRuntime(PLANT, 50.0, 0.5 * per_level, inner_loop=True, tracking=False, cycles=1)
     levels = [looped.boundary(k / 50.0, beyond).level for k in range(1, 40)]
     assert max(levels) == high and min(levels) >= low
+
+
+def test_a_window_of_readings_taken_at_once_is_taken_as_one_at_a_time() -> None:
+    """take_accelerations (a window's readings at once, as a linked controller takes them)
+    refuses, counts and feeds the lock-in exactly as taking each in turn does: the refused
+    ones' errors in order, each naming its reading, the others in the lock-in in order."""
+    batch, single = RealtimeController(values()), RealtimeController(values())
+    assert batch.drive is not None and single.drive is not None
+    limit = batch.drive.plausible_reading
+    readings = [(0.001, 9.0), (0.002, math.nan), (0.003, 2.0 * limit), (0.004, 9.5), (math.inf, 9.0),
+                (0.003, 9.25)]  # (the last out of order: the lock-in notes it)
+    errors = batch.take_accelerations(readings)
+    expected = []
+    for t, normal in readings:
+        try:
+            single.take_acceleration(t, normal)
+        except ParameterError as error:
+            expected.append(str(error))
+    assert [str(error) for error in errors] == expected and len(expected) == 3
+    assert "nan" in expected[0] and "linear_acceleration.z" in expected[1] and "inf" in expected[2]
+    for runtime in (batch, single):
+        assert runtime.drive is not None
+        assert (runtime.drive.samples, runtime.drive.samples_refused, runtime.rejected) == (3, 3, 3)
+    assert batch.last_rejection == single.last_rejection
+    assert batch.drive.lockin._samples == single.drive.lockin._samples  # noqa: SLF001 (what the lock-in keeps)
+    assert batch.drive.lockin._in_order is single.drive.lockin._in_order is False  # noqa: SLF001
+    assert batch.take_accelerations([]) == []
