@@ -290,12 +290,12 @@ class DriveLoop:
         """The first of two drive levels that put the slideway into the reference's
         steady motion two periods on (an affine map of the two levels, solved);
         ``elapsed`` is the period that just ended, ``period`` the coming ones."""
-        def after(first: float, second: float) -> tuple[float, float]:
-            way = self._driven(self._driven(self._way, elapsed, first), period, second)
-            return self._state(way, period)
+        def after(ended: Slideway, second: float) -> tuple[float, float]:
+            return self._state(self._driven(ended, period, second), period)
 
-        origin = after(0.0, 0.0)
-        by_first, by_second = after(1.0, 0.0), after(0.0, 1.0)
+        at_rest = self._driven(self._way, elapsed, 0.0)  # (the first period at level 0, for two of the three)
+        origin = after(at_rest, 0.0)
+        by_first, by_second = after(self._driven(self._way, elapsed, 1.0), 0.0), after(at_rest, 1.0)
         a0, a1 = by_first[0] - origin[0], by_first[1] - origin[1]  # the map's columns: what each level moves
         b0, b1 = by_second[0] - origin[0], by_second[1] - origin[1]
         goal = self._state(steady_slideway(self._reference, self._lag(), self._omega(), self._lam()), 0.0)
