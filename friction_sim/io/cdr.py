@@ -334,22 +334,29 @@ def diagnostic_status(level: int, name: str, message: str, hardware_id: str,
     out = bytearray(_LITTLE_ENDIAN)
     out.append(level)
     for text in (name, message, hardware_id):
-        _cdr_string(out, text)
+        _append_aligned(out, _named(text))
     out += b"\x00" * (-len(out) % 4)
     out += _U32.pack(len(values))
     for key, value in values:
-        _cdr_string(out, key)
-        _cdr_string(out, value)
+        _append_aligned(out, _named(key))
+        _append_aligned(out, _cdr_string(value))
     return bytes(out)
 
 
-def _cdr_string(out: bytearray, text: str) -> None:
-    """Append a CDR string: its length (the NUL included) aligned to 4, UTF-8, a NUL."""
+def _append_aligned(out: bytearray, encoded: bytes) -> None:
+    """Append an encoded CDR string, its length aligned to 4 (the header's 4 bytes keep the body's alignment)."""
+    out += b"\x00" * (-len(out) % 4)
+    out += encoded
+
+
+def _cdr_string(text: str) -> bytes:
+    """A CDR string: its length (the NUL included), UTF-8, a NUL."""
     data = text.encode()
-    out += b"\x00" * (-len(out) % 4)  # (the header's 4 bytes keep the body's alignment)
-    out += _U32.pack(len(data) + 1)
-    out += data
-    out.append(0)
+    return _U32.pack(len(data) + 1) + data + b"\x00"
+
+
+#: The names, messages and keys an event's status takes are a few dozen: encoded once each.
+_named = lru_cache(maxsize=512)(_cdr_string)
 
 
 __all__ = [

@@ -323,7 +323,11 @@ def event_fields(event: Event) -> tuple[str, str, list[tuple[str, str]]]:
 
 
 def _mode(mode: Mode | int) -> str:
-    return Mode(mode).name.lower()
+    return _MODE_NAMES[mode]
+
+
+#: A mode's name as an event's status says it.
+_MODE_NAMES: dict[Mode | int, str] = {mode: mode.name.lower() for mode in Mode}
 
 
 # -- parameters -------------------------------------------------------------------
