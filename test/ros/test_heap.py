@@ -43,7 +43,7 @@ def test_a_run_s_collections_leave_what_existed_before_it_alone_and_hand_it_back
     makes is collected as always, and at the end the collector has it all again."""
     import gc
 
-    from friction_sim.ros.heap import run_heap
+    from friction_sim.ros.heap import RUN_YOUNG_THRESHOLD, run_heap
 
     class Cycle:
         def __init__(self) -> None:
@@ -52,12 +52,14 @@ def test_a_run_s_collections_leave_what_existed_before_it_alone_and_hand_it_back
     before = Cycle()
     interpreters = gc.get_freeze_count()  # (Python 3.12 freezes a few hundred of its own at start-up)
     tracked = len(gc.get_objects())
+    thresholds = gc.get_threshold()
     with run_heap():
+        assert gc.get_threshold() == (max(thresholds[0], RUN_YOUNG_THRESHOLD), *thresholds[1:])
         frozen = gc.get_freeze_count()
         assert frozen >= interpreters + tracked and len(gc.get_objects()) < 100  # (only the run's are walked)
         made = Cycle()
         del made
         assert gc.collect() >= 1  # (the run's own garbage, a cycle, is collected)
         assert gc.get_freeze_count() == frozen
-    assert gc.get_freeze_count() == 0
+    assert gc.get_freeze_count() == 0 and gc.get_threshold() == thresholds
     assert any(obj is before for obj in gc.get_objects())  # (tracked again)
