@@ -127,7 +127,7 @@ class SampleLimit:
         """The limits once an accepted sample of ``speed`` [m/s] has come."""
         if self.settling > 0:
             return replace(self, settling=self.settling - 1)
-        if self.within(speed):
+        if self.within(speed) and self.envelope != self.limit:
             return replace(self, envelope=self.limit)
         return self
 

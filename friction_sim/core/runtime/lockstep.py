@@ -27,7 +27,6 @@ samples, period means and diagnostics are made by the same code either way.
 
 from __future__ import annotations
 
-import dataclasses
 import heapq
 import itertools
 import math
@@ -311,7 +310,7 @@ class LockstepSlider(RealtimeSlider):
 
     def _tick(self, wall_ns: int) -> Tick:
         """What the advance made, its samples awaited by the gate."""
-        tick = dataclasses.replace(self.tick(wall_ns), paused=self.gate.paused)
+        tick = self.tick(wall_ns, paused=self.gate.paused)
         for period in tick.periods:
             self.gate.sample(to_ns(period.t))
         return tick

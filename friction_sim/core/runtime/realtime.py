@@ -284,8 +284,9 @@ class RealtimeSlider:
 
     # -- the tick -------------------------------------------------------------
 
-    def tick(self, wall_ns: int) -> Tick:
-        """Advance to the present and collect what happened on the way.
+    def tick(self, wall_ns: int, paused: bool | None = None) -> Tick:
+        """Advance to the present and collect what happened on the way; ``paused``:
+        whether simulation time stands still, as the tick says (None: the clock's).
 
         Raises :class:`SimulationFault` if the state there (or at a log sample
         on the way) is not finite.
@@ -299,7 +300,8 @@ class RealtimeSlider:
         periods = self._periods + self.period_means.new(self.slider, self.marks_before)
         events, samples, accelerations = self.grid.take()
         self._periods = []
-        return Tick(state, events, periods, samples, paused=self.clock.paused, accelerations=accelerations)
+        return Tick(state, events, periods, samples, paused=self.clock.paused if paused is None else paused,
+                    accelerations=accelerations)
 
     def _advance(self, wall_ns: int) -> float:
         """Advance to the present, keeping the events and log samples on the way
