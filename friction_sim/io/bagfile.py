@@ -197,6 +197,12 @@ class EncodedRows:
     prefixes: tuple[str, ...]
     rows: np.ndarray[Any, np.dtype[Any]]
     log_times: np.ndarray[Any, np.dtype[np.int64]]
+    #: What :meth:`BagFile.append_rows` does to every slice, done once: each channel's
+    #: sequence numbers in ``rows`` (views), the rows' bytes, and whether the log times
+    #: ascend (then a slice's first and last are its range).
+    sequences: tuple[np.ndarray[Any, np.dtype[np.uint32]], ...]
+    data: memoryview
+    ascending: bool
 
 
 class BagFile:
@@ -300,7 +306,10 @@ class BagFile:
         for prefix, layout in zip(frame.prefixes, group.layouts):
             rows[f"{prefix}log_time"] = rows[f"{prefix}publish_time"] = log_times
             layout.fill(rows, prefix, log_times, values)
-        return EncodedRows(group, channels, frame.prefixes, rows, log_times)
+        sequences = tuple(rows[f"{prefix}sequence"] for prefix in frame.prefixes)
+        ascending = bool(np.all(log_times[1:] >= log_times[:-1]))
+        return EncodedRows(group, channels, frame.prefixes, rows, log_times, sequences,
+                           rows.view(np.uint8).reshape(-1).data, ascending)
 
     def append_rows(self, encoded: EncodedRows, start: int, stop: int) -> None:
         """Write rows ``start`` to ``stop`` of ``encoded``, numbered on each channel
@@ -308,16 +317,24 @@ class BagFile:
         n = stop - start
         if n <= 0:
             return
-        group, rows, log_times = encoded.group, encoded.rows[start:stop], encoded.log_times[start:stop]
+        group, log_times = encoded.group, encoded.log_times[start:stop]
         counter = np.arange(n, dtype=np.int64)
-        for prefix, channel in zip(encoded.prefixes, encoded.channels):
-            rows[f"{prefix}sequence"] = (self._sequence[channel] + counter) % _SEQUENCE_MOD
+        for sequences, channel in zip(encoded.sequences, encoded.channels):
+            number = self._sequence[channel]
+            if number + n <= _SEQUENCE_MOD:  # (no wrap: the numbers go straight into the rows)
+                np.add(counter, number, out=sequences[start:stop], casting="unsafe")
+            else:
+                sequences[start:stop] = (number + counter) % _SEQUENCE_MOD
         # Built whole: only now change the chunk, its indexes and the sequence numbers.
-        first, low, high = len(self._chunk), int(log_times.min()), int(log_times.max())
+        if encoded.ascending:
+            low, high = int(log_times[0]), int(log_times[-1])
+        else:
+            low, high = int(log_times.min()), int(log_times.max())
+        rows_at = len(self._chunk) + group.row_size * counter  # (where each row starts in the chunk)
         for channel, offset in zip(encoded.channels, group.starts):
             self._sequence[channel] = (self._sequence[channel] + n) % _SEQUENCE_MOD
-            self._channel_chunk(channel).add_many(log_times, first + offset + group.row_size * counter, low, high)
-        self._chunk += rows.view(np.uint8).data
+            self._channel_chunk(channel).add_many(log_times, rows_at + offset, low, high)
+        self._chunk += encoded.data[start * group.row_size:stop * group.row_size]
         self._maybe_end_chunk()
 
     # -- chunks ---------------------------------------------------------------------

@@ -211,3 +211,41 @@ def test_what_it_keeps_for_the_summary_is_bytes_per_chunk_not_objects(tmp_path: 
         summary = make_reader(stream, validate_crcs=True).get_summary()
     assert summary is not None and len(summary.chunk_indexes) == summary.statistics.chunk_count == warm + chunks
     assert all(len(index.message_index_offsets) == len(topics) for index in summary.chunk_indexes)
+
+
+def test_rows_appended_a_slice_at_a_time_number_wrap_and_range_as_one_message_at_a_time(tmp_path: Path) -> None:
+    """Rows of a group written in slices: each message's sequence number follows its channel's
+    (wrapping at 2**32 within a slice), and the chunk's index and time range hold whether the
+    log times ascend or not (a reset sends time back)."""
+    import numpy as np
+
+    from friction_sim.io.recordwriter import state_row_builder
+
+    path = tmp_path / "rows.mcap"
+    log_times = {"ascending": np.array([5, 6, 7, 9, 12], dtype=np.int64) * 10**6,
+                 "not": np.array([9, 3, 7, 1, 12], dtype=np.int64) * 10**6}
+    with path.open("wb") as stream:
+        file = BagFile(stream, DEFAULT_QOS, 1 << 20, RecordingStats(path))
+        file.start("ros2", "test")
+        group = file.row_group(["/pose", "/velocity", "/friction_force"], state_row_builder("rail"), 6)
+        assert group is not None
+        for times in log_times.values():
+            encoded = file.encode_rows(group, times, np.arange(30, dtype=float).reshape(5, 6))
+            channel, _ = file.channels["/velocity"]
+            file._sequence[channel] = 2**32 - 3  # noqa: SLF001 (three numbers before the wrap)
+            file.append_rows(encoded, 0, 2)
+            file.append_rows(encoded, 2, 5)
+            file.flush()
+        file.finish()
+    with path.open("rb") as stream:
+        reader = make_reader(stream, validate_crcs=True)
+        summary = reader.get_summary()
+        messages = [(channel.topic, message.sequence, message.log_time)
+                    for _, channel, message in reader.iter_messages(log_time_order=False)]
+    assert summary is not None and len(summary.chunk_indexes) == 2
+    for index, times in zip(summary.chunk_indexes, log_times.values(), strict=True):
+        assert (index.message_start_time, index.message_end_time) == (int(times.min()), int(times.max()))
+    velocity = [(sequence, log_time) for topic, sequence, log_time in messages if topic == "/velocity"]
+    wrapped = [2**32 - 3, 2**32 - 2, 2**32 - 1, 0, 1]
+    assert velocity == [*zip(wrapped, log_times["ascending"].tolist()), *zip(wrapped, log_times["not"].tolist())]
+    assert [sequence for topic, sequence, _ in messages if topic == "/pose"] == [0, 1, 2, 3, 4, 5, 6, 7, 8, 9]
