@@ -194,7 +194,6 @@ class EncodedRows:
 
     group: RowGroup
     channels: tuple[int, ...]
-    prefixes: tuple[str, ...]
     rows: np.ndarray[Any, np.dtype[Any]]
     log_times: np.ndarray[Any, np.dtype[np.int64]]
     #: What :meth:`BagFile.append_rows` does to every slice, done once: each channel's
@@ -308,7 +307,7 @@ class BagFile:
             layout.fill(rows, prefix, log_times, values)
         sequences = tuple(rows[f"{prefix}sequence"] for prefix in frame.prefixes)
         ascending = bool(np.all(log_times[1:] >= log_times[:-1]))
-        return EncodedRows(group, channels, frame.prefixes, rows, log_times, sequences,
+        return EncodedRows(group, channels, rows, log_times, sequences,
                            rows.view(np.uint8).reshape(-1).data, ascending)
 
     def append_rows(self, encoded: EncodedRows, start: int, stop: int) -> None:

@@ -70,8 +70,9 @@ def fit_period(times: Iterable[float], normal: Iterable[float], t_start: float, 
     holds them at too few phases of the drive to tell its sine from its cosine.
 
     The three unknowns solve the fit's normal equations, their sums correctly
-    rounded (:func:`~friction_sim.core.physics.numerics.solve_positive_definite`):
-    the same reading on every CPU, which a LAPACK least-squares solve is not.
+    rounded (``math.fsum``) and solved in plain floats
+    (:func:`~friction_sim.core.physics.numerics.solve_positive_definite`): the
+    same reading on every CPU, which a LAPACK least-squares solve is not.
     Over a period the three columns are nearly orthogonal (they are orthogonal
     for evenly spread samples), so the normal equations lose nothing to their
     squared condition number."""

@@ -329,8 +329,9 @@ class RealtimeController:
         ahead of the plant, or beyond any slideway of the model: see
         :meth:`DriveRuntime.take_acceleration`) is refused (counted,
         ParameterError with the reason).  Without the inner loop it is only counted."""
-        for refusal in self.take_accelerations(((t, normal),)):
-            raise refusal
+        refused = self.take_accelerations(((t, normal),))
+        if refused:
+            raise refused[0]
 
     def take_accelerations(self, readings: Sequence[tuple[float, float]]) -> list[ParameterError]:
         """Accelerometer samples (t, normal) in the order they came, as

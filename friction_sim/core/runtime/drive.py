@@ -132,7 +132,8 @@ class DriveRuntime:
         [m/s^2]); '' or why it was refused: not finite, stamped ahead of the
         plant (more than :data:`MAX_LEAD_WINDOWS` windows past the latest window
         end taken), or a reading no slideway of the model gives (:data:`PLAUSIBLE_FACTOR`)."""
-        return "".join(refusal_text(*refused) for refused in self.take_accelerations(((t, normal),)))
+        refused = self.take_accelerations(((t, normal),))
+        return refusal_text(*refused[0]) if refused else ""
 
     def take_accelerations(self, readings: Sequence[tuple[float, float]]) -> list[tuple[float, float, str]]:
         """Accelerometer samples (t, normal) in the order they came, as
