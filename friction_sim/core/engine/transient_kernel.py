@@ -18,11 +18,18 @@ ready.  :data:`COMPILED` waits for it instead (benchmarks, batch runs);
 :data:`PLAIN` never compiles (the reference the compiled step is tested
 against, or a platform without Numba).  If compiling fails, one warning
 says why and the plain step stays: slower, never different.
+
+Numba reads the process environment at every function it compiles, by
+iterating ``os.environ``, which is not atomic: a variable that another
+thread removes meanwhile (pytest does so between the phases of every test)
+fails the compile with a ``KeyError`` naming it.  Such a failure says
+nothing about the compile, so it is tried again (:func:`environment_changed`).
 """
 
 from __future__ import annotations
 
 import logging
+import os
 import threading
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -42,6 +49,9 @@ COMPILED = "compiled"
 #: Never compile.
 PLAIN = "plain"
 MODES = (AUTO, COMPILED, PLAIN)
+
+#: How many times a compile is tried while the environment keeps changing beneath it.
+COMPILE_ATTEMPTS = 5
 
 #: The root search's work in this process (see :data:`~friction_sim.core.physics.transient.Work`).
 WORK: np.ndarray = np.zeros(1, np.int64)
@@ -73,12 +83,19 @@ class Kernel:
             return self.thread
 
     def _compile(self, args: tuple[Any, ...]) -> None:
-        try:
-            self.compiled = compile_step(args)
-        except Exception as error:  # noqa: BLE001 (any failure leaves the plain step, which is never wrong)
-            self.failure = f"{type(error).__name__}: {error}"
-            _LOG.warning("the exciter's transient runs interpreted (slower, same numbers): compiling it "
-                         "failed with %s", self.failure)
+        for attempt in range(1, COMPILE_ATTEMPTS + 1):
+            try:
+                self.compiled = compile_step(args)
+                return
+            except Exception as error:  # noqa: BLE001 (any failure leaves the plain step, which is never wrong)
+                reason = f"{type(error).__name__}: {error}"
+                if not environment_changed(error) or attempt == COMPILE_ATTEMPTS:
+                    break
+                _LOG.debug("compiling the exciter's transient again: the environment changed while Numba "
+                           "read it (%s)", reason)
+        self.failure = reason
+        _LOG.warning("the exciter's transient runs interpreted (slower, same numbers): compiling it "
+                     "failed with %s", reason)
 
     def entry(self, p: Plant) -> StepFunction | None:
         """The compiled step if it is ready and was compiled for the types of ``p``'s
@@ -90,6 +107,13 @@ class Kernel:
         if checked[0] is not p:  # (typing a plant costs more than a step: once per plant, either way)
             checked = self.checked = (p, compiled.fits(p))
         return compiled.entry if checked[1] else None
+
+
+def environment_changed(error: Exception) -> bool:
+    """Whether ``error`` is Numba's read of ``os.environ`` losing a race: a ``KeyError``
+    naming a variable that is no longer set (removed by another thread while Numba
+    iterated the environment), which a second compile does not meet."""
+    return isinstance(error, KeyError) and len(error.args) == 1 and error.args[0] not in os.environ
 
 
 class CompiledStep:
