@@ -43,7 +43,11 @@ def test_the_conveyor_figure_draws_the_calibrated_band_in_both_panels(calibrated
     assert len(figure.axes) == 4  # the two panels and a speed axis each
     for band, axes in zip(bands, figure.axes[2:]):
         p = band.prediction
-        assert np.all(p.low <= p.speed) and np.all(p.speed <= p.high) and np.any(p.high > p.low)
+        # Where the speed does not depend on the calibrated parameters the band has no width, and the
+        # estimates' speed and the samples' percentiles differ by rounding alone: of a mean speed taken
+        # from positions summed over the window's periods, two events a period, each one rounding of x.
+        slack = 2 * (WINDOW["settle_periods"] + WINDOW["periods"]) * np.finfo(float).eps * np.abs(p.speed)
+        assert np.all(p.low <= p.speed + slack) and np.all(p.speed <= p.high + slack) and np.any(p.high > p.low)
         (filled,) = axes.collections
         corners = np.vstack([path.vertices for path in filled.get_paths()])
         for x, low, high in zip(band.x, p.low * 1e3, p.high * 1e3):
