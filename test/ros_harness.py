@@ -230,19 +230,20 @@ def flood(namespace: str, rate: int, seconds: float, kind: str = "valid", last: 
     until it has, what we publish is not taken at once.  With ``confirm`` the flooder publishes one
     valid command, :data:`MARK`, prints "matched", and floods only after a line on its stdin: the test
     sends it once the node has taken the mark (a message from this writer got through).  Without it
-    (the benches) it gives the reader a moment."""
+    (the benches) the flooder publishes the mark and waits until every matched reader has
+    acknowledged it: the node's reader has then matched this writer too."""
     rclpy.init()
     node = rclpy.create_node("flooder", namespace=namespace)
     publisher = node.create_publisher(Float64, "drive_force", 10)
     deadline = time.monotonic() + 15.0
     while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
         time.sleep(0.01)  # poll interval: waiting for the subscription to match
+    publisher.publish(Float64(data=MARK))  # reliable, and alone in the history: it arrives once matched
     if confirm:
-        publisher.publish(Float64(data=MARK))  # reliable, and alone in the history: it arrives once matched
         print("matched", flush=True)
         sys.stdin.readline()
-    else:
-        time.sleep(0.3)  # the reader matches our writer a moment after we match it
+    elif not publisher.wait_for_all_acked(Duration(seconds=15.0)):
+        raise SystemExit("flooder: the node's reader never acknowledged the mark in 15 s")
     print("flooding", flush=True)
     # A fixed count, paced at ``rate`` at most: a slow machine floods for longer,
     # never with fewer commands.
