@@ -199,7 +199,7 @@ HARNESS = Path(__file__).resolve()
 INVALID = (math.nan, math.inf, 1e308, -5e6, math.nan, -math.inf, 2e6, -1e300)
 #: The value of the last message of a flood with a final valid command.
 LAST = 0.75
-#: The value of the one valid command a confirming flooder sends before its flood (see :func:`flood`).
+#: The value of the one valid command the flooder sends before its flood (see :func:`flood`).
 MARK = 0.65
 
 
@@ -227,11 +227,11 @@ def flood(namespace: str, rate: int, seconds: float, kind: str = "valid", last: 
     command, :data:`LAST`.  Returns how many were sent (the mark not counted).
 
     Our writer matching the node's reader does not tell that the reader has matched our writer, and
-    until it has, what we publish is not taken at once.  With ``confirm`` the flooder publishes one
-    valid command, :data:`MARK`, prints "matched", and floods only after a line on its stdin: the test
-    sends it once the node has taken the mark (a message from this writer got through).  Without it
-    (the benches) the flooder publishes the mark and waits until every matched reader has
-    acknowledged it: the node's reader has then matched this writer too."""
+    until it has, what we publish is not taken at once.  So the flooder first publishes one valid
+    command, :data:`MARK`.  With ``confirm`` it prints "matched" and floods only after a line on its
+    stdin: the test sends it once the node has taken the mark (a message from this writer got
+    through).  Without it (the benches) it floods once every matched reader has acknowledged the
+    mark: the node's reader has then matched this writer too."""
     rclpy.init()
     node = rclpy.create_node("flooder", namespace=namespace)
     publisher = node.create_publisher(Float64, "drive_force", 10)
